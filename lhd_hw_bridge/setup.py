@@ -1,0 +1,20 @@
+from setuptools import find_packages, setup
+
+package_name = "lhd_hw_bridge"
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        ("share/" + package_name, ["package.xml"]),
+    ],
+    install_requires=["setuptools", "pyserial"],
+    zip_safe=True,
+    maintainer="lhd_loading maintainers",
+    maintainer_email="maintainers@lhd-loading.dev",
+    description="Arduino Due serial bridge of the scaled LHD",
+    license="Apache-2.0",
+    entry_points={"console_scripts": []},
+)

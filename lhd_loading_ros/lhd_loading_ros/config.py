@@ -1,0 +1,230 @@
+"""Load and validate ``config/lhd_params.yaml``, the project's single source of parameters.
+
+Every key has a type and a closed range. A missing, misspelt, mistyped or out-of-range
+key raises :class:`ConfigError` with a message naming the key and what is expected.
+"""
+from __future__ import annotations
+
+import difflib
+import hashlib
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+INF = float("inf")
+
+
+class ConfigError(ValueError):
+    """The parameter file is not what the project expects."""
+
+
+def _f(lo=-INF, hi=INF):
+    return ("float", lo, hi)
+
+
+def _i(lo=-INF, hi=INF):
+    return ("int", lo, hi)
+
+
+# (type, min, max) for every key. Ranges are physical or structural limits, not tuning advice.
+SCHEMA: dict[str, Any] = {
+    "paper": {
+        "ddpg": {
+            "actor_lr": _f(1e-7, 1.0), "critic_lr": _f(1e-7, 1.0), "gamma": _f(0.0, 0.9999),
+            "replay_size": _i(1000, 10_000_000), "batch_size": _i(1, 65536), "tau": _f(1e-6, 1.0),
+            "ou_mu": _f(-1.0, 1.0), "ou_sigma": _f(0.0, 5.0), "ou_theta": _f(0.0, 10.0), "ou_dt": _f(1e-4, 10.0),
+        },
+        "reward": {
+            "R_zone": _f(0, 1e6), "R_traj": _f(0, 1e6), "R_drift": _f(0, 1e6), "R_bottom": _f(0, 1e6),
+            "R_midgoal": _f(0, 1e6), "d_midgoal_max": _f(1e-3, 10.0),
+            "R_stuck": _f(0, 1e6), "T_stuck": _i(1, 200), "delta_thresh": _f(0.0, 1.0),
+            "R_inact": _f(0, 1e6), "u_thresh_boom": _f(0.0, 1.0), "u_thresh_bucket": _f(0.0, 1.0),
+            "R_weight": _f(0, 1e6), "R_dump": _f(0, 1e6), "phi_thresh_pitch_deg": _f(-90, 90),
+            "R_success": _f(0, 1e6), "W_target": _f(1e-3, 1e4), "phi_target_deg": _f(-90, 90),
+            "rho_thresh_W": _f(1e-6, 1e3), "rho_thresh_phi_deg": _f(1e-6, 90),
+        },
+        "observation": {
+            "d_end_max": _f(1e-3, 10.0), "x_init_obs": _f(0.0, 5.0), "x_obs": _f(1e-2, 10.0),
+            "y_obs": _f(1e-2, 10.0), "z_obs": _f(1e-2, 10.0),
+        },
+        "control": {
+            "frequency_hz": _f(0.1, 1000.0), "wheels_min": _f(0.0, 0.0), "wheels_max": _f(0.0, 100.0),
+            "boom_min": _f(-10.0, 0.0), "boom_max": _f(0.0, 0.0),
+            "bucket_min": _f(0.0, 0.0), "bucket_max": _f(0.0, 10.0),
+        },
+        "voxels": {"n_x": _i(2, 1000), "n_y": _i(1, 200), "n_z": _i(2, 1000)},
+        "end_zone": {"m_min": _f(0.0, 1e5), "m_max": _f(0.0, 1e5), "z_min": _f(0.0, 5.0)},
+        "episode": {
+            "h_pile": _f(0.05, 10.0), "w_pile": _f(0.05, 10.0),
+            "alpha_min_deg": _f(1.0, 60.0), "alpha_max_deg": _f(1.0, 60.0),
+            "d_attack_min": _f(0.0, 5.0), "d_attack_max": _f(0.0, 5.0), "d_init": _f(0.0, 2.0),
+            "max_steps": _i(1, 100000),
+        },
+    },
+    "task": {
+        "bucket_capacity": _f(0.1, 1e4), "loaded_fraction": _f(0.0, 1.0), "d_cutoff": _f(0.0, 5.0),
+        "x_midgoal": _f(0.0, 10.0), "x_delta": _f(0.0, 5.0), "x_offset": _f(-10.0, 10.0),
+        "z_offset": _f(-10.0, 10.0), "rail_exponent": _i(1, 99), "v_x_max": _f(1e-3, 20.0),
+        "boom_angle_min": _f(-3.2, 0.0), "boom_angle_max": _f(0.0, 3.2),
+        "bucket_angle_min": _f(-3.2, 0.0), "bucket_angle_max": _f(0.0, 3.2),
+        "phi_shovel_min_deg": _f(-180, 0), "phi_shovel_max_deg": _f(0, 180),
+        "drift_slip_ratio": _f(0.0, 1.0), "drift_min_speed": _f(0.0, 5.0),
+        "rlc_boom_saturate": _f(-1.0, 1.0), "rlc_bucket_saturate": _f(-1.0, 1.0), "rld_threshold": _f(-1.0, 1.0),
+        "bottom_tolerance": _f(0.0, 0.5),
+    },
+    "machine": {
+        "total_mass": _f(1.0, 1e5), "chassis_mass": _f(0.1, 1e5), "rear_mass_fraction": _f(0.05, 0.95),
+        "rear_com_behind_axle": _f(-2.0, 2.0), "boom_mass": _f(0.1, 1e4),
+        "bucket_mass": _f(0.1, 1e4), "wheel_mass": _f(0.01, 1e3), "wheel_radius": _f(0.01, 5.0),
+        "wheelbase": _f(0.1, 20.0), "track": _f(0.1, 10.0), "wheel_friction": _f(0.05, 3.0),
+        "wheel_torque_limit": _f(0.1, 1e5), "wheel_kv": _f(0.1, 1e5),
+        "boom_pivot_ahead_of_front_axle": _f(-2.0, 5.0), "boom_pivot_height": _f(0.05, 5.0),
+        "boom_length": _f(0.05, 10.0), "bucket_hinge_height": _f(0.01, 5.0),
+        "bucket_tip_ahead_of_hinge": _f(0.01, 5.0), "bucket_width": _f(0.05, 10.0),
+        "bucket_back_height": _f(0.01, 5.0), "boom_force_limit": _f(1.0, 1e7), "boom_kp": _f(1.0, 1e8), "boom_kv": _f(1.0, 1e7),
+        "bucket_force_limit": _f(1.0, 1e7), "bucket_kp": _f(1.0, 1e8), "bucket_kv": _f(1.0, 1e7), "bucket_floor_friction": _f(0.0, 3.0),
+    },
+    "pile": {
+        "density_min": _f(500, 5000), "density_max": _f(500, 5000),
+        "phi_min_deg": _f(5, 60), "phi_max_deg": _f(5, 60), "delta_min_deg": _f(0, 45), "delta_max_deg": _f(0, 45),
+        "cohesion_min": _f(0, 1e6), "cohesion_max": _f(0, 1e6), "adhesion": _f(0, 1e6),
+        "surcharge_min": _f(0, 1e7), "surcharge_max": _f(0, 1e7),
+        "rock_density": _f(500, 6000), "rock_phi_deg": _f(5, 60), "rock_delta_deg": _f(0, 45),
+        "rock_size_min": _f(0.001, 2.0), "rock_size_max": _f(0.001, 2.0),
+        "rocks_min": _i(0, 1000), "rocks_max": _i(0, 1000), "nonhomogeneous_probability": _f(0.0, 1.0),
+        "rake_attack_deg": _f(1, 179), "rake_min_deg": _f(1, 179), "rake_max_deg": _f(1, 179),
+        "fee_min_speed": _f(1e-4, 1.0),
+    },
+    "sim": {"timestep": _f(1e-4, 0.05), "fee_every": _i(1, 1000), "attack_timeout": _f(0.1, 100.0)},
+}
+
+# Relations between keys: (description, predicate).
+_RELATIONS = [
+    ("paper.end_zone.m_min < paper.end_zone.m_max", lambda c: c["paper"]["end_zone"]["m_min"] < c["paper"]["end_zone"]["m_max"]),
+    ("paper.episode.alpha_min_deg < paper.episode.alpha_max_deg",
+     lambda c: c["paper"]["episode"]["alpha_min_deg"] < c["paper"]["episode"]["alpha_max_deg"]),
+    ("paper.episode.d_attack_min <= paper.episode.d_attack_max",
+     lambda c: c["paper"]["episode"]["d_attack_min"] <= c["paper"]["episode"]["d_attack_max"]),
+    ("pile.density_min <= pile.density_max", lambda c: c["pile"]["density_min"] <= c["pile"]["density_max"]),
+    ("pile.phi_min_deg <= pile.phi_max_deg", lambda c: c["pile"]["phi_min_deg"] <= c["pile"]["phi_max_deg"]),
+    ("pile.delta_min_deg <= pile.delta_max_deg", lambda c: c["pile"]["delta_min_deg"] <= c["pile"]["delta_max_deg"]),
+    ("pile.cohesion_min <= pile.cohesion_max", lambda c: c["pile"]["cohesion_min"] <= c["pile"]["cohesion_max"]),
+    ("pile.surcharge_min <= pile.surcharge_max", lambda c: c["pile"]["surcharge_min"] <= c["pile"]["surcharge_max"]),
+    ("pile.rock_size_min <= pile.rock_size_max", lambda c: c["pile"]["rock_size_min"] <= c["pile"]["rock_size_max"]),
+    ("pile.rocks_min <= pile.rocks_max", lambda c: c["pile"]["rocks_min"] <= c["pile"]["rocks_max"]),
+    ("pile.rake_min_deg <= pile.rake_attack_deg <= pile.rake_max_deg",
+     lambda c: c["pile"]["rake_min_deg"] <= c["pile"]["rake_attack_deg"] <= c["pile"]["rake_max_deg"]),
+    ("machine.bucket_hinge_height < machine.boom_pivot_height",
+     lambda c: c["machine"]["bucket_hinge_height"] < c["machine"]["boom_pivot_height"]),
+    ("machine.boom_pivot_height - machine.bucket_hinge_height < machine.boom_length",
+     lambda c: c["machine"]["boom_pivot_height"] - c["machine"]["bucket_hinge_height"] < c["machine"]["boom_length"]),
+    ("machine masses add up to machine.total_mass within 1 kg",
+     lambda c: abs(c["machine"]["chassis_mass"] + c["machine"]["boom_mass"] + c["machine"]["bucket_mass"]
+                   + 4 * c["machine"]["wheel_mass"] - c["machine"]["total_mass"]) <= 1.0),
+    ("paper.control.wheels_max * machine.wheel_radius < task.v_x_max",
+     lambda c: c["paper"]["control"]["wheels_max"] * c["machine"]["wheel_radius"] < c["task"]["v_x_max"]),
+]
+
+
+def _check(node: Any, schema: Any, path: str, errors: list[str]) -> None:
+    if not isinstance(node, dict):
+        errors.append(f"'{path}' must be a mapping of keys, got {type(node).__name__}")
+        return
+    for key in node:
+        if key not in schema:
+            close = difflib.get_close_matches(str(key), list(schema), n=1)
+            hint = f" (did you mean '{close[0]}'?)" if close else ""
+            errors.append(f"unknown key '{path}{key}'{hint}; expected one of: {', '.join(schema)}")
+    for key, spec in schema.items():
+        full = f"{path}{key}"
+        if key not in node:
+            errors.append(f"missing key '{full}'" + ("" if isinstance(spec, dict) else f" (expected {_describe(spec)})"))
+            continue
+        val = node[key]
+        if isinstance(spec, dict):
+            _check(val, spec, full + ".", errors)
+            continue
+        kind, lo, hi = spec
+        if isinstance(val, bool) or not isinstance(val, (int, float)):
+            errors.append(f"'{full}' = {val!r} is not a number; expected {_describe(spec)}")
+            continue
+        if kind == "int" and not float(val).is_integer():
+            errors.append(f"'{full}' = {val!r} must be an integer; expected {_describe(spec)}")
+            continue
+        if not (lo <= val <= hi) or val != val:
+            errors.append(f"'{full}' = {val!r} is out of range; expected {_describe(spec)}")
+
+
+def _describe(spec) -> str:
+    kind, lo, hi = spec
+    return f"{kind} in [{lo:g}, {hi:g}]"
+
+
+def validate(cfg: Any) -> dict:
+    """Validate a parsed config mapping; return it with ints converted. Raises ConfigError."""
+    errors: list[str] = []
+    _check(cfg, SCHEMA, "", errors)
+    if not errors:
+        for desc, pred in _RELATIONS:
+            if not pred(cfg):
+                errors.append(f"relation violated: {desc}")
+    if errors:
+        raise ConfigError("invalid LHD parameters:\n  - " + "\n  - ".join(errors))
+    _coerce(cfg, SCHEMA)
+    return cfg
+
+
+def _coerce(node, schema):
+    for key, spec in schema.items():
+        if isinstance(spec, dict):
+            _coerce(node[key], spec)
+        elif spec[0] == "int":
+            node[key] = int(node[key])
+        else:
+            node[key] = float(node[key])
+
+
+def default_config_path() -> Path:
+    """$LHD_CONFIG, else config/lhd_params.yaml of the source tree, else the installed share copy."""
+    env = os.environ.get("LHD_CONFIG")
+    if env:
+        return Path(env)
+    here = Path(__file__).resolve()
+    for parent in here.parents:
+        cand = parent / "config" / "lhd_params.yaml"
+        if cand.is_file():
+            return cand
+    try:  # colcon install: share/lhd_loading_ros/config
+        from ament_index_python.packages import get_package_share_directory
+
+        cand = Path(get_package_share_directory("lhd_loading_ros")) / "config" / "lhd_params.yaml"
+        if cand.is_file():
+            return cand
+    except Exception:  # noqa: BLE001 - ament index absent or package not installed there
+        pass
+    raise ConfigError("cannot find config/lhd_params.yaml: set LHD_CONFIG to its path")
+
+
+def load_config(path: str | os.PathLike | None = None) -> dict:
+    """Read and validate the parameter file (default: :func:`default_config_path`)."""
+    p = Path(path) if path is not None else default_config_path()
+    try:
+        text = p.read_text()
+    except OSError as exc:
+        raise ConfigError(f"cannot read parameter file {p}: {exc}") from exc
+    try:
+        cfg = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{p} is not valid YAML: {exc}") from exc
+    try:
+        return validate(cfg)
+    except ConfigError as exc:
+        raise ConfigError(f"{p}: {exc}") from None
+
+
+def config_hash(cfg: dict) -> str:
+    """Stable short hash of a validated config (goes into exported policies)."""
+    return hashlib.sha256(json.dumps(cfg, sort_keys=True).encode()).hexdigest()[:16]

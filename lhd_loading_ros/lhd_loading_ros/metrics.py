@@ -1,0 +1,76 @@
+"""Evaluation metrics of the paper: AR, AML, AFF, SL / ASL (appendix), success rate,
+elapsed time, front and rear drift as a percentage of the episode's time."""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+SL_BANDS = ((28.0, 5), (26.0, 4), (24.0, 3), (22.0, 2), (20.0, 1))
+
+
+def success_level(W: float, phi: float, phi_thresh: float) -> int:
+    """Eq. success_rate_levels: 5..1 for W >= 28, 26, 24, 22, 20 kg with phi^T > phi_thresh, else 0."""
+    if not phi > phi_thresh:
+        return 0
+    for lo, level in SL_BANDS:
+        if W >= lo:
+            return level
+    return 0
+
+
+@dataclass
+class EpisodeResult:
+    ret: float               # undiscounted return
+    loaded: float            # W^T, kg
+    phi_final: float         # phi_shovel^T, rad
+    reached_end_zone: bool
+    failed: bool             # restricted zone
+    truncated: bool
+    steps: int
+    elapsed_s: float
+    front_drift_pct: float
+    rear_drift_pct: float
+    success_level: int
+    alpha_deg: float = float("nan")
+    material: str = "homogeneous"
+
+    @property
+    def success(self) -> bool:
+        """A loading attempt succeeds when the bucket reaches the end zone holding at least
+        20 kg with phi^T > phi_thresh (SL >= 1), as the paper's real-world definition."""
+        return self.reached_end_zone and self.success_level >= 1
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["success"] = self.success
+        return d
+
+
+def aggregate(results: list[EpisodeResult], bucket_capacity: float) -> dict:
+    """AR, AML, AFF, ASL, success rate, elapsed time and drift over a list of episodes."""
+    if not results:
+        raise ValueError("aggregate needs at least one episode result")
+    r = results
+    mean = lambda xs: float(np.mean(xs))  # noqa: E731
+    return {
+        "episodes": len(r),
+        "ar": mean([e.ret for e in r]),
+        "aml": mean([e.loaded for e in r]),
+        "aff": mean([e.loaded / bucket_capacity for e in r]),
+        "asl": mean([e.success_level for e in r]),
+        "success_rate": mean([1.0 if e.success else 0.0 for e in r]),
+        "end_zone_rate": mean([1.0 if e.reached_end_zone else 0.0 for e in r]),
+        "elapsed_s": mean([e.elapsed_s for e in r]),
+        "front_drift_pct": mean([e.front_drift_pct for e in r]),
+        "rear_drift_pct": mean([e.rear_drift_pct for e in r]),
+    }
+
+
+def drift_pct(flags: list[bool]) -> float:
+    return 100.0 * (sum(1 for f in flags if f) / len(flags)) if flags else 0.0
+
+
+def isfinite_all(d: dict) -> bool:
+    return all(math.isfinite(v) for v in d.values() if isinstance(v, float))

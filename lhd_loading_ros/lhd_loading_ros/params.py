@@ -1,0 +1,105 @@
+"""Flat, typed view of the validated config used by the task math (angles in radians)."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class TaskParams:
+    # reward constants (paper table)
+    R_zone: float
+    R_traj: float
+    R_drift: float
+    R_bottom: float
+    R_midgoal: float
+    d_midgoal_max: float
+    R_stuck: float
+    T_stuck: int
+    delta_thresh: float
+    R_inact: float
+    u_thresh_boom: float
+    u_thresh_bucket: float
+    R_weight: float
+    R_dump: float
+    phi_thresh_pitch: float
+    R_success: float
+    W_target: float
+    phi_target: float
+    rho_thresh_W: float
+    rho_thresh_phi: float
+    # observation
+    d_end_max: float
+    x_init_obs: float
+    x_obs: float
+    y_obs: float
+    z_obs: float
+    # control
+    control_dt: float
+    wheels_min: float
+    wheels_max: float
+    boom_min: float
+    boom_max: float
+    bucket_min: float
+    bucket_max: float
+    # zones / pile
+    m_min: float
+    m_max: float
+    z_min: float
+    h_pile: float
+    w_pile: float
+    alpha_min: float
+    alpha_max: float
+    d_init: float
+    max_steps: int
+    # task choices
+    bucket_capacity: float
+    loaded_fraction: float
+    d_cutoff: float
+    x_midgoal: float
+    x_delta: float
+    x_offset: float
+    z_offset: float
+    rail_exponent: int
+    v_x_max: float
+    boom_angle_min: float
+    boom_angle_max: float
+    bucket_angle_min: float
+    bucket_angle_max: float
+    phi_shovel_min: float
+    phi_shovel_max: float
+    drift_slip_ratio: float
+    drift_min_speed: float
+    rlc_boom_saturate: float
+    rlc_bucket_saturate: float
+    rld_threshold: float
+    bottom_tolerance: float
+
+    @classmethod
+    def from_config(cls, cfg: dict) -> "TaskParams":
+        p, t = cfg["paper"], cfg["task"]
+        r, o, c, e, z = p["reward"], p["observation"], p["control"], p["episode"], p["end_zone"]
+        rad = math.radians
+        return cls(
+            R_zone=r["R_zone"], R_traj=r["R_traj"], R_drift=r["R_drift"], R_bottom=r["R_bottom"],
+            R_midgoal=r["R_midgoal"], d_midgoal_max=r["d_midgoal_max"], R_stuck=r["R_stuck"],
+            T_stuck=r["T_stuck"], delta_thresh=r["delta_thresh"], R_inact=r["R_inact"],
+            u_thresh_boom=r["u_thresh_boom"], u_thresh_bucket=r["u_thresh_bucket"], R_weight=r["R_weight"],
+            R_dump=r["R_dump"], phi_thresh_pitch=rad(r["phi_thresh_pitch_deg"]), R_success=r["R_success"],
+            W_target=r["W_target"], phi_target=rad(r["phi_target_deg"]), rho_thresh_W=r["rho_thresh_W"],
+            rho_thresh_phi=rad(r["rho_thresh_phi_deg"]),
+            d_end_max=o["d_end_max"], x_init_obs=o["x_init_obs"], x_obs=o["x_obs"], y_obs=o["y_obs"], z_obs=o["z_obs"],
+            control_dt=1.0 / c["frequency_hz"], wheels_min=c["wheels_min"], wheels_max=c["wheels_max"],
+            boom_min=c["boom_min"], boom_max=c["boom_max"], bucket_min=c["bucket_min"], bucket_max=c["bucket_max"],
+            m_min=z["m_min"], m_max=z["m_max"], z_min=z["z_min"], h_pile=e["h_pile"], w_pile=e["w_pile"],
+            alpha_min=rad(e["alpha_min_deg"]), alpha_max=rad(e["alpha_max_deg"]), d_init=e["d_init"],
+            max_steps=e["max_steps"],
+            bucket_capacity=t["bucket_capacity"], loaded_fraction=t["loaded_fraction"], d_cutoff=t["d_cutoff"],
+            x_midgoal=t["x_midgoal"], x_delta=t["x_delta"], x_offset=t["x_offset"], z_offset=t["z_offset"],
+            rail_exponent=t["rail_exponent"], v_x_max=t["v_x_max"], boom_angle_min=t["boom_angle_min"],
+            boom_angle_max=t["boom_angle_max"], bucket_angle_min=t["bucket_angle_min"],
+            bucket_angle_max=t["bucket_angle_max"], phi_shovel_min=rad(t["phi_shovel_min_deg"]),
+            phi_shovel_max=rad(t["phi_shovel_max_deg"]), drift_slip_ratio=t["drift_slip_ratio"],
+            drift_min_speed=t["drift_min_speed"], rlc_boom_saturate=t["rlc_boom_saturate"],
+            rlc_bucket_saturate=t["rlc_bucket_saturate"], rld_threshold=t["rld_threshold"], bottom_tolerance=t["bottom_tolerance"],
+        )

@@ -1,0 +1,34 @@
+import os
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = "lhd_loading_ros"
+here = os.path.dirname(os.path.abspath(__file__))
+
+data_files = [
+    ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+    ("share/" + package_name, ["package.xml"]),
+]
+# The shared parameter files live in <repo>/config; colcon installs a copy into share/.
+config_files = glob(os.path.join(os.path.relpath(os.path.join(here, "..", "config")), "*.yaml"))
+if config_files:
+    data_files.append(("share/" + package_name + "/config", config_files))
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    data_files=data_files,
+    install_requires=["setuptools", "numpy", "pyyaml"],
+    zip_safe=True,
+    maintainer="lhd_loading maintainers",
+    maintainer_email="maintainers@lhd-loading.dev",
+    description="Task core, training, policy and perception nodes, and the lhd command line",
+    license="Apache-2.0",
+    entry_points={
+        "console_scripts": [
+            "lhd = lhd_loading_ros.cli:main",
+        ],
+    },
+)

@@ -1,0 +1,127 @@
+"""Gymnasium environment ``LhdLoading-v0``: the paper's loading POMDP on the MuJoCo simulator.
+
+Observation: the 12-vector of lhd_loading_ros.observation. Action: [-1, 1]^3
+(wheels, boom, bucket). variant="rld" passes boom and bucket through the hybrid filter
+(threshold 0) before they reach the machine; variant="rlc" keeps them continuous
+(deploy_filter=True adds the RLC deployment filter, as on the real machine).
+An episode ends with success (bucket tip in the end zone), failure (restricted zone), or
+truncation after max_steps (200) control steps, which is not a terminal state.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from lhd_loading_ros.actions import apply_variant_filter, to_actuator, validate_action
+from lhd_loading_ros.config import load_config
+from lhd_loading_ros.metrics import EpisodeResult, drift_pct, success_level
+from lhd_loading_ros.observation import OBS_HIGH, OBS_LOW, build_observation
+from lhd_loading_ros.reward import RewardTracker
+from lhd_loading_ros.zones import classify
+
+from .simulator import MATERIALS, LhdSimulator
+
+VARIANTS = ("rld", "rlc")
+
+
+class LhdLoadingEnv(gym.Env):
+    metadata = {"render_modes": [], "render_fps": 10}
+
+    def __init__(self, variant: str = "rld", config: dict | str | None = None, slope_deg: float | None = None,
+                 material: str | None = None, deploy_filter: bool = False):
+        if variant not in VARIANTS:
+            raise ValueError(f"variant must be one of {VARIANTS}, got {variant!r}")
+        if material is not None and material not in MATERIALS:
+            raise ValueError(f"material must be one of {MATERIALS} or None (random), got {material!r}")
+        self.cfg = config if isinstance(config, dict) else load_config(config)
+        self.sim = LhdSimulator(self.cfg)
+        self.p = self.sim.p
+        if slope_deg is not None:
+            lo, hi = math.degrees(self.p.alpha_min), math.degrees(self.p.alpha_max)
+            if not (lo - 1e-9 <= slope_deg <= hi + 1e-9):
+                raise ValueError(f"slope_deg must be in [{lo:g}, {hi:g}] degrees, got {slope_deg}")
+        self.variant = variant
+        self.slope_deg = slope_deg
+        self.material = material
+        self.deploy_filter = deploy_filter
+        self.observation_space = gym.spaces.Box(OBS_LOW, OBS_HIGH, dtype=np.float32)
+        self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
+        self._done = True
+
+    # ------------------------------------------------------------------ gym API
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        options = options or {}
+        slope = options.get("slope_deg", self.slope_deg)
+        alpha = None if slope is None else math.radians(slope)
+        self.sim.reset(self.np_random, alpha=alpha, material=options.get("material", self.material),
+                       d_attack=options.get("d_attack"), attack_speed=options.get("attack_speed"))
+        s = self.sim.state()
+        self.tracker = RewardTracker(self.p, self.sim.zones, self.p.h_pile)
+        self.tracker.reset(s)
+        self.steps = 0
+        self.ret = 0.0
+        self._front, self._rear = [], []
+        self._done = False
+        self._state = s
+        return self._obs(s), self._info(s, "running", {})
+
+    def step(self, action):
+        if self._done:
+            raise RuntimeError("step() called on a finished episode; call reset() first")
+        a = validate_action(action)
+        a = apply_variant_filter(a, self.variant, self.p, deploy=self.deploy_filter)
+        u = to_actuator(a, self.p)
+        self.sim.step(u)
+        s = self.sim.state()
+        self.steps += 1
+        zone = classify(s.x_shovel, s.y_shovel, s.z_shovel, self.sim.zones)
+        outcome = {"end": "success", "restricted": "failure"}.get(zone, "running")
+        pile = self.sim.pile
+        inside = 0.0 <= s.x_shovel < pile.L and s.z_shovel < pile.surface_height(s.x_shovel)
+        W = self.sim.loaded_mass
+        terms = self.tracker.step(s, u[1], u[2], W, inside, pile.surface_height(s.x_bottom), outcome)
+        r = float(sum(terms.values()))
+        self.ret += r
+        self._front.append(s.drift_front)
+        self._rear.append(s.drift_rear)
+        terminated = outcome != "running"
+        truncated = (not terminated) and self.steps >= self.p.max_steps
+        self._done = terminated or truncated
+        self._state = s
+        info = self._info(s, outcome, terms, u)
+        if self._done:
+            info["episode_result"] = self.result(outcome, truncated)
+        return self._obs(s), r, terminated, truncated, info
+
+    # ------------------------------------------------------------------ helpers
+    def _obs(self, s):
+        return build_observation(s, self.sim.pile.alpha, self.sim.zones.x_max, self.p)
+
+    def _info(self, s, outcome: str, terms: dict, u=None) -> dict[str, Any]:
+        return {
+            "outcome": outcome, "terms": terms, "loaded_mass": self.sim.loaded_mass,
+            "alpha_deg": math.degrees(self.sim.pile.alpha), "material": self.sim.material,
+            "x_min": self.sim.zones.x_min, "x_max": self.sim.zones.x_max,
+            "drift_front": s.drift_front, "drift_rear": s.drift_rear,
+            "command": None if u is None else u.tolist(),
+        }
+
+    def result(self, outcome: str, truncated: bool) -> EpisodeResult:
+        s = self._state
+        W = self.sim.loaded_mass
+        return EpisodeResult(
+            ret=self.ret, loaded=W, phi_final=s.phi_shovel, reached_end_zone=outcome == "success",
+            failed=outcome == "failure", truncated=truncated, steps=self.steps,
+            elapsed_s=self.steps * self.p.control_dt, front_drift_pct=drift_pct(self._front),
+            rear_drift_pct=drift_pct(self._rear),
+            success_level=success_level(W, s.phi_shovel, self.p.phi_thresh_pitch),
+            alpha_deg=math.degrees(self.sim.pile.alpha), material=self.sim.material,
+        )
+
+    @property
+    def state(self):
+        return self._state

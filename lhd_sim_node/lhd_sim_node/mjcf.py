@@ -1,0 +1,137 @@
+"""MJCF of the 5:1 scaled LHD, generated from config/lhd_params.yaml (section `machine`).
+
+World frame = pile frame {M}: floor at z = 0, the pile's toe at x = 0, the machine drives
+along +x. Joint zeros are the attack pose: the bucket's bottom plate lies on the floor and
+the tip frame's x-axis is parallel to it.
+
+Bodies: rear frame (free joint) -> rear wheels, front frame (central articulation hinge,
+locked by an equality constraint) -> front wheels, boom (hinge about +y: negative lifts)
+-> bucket (hinge about -y: positive curls back). Wheels are spheres in frictional contact
+with the floor driven by speed servos with a torque limit, so the machine can stall (pile
+resistance above the drive force) or drift (drive torque above what friction transmits).
+Boom and bucket are speed servos with force limits, like hydraulics with relief valves.
+The pile is not a collision body: it acts only through the FEE force on the bucket.
+"""
+from __future__ import annotations
+
+import math
+
+PLATE_T = 0.01      # bucket plate thickness, m
+FLOOR_GAP = 0.005   # plate underside above the floor in the attack pose, m
+FEE_ANCHOR_X = -200.0  # m, anchor of the horizontal resistance tendon (far: the tendon stays horizontal)
+
+
+def attack_geometry(mc: dict) -> dict:
+    """Key points of the attack pose (relative to the rear axle centre on the floor)."""
+    r = mc["wheel_radius"]
+    dz_boom = mc["boom_pivot_height"] - mc["bucket_hinge_height"]
+    reach = math.sqrt(mc["boom_length"] ** 2 - dz_boom ** 2)
+    pivot_x = mc["wheelbase"] + mc["boom_pivot_ahead_of_front_axle"]
+    return {
+        "r": r,
+        "pivot": (pivot_x, mc["boom_pivot_height"]),
+        "hinge": (pivot_x + reach, mc["bucket_hinge_height"]),
+        "tip": (pivot_x + reach + mc["bucket_tip_ahead_of_hinge"], FLOOR_GAP + PLATE_T),
+        "reach": reach,
+        "dz_boom": dz_boom,
+    }
+
+
+def build_mjcf(cfg: dict) -> str:
+    mc, sim, ctl = cfg["machine"], cfg["sim"], cfg["paper"]["control"]
+    task = cfg["task"]
+    g = attack_geometry(mc)
+    r = g["r"]
+    wb, tr = mc["wheelbase"], mc["track"]
+    rear_m = mc["chassis_mass"] * mc["rear_mass_fraction"]
+    front_m = mc["chassis_mass"] - rear_m
+    pivot_x, pivot_z = g["pivot"]
+    hinge_dx, hinge_dz = g["reach"], -g["dz_boom"]
+    tip_ahead = mc["bucket_tip_ahead_of_hinge"]
+    bw = mc["bucket_width"]
+    plate_z = -(mc["bucket_hinge_height"] - FLOOR_GAP - PLATE_T / 2)  # plate centre, bucket frame
+    top_z = plate_z + PLATE_T / 2
+    back_h = mc["bucket_back_height"]
+    boom_len = mc["boom_length"]
+    wheel_i = 0.5 * mc["wheel_mass"] * r * r
+    # body frames: rear frame origin at the rear axle (height r); front frame at wb/2 ahead.
+    fx = wb / 2
+    return f"""
+<mujoco model="lhd_scaled_5to1">
+  <compiler angle="radian" autolimits="true"/>
+  <option timestep="{sim['timestep']}" integrator="implicitfast" cone="pyramidal"/>
+  <size memory="2M"/>
+  <default>
+    <geom contype="0" conaffinity="0" friction="0.1 0.005 0.0001" rgba="0.9 0.7 0.1 1"/>
+    <joint damping="0"/>
+  </default>
+  <worldbody>
+    <light pos="0 0 3" dir="0 0 -1"/>
+    <geom name="floor" type="plane" size="0 0 0.05" contype="1" conaffinity="0" rgba="0.5 0.5 0.5 1"/>
+    <site name="fee_anchor" pos="{FEE_ANCHOR_X} 0 0.1"/>
+    <body name="rear_frame" pos="0 0 {r}">
+      <freejoint name="base"/>
+      <inertial pos="{-mc['rear_com_behind_axle']} 0 0.12" mass="{rear_m:.4f}" diaginertia="{rear_m*0.03:.4f} {rear_m*0.04:.4f} {rear_m*0.05:.4f}"/>
+      <geom name="rear_body" type="box" pos="0 0 0.12" size="0.3 0.17 0.1" mass="0"/>
+      <site name="base_link" pos="0 0 0"/>
+      <body name="wheel_rl" pos="0 {tr/2} 0">
+        <joint name="wheel_rl" type="hinge" axis="0 1 0" armature="0.005"/>
+        <geom name="wheel_rl" type="sphere" size="{r}" mass="{mc['wheel_mass']}" contype="0" conaffinity="1" friction="{mc['wheel_friction']} 0.005 0.0001" rgba="0.1 0.1 0.1 1"/>
+      </body>
+      <body name="wheel_rr" pos="0 {-tr/2} 0">
+        <joint name="wheel_rr" type="hinge" axis="0 1 0" armature="0.005"/>
+        <geom name="wheel_rr" type="sphere" size="{r}" mass="{mc['wheel_mass']}" contype="0" conaffinity="1" friction="{mc['wheel_friction']} 0.005 0.0001" rgba="0.1 0.1 0.1 1"/>
+      </body>
+      <body name="front_frame" pos="{fx} 0 0">
+        <joint name="articulation" type="hinge" axis="0 0 1" range="-0.7 0.7"/>
+        <inertial pos="{fx*0.6:.4f} 0 0.12" mass="{front_m:.4f}" diaginertia="{front_m*0.03:.4f} {front_m*0.04:.4f} {front_m*0.05:.4f}"/>
+        <geom name="front_body" type="box" pos="{fx*0.6:.4f} 0 0.12" size="0.3 0.17 0.1" mass="0"/>
+        <body name="wheel_fl" pos="{fx} {tr/2} 0">
+          <joint name="wheel_fl" type="hinge" axis="0 1 0" armature="0.005"/>
+          <geom name="wheel_fl" type="sphere" size="{r}" mass="{mc['wheel_mass']}" contype="0" conaffinity="1" friction="{mc['wheel_friction']} 0.005 0.0001" rgba="0.1 0.1 0.1 1"/>
+        </body>
+        <body name="wheel_fr" pos="{fx} {-tr/2} 0">
+          <joint name="wheel_fr" type="hinge" axis="0 1 0" armature="0.005"/>
+          <geom name="wheel_fr" type="sphere" size="{r}" mass="{mc['wheel_mass']}" contype="0" conaffinity="1" friction="{mc['wheel_friction']} 0.005 0.0001" rgba="0.1 0.1 0.1 1"/>
+        </body>
+        <body name="boom" pos="{pivot_x - fx:.5f} 0 {pivot_z - r:.5f}">
+          <joint name="boom" type="hinge" axis="0 1 0" range="{task['boom_angle_min']} {task['boom_angle_max']}" armature="0.05"/>
+          <geom name="boom" type="capsule" fromto="0 0 0 {hinge_dx:.5f} 0 {hinge_dz:.5f}" size="0.03" mass="{mc['boom_mass']}"/>
+          <body name="bucket" pos="{hinge_dx:.5f} 0 {hinge_dz:.5f}">
+            <joint name="bucket" type="hinge" axis="0 -1 0" range="{task['bucket_angle_min']} {task['bucket_angle_max']}" armature="0.05"/>
+            <inertial pos="{tip_ahead*0.4:.4f} 0 {plate_z + back_h*0.3:.4f}" mass="{mc['bucket_mass']}" diaginertia="0.25 0.3 0.3"/>
+            <geom name="bucket_plate" type="box" pos="{tip_ahead/2:.5f} 0 {plate_z:.5f}" size="{tip_ahead/2:.5f} {bw/2:.4f} {PLATE_T/2}" mass="0" contype="0" conaffinity="1" friction="{mc['bucket_floor_friction']} 0.005 0.0001"/>
+            <geom name="bucket_back" type="box" pos="0 0 {top_z + back_h/2:.5f}" size="{PLATE_T/2} {bw/2:.4f} {back_h/2:.4f}" mass="0"/>
+            <geom name="bucket_side_l" type="box" pos="{tip_ahead/2:.5f} {bw/2:.4f} {top_z + back_h/4:.5f}" size="{tip_ahead/2:.5f} {PLATE_T/2} {back_h/4:.4f}" mass="0"/>
+            <geom name="bucket_side_r" type="box" pos="{tip_ahead/2:.5f} {-bw/2:.4f} {top_z + back_h/4:.5f}" size="{tip_ahead/2:.5f} {PLATE_T/2} {back_h/4:.4f}" mass="0"/>
+            <site name="tip" pos="{tip_ahead:.5f} 0 {top_z:.5f}"/>
+            <site name="bottom" pos="0 0 {plate_z - PLATE_T/2:.5f}"/>
+          </body>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+  <tendon>
+    <!-- Horizontal pile resistance: a nearly horizontal tendon from a far anchor to the tip whose
+         frictionloss is set to the FEE's horizontal component at every FEE update. Dry friction is a
+         constraint in MuJoCo: it stops the bucket without creep and never pushes it back. -->
+    <spatial name="fee_x" frictionloss="0" solreffriction="0.01 1" solimpfriction="0.99 0.999 0.001">
+      <site site="fee_anchor"/>
+      <site site="tip"/>
+    </spatial>
+  </tendon>
+  <equality>
+    <joint name="articulation_lock" joint1="articulation" polycoef="0 0 0 0 0"/>
+  </equality>
+  <actuator>
+    <velocity name="wheel_rl" joint="wheel_rl" kv="{mc['wheel_kv']}" forcerange="{-mc['wheel_torque_limit']} {mc['wheel_torque_limit']}" ctrlrange="{ctl['wheels_min']} {ctl['wheels_max']}"/>
+    <velocity name="wheel_rr" joint="wheel_rr" kv="{mc['wheel_kv']}" forcerange="{-mc['wheel_torque_limit']} {mc['wheel_torque_limit']}" ctrlrange="{ctl['wheels_min']} {ctl['wheels_max']}"/>
+    <velocity name="wheel_fl" joint="wheel_fl" kv="{mc['wheel_kv']}" forcerange="{-mc['wheel_torque_limit']} {mc['wheel_torque_limit']}" ctrlrange="{ctl['wheels_min']} {ctl['wheels_max']}"/>
+    <velocity name="wheel_fr" joint="wheel_fr" kv="{mc['wheel_kv']}" forcerange="{-mc['wheel_torque_limit']} {mc['wheel_torque_limit']}" ctrlrange="{ctl['wheels_min']} {ctl['wheels_max']}"/>
+    <!-- Hydraulic joints: the valve command is a speed; the oil column holds the joint where it is
+         (integrated-velocity position servo), up to the relief force. -->
+    <intvelocity name="boom" joint="boom" kp="{mc['boom_kp']}" kv="{mc['boom_kv']}" forcerange="{-mc['boom_force_limit']} {mc['boom_force_limit']}" ctrlrange="{ctl['boom_min']} {ctl['boom_max']}" actrange="{task['boom_angle_min']} {task['boom_angle_max']}"/>
+    <intvelocity name="bucket" joint="bucket" kp="{mc['bucket_kp']}" kv="{mc['bucket_kv']}" forcerange="{-mc['bucket_force_limit']} {mc['bucket_force_limit']}" ctrlrange="{ctl['bucket_min']} {ctl['bucket_max']}" actrange="{task['bucket_angle_min']} {task['bucket_angle_max']}"/>
+  </actuator>
+</mujoco>
+"""
