@@ -12,7 +12,7 @@ $(STAMP): requirements.txt lhd_loading_ros/setup.py lhd_sim_node/setup.py lhd_hw
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q -r requirements.txt
-	$(PY) -m pip install -q --no-deps -e lhd_loading_ros -e lhd_sim_node -e lhd_hw_bridge
+	$(PY) -m pip install -q --no-deps --config-settings editable_mode=compat -e lhd_loading_ros -e lhd_sim_node -e lhd_hw_bridge
 	touch $(STAMP)
 
 install: $(STAMP)

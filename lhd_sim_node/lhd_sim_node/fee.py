@@ -7,8 +7,14 @@ Luengo, Singh & Cannon (1998), as used by Salas et al. for the LHD bucket:
     D       = cos(rho + delta) + sin(rho + delta) cot(beta + phi)
     N_gamma = (cot beta - tan alpha)(cos alpha + sin alpha cot(beta + phi)) / (2 D)
     N_c     = (1 + cot beta cot(beta + phi)) / D
-    N_q     = (cos alpha + sin alpha cot(beta + phi)) / D
+    N_q     = (cot beta - tan alpha)(cos alpha + sin alpha cot(beta + phi)) / D
     N_a     = (1 - cot rho cot(beta + phi)) / D
+
+N_q differs from the transcription in DESIGN.md, which drops the factor (cot beta - tan alpha):
+the surcharge acts on the wedge's top surface, whose length scales with that factor just as
+the wedge's weight does (N_q = 2 N_gamma, as in Luengo et al.). Without it, at alpha = 0 the
+surcharge would act on a length d instead of d cot(beta); ``test_fee.py`` solves the wedge's
+force balance directly and only the corrected N_q satisfies it.
 
 rho: tool rake angle, delta: soil-tool friction, phi: internal friction,
 alpha: slope of the soil surface ahead of the tool, beta: failure-plane angle,
@@ -45,7 +51,7 @@ def n_factors(beta, alpha, rho, delta, phi):
     slope_term = np.cos(alpha) + np.sin(alpha) * cot_bp
     n_gamma = (cot_b - np.tan(alpha)) * slope_term / (2.0 * D)
     n_c = (1.0 + cot_b * cot_bp) / D
-    n_q = slope_term / D
+    n_q = (cot_b - np.tan(alpha)) * slope_term / D
     n_a = (1.0 - (1.0 / np.tan(rho)) * cot_bp) / D
     return n_gamma, n_c, n_q, n_a, D
 

@@ -1,0 +1,93 @@
+"""LhdLoading-v0: Gymnasium contract, determinism, validation of actions."""
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import lhd_sim_node  # noqa: F401  (registers LhdLoading-v0)
+from lhd_sim_node.env import LhdLoadingEnv
+
+
+@pytest.fixture(scope="module")
+def env():
+    return LhdLoadingEnv(variant="rld")
+
+
+@pytest.mark.parametrize("variant", ["rld", "rlc"])
+def test_check_env_passes(variant):
+    e = gym.make("LhdLoading-v0", variant=variant)
+    check_env(e.unwrapped, skip_render_check=True)
+    assert e.observation_space.shape == (12,) and e.action_space.shape == (3,)
+
+
+def test_seeded_resets_are_deterministic():
+    a, b = LhdLoadingEnv(), LhdLoadingEnv()
+    rng = np.random.default_rng(5)
+    acts = rng.uniform(-1, 1, size=(40, 3))
+    for e in (a, b):
+        e.reset(seed=123)
+    oa, ob = a.reset(seed=7)[0], b.reset(seed=7)[0]
+    np.testing.assert_array_equal(oa, ob)
+    for act in acts:
+        ra, rb = a.step(act), b.step(act)
+        np.testing.assert_array_equal(ra[0], rb[0])
+        assert ra[1] == rb[1] and ra[2] == rb[2] and ra[3] == rb[3]
+        if ra[2] or ra[3]:
+            break
+    # another seed gives another pile
+    assert LhdLoadingEnv().reset(seed=8)[1]["alpha_deg"] != a.reset(seed=7)[1]["alpha_deg"]
+
+
+def test_reset_options_fix_slope_and_material(env):
+    _, info = env.reset(seed=1, options={"slope_deg": 25.0, "material": "nonhomogeneous"})
+    assert info["alpha_deg"] == pytest.approx(25.0) and info["material"] == "nonhomogeneous"
+    # the episode starts with the tip d_init = 0.1 m inside the pile
+    assert 0.1 <= env.state.x_shovel < 0.13
+    assert env.sim.d_attack >= 0.1 and env.sim.d_attack <= 0.2
+
+
+def test_bad_actions_raise_before_the_physics(env):
+    env.reset(seed=2)
+    t0 = env.sim.data.time
+    with pytest.raises(ValueError, match="non-finite"):
+        env.step(np.array([0.0, np.nan, 0.0]))
+    with pytest.raises(ValueError, match="out of range"):
+        env.step(np.array([0.0, 0.0, 2.0]))
+    with pytest.raises(ValueError, match="shape"):
+        env.step(np.zeros(4))
+    assert env.sim.data.time == t0
+
+
+def test_bad_construction_arguments():
+    with pytest.raises(ValueError, match="variant must be one of"):
+        LhdLoadingEnv(variant="ppo")
+    with pytest.raises(ValueError, match="material must be one of"):
+        LhdLoadingEnv(material="sand")
+    with pytest.raises(ValueError, match=r"slope_deg must be in \[15, 30\]"):
+        LhdLoadingEnv(slope_deg=45)
+
+
+def test_truncation_after_200_steps_is_not_termination(env):
+    env.reset(seed=3, options={"slope_deg": 30.0, "material": "homogeneous"})
+    still = np.array([-1.0, 1.0, -1.0])  # wheels off, arm still: nothing happens for 20 s
+    for t in range(200):
+        _, _, term, trunc, info = env.step(still)
+        if t < 199:
+            assert not term and not trunc
+    assert trunc and not term
+    assert info["episode_result"].truncated and info["episode_result"].steps == 200
+    with pytest.raises(RuntimeError, match="finished episode"):
+        env.step(still)
+
+
+def test_rld_filter_reaches_the_actuators(env):
+    env.reset(seed=4)
+    _, _, _, _, info = env.step(np.array([0.0, 0.2, -0.3]))
+    # boom a=0.2 > 0 -> +1 -> 0 rad/s; bucket -0.3 -> -1 -> 0 rad/s
+    assert info["command"] == pytest.approx([1.35, 0.0, 0.0])
+    rlc = LhdLoadingEnv(variant="rlc")
+    rlc.reset(seed=4)
+    _, _, _, _, info = rlc.step(np.array([0.0, 0.2, -0.3]))
+    assert info["command"] == pytest.approx([1.35, -0.191 * 0.4, 0.2 * 0.35])

@@ -1,0 +1,85 @@
+"""Physical sanity of the simulator (issue: section 5), on real MuJoCo."""
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from lhd_sim_node.env import LhdLoadingEnv
+from lhd_sim_node.scripted import push_action, run_episode, scripted_action
+
+
+@pytest.fixture(scope="module")
+def env():
+    return LhdLoadingEnv(variant="rld")
+
+
+def test_model_mass_wheels_and_attack_pose(env):
+    m, d = env.sim.model, env.sim.data
+    assert float(np.sum(m.body_mass)) == pytest.approx(121.0)
+    assert m.geom("wheel_fl").size[0] == pytest.approx(0.137)
+    env.sim.new_pile(np.random.default_rng(0), alpha=math.radians(20))
+    env.sim.place_machine(0.15)
+    tip = d.site_xpos[env.sim.sid_tip]
+    assert tip[0] == pytest.approx(-0.15, abs=1e-4)
+    assert tip[2] < 0.02  # bucket at ground level
+    x_axis = d.site_xmat[env.sim.sid_tip].reshape(3, 3)[:, 0]
+    assert abs(x_axis[2]) < 1e-6  # tip frame x-axis parallel to the floor
+
+
+@pytest.mark.parametrize("slope", [15.0, 20.0, 30.0])
+def test_pushing_without_lifting_ends_stuck_or_drifting(env, slope):
+    res = run_episode(env, push_action, seed=11, options={"slope_deg": slope, "material": "homogeneous"})
+    assert not res.reached_end_zone
+    assert res.truncated  # 20 s against the face
+    assert max(res.front_drift_pct, res.rear_drift_pct) > 50.0
+    s = env.state
+    assert abs(s.v_x) < 0.02  # stalled
+
+
+def test_scripted_maneuver_loads_at_20_degrees(env):
+    for seed in range(3):
+        res = run_episode(env, lambda s: scripted_action(s, env.p.x_midgoal), seed=seed,
+                          options={"slope_deg": 20.0, "material": "homogeneous"})
+        assert res.reached_end_zone, seed
+        assert res.loaded >= 20.0
+        assert res.success_level >= 1
+
+
+def test_pile_force_acts_on_the_bucket_and_payload_adds_mass(env):
+    env.reset(seed=5, options={"slope_deg": 25.0, "material": "homogeneous"})
+    sim = env.sim
+    for _ in range(4):
+        env.step(np.array([1.0, 1.0, -1.0]))
+    fee = sim.last_fee
+    assert fee.magnitude > 100.0 and len(fee.depth) == sim.pile.n_y
+    assert sim.model.tendon_frictionloss[sim.tid_fee] == pytest.approx(-fee.force[0])
+    assert sim.model.body_mass[sim.bid_bucket] == pytest.approx(sim.bucket_mass0 + sim.loaded_mass)
+    assert sim.loaded_mass == pytest.approx(2.0 / 3.0 * sim.pile.removed_mass)
+    # the vertical component goes through xfrc_applied, with its torque about the bucket CoM
+    xf = sim.data.xfrc_applied[sim.bid_bucket]
+    com = sim.data.xipos[sim.bid_bucket]
+    assert xf[4] == pytest.approx(-(env.state.x_shovel - com[0]) * xf[2], rel=0.05, abs=1.0)
+
+
+def test_resistance_grows_with_slope(env):
+    """At the same penetration the pile stops the machine earlier when it is steeper."""
+    stall = []
+    for slope in (15.0, 22.0, 30.0):
+        run_episode(env, push_action, seed=21, options={"slope_deg": slope, "material": "homogeneous",
+                                                         "attack_speed": 2.7, "d_attack": 0.15})
+        stall.append(env.state.x_shovel)
+    assert stall[0] > stall[1] > stall[2]
+
+
+def test_drift_detection_per_axle(env):
+    env.reset(seed=6, options={"slope_deg": 20.0})
+    sim = env.sim
+    d = sim.data
+    d.qvel[0] = 0.2
+    d.qvel[sim.wheel_dof] = 0.2 / 0.137
+    assert sim.wheel_drift() == (False, False)
+    d.qvel[sim.wheel_dof[2]] = 2.7  # rear left spins while the machine moves at 0.2 m/s
+    assert sim.wheel_drift() == (False, True)
+    d.qvel[sim.wheel_dof[0]] = 0.0  # front left locked: skids
+    assert sim.wheel_drift() == (True, True)
