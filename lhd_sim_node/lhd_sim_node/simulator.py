@@ -20,7 +20,9 @@ from lhd_loading_ros.pile import SoilRanges, VoxelPile
 from lhd_loading_ros.state import LhdState
 from lhd_loading_ros.zones import Zones
 
-from .fee import FeeTable
+from .fee import BETA_GRID, FeeTable
+from .fee_kernel import (OUT_SIZE, ST_CUT_X, ST_CUT_Z, ST_FH, ST_FZ, ST_NEXT_CENTER, ST_RAKE, ST_SIZE, ST_TIP_PREV_X,
+                         ST_ENGAGED, ST_W_IDEAL, fee_update, make_grids)
 from .mjcf import attack_geometry, build_mjcf
 
 WHEELS = ("wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr")
@@ -91,6 +93,12 @@ class LhdSimulator:
         self._fee_h = self._fee_v = 0.0
         self._fee_rake = self.rake_attack
         self._fee_depth = ()
+        self.use_kernel = True
+        self.rake_step = math.radians(0.25)
+        vx = cfg["paper"]["voxels"]
+        self._grids, self._filled = make_grids(2, self.rake_lo, self.rake_hi, self.rake_step, len(BETA_GRID))
+        self._kout = np.zeros(OUT_SIZE)
+        self._kdepth = np.zeros(vx["n_y"])
         self._slices = np.zeros(0, dtype=int)
 
     # ------------------------------------------------------------------ episode set-up
@@ -110,7 +118,11 @@ class LhdSimulator:
         s = self.soil
         gravel_phi = float(self.pile.phi[self.pile.klass == 0].flat[0]) if (self.pile.klass == 0).any() else s.rock_phi
         gravel_delta = float(self.pile.delta[self.pile.klass == 0].flat[0]) if (self.pile.klass == 0).any() else s.rock_delta
-        self.fee_table = FeeTable(self.pile.alpha, (gravel_phi, s.rock_phi), (gravel_delta, s.rock_delta))
+        self.fee_table = FeeTable(self.pile.alpha, (gravel_phi, s.rock_phi), (gravel_delta, s.rock_delta),
+                                  rake_step=self.rake_step)
+        self._phis = np.array([gravel_phi, s.rock_phi])
+        self._deltas = np.array([gravel_delta, s.rock_delta])
+        self._filled[:] = False
 
     def place_machine(self, d_attack: float) -> None:
         """Attack pose, at rest, bucket tip d_attack before the toe of the pile."""
@@ -122,6 +134,8 @@ class LhdSimulator:
         m.tendon_frictionloss[self.tid_fee] = 0.0
         mujoco.mj_forward(m, d)
         self.W_ideal = 0.0
+        self.pile.removed_mass = 0.0
+        self._slices = self.pile.slices_in(-self.bucket_width / 2, self.bucket_width / 2)
         self._tip_prev_x = float(d.site_xpos[self.sid_tip][0])
         self._cut_prev_x = self._tip_prev_x
         self._cut_prev_z = float(d.site_xpos[self.sid_tip][2])
@@ -129,7 +143,7 @@ class LhdSimulator:
         self._n_slices = len(self._slices)
         self._fee_h = self._fee_v = 0.0
         d.xfrc_applied[:] = 0.0
-        self._slices = self.pile.slices_in(-self.bucket_width / 2, self.bucket_width / 2)
+        self._bind_kernel()
 
     def reset(self, rng: np.random.Generator, alpha: float | None = None, material: str | None = None,
               d_attack: float | None = None, attack_speed: float | None = None) -> None:
@@ -149,6 +163,8 @@ class LhdSimulator:
             self._physics(self.fee_every)
             mujoco.mj_kinematics(self.model, self.data)
             t += self.fee_dt
+            if self.use_kernel:
+                self._sync_from_kernel()
             if t > self.attack_timeout:
                 raise AttackError(f"the bucket did not reach d_init = {p.d_init} m inside the pile within "
                                   f"{self.attack_timeout} s (tip at x = {self.data.site_xpos[self.sid_tip][0]:.3f} m)")
@@ -168,10 +184,15 @@ class LhdSimulator:
         for _ in range(self.n_phys // self.fee_every):
             self._physics(self.fee_every)
         mujoco.mj_kinematics(self.model, self.data)
+        if self.use_kernel:
+            self._sync_from_kernel()
 
     def _physics(self, n: int) -> None:
         if self.fee_enabled:
-            self._update_fee()
+            if self.use_kernel:
+                self._update_fee()
+            else:
+                self._update_fee_numpy()
         mujoco.mj_step(self.model, self.data, nstep=n)
 
     def _anti_windup(self) -> None:
@@ -182,7 +203,8 @@ class LhdSimulator:
         d.act[self.act_boom_adr] = min(max(d.act[self.act_boom_adr], d.qpos[self.boom_q] - WINDUP), d.qpos[self.boom_q] + WINDUP)
         d.act[self.act_bucket_adr] = min(max(d.act[self.act_bucket_adr], d.qpos[self.bucket_q] - WINDUP), d.qpos[self.bucket_q] + WINDUP)
 
-    def _update_fee(self) -> None:
+    def _update_fee_numpy(self) -> None:
+        """Reference implementation of one FEE update in numpy (the kernel must match it)."""
         d, pile = self.data, self.pile
         tip = d.site_xpos[self.sid_tip]
         x, z = float(tip[0]), float(tip[2])
@@ -248,6 +270,36 @@ class LhdSimulator:
         xfrc[3] = -ramp * float(np.dot(pile.y_centers[j] - com[1], fv))
         xfrc[4] = -(x - float(com[0])) * fz_sum
         self._fee_h, self._fee_v, self._fee_rake, self._fee_depth = fh_sum, fz_sum, rake, depth
+
+    def _update_fee(self) -> None:
+        """One FEE update (compiled kernel): cut the pile, set the horizontal resistance on the
+        tendon and the vertical force and its torque in xfrc_applied."""
+        fee_update(*self._kargs)
+
+    def _bind_kernel(self) -> None:
+        """Bind the kernel's arguments once per episode (views into MuJoCo's and the pile's arrays)."""
+        m, d, pile = self.model, self.data, self.pile
+        st = np.zeros(ST_SIZE)
+        st[ST_CUT_X], st[ST_CUT_Z] = self._cut_prev_x, self._cut_prev_z
+        st[ST_NEXT_CENTER], st[ST_TIP_PREV_X] = self._next_center, self._tip_prev_x
+        st[ST_RAKE] = self.rake_attack
+        self._kst = st
+        self._kargs = (d.site_xpos, d.site_xmat, d.xipos, d.xfrc_applied, m.tendon_frictionloss, m.body_mass,
+                       self.sid_tip, self.bid_bucket, self.tid_fee, self.bucket_mass0, self.p.loaded_fraction,
+                       self.fee_dt, self.fee_min_speed, st, self._slices, pile.top, pile._cum, pile._voxel_mass,
+                       pile.density, pile.cohesion, pile.klass, pile.x_centers, pile.y_centers, pile.dx, pile.dz,
+                       pile.L, pile.h, pile.dy, pile.surcharge, pile.adhesion, pile.alpha, self.rake_attack,
+                       self.rake_lo, self.rake_hi, self.rake_step, self._grids, self._filled, self._phis,
+                       self._deltas, BETA_GRID, self._kdepth, self._kout)
+
+    def _sync_from_kernel(self) -> None:
+        st = self._kst
+        self.W_ideal = st[ST_W_IDEAL]
+        self.pile.removed_mass = st[ST_W_IDEAL]
+        self._cut_prev_x, self._cut_prev_z = st[ST_CUT_X], st[ST_CUT_Z]
+        self._next_center, self._tip_prev_x = st[ST_NEXT_CENTER], st[ST_TIP_PREV_X]
+        self._fee_h, self._fee_v, self._fee_rake = st[ST_FH], st[ST_FZ], st[ST_RAKE]
+        self._fee_depth = self._kdepth[self._kdepth > 0.0].copy() if st[ST_ENGAGED] else ()
 
     @property
     def last_fee(self) -> FeeReport:
