@@ -55,7 +55,7 @@ def test_pile_force_acts_on_the_bucket_and_payload_adds_mass(env):
     assert fee.magnitude > 100.0 and len(fee.depth) == sim.pile.n_y
     assert sim.model.tendon_frictionloss[sim.tid_fee] == pytest.approx(-fee.force[0])
     assert sim.model.body_mass[sim.bid_bucket] == pytest.approx(sim.bucket_mass0 + sim.loaded_mass)
-    assert sim.loaded_mass == pytest.approx(2.0 / 3.0 * sim.pile.removed_mass)
+    assert sim.loaded_mass == pytest.approx(min(2.0 / 3.0 * sim.pile.removed_mass, 37.5))
     # the vertical component goes through xfrc_applied, with its torque about the bucket CoM
     xf = sim.data.xfrc_applied[sim.bid_bucket]
     com = sim.data.xipos[sim.bid_bucket]
@@ -102,3 +102,14 @@ def test_first_episode_equals_a_later_one_with_the_same_seed():
     runs = [run_episode(e, lambda s: scripted_action(s, e.p.x_midgoal), seed=9,
                         options={"slope_deg": 18.0, "material": "homogeneous"}) for _ in range(2)]
     assert runs[0].loaded == runs[1].loaded > 0 and runs[0].steps == runs[1].steps
+
+
+def test_payload_saturates_at_the_heaped_capacity(env):
+    """Stalling deep in a steep pile and then lifting cuts more than the bucket holds: the
+    payload stops at the heaped capacity (37.5 kg) and the bucket body carries exactly that."""
+    run_episode(env, lambda s: scripted_action(s, env.p.x_midgoal, lift_on_drift=True), seed=12,
+                options={"slope_deg": 30.0, "material": "homogeneous"})
+    sim = env.sim
+    assert 2.0 / 3.0 * sim.pile.removed_mass > 37.5
+    assert sim.loaded_mass == 37.5
+    assert sim.model.body_mass[sim.bid_bucket] == pytest.approx(sim.bucket_mass0 + 37.5)

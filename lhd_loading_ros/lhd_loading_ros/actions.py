@@ -7,6 +7,8 @@ bucket [0, 0.2] rad/s (positive curls back). So a_boom = +1 and a_bucket = -1 me
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .params import TaskParams
@@ -21,13 +23,14 @@ def validate_action(a) -> np.ndarray:
     arr = np.asarray(a, dtype=np.float64)
     if arr.shape != (ACT_DIM,):
         raise ValueError(f"action must have shape (3,) = (wheels, boom, bucket) in [-1, 1], got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        bad = [ACT_NAMES[i] for i in np.nonzero(~np.isfinite(arr))[0]]
-        raise ValueError(f"action has non-finite components {bad}: {arr.tolist()}; expected finite values in [-1, 1]")
-    if np.any(np.abs(arr) > 1.0 + ACTION_TOLERANCE):
-        bad = [f"{ACT_NAMES[i]}={arr[i]:.6g}" for i in np.nonzero(np.abs(arr) > 1.0 + ACTION_TOLERANCE)[0]]
+    vals = arr.tolist()
+    bad = [ACT_NAMES[i] for i, v in enumerate(vals) if not math.isfinite(v)]
+    if bad:
+        raise ValueError(f"action has non-finite components {bad}: {vals}; expected finite values in [-1, 1]")
+    bad = [f"{ACT_NAMES[i]}={v:.6g}" for i, v in enumerate(vals) if abs(v) > 1.0 + ACTION_TOLERANCE]
+    if bad:
         raise ValueError(f"action out of range: {', '.join(bad)}; expected each component in [-1, 1]")
-    return np.clip(arr, -1.0, 1.0)
+    return np.array([min(max(v, -1.0), 1.0) for v in vals])
 
 
 def hybrid_filter(a: float, threshold: float) -> float:

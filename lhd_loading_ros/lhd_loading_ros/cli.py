@@ -17,7 +17,7 @@ def _bench(args) -> int:
         return 2
     from lhd_sim_node.bench import bench_sim
 
-    res = bench_sim(steps=args.steps, seed=args.seed, config=args.config)
+    res = bench_sim(steps=args.steps, seed=args.seed, config=args.config, rounds=args.rounds)
     if args.json:
         print(json.dumps(res))
     else:
@@ -51,6 +51,7 @@ def main(argv=None) -> int:
     p_bench.add_argument("--json", action="store_true")
     p_bench.add_argument("--steps", type=int, default=3000)
     p_bench.add_argument("--seed", type=int, default=0)
+    p_bench.add_argument("--rounds", type=int, default=3, help="alternating runs; the best of each is reported")
     p_bench.add_argument("--config", default=None, help="parameter file (default: config/lhd_params.yaml)")
     p_cfg = sub.add_parser("config", help="parameter file tools")
     p_cfg.add_argument("action", choices=["check"])

@@ -65,7 +65,7 @@ SCHEMA: dict[str, Any] = {
         },
     },
     "task": {
-        "bucket_capacity": _f(0.1, 1e4), "loaded_fraction": _f(0.0, 1.0), "d_cutoff": _f(0.0, 5.0),
+        "bucket_capacity": _f(0.1, 1e4), "loaded_fraction": _f(0.0, 1.0), "bucket_max_load": _f(0.1, 1e4), "d_cutoff": _f(0.0, 5.0),
         "x_midgoal": _f(0.0, 10.0), "x_delta": _f(0.0, 5.0), "x_offset": _f(-10.0, 10.0),
         "z_offset": _f(-10.0, 10.0), "rail_exponent": _i(1, 99), "v_x_max": _f(1e-3, 20.0),
         "boom_angle_min": _f(-3.2, 0.0), "boom_angle_max": _f(0.0, 3.2),
@@ -108,6 +108,8 @@ _RELATIONS = [
      lambda c: c["paper"]["episode"]["alpha_min_deg"] < c["paper"]["episode"]["alpha_max_deg"]),
     ("paper.episode.d_attack_min <= paper.episode.d_attack_max",
      lambda c: c["paper"]["episode"]["d_attack_min"] <= c["paper"]["episode"]["d_attack_max"]),
+    ("task.bucket_capacity <= task.bucket_max_load",
+     lambda c: c["task"]["bucket_capacity"] <= c["task"]["bucket_max_load"]),
     ("pile.density_min <= pile.density_max", lambda c: c["pile"]["density_min"] <= c["pile"]["density_max"]),
     ("pile.phi_min_deg <= pile.phi_max_deg", lambda c: c["pile"]["phi_min_deg"] <= c["pile"]["phi_max_deg"]),
     ("pile.delta_min_deg <= pile.delta_max_deg", lambda c: c["pile"]["delta_min_deg"] <= c["pile"]["delta_max_deg"]),

@@ -10,6 +10,8 @@ Box the environment declares.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .params import TaskParams
@@ -20,6 +22,8 @@ OBS_NAMES = ("x_shovel", "y_shovel", "z_shovel", "phi_shovel", "v_x", "drift", "
              "phi_bucket", "dphi_bucket", "d_end", "alpha")
 OBS_LOW = np.array([-1, -1, -1, -1, -1, 0, -1, -1, -1, -1, 0, 0], dtype=np.float32)
 OBS_HIGH = np.ones(OBS_DIM, dtype=np.float32)
+_LOW = OBS_LOW.tolist()
+_HIGH = OBS_HIGH.tolist()
 
 
 def _to_pm1(v: float, lo: float, hi: float) -> float:
@@ -32,7 +36,7 @@ def build_observation(s: LhdState, alpha: float, x_max: float, p: TaskParams) ->
     x0 = -p.x_init_obs
     boom_speed = max(abs(p.boom_min), abs(p.boom_max))
     bucket_speed = max(abs(p.bucket_min), abs(p.bucket_max))
-    o = np.array([
+    o = [
         _to_pm1(s.x_shovel, x0, x0 + p.x_obs),
         _to_pm1(s.y_shovel, -p.y_obs / 2, p.y_obs / 2),
         _to_pm1(s.z_shovel, 0.0, p.z_obs),
@@ -45,8 +49,8 @@ def build_observation(s: LhdState, alpha: float, x_max: float, p: TaskParams) ->
         s.dphi_bucket / bucket_speed,
         abs(s.x_shovel - x_max) / p.d_end_max,
         (alpha - p.alpha_min) / (p.alpha_max - p.alpha_min),
-    ], dtype=np.float64)
-    if not np.all(np.isfinite(o)):
-        bad = [OBS_NAMES[i] for i in np.nonzero(~np.isfinite(o))[0]]
+    ]
+    bad = [OBS_NAMES[i] for i, v in enumerate(o) if not math.isfinite(v)]
+    if bad:
         raise ValueError(f"observation has non-finite components: {', '.join(bad)}")
-    return np.clip(o, OBS_LOW, OBS_HIGH).astype(np.float32)
+    return np.array([min(max(v, lo), hi) for v, lo, hi in zip(o, _LOW, _HIGH)], dtype=np.float32)

@@ -55,6 +55,7 @@ class TaskParams:
     # task choices
     bucket_capacity: float
     loaded_fraction: float
+    bucket_max_load: float
     d_cutoff: float
     x_midgoal: float
     x_delta: float
@@ -94,7 +95,7 @@ class TaskParams:
             m_min=z["m_min"], m_max=z["m_max"], z_min=z["z_min"], h_pile=e["h_pile"], w_pile=e["w_pile"],
             alpha_min=rad(e["alpha_min_deg"]), alpha_max=rad(e["alpha_max_deg"]), d_init=e["d_init"],
             max_steps=e["max_steps"],
-            bucket_capacity=t["bucket_capacity"], loaded_fraction=t["loaded_fraction"], d_cutoff=t["d_cutoff"],
+            bucket_capacity=t["bucket_capacity"], loaded_fraction=t["loaded_fraction"], bucket_max_load=t["bucket_max_load"], d_cutoff=t["d_cutoff"],
             x_midgoal=t["x_midgoal"], x_delta=t["x_delta"], x_offset=t["x_offset"], z_offset=t["z_offset"],
             rail_exponent=t["rail_exponent"], v_x_max=t["v_x_max"], boom_angle_min=t["boom_angle_min"],
             boom_angle_max=t["boom_angle_max"], bucket_angle_min=t["bucket_angle_min"],

@@ -173,8 +173,7 @@ class VoxelPile:
         if x >= self.L:
             return self.h
         i = self.column_index(x)
-        col = self.top[:, i] if j is None else self.top[j, i]
-        return float(np.max(col))
+        return float(self.top[:, i].max() if j is None else self.top[j, i])
 
     def fills(self) -> np.ndarray:
         """Fill fraction of every voxel, shape (n_y, n_x, n_z), each in [0, 1]."""

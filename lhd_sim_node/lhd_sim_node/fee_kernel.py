@@ -158,14 +158,26 @@ ST_CUT_X, ST_CUT_Z, ST_NEXT_CENTER, ST_TIP_PREV_X, ST_W_IDEAL, ST_FH, ST_FZ, ST_
 ST_SIZE = 9
 
 
+# layout of the parameter vector of fee_update (scalars packed to keep the call cheap)
+(P_SID_TIP, P_BID_BUCKET, P_TID_FEE, P_BUCKET_MASS0, P_LOADED_FRACTION, P_FEE_DT, P_FEE_MIN_SPEED, P_DX, P_DZ, P_L,
+ P_H, P_W, P_Q, P_CA, P_ALPHA, P_RAKE_ATTACK, P_RAKE_LO, P_RAKE_HI, P_RAKE_STEP, P_MAX_LOAD) = range(20)
+P_SIZE = 20
+
+
 @njit(cache=True)
-def fee_update(site_xpos, site_xmat, xipos, xfrc, tendon_fl, body_mass, sid_tip, bid_bucket, tid_fee,
-               bucket_mass0, loaded_fraction, fee_dt, fee_min_speed, st, slices,
-               top, cum, vmass, density, cohesion, klass, x_centers, y_centers, dx, dz, L, h, w, q, c_a,
-               alpha, rake_attack, rake_lo, rake_hi, rake_step, grids, filled, phis, deltas, beta, depth_out, out):
+def fee_update(site_xpos, site_xmat, xipos, xfrc, tendon_fl, body_mass, st, par, slices, top, cum, vmass, density,
+               cohesion, klass, x_centers, y_centers, grids, filled, phis, deltas, beta, depth_out, out):
     """One FEE update straight on MuJoCo's arrays: read the tip, cut the pile, set the
     tendon's frictionloss (horizontal resistance) and the bucket's xfrc_applied (vertical
     force and its torque about the CoM), add the payload to the bucket's mass."""
+    sid_tip = int(par[P_SID_TIP])
+    bid_bucket = int(par[P_BID_BUCKET])
+    tid_fee = int(par[P_TID_FEE])
+    bucket_mass0, loaded_fraction = par[P_BUCKET_MASS0], par[P_LOADED_FRACTION]
+    fee_dt, fee_min_speed = par[P_FEE_DT], par[P_FEE_MIN_SPEED]
+    dx, dz, L, h, w, q, c_a = par[P_DX], par[P_DZ], par[P_L], par[P_H], par[P_W], par[P_Q], par[P_CA]
+    alpha, rake_attack, rake_lo = par[P_ALPHA], par[P_RAKE_ATTACK], par[P_RAKE_LO]
+    rake_hi, rake_step = par[P_RAKE_HI], par[P_RAKE_STEP]
     x = site_xpos[sid_tip, 0]
     z = site_xpos[sid_tip, 2]
     pitch = math.atan2(site_xmat[sid_tip, 6], site_xmat[sid_tip, 0])
@@ -175,7 +187,7 @@ def fee_update(site_xpos, site_xmat, xipos, xfrc, tendon_fl, body_mass, sid_tip,
     st[ST_NEXT_CENTER] = out[OUT_NEXT_CENTER]
     if out[OUT_REMOVED] > 0.0:
         st[ST_W_IDEAL] += out[OUT_REMOVED]
-        body_mass[bid_bucket] = bucket_mass0 + loaded_fraction * st[ST_W_IDEAL]
+        body_mass[bid_bucket] = bucket_mass0 + min(loaded_fraction * st[ST_W_IDEAL], par[P_MAX_LOAD])
     st[ST_CUT_X] = x
     st[ST_CUT_Z] = z
     v_tip = (x - st[ST_TIP_PREV_X]) / fee_dt

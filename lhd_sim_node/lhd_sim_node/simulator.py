@@ -21,7 +21,9 @@ from lhd_loading_ros.state import LhdState
 from lhd_loading_ros.zones import Zones
 
 from .fee import BETA_GRID, FeeTable
-from .fee_kernel import (OUT_SIZE, ST_CUT_X, ST_CUT_Z, ST_FH, ST_FZ, ST_NEXT_CENTER, ST_RAKE, ST_SIZE, ST_TIP_PREV_X,
+from .fee_kernel import (OUT_SIZE, P_ALPHA, P_BID_BUCKET, P_BUCKET_MASS0, P_CA, P_DX, P_DZ, P_FEE_DT,
+                         P_FEE_MIN_SPEED, P_H, P_L, P_LOADED_FRACTION, P_Q, P_RAKE_ATTACK, P_RAKE_HI, P_RAKE_LO,
+                         P_MAX_LOAD, P_RAKE_STEP, P_SID_TIP, P_SIZE, P_TID_FEE, P_W, ST_CUT_X, ST_CUT_Z, ST_FH, ST_FZ, ST_NEXT_CENTER, ST_RAKE, ST_SIZE, ST_TIP_PREV_X,
                          ST_ENGAGED, ST_W_IDEAL, fee_update, make_grids)
 from .mjcf import attack_geometry, build_mjcf
 
@@ -76,6 +78,7 @@ class LhdSimulator:
         self.sid_base = m.site("base_link").id
         self.tid_fee = m.tendon("fee_x").id
         self.wheel_dof = np.array([m.jnt_dofadr[m.joint(w).id] for w in WHEELS])
+        self._wheel_dofs = [int(i) for i in self.wheel_dof]
         self.boom_q = m.jnt_qposadr[m.joint("boom").id]
         self.boom_v = m.jnt_dofadr[m.joint("boom").id]
         self.bucket_q = m.jnt_qposadr[m.joint("bucket").id]
@@ -85,6 +88,11 @@ class LhdSimulator:
         self.act_bucket = m.actuator("bucket").id
         self.act_boom_adr = m.actuator_actadr[self.act_boom]
         self.act_bucket_adr = m.actuator_actadr[self.act_bucket]
+        self._act_wheels = [int(a) for a in self.act_wheels]
+        # views into MjData (valid for the life of self.data): cheaper than attribute lookups
+        d = self.data
+        self._ctrl, self._act, self._qpos, self._qvel = d.ctrl, d.act, d.qpos, d.qvel
+        self._site_xpos, self._site_xmat = d.site_xpos, d.site_xmat
         self.bucket_mass0 = float(m.body_mass[self.bid_bucket])
         self.geometry = attack_geometry(cfg["machine"])
         self.pile: VoxelPile | None = None
@@ -172,10 +180,12 @@ class LhdSimulator:
     # ------------------------------------------------------------------ stepping
     def set_command(self, u: np.ndarray) -> None:
         """u = (u_wheels, u_boom, u_bucket) in rad/s, already within the actuator ranges."""
-        d = self.data
-        d.ctrl[self.act_wheels] = u[0]
-        d.ctrl[self.act_boom] = u[1]
-        d.ctrl[self.act_bucket] = u[2]
+        ctrl = self._ctrl
+        w = float(u[0])
+        for a in self._act_wheels:
+            ctrl[a] = w
+        ctrl[self.act_boom] = u[1]
+        ctrl[self.act_bucket] = u[2]
 
     def step(self, u: np.ndarray) -> None:
         """One control period with command u (rad/s)."""
@@ -199,9 +209,9 @@ class LhdSimulator:
         """A blocked hydraulic joint does not store the commanded motion: at every control
         period the servo's integrated set-point is pulled back to within WINDUP of the
         joint's actual position (a period at full speed leads by at most 0.02 rad)."""
-        d = self.data
-        d.act[self.act_boom_adr] = min(max(d.act[self.act_boom_adr], d.qpos[self.boom_q] - WINDUP), d.qpos[self.boom_q] + WINDUP)
-        d.act[self.act_bucket_adr] = min(max(d.act[self.act_bucket_adr], d.qpos[self.bucket_q] - WINDUP), d.qpos[self.bucket_q] + WINDUP)
+        act, qpos = self._act, self._qpos
+        for a, q in ((self.act_boom_adr, self.boom_q), (self.act_bucket_adr, self.bucket_q)):
+            act[a] = min(max(act[a], qpos[q] - WINDUP), qpos[q] + WINDUP)
 
     def _update_fee_numpy(self) -> None:
         """Reference implementation of one FEE update in numpy (the kernel must match it)."""
@@ -214,7 +224,7 @@ class LhdSimulator:
             self._next_center = (math.floor(x / pile.dx - 0.5) + 1.5) * pile.dx
             if m > 0.0:
                 self.W_ideal += m
-                self.model.body_mass[self.bid_bucket] = self.bucket_mass0 + self.p.loaded_fraction * self.W_ideal
+                self.model.body_mass[self.bid_bucket] = self.bucket_mass0 + self.loaded_mass
         elif x < self._cut_prev_x:  # moved back: the next centre ahead may be an earlier one
             self._next_center = (math.floor(x / pile.dx - 0.5) + 1.5) * pile.dx
         self._cut_prev_x, self._cut_prev_z = x, z
@@ -284,13 +294,18 @@ class LhdSimulator:
         st[ST_NEXT_CENTER], st[ST_TIP_PREV_X] = self._next_center, self._tip_prev_x
         st[ST_RAKE] = self.rake_attack
         self._kst = st
-        self._kargs = (d.site_xpos, d.site_xmat, d.xipos, d.xfrc_applied, m.tendon_frictionloss, m.body_mass,
-                       self.sid_tip, self.bid_bucket, self.tid_fee, self.bucket_mass0, self.p.loaded_fraction,
-                       self.fee_dt, self.fee_min_speed, st, self._slices, pile.top, pile._cum, pile._voxel_mass,
-                       pile.density, pile.cohesion, pile.klass, pile.x_centers, pile.y_centers, pile.dx, pile.dz,
-                       pile.L, pile.h, pile.dy, pile.surcharge, pile.adhesion, pile.alpha, self.rake_attack,
-                       self.rake_lo, self.rake_hi, self.rake_step, self._grids, self._filled, self._phis,
-                       self._deltas, BETA_GRID, self._kdepth, self._kout)
+        par = np.zeros(P_SIZE)
+        par[[P_SID_TIP, P_BID_BUCKET, P_TID_FEE]] = self.sid_tip, self.bid_bucket, self.tid_fee
+        par[[P_BUCKET_MASS0, P_LOADED_FRACTION, P_FEE_DT, P_FEE_MIN_SPEED]] = (
+            self.bucket_mass0, self.p.loaded_fraction, self.fee_dt, self.fee_min_speed)
+        par[[P_DX, P_DZ, P_L, P_H, P_W, P_Q, P_CA, P_ALPHA]] = (
+            pile.dx, pile.dz, pile.L, pile.h, pile.dy, pile.surcharge, pile.adhesion, pile.alpha)
+        par[[P_RAKE_ATTACK, P_RAKE_LO, P_RAKE_HI, P_RAKE_STEP]] = self.rake_attack, self.rake_lo, self.rake_hi, self.rake_step
+        par[P_MAX_LOAD] = self.p.bucket_max_load
+        self._kargs = (d.site_xpos, d.site_xmat, d.xipos, d.xfrc_applied, m.tendon_frictionloss, m.body_mass, st, par,
+                       self._slices, pile.top, pile._cum, pile._voxel_mass, pile.density, pile.cohesion, pile.klass,
+                       pile.x_centers, pile.y_centers, self._grids, self._filled, self._phis, self._deltas, BETA_GRID,
+                       self._kdepth, self._kout)
 
     def _sync_from_kernel(self) -> None:
         st = self._kst
@@ -316,30 +331,34 @@ class LhdSimulator:
     # ------------------------------------------------------------------ readings
     @property
     def loaded_mass(self) -> float:
-        return self.p.loaded_fraction * self.W_ideal
+        """Payload W: 2/3 of the mass cut from the pile (paper), up to the bucket's heaped
+        capacity; the rest spills."""
+        return min(self.p.loaded_fraction * self.W_ideal, self.p.bucket_max_load)
 
     def wheel_drift(self) -> tuple[bool, bool]:
         """(front, rear): a wheel drifts when its rim speed and the chassis speed differ by
         more than max(drift_min_speed, drift_slip_ratio * the larger of the two)."""
-        d, p = self.data, self.p
-        v = float(d.qvel[0])
-        rim = d.qvel[self.wheel_dof] * self.wheel_radius
-        slip = np.abs(rim - v) > np.maximum(p.drift_min_speed, p.drift_slip_ratio * np.maximum(np.abs(rim), abs(v)))
-        return bool(slip[0] or slip[1]), bool(slip[2] or slip[3])
+        p = self.p
+        qv = self._qvel
+        v = float(qv[0])
+        slip = []
+        for dof in self._wheel_dofs:
+            rim = qv[dof] * self.wheel_radius
+            slip.append(abs(rim - v) > max(p.drift_min_speed, p.drift_slip_ratio * max(abs(rim), abs(v))))
+        return slip[0] or slip[1], slip[2] or slip[3]
 
     def state(self) -> LhdState:
-        d = self.data
-        tip = d.site_xpos[self.sid_tip]
-        xmat = d.site_xmat[self.sid_tip]
-        bottom = d.site_xpos[self.sid_bottom]
+        x_tip, y_tip, z_tip = self._site_xpos[self.sid_tip].tolist()
+        xmat = self._site_xmat[self.sid_tip]
+        x_b, _, z_b = self._site_xpos[self.sid_bottom].tolist()
+        qpos, qvel = self._qpos, self._qvel
         front, rear = self.wheel_drift()
         return LhdState(
-            x_shovel=float(tip[0]), y_shovel=float(tip[1]), z_shovel=float(tip[2]),
-            phi_shovel=math.atan2(xmat[6], xmat[0]),
-            v_x=float(d.qvel[0]), drift=front or rear,
-            phi_boom=float(d.qpos[self.boom_q]), dphi_boom=float(d.qvel[self.boom_v]),
-            phi_bucket=float(d.qpos[self.bucket_q]), dphi_bucket=float(d.qvel[self.bucket_v]),
-            x_bottom=float(bottom[0]), z_bottom=float(bottom[2]), drift_front=front, drift_rear=rear,
+            x_shovel=x_tip, y_shovel=y_tip, z_shovel=z_tip, phi_shovel=math.atan2(xmat[6], xmat[0]),
+            v_x=float(qvel[0]), drift=front or rear,
+            phi_boom=float(qpos[self.boom_q]), dphi_boom=float(qvel[self.boom_v]),
+            phi_bucket=float(qpos[self.bucket_q]), dphi_bucket=float(qvel[self.bucket_v]),
+            x_bottom=x_b, z_bottom=z_b, drift_front=front, drift_rear=rear,
         )
 
     def wheel_speeds(self) -> np.ndarray:
