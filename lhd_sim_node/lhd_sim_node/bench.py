@@ -1,11 +1,20 @@
 """`lhd bench sim`: speed of the simulated loading task.
 
-env_steps_per_s: control steps (0.1 s) of LhdLoading-v0 in one process with random
-actions, resets (new pile, attack drive) included.
-physics_only_steps_per_s: the same MJCF and the same physics workload (the same number of
-MuJoCo substeps per control step, the same attack drives at the resets) replayed with the
-FEE and all task code switched off. ratio = env / physics_only: the share of the time the
-simulator spends in MuJoCo itself.
+env_steps_per_s: control steps (0.1 s) of LhdLoading-v0 in one process with random actions,
+resets (new pile, attack drive) included.
+
+physics_only_steps_per_s: the same MJCF and the same MuJoCo substeps with no FEE and no task
+code: the env run is repeated once untimed while recording, at every FEE update, what the
+FEE and the hydraulics' anti-windup wrote into MuJoCo (the tendon's friction limit, the
+bucket's xfrc_applied and mass, the commands, the servo set-points, the machine's placement
+at each reset); the timed replay only writes those values back and calls mj_step. MuJoCo is
+deterministic, so the replay goes through exactly the same states, contacts and solver
+iterations as the env run, and the difference between the two times is the cost of the FEE,
+the pile and the task code.
+
+ratio = env_steps_per_s / physics_only_steps_per_s: the share of the env's time spent in
+MuJoCo. Every figure is the best of `rounds` alternating runs (other load on the machine
+only ever slows a run down).
 """
 from __future__ import annotations
 
@@ -17,63 +26,83 @@ import numpy as np
 from .env import LhdLoadingEnv
 
 
-def _run_env(steps: int, seed: int, config) -> tuple[float, list, int]:
-    env = LhdLoadingEnv(variant="rld", config=config)
-    sim = env.sim
-    actions = np.random.default_rng(seed).uniform(-1.0, 1.0, size=(steps, 3))
-    log = []  # ('reset', d_attack, attack_speed, attack_chunks) | ('step', u)
-    orig_reset, orig_step = sim.reset, sim.step
-
-    def counting_reset(*a, **k):
-        t0 = sim.data.time
-        orig_reset(*a, **k)
-        log.append(("reset", sim.d_attack, sim.attack_speed, int(round((sim.data.time - t0) / sim.fee_dt))))
-
-    def logging_step(u):
-        log.append(("step", u))
-        orig_step(u)
-
-    sim.reset, sim.step = counting_reset, logging_step
+def _episode_loop(env: LhdLoadingEnv, actions: np.ndarray, seed: int) -> int:
     env.reset(seed=seed)
     resets = 0
-    t0 = time.perf_counter()
     for a in actions:
         _, _, term, trunc, _ = env.step(a)
         if term or trunc:
             env.reset()
             resets += 1
-    return time.perf_counter() - t0, log, resets, env
+    return resets
 
 
-def _replay_physics(env, log) -> float:
-    """The same physics workload without FEE and task code: same MJCF, same substeps per
-    control step, same commands, same attack drives at the resets."""
+def _record(env: LhdLoadingEnv, actions: np.ndarray, seed: int) -> list:
+    """Run the same episodes untimed and record every physics chunk's inputs."""
     sim = env.sim
     m, d = sim.model, sim.data
-    sim.fee_enabled = False
+    chunks = []
+    orig_physics, orig_place = sim._physics, sim.place_machine
+
+    def rec_place(d_attack):
+        orig_place(d_attack)
+        chunks.append(("place", d.qpos.copy(), d.qvel.copy(), d.act.copy()))
+
+    def rec_physics(n):
+        if sim.fee_enabled:
+            sim._update_fee()
+        chunks.append(("step", n, d.ctrl.copy(), d.act.copy(), float(m.tendon_frictionloss[sim.tid_fee]),
+                       d.xfrc_applied[sim.bid_bucket].copy(), float(m.body_mass[sim.bid_bucket])))
+        mujoco.mj_step(m, d, nstep=n)
+
+    sim._physics, sim.place_machine = rec_physics, rec_place
+    try:
+        _episode_loop(env, actions, seed)
+    finally:
+        del sim._physics, sim.place_machine
+    return chunks
+
+
+def _replay(env: LhdLoadingEnv, chunks: list) -> float:
+    sim = env.sim
+    m, d = sim.model, sim.data
+    tfl, bmass, xfrc = m.tendon_frictionloss, m.body_mass, d.xfrc_applied
+    tid, bid = sim.tid_fee, sim.bid_bucket
+    qpos0 = chunks[0][1] if chunks and chunks[0][0] == "place" else d.qpos.copy()
     t0 = time.perf_counter()
-    first = True
-    for ev in log:
-        if ev[0] == "reset":
-            if not first:
-                sim.place_machine(ev[1])
-                sim.set_command(np.array([ev[2], 0.0, 0.0]))
-                for _ in range(ev[3]):
-                    mujoco.mj_step(m, d, nstep=sim.fee_every)
-            first = False
-        else:
-            sim.set_command(ev[1])
-            mujoco.mj_step(m, d, nstep=sim.n_phys)
-    return time.perf_counter() - t0
+    for ch in chunks:
+        if ch[0] == "place":
+            mujoco.mj_resetData(m, d)
+            d.qpos[:] = ch[1]
+            mujoco.mj_forward(m, d)
+            continue
+        _, n, ctrl, act, fl, xf, mass = ch
+        d.ctrl[:] = ctrl
+        d.act[:] = act
+        tfl[tid] = fl
+        xfrc[bid] = xf
+        bmass[bid] = mass
+        mujoco.mj_step(m, d, nstep=n)
+    del qpos0
+    return time.perf_counter() - t0, d.qpos.copy()
 
 
 def bench_sim(steps: int = 3000, seed: int = 0, config=None, rounds: int = 3) -> dict:
-    """Best of `rounds` alternating runs of each (the machine's other load only slows runs down)."""
+    actions = np.random.default_rng(seed).uniform(-1.0, 1.0, size=(steps, 3))
     env_t, phys_t = [], []
+    env = LhdLoadingEnv(variant="rld", config=config)
+    _episode_loop(env, actions[:50], seed)  # warm-up: numba and MuJoCo caches
+    chunks = _record(LhdLoadingEnv(variant="rld", config=config), actions, seed)
+    resets = 0
     for _ in range(rounds):
-        t, log, resets, env = _run_env(steps, seed, config)
-        env_t.append(t)
-        phys_t.append(_replay_physics(env, log))
+        env = LhdLoadingEnv(variant="rld", config=config)
+        t0 = time.perf_counter()
+        resets = _episode_loop(env, actions, seed)
+        env_t.append(time.perf_counter() - t0)
+        t, qpos_replay = _replay(LhdLoadingEnv(variant="rld", config=config), chunks)
+        phys_t.append(t)
+    # the replay must have gone through the env's states (else it timed different physics)
+    replay_error = float(np.max(np.abs(qpos_replay - env.sim.data.qpos)))
     sim = env.sim
     env_sps = steps / min(env_t)
     phys_sps = steps / min(phys_t)
@@ -87,4 +116,5 @@ def bench_sim(steps: int = 3000, seed: int = 0, config=None, rounds: int = 3) ->
         "substeps_per_control_step": sim.n_phys,
         "fee_updates_per_control_step": sim.n_phys // sim.fee_every,
         "timestep_s": float(sim.model.opt.timestep),
+        "replay_max_qpos_error": replay_error,
     }
