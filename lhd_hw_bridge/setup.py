@@ -9,6 +9,7 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
+        ("share/" + package_name + "/firmware/lhd_due", ["lhd_hw_bridge/firmware/lhd_due/lhd_due.ino"]),
     ],
     install_requires=["setuptools", "pyserial"],
     zip_safe=True,
@@ -16,5 +17,10 @@ setup(
     maintainer_email="maintainers@lhd-loading.dev",
     description="Arduino Due serial bridge of the scaled LHD",
     license="Apache-2.0",
-    entry_points={"console_scripts": []},
+    entry_points={
+        "console_scripts": [
+            "bridge_node = lhd_hw_bridge.bridge_node:main",
+            "lhd-fake-due = lhd_hw_bridge.fake_due:main",
+        ],
+    },
 )

@@ -2,6 +2,7 @@
 
   lhd demo [--slopes ...] [--episodes N]   the main job (scripted loading on the simulator)
   lhd bench sim [--json] [--steps N]       simulator speed
+  lhd bench bridge [--json]                serial parser throughput and frame-to-publish latency
   lhd config check [PATH]                  validate a parameter file
 """
 from __future__ import annotations
@@ -12,12 +13,17 @@ import sys
 
 
 def _bench(args) -> int:
-    if args.what != "sim":
-        print(f"lhd bench: unknown benchmark {args.what!r}; expected: sim", file=sys.stderr)
-        return 2
-    from lhd_sim_node.bench import bench_sim
+    if args.what == "sim":
+        from lhd_sim_node.bench import bench_sim
 
-    res = bench_sim(steps=args.steps, seed=args.seed, config=args.config, rounds=args.rounds)
+        res = bench_sim(steps=args.steps, seed=args.seed, config=args.config, rounds=args.rounds)
+    elif args.what == "bridge":
+        from lhd_hw_bridge.bench import bench_bridge
+
+        res = bench_bridge(seconds=args.seconds)
+    else:
+        print(f"lhd bench: unknown benchmark {args.what!r}; expected: sim, bridge", file=sys.stderr)
+        return 2
     if args.json:
         print(json.dumps(res))
     else:
@@ -47,7 +53,8 @@ def main(argv=None) -> int:
                             add_help=False)
     p_demo.add_argument("rest", nargs=argparse.REMAINDER)
     p_bench = sub.add_parser("bench", help="benchmarks that print their figures")
-    p_bench.add_argument("what", help="sim")
+    p_bench.add_argument("what", help="sim | bridge")
+    p_bench.add_argument("--seconds", type=float, default=4.0, help="bridge: latency measurement time")
     p_bench.add_argument("--json", action="store_true")
     p_bench.add_argument("--steps", type=int, default=3000)
     p_bench.add_argument("--seed", type=int, default=0)

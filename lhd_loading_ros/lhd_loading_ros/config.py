@@ -98,6 +98,12 @@ SCHEMA: dict[str, Any] = {
         "rake_attack_deg": _f(1, 179), "rake_min_deg": _f(1, 179), "rake_max_deg": _f(1, 179),
         "fee_min_speed": _f(1e-4, 1.0),
     },
+    "hardware": {
+        "valve_deadband": _f(0.0, 1.0), "cmd_timeout": _f(0.01, 10.0), "command_rate_hz": _f(1.0, 1000.0),
+        "device_watchdog": _f(0.01, 10.0), "sensor_rate_hz": _f(1.0, 2000.0),
+        "drift_current_front": _f(0.0, 200.0), "drift_current_rear": _f(0.0, 200.0), "odom_timeout": _f(0.01, 10.0),
+        "reconnect_backoff_min": _f(0.001, 10.0), "reconnect_backoff_max": _f(0.001, 60.0),
+    },
     "sim": {"timestep": _f(1e-4, 0.05), "fee_every": _i(1, 1000), "attack_timeout": _f(0.1, 100.0)},
 }
 
@@ -110,6 +116,8 @@ _RELATIONS = [
      lambda c: c["paper"]["episode"]["d_attack_min"] <= c["paper"]["episode"]["d_attack_max"]),
     ("task.bucket_capacity <= task.bucket_max_load",
      lambda c: c["task"]["bucket_capacity"] <= c["task"]["bucket_max_load"]),
+    ("hardware.reconnect_backoff_min <= hardware.reconnect_backoff_max",
+     lambda c: c["hardware"]["reconnect_backoff_min"] <= c["hardware"]["reconnect_backoff_max"]),
     ("pile.density_min <= pile.density_max", lambda c: c["pile"]["density_min"] <= c["pile"]["density_max"]),
     ("pile.phi_min_deg <= pile.phi_max_deg", lambda c: c["pile"]["phi_min_deg"] <= c["pile"]["phi_max_deg"]),
     ("pile.delta_min_deg <= pile.delta_max_deg", lambda c: c["pile"]["delta_min_deg"] <= c["pile"]["delta_max_deg"]),

@@ -1,0 +1,138 @@
+"""ROS-free logic of the hardware bridge: /lhd/cmd -> safe device command, watchdog,
+wheel-drift detection, joint-state contents. The node (bridge_node.py) is thin over this."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from .protocol import CommandFrame, SensorFrame
+
+JOINT_NAMES = ("boom", "bucket", "wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr")
+
+
+class CommandRejected(ValueError):
+    """A /lhd/cmd message that must not reach the machine."""
+
+
+@dataclass(frozen=True)
+class BridgeParams:
+    wheels_max: float
+    boom_speed: float          # |full boom speed|, rad/s
+    bucket_speed: float        # full bucket speed, rad/s
+    valve_deadband: float
+    cmd_timeout: float
+    command_rate_hz: float
+    wheel_radius: float
+    drift_slip_ratio: float
+    drift_min_speed: float
+    drift_current_front: float
+    drift_current_rear: float
+    odom_timeout: float
+    backoff_min: float
+    backoff_max: float
+
+    @classmethod
+    def from_config(cls, cfg: dict) -> "BridgeParams":
+        c, t, h = cfg["paper"]["control"], cfg["task"], cfg["hardware"]
+        return cls(
+            wheels_max=c["wheels_max"], boom_speed=abs(c["boom_min"]), bucket_speed=c["bucket_max"],
+            valve_deadband=h["valve_deadband"], cmd_timeout=h["cmd_timeout"], command_rate_hz=h["command_rate_hz"],
+            wheel_radius=cfg["machine"]["wheel_radius"], drift_slip_ratio=t["drift_slip_ratio"],
+            drift_min_speed=t["drift_min_speed"], drift_current_front=h["drift_current_front"],
+            drift_current_rear=h["drift_current_rear"], odom_timeout=h["odom_timeout"],
+            backoff_min=h["reconnect_backoff_min"], backoff_max=h["reconnect_backoff_max"],
+        )
+
+
+class CommandMapper:
+    """[u_wheels, u_boom, u_bucket] (rad/s) -> CommandFrame for the ternary valves.
+
+    Safety, whatever the command says: wheels never reverse (clamped to [0, wheels_max]), the
+    boom is never lowered, the bucket never tilted forward (those requests hold the joint).
+    A joint moves (at full speed: the valves are ternary) only when |u| is at least
+    valve_deadband of its full speed. NaN, infinities and wrong lengths are rejected.
+    """
+
+    def __init__(self, p: BridgeParams):
+        self.p = p
+        self.rejected = 0
+        self.clamped = 0
+
+    def map(self, data) -> CommandFrame:
+        vals = list(data)
+        if len(vals) != 3:
+            self.rejected += 1
+            raise CommandRejected(f"/lhd/cmd must hold 3 values [u_wheels, u_boom, u_bucket] in rad/s, got {len(vals)}")
+        if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in vals):
+            self.rejected += 1
+            raise CommandRejected(f"/lhd/cmd has non-finite values {vals}; expected finite rad/s")
+        u_w, u_boom, u_bucket = (float(v) for v in vals)
+        p = self.p
+        clamped = False
+        if u_w < 0.0 or u_w > p.wheels_max:
+            clamped = True
+            u_w = min(max(u_w, 0.0), p.wheels_max)
+        valve_boom = 0
+        if u_boom > 0.0:          # lowering requested: refused, hold
+            clamped = True
+        elif -u_boom >= p.valve_deadband * p.boom_speed:
+            valve_boom = 1        # raise
+        valve_bucket = 0
+        if u_bucket < 0.0:        # forward tilt requested: refused, hold
+            clamped = True
+        elif u_bucket >= p.valve_deadband * p.bucket_speed:
+            valve_bucket = 1      # curl back
+        if clamped:
+            self.clamped += 1
+        return CommandFrame(wheel_setpoint=u_w, valve_boom=valve_boom, valve_bucket=valve_bucket, enable=True)
+
+
+class Watchdog:
+    """Stale after `timeout` seconds without a valid command, and until a command arrives
+    that is newer than the last (re)connection."""
+
+    def __init__(self, timeout: float):
+        self.timeout = timeout
+        self.last_valid: float | None = None
+        self.armed_since = 0.0
+        self.trips = 0
+        self._was_stale = True
+
+    def feed(self, now: float) -> None:
+        self.last_valid = now
+
+    def rearm(self, now: float) -> None:
+        """After a (re)connection: commands from before it no longer count."""
+        self.armed_since = now
+
+    def stale(self, now: float) -> bool:
+        s = (self.last_valid is None or self.last_valid < self.armed_since
+             or now - self.last_valid >= self.timeout)
+        if s and not self._was_stale:
+            self.trips += 1
+        self._was_stale = s
+        return s
+
+
+def detect_drift(f: SensorFrame, v_machine: float | None, p: BridgeParams) -> tuple[bool, bool]:
+    """(front, rear) drift, as in the paper: wheel rotation without matching machine movement
+    (when the machine speed is known), or motor current beyond the no-drift presets."""
+    def slips(omega: float) -> bool:
+        if v_machine is None:
+            return False
+        rim = omega * p.wheel_radius
+        return abs(rim - v_machine) > max(p.drift_min_speed, p.drift_slip_ratio * max(abs(rim), abs(v_machine)))
+
+    front = slips(f.wheel_fl) or slips(f.wheel_fr) or f.current_fl > p.drift_current_front \
+        or f.current_fr > p.drift_current_front
+    rear = slips(f.wheel_rear) or f.current_rear > p.drift_current_rear
+    return front, rear
+
+
+def joint_state_arrays(f: SensorFrame) -> tuple[list, list]:
+    """(position, velocity) in JOINT_NAMES order. Wheel positions are not measured (NaN);
+    both rear wheels report the rear motor's speed (one motor through a differential)."""
+    nan = float("nan")
+    pos = [f.boom_angle, f.bucket_angle, nan, nan, nan, nan]
+    vel = [f.boom_rate, f.bucket_rate, f.wheel_fl, f.wheel_fr, f.wheel_rear, f.wheel_rear]
+    return pos, vel

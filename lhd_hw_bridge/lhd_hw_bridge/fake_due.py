@@ -1,0 +1,250 @@
+"""`lhd-fake-due`: an emulator of the LHD's Arduino Due on a pseudo-terminal.
+
+It speaks the device side of docs/serial_protocol.md: receives command and heartbeat
+frames, runs a small plant (the arm joints integrate their ternary valve commands at full
+speed within their limits, the wheels follow the set-point with a first-order lag, motor
+currents follow the load), sends sensor frames at `rate` Hz, and stops by itself (the
+firmware's watchdog) when command frames stop for `watchdog` seconds. Faults can be
+injected: sensor noise, dropped frames, corrupted bytes, front or rear drift (wheel spin
+and high motor current). `unplug()` closes the pty (the host sees the port vanish);
+`plug()` opens a new one behind the same symlink.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import random
+import select
+import signal
+import sys
+import threading
+import time
+import tty
+from dataclasses import dataclass, field
+
+from .protocol import (FLAG_ENABLED, FLAG_WATCHDOG, CommandFrame, FrameParser, HeartbeatFrame, SensorFrame, encode)
+
+BOOM_SPEED = 0.191
+BUCKET_SPEED = 0.2
+BOOM_RANGE = (-1.0, 0.05)
+BUCKET_RANGE = (-0.1, 1.4)
+WHEEL_TAU = 0.1
+
+
+@dataclass
+class Plant:
+    boom: float = 0.0
+    bucket: float = 0.0
+    boom_rate: float = 0.0
+    bucket_rate: float = 0.0
+    wheel_fl: float = 0.0
+    wheel_fr: float = 0.0
+    wheel_rear: float = 0.0
+    valve_boom: int = 0
+    valve_bucket: int = 0
+    wheel_setpoint: float = 0.0
+    enabled: bool = False
+
+    def step(self, dt: float, drift_front: bool, drift_rear: bool) -> None:
+        # valve +1 raises the boom (its angle decreases), +1 curls the bucket (angle increases)
+        self.boom_rate = -BOOM_SPEED * self.valve_boom
+        new_boom = min(max(self.boom + self.boom_rate * dt, BOOM_RANGE[0]), BOOM_RANGE[1])
+        self.boom_rate = (new_boom - self.boom) / dt
+        self.boom = new_boom
+        self.bucket_rate = BUCKET_SPEED * self.valve_bucket
+        new_bucket = min(max(self.bucket + self.bucket_rate * dt, BUCKET_RANGE[0]), BUCKET_RANGE[1])
+        self.bucket_rate = (new_bucket - self.bucket) / dt
+        self.bucket = new_bucket
+        a = min(dt / WHEEL_TAU, 1.0)
+        target = self.wheel_setpoint if self.enabled else 0.0
+        self.wheel_fl += a * (target * (1.6 if drift_front else 1.0) - self.wheel_fl)
+        self.wheel_fr += a * (target - self.wheel_fr)
+        self.wheel_rear += a * (target * (1.6 if drift_rear else 1.0) - self.wheel_rear)
+
+
+@dataclass
+class FakeDue:
+    link: str | None = None
+    rate: float = 100.0
+    watchdog: float = 0.25
+    noise: float = 0.0
+    drop: float = 0.0
+    corrupt: float = 0.0
+    drift_front: bool = False
+    drift_rear: bool = False
+    seed: int = 0
+    plant: Plant = field(default_factory=Plant)
+
+    def __post_init__(self):
+        self.rng = random.Random(self.seed)
+        self.parser = FrameParser()
+        self.received: list[tuple[float, object]] = []  # (monotonic time, frame) for tests
+        self.watchdog_trips = 0
+        self.sent = 0
+        self._seq = 0
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._master = self._slave = None
+        self.path = None
+        self._last_cmd = None
+        self._tripped = False
+        self._thread = None
+
+    # ------------------------------------------------------------------ pty
+    def plug(self) -> str:
+        with self._lock:
+            master, slave = os.openpty()
+            tty.setraw(master)
+            tty.setraw(slave)
+            os.set_blocking(master, False)
+            self._master, self._slave = master, slave
+            self.path = os.ttyname(slave)
+            self.parser = FrameParser()
+            if self.link:
+                tmp = self.link + ".tmp"
+                if os.path.lexists(tmp):
+                    os.unlink(tmp)
+                os.symlink(self.path, tmp)
+                os.replace(tmp, self.link)
+            return self.link or self.path
+
+    def unplug(self) -> None:
+        with self._lock:
+            for fd in (self._master, self._slave):
+                if fd is not None:
+                    try:
+                        os.close(fd)
+                    except OSError:
+                        pass
+            self._master = self._slave = None
+            if self.link and os.path.lexists(self.link):
+                os.unlink(self.link)
+
+    # ------------------------------------------------------------------ loop
+    def start(self) -> "FakeDue":
+        if self._master is None:
+            self.plug()
+        self._thread = threading.Thread(target=self._run, name="fake-due", daemon=True)
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread:
+            self._thread.join(timeout=2.0)
+        self.unplug()
+
+    def _run(self) -> None:
+        period = 1.0 / self.rate
+        t_next = time.monotonic()
+        t_prev = t_next
+        t0 = getattr(self, "_run_t0", None) or t_next
+        while not self._stop.is_set():
+            now = time.monotonic()
+            with self._lock:
+                fd = self._master
+            if fd is not None:
+                self._read(fd, now)
+            dt = now - t_prev
+            t_prev = now
+            self._apply_watchdog(now)
+            if dt > 0:
+                self.plant.step(dt, self.drift_front, self.drift_rear)
+            if fd is not None and now >= t_next:
+                self._send(fd, now - t0)
+                t_next += period
+                if t_next < now:
+                    t_next = now + period
+            r = [fd] if fd is not None else []
+            timeout = max(0.0, min(t_next - time.monotonic(), 0.005))
+            try:
+                select.select(r, [], [], timeout) if r else time.sleep(timeout)
+            except (OSError, ValueError):
+                time.sleep(0.001)
+
+    def _read(self, fd: int, now: float) -> None:
+        try:
+            data = os.read(fd, 4096)
+        except BlockingIOError:
+            return
+        except OSError:
+            return
+        for _, msg in self.parser.feed(data):
+            self.received.append((now, msg))
+            if isinstance(msg, CommandFrame):
+                self._last_cmd = now
+                p = self.plant
+                p.wheel_setpoint = max(0.0, msg.wheel_setpoint) if msg.enable else 0.0
+                p.valve_boom = msg.valve_boom if msg.enable else 0
+                p.valve_bucket = msg.valve_bucket if msg.enable else 0
+                p.enabled = msg.enable
+                self._tripped = False
+
+    def _apply_watchdog(self, now: float) -> None:
+        p = self.plant
+        if p.enabled or p.valve_boom or p.valve_bucket or p.wheel_setpoint:
+            if self._last_cmd is None or now - self._last_cmd > self.watchdog:
+                p.enabled, p.valve_boom, p.valve_bucket, p.wheel_setpoint = False, 0, 0, 0.0
+                self.watchdog_trips += 1
+                self._tripped = True
+
+    def _send(self, fd: int, t: float) -> None:
+        p = self.plant
+        n = lambda: self.rng.gauss(0.0, self.noise) if self.noise else 0.0  # noqa: E731
+        cur = lambda w, drift: 1.5 + 0.8 * abs(w) + (10.0 if drift else 0.0)  # noqa: E731
+        frame = SensorFrame(
+            device_time_us=int(t * 1e6), boom_angle=p.boom + n() * 1e-3, bucket_angle=p.bucket + n() * 1e-3,
+            boom_rate=p.boom_rate, bucket_rate=p.bucket_rate, wheel_fl=p.wheel_fl + n() * 1e-2,
+            wheel_fr=p.wheel_fr + n() * 1e-2, wheel_rear=p.wheel_rear + n() * 1e-2,
+            current_fl=cur(p.wheel_fl, self.drift_front), current_fr=cur(p.wheel_fr, False),
+            current_rear=cur(p.wheel_rear, self.drift_rear) + 2.0, valve_boom=p.valve_boom,
+            valve_bucket=p.valve_bucket,
+            flags=(FLAG_ENABLED if p.enabled else 0) | (FLAG_WATCHDOG if self._tripped else 0))
+        wire = bytearray(encode(frame, self._seq))
+        self._seq = (self._seq + 1) & 0xFF
+        if self.drop and self.rng.random() < self.drop:
+            return
+        if self.corrupt and self.rng.random() < self.corrupt:
+            i = self.rng.randrange(len(wire) - 1)
+            wire[i] ^= 1 << self.rng.randrange(8)
+        try:
+            os.write(fd, bytes(wire))
+            self.sent += 1
+        except OSError:
+            pass
+
+    def last_commands(self) -> list:
+        return [(t, m) for t, m in self.received if isinstance(m, CommandFrame)]
+
+    def heartbeats(self) -> list:
+        return [(t, m) for t, m in self.received if isinstance(m, HeartbeatFrame)]
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="lhd-fake-due", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--link", default="/tmp/lhd_due", help="symlink to the pty's device (the bridge's `port`)")
+    ap.add_argument("--rate", type=float, default=100.0, help="sensor frames per second")
+    ap.add_argument("--watchdog", type=float, default=0.25, help="s without command frames before the device stops")
+    ap.add_argument("--noise", type=float, default=0.0, help="sensor noise (standard deviation, scaled per signal)")
+    ap.add_argument("--drop", type=float, default=0.0, help="probability of dropping a sensor frame")
+    ap.add_argument("--corrupt", type=float, default=0.0, help="probability of flipping a bit in a sensor frame")
+    ap.add_argument("--drift-front", action="store_true", help="inject front wheel drift")
+    ap.add_argument("--drift-rear", action="store_true", help="inject rear wheel drift")
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args(argv)
+    dev = FakeDue(link=args.link, rate=args.rate, watchdog=args.watchdog, noise=args.noise, drop=args.drop,
+                  corrupt=args.corrupt, drift_front=args.drift_front, drift_rear=args.drift_rear, seed=args.seed)
+    path = dev.plug()
+    print(f"fake Due on {dev.path} (link {path})", flush=True)
+    done = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: done.set())
+    signal.signal(signal.SIGINT, lambda *_: done.set())
+    dev.start()
+    done.wait()
+    dev.stop()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,67 @@
+"""Bridge logic without ROS: command safety, dead band, watchdog, drift."""
+import math
+
+import pytest
+
+from lhd_hw_bridge.bridge_core import BridgeParams, CommandMapper, CommandRejected, Watchdog, detect_drift, joint_state_arrays
+from lhd_hw_bridge.protocol import CommandFrame, SensorFrame
+
+
+@pytest.fixture
+def bp(cfg):
+    return BridgeParams.from_config(cfg)
+
+
+def test_full_speed_commands_open_the_valves(bp):
+    m = CommandMapper(bp)
+    assert m.map([2.0, -0.191, 0.2]) == CommandFrame(2.0, 1, 1, True)
+    assert m.map([0.0, 0.0, 0.0]) == CommandFrame(0.0, 0, 0, True)
+    # dead band: half of full speed
+    assert m.map([1.0, -0.0956, 0.1]).valve_boom == 1 and m.map([1.0, -0.0956, 0.1]).valve_bucket == 1
+    assert m.map([1.0, -0.0954, 0.0999]) == CommandFrame(1.0, 0, 0, True)
+    assert m.clamped == 0 and m.rejected == 0
+
+
+def test_unsafe_requests_are_clamped_whatever_the_command_says(bp):
+    m = CommandMapper(bp)
+    f = m.map([-1.0, 0.191, -0.2])        # reverse wheels, lower boom, tilt bucket forward
+    assert f == CommandFrame(0.0, 0, 0, True)
+    assert m.map([9.0, 0.0, 0.0]).wheel_setpoint == 2.7
+    assert m.clamped == 2
+
+
+@pytest.mark.parametrize("bad, why", [([1.0, 2.0], "3 values"), ([1.0, 2.0, 3.0, 4.0], "3 values"),
+                                      ([math.nan, 0.0, 0.0], "non-finite"), ([0.0, math.inf, 0.0], "non-finite")])
+def test_malformed_commands_are_rejected_and_counted(bp, bad, why):
+    m = CommandMapper(bp)
+    with pytest.raises(CommandRejected, match=why):
+        m.map(bad)
+    assert m.rejected == 1
+
+
+def test_watchdog_times_out_and_rearms(bp):
+    w = Watchdog(0.3)
+    assert w.stale(0.0)                    # nothing received yet
+    w.feed(1.0)
+    assert not w.stale(1.29) and w.stale(1.3) and w.trips == 1
+    w.feed(2.0)
+    w.rearm(2.1)                           # reconnection: the command from before it is void
+    assert w.stale(2.15)
+    w.feed(2.2)
+    assert not w.stale(2.25)
+
+
+def test_drift_from_speed_mismatch_and_from_current(bp):
+    f = SensorFrame(0, 0, 0, 0, 0, 2.7, 2.7, 2.7, 3.0, 3.0, 5.0, 0, 0, 0)
+    assert detect_drift(f, 0.37, bp) == (False, False)        # rim 0.37 m/s, machine 0.37 m/s
+    assert detect_drift(f, 0.02, bp) == (True, True)          # spinning in place
+    assert detect_drift(f, None, bp) == (False, False)        # speed unknown: currents only
+    hot = SensorFrame(0, 0, 0, 0, 0, 2.7, 2.7, 2.7, 9.0, 3.0, 13.0, 0, 0, 0)
+    assert detect_drift(hot, None, bp) == (True, True)
+
+
+def test_joint_state_contents():
+    f = SensorFrame(0, -0.2, 0.3, -0.19, 0.2, 1.0, 1.1, 1.2, 0, 0, 0, 1, 1, 1)
+    pos, vel = joint_state_arrays(f)
+    assert pos[:2] == [-0.2, 0.3] and all(math.isnan(p) for p in pos[2:])
+    assert vel == [-0.19, 0.2, 1.0, 1.1, 1.2, 1.2]
