@@ -20,7 +20,7 @@ setup(
     version="0.1.0",
     packages=find_packages(exclude=["test"]),
     data_files=data_files,
-    install_requires=["setuptools", "numpy", "pyyaml"],
+    install_requires=["setuptools", "numpy", "pyyaml", "opencv-python-headless"],
     zip_safe=True,
     maintainer="lhd_loading maintainers",
     maintainer_email="maintainers@lhd-loading.dev",
@@ -29,6 +29,8 @@ setup(
     entry_points={
         "console_scripts": [
             "lhd = lhd_loading_ros.cli:main",
+            "aruco_pose_node = lhd_loading_ros.aruco_pose_node:main",
+            "lidar_slope_node = lhd_loading_ros.lidar_slope_node:main",
         ],
     },
 )

@@ -3,6 +3,7 @@
   lhd demo [--slopes ...] [--episodes N]   the main job (scripted loading on the simulator)
   lhd bench sim [--json] [--steps N]       simulator speed
   lhd bench bridge [--json]                serial parser throughput and frame-to-publish latency
+  lhd bench perception [--json]            ArUco frames/s (one core) and slope-fit time
   lhd config check [PATH]                  validate a parameter file
 """
 from __future__ import annotations
@@ -17,12 +18,16 @@ def _bench(args) -> int:
         from lhd_sim_node.bench import bench_sim
 
         res = bench_sim(steps=args.steps, seed=args.seed, config=args.config, rounds=args.rounds)
+    elif args.what == "perception":
+        from .perception.bench import bench_perception
+
+        res = bench_perception()
     elif args.what == "bridge":
         from lhd_hw_bridge.bench import bench_bridge
 
         res = bench_bridge(seconds=args.seconds)
     else:
-        print(f"lhd bench: unknown benchmark {args.what!r}; expected: sim, bridge", file=sys.stderr)
+        print(f"lhd bench: unknown benchmark {args.what!r}; expected: sim, bridge, perception", file=sys.stderr)
         return 2
     if args.json:
         print(json.dumps(res))
@@ -53,7 +58,7 @@ def main(argv=None) -> int:
                             add_help=False)
     p_demo.add_argument("rest", nargs=argparse.REMAINDER)
     p_bench = sub.add_parser("bench", help="benchmarks that print their figures")
-    p_bench.add_argument("what", help="sim | bridge")
+    p_bench.add_argument("what", help="sim | bridge | perception")
     p_bench.add_argument("--seconds", type=float, default=4.0, help="bridge: latency measurement time")
     p_bench.add_argument("--json", action="store_true")
     p_bench.add_argument("--steps", type=int, default=3000)

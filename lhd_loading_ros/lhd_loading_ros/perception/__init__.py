@@ -1,0 +1,1 @@
+"""ROS-free perception: ArUco marker pose and machine speed, LiDAR pile slope."""
