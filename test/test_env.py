@@ -1,5 +1,4 @@
 """LhdLoading-v0: Gymnasium contract, determinism, validation of actions."""
-import math
 
 import gymnasium as gym
 import numpy as np

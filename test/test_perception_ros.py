@@ -13,7 +13,7 @@ from std_msgs.msg import Bool, Float64
 
 from lhd_loading_ros.perception.geometry import transform
 from lhd_loading_ros.perception.synthetic import (CAMERA_RPY, drive_poses, intrinsics, marker_texture, render,
-                                                  scan_points_pile, synthetic_scan)
+                                                  synthetic_scan)
 
 from rosutil import RosProcess, init_ros, shutdown_ros, spin_until
 

@@ -1,7 +1,6 @@
 """Physical sanity of the simulator (issue: section 5), on real MuJoCo."""
 import math
 
-import mujoco
 import numpy as np
 import pytest
 

@@ -19,17 +19,16 @@ import math
 import threading
 import time
 
-import rclpy
 import serial
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, HistoryPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64MultiArray
 
 from lhd_loading_ros.config import load_config
+from lhd_loading_ros.ros_main import run_node
 
 from .bridge_core import JOINT_NAMES, BridgeParams, CommandMapper, CommandRejected, Watchdog, detect_drift, joint_state_arrays
 from .protocol import CommandFrame, FrameParser, HeartbeatFrame, SensorFrame, encode
@@ -270,23 +269,7 @@ class BridgeNode(Node):
 
 
 def main(args=None) -> int:
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = BridgeNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except ValueError as exc:  # bad parameter or config: say what, exit non-zero
-        print(f"lhd_hw_bridge: {exc}", flush=True)
-        return 2
-    finally:
-        if node is not None:
-            node.shutdown()
-            node.destroy_node()
-        if rclpy.ok():
-            rclpy.shutdown()
-    return 0
+    return run_node(BridgeNode, "lhd_hw_bridge", args, before_destroy=lambda n: n.shutdown())
 
 
 if __name__ == "__main__":

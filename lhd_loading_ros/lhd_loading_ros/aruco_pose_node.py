@@ -17,16 +17,15 @@ import math
 import time
 
 import numpy as np
-import rclpy
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import Bool
 
 from .perception.aruco import CameraModel, ImageEncodingError, MarkerDetector, VelocityEstimator, image_to_gray, level
+from .ros_main import run_node
 from .perception.geometry import quaternion_xyzw, transform
 
 # Camera streams are sensor data (best effort matches any publisher; late frames are useless).
@@ -196,22 +195,7 @@ def _fill_pose(pose, T) -> None:
 
 
 def main(args=None) -> int:
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = ArucoPoseNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except ValueError as exc:
-        print(f"aruco_pose_node: {exc}", flush=True)
-        return 2
-    finally:
-        if node is not None:
-            node.destroy_node()
-        if rclpy.ok():
-            rclpy.shutdown()
-    return 0
+    return run_node(ArucoPoseNode, "aruco_pose_node", args)
 
 
 if __name__ == "__main__":

@@ -14,14 +14,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import rclpy
 from geometry_msgs.msg import PointStamped
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import LaserScan, PointCloud2
 from std_msgs.msg import Float64
 
+from .ros_main import run_node
 from .perception.geometry import apply, transform
 from .perception.slope import TooFewPoints, cloud_to_points, fit_slope, scan_to_points
 
@@ -91,22 +90,7 @@ class LidarSlopeNode(Node):
 
 
 def main(args=None) -> int:
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = LidarSlopeNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except ValueError as exc:
-        print(f"lidar_slope_node: {exc}", flush=True)
-        return 2
-    finally:
-        if node is not None:
-            node.destroy_node()
-        if rclpy.ok():
-            rclpy.shutdown()
-    return 0
+    return run_node(LidarSlopeNode, "lidar_slope_node", args)
 
 
 if __name__ == "__main__":

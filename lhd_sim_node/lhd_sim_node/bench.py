@@ -42,7 +42,7 @@ def _record(env: LhdLoadingEnv, actions: np.ndarray, seed: int) -> list:
     sim = env.sim
     m, d = sim.model, sim.data
     chunks = []
-    orig_physics, orig_place = sim._physics, sim.place_machine
+    orig_place = sim.place_machine
 
     def rec_place(d_attack):
         orig_place(d_attack)
@@ -68,7 +68,6 @@ def _replay(env: LhdLoadingEnv, chunks: list) -> float:
     m, d = sim.model, sim.data
     tfl, bmass, xfrc = m.tendon_frictionloss, m.body_mass, d.xfrc_applied
     tid, bid = sim.tid_fee, sim.bid_bucket
-    qpos0 = chunks[0][1] if chunks and chunks[0][0] == "place" else d.qpos.copy()
     t0 = time.perf_counter()
     for ch in chunks:
         if ch[0] == "place":
@@ -83,7 +82,6 @@ def _replay(env: LhdLoadingEnv, chunks: list) -> float:
         xfrc[bid] = xf
         bmass[bid] = mass
         mujoco.mj_step(m, d, nstep=n)
-    del qpos0
     return time.perf_counter() - t0, d.qpos.copy()
 
 

@@ -52,10 +52,20 @@ def build_mjcf(cfg: dict) -> str:
     plate_z = -(mc["bucket_hinge_height"] - FLOOR_GAP - PLATE_T / 2)  # plate centre, bucket frame
     top_z = plate_z + PLATE_T / 2
     back_h = mc["bucket_back_height"]
-    boom_len = mc["boom_length"]
-    wheel_i = 0.5 * mc["wheel_mass"] * r * r
+    mc["boom_length"]
     # body frames: rear frame origin at the rear axle (height r); front frame at wb/2 ahead.
     fx = wb / 2
+
+    wm, mu = mc["wheel_mass"], mc["wheel_friction"]
+
+    def wheel(name: str, x: float, y: float, indent: int) -> str:
+        pad = " " * indent
+        return (f'{pad}<body name="{name}" pos="{x} {y} 0">\n'
+                f'{pad}  <joint name="{name}" type="hinge" axis="0 1 0" armature="0.005"/>\n'
+                f'{pad}  <geom name="{name}" type="sphere" size="{r}" mass="{wm}" contype="0" '
+                f'conaffinity="1" friction="{mu} 0.005 0.0001" rgba="0.1 0.1 0.1 1"/>\n'
+                f'{pad}</body>\n')
+
     return f"""
 <mujoco model="lhd_scaled_5to1">
   <compiler angle="radian" autolimits="true"/>
@@ -74,27 +84,11 @@ def build_mjcf(cfg: dict) -> str:
       <inertial pos="{-mc['rear_com_behind_axle']} 0 0.12" mass="{rear_m:.4f}" diaginertia="{rear_m*0.03:.4f} {rear_m*0.04:.4f} {rear_m*0.05:.4f}"/>
       <geom name="rear_body" type="box" pos="0 0 0.12" size="0.3 0.17 0.1" mass="0"/>
       <site name="base_link" pos="0 0 0"/>
-      <body name="wheel_rl" pos="0 {tr/2} 0">
-        <joint name="wheel_rl" type="hinge" axis="0 1 0" armature="0.005"/>
-        <geom name="wheel_rl" type="sphere" size="{r}" mass="{mc['wheel_mass']}" contype="0" conaffinity="1" friction="{mc['wheel_friction']} 0.005 0.0001" rgba="0.1 0.1 0.1 1"/>
-      </body>
-      <body name="wheel_rr" pos="0 {-tr/2} 0">
-        <joint name="wheel_rr" type="hinge" axis="0 1 0" armature="0.005"/>
-        <geom name="wheel_rr" type="sphere" size="{r}" mass="{mc['wheel_mass']}" contype="0" conaffinity="1" friction="{mc['wheel_friction']} 0.005 0.0001" rgba="0.1 0.1 0.1 1"/>
-      </body>
-      <body name="front_frame" pos="{fx} 0 0">
+{wheel("wheel_rl", 0.0, tr / 2, 6)}{wheel("wheel_rr", 0.0, -tr / 2, 6)}      <body name="front_frame" pos="{fx} 0 0">
         <joint name="articulation" type="hinge" axis="0 0 1" range="-0.7 0.7"/>
         <inertial pos="{fx*0.6:.4f} 0 0.12" mass="{front_m:.4f}" diaginertia="{front_m*0.03:.4f} {front_m*0.04:.4f} {front_m*0.05:.4f}"/>
         <geom name="front_body" type="box" pos="{fx*0.6:.4f} 0 0.12" size="0.3 0.17 0.1" mass="0"/>
-        <body name="wheel_fl" pos="{fx} {tr/2} 0">
-          <joint name="wheel_fl" type="hinge" axis="0 1 0" armature="0.005"/>
-          <geom name="wheel_fl" type="sphere" size="{r}" mass="{mc['wheel_mass']}" contype="0" conaffinity="1" friction="{mc['wheel_friction']} 0.005 0.0001" rgba="0.1 0.1 0.1 1"/>
-        </body>
-        <body name="wheel_fr" pos="{fx} {-tr/2} 0">
-          <joint name="wheel_fr" type="hinge" axis="0 1 0" armature="0.005"/>
-          <geom name="wheel_fr" type="sphere" size="{r}" mass="{mc['wheel_mass']}" contype="0" conaffinity="1" friction="{mc['wheel_friction']} 0.005 0.0001" rgba="0.1 0.1 0.1 1"/>
-        </body>
-        <body name="boom" pos="{pivot_x - fx:.5f} 0 {pivot_z - r:.5f}">
+{wheel("wheel_fl", fx, tr / 2, 8)}{wheel("wheel_fr", fx, -tr / 2, 8)}        <body name="boom" pos="{pivot_x - fx:.5f} 0 {pivot_z - r:.5f}">
           <joint name="boom" type="hinge" axis="0 1 0" range="{task['boom_angle_min']} {task['boom_angle_max']}" armature="0.05"/>
           <geom name="boom" type="capsule" fromto="0 0 0 {hinge_dx:.5f} 0 {hinge_dz:.5f}" size="0.03" mass="{mc['boom_mass']}"/>
           <body name="bucket" pos="{hinge_dx:.5f} 0 {hinge_dz:.5f}">
