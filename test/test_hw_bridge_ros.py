@@ -163,3 +163,53 @@ def test_bridge_parser_benchmark_runs():
     from lhd_hw_bridge.bench import parser_throughput
 
     assert parser_throughput(2000) > 1000.0
+
+
+def test_drift_from_odometry_speed_mismatch(rig):
+    """Wheels turning at 2 rad/s (0.27 m/s at the rim) while /lhd/odom says the machine stands."""
+    from nav_msgs.msg import Odometry
+    from rclpy.qos import qos_profile_sensor_data
+
+    dev, bridge, node, pub, got = rig
+    pub_odom = node.create_publisher(Odometry, "/lhd/odom", qos_profile_sensor_data)
+    t_end = time.monotonic() + 1.5
+    while time.monotonic() < t_end:
+        pub.publish(Float64MultiArray(data=[2.0, 0.0, 0.0]))
+        pub_odom.publish(Odometry())  # twist.linear.x = 0
+        spin_until(node, lambda: False, timeout=0.05)
+    assert all(got["front"][-5:]) and all(got["rear"][-5:]) and all(got["drift"][-5:])
+    # the machine moves with its wheels: no drift
+    t_end = time.monotonic() + 1.0
+    while time.monotonic() < t_end:
+        pub.publish(Float64MultiArray(data=[2.0, 0.0, 0.0]))
+        o = Odometry()
+        o.twist.twist.linear.x = 2.0 * 0.137
+        pub_odom.publish(o)
+        spin_until(node, lambda: False, timeout=0.05)
+    assert not any(got["front"][-5:]) and not any(got["rear"][-5:])
+
+
+def test_corrupted_and_dropped_frames_are_counted_and_the_link_carries_on(ros, tmp_path):
+    link = str(tmp_path / "due")
+    dev = FakeDue(link=link, corrupt=0.2, drop=0.1, noise=1.0, seed=3).start()
+    bridge = RosProcess("lhd_hw_bridge.bridge_node", {"port": link}, tmp_path / "bridge.log")
+    node = rclpy.create_node("noise_test")
+    js, diag = [], []
+    node.create_subscription(JointState, "/lhd/joint_states", js.append, 50)
+    node.create_subscription(DiagnosticArray, "/diagnostics", diag.append, 10)
+
+    def counts():
+        for d in reversed(diag):
+            for s in d.status:
+                kv = {k.key: k.value for k in s.values}
+                return int(kv["crc_errors"]) + int(kv["framing_errors"]), int(kv["sequence_gaps"])
+        return 0, 0
+
+    try:
+        assert spin_until(node, lambda: len(js) > 100 and counts()[0] > 5 and counts()[1] > 5, timeout=20.0), \
+            bridge.log()
+        assert bridge.alive()
+    finally:
+        node.destroy_node()
+        assert bridge.stop() == 0
+        dev.stop()
