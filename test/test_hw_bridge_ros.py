@@ -94,8 +94,9 @@ def test_watchdog_sends_stop_within_300_ms_of_the_last_command(rig):
     moving = [t for t, m in frames if not m.is_stop]
     t_move_end = max(moving) if moving else t_last
     first_stop = min(t for t, m in frames if m.is_stop and t > t_move_end)
-    # 300 ms timeout + one 20 ms command period + margin for this 2-core machine's scheduling
-    assert first_stop - t_last < 0.3 + 0.02 + 0.1, first_stop - t_last
+    # 300 ms timeout (from the command's arrival) + the 5 ms watchdog tick + margin for DDS
+    # delivery and this 2-core machine's scheduling (measured: 303-307 ms)
+    assert first_stop - t_last < 0.3 + 0.005 + 0.05, first_stop - t_last
     assert first_stop - t_last >= 0.25
     assert dev.plant.wheel_setpoint == 0.0 and dev.plant.valve_boom == 0
 

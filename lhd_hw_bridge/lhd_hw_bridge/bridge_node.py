@@ -38,6 +38,7 @@ from .protocol import CommandFrame, FrameParser, HeartbeatFrame, SensorFrame, en
 # stale data. Commands: reliable, keep-last 1 -- only the newest command matters, and losing
 # it silently would let the watchdog stop the machine. Odometry in: sensor-data QoS (best
 # effort), which accepts any publisher.
+WATCHDOG_TICK = 0.005  # s
 MEASUREMENT_QOS = QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 COMMAND_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 
@@ -91,7 +92,11 @@ class BridgeNode(Node):
         self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.create_subscription(Float64MultiArray, f"{ns}/cmd", self._on_cmd, COMMAND_QOS)
         self.create_subscription(Odometry, f"{ns}/odom", self._on_odom, qos_profile_sensor_data)
-        self.create_timer(1.0 / self.p.command_rate_hz, self._tick)
+        # the watchdog is checked every WATCHDOG_TICK s and a stop leaves at once when it trips;
+        # command frames themselves go out at command_rate_hz
+        self._frame_every = max(1, int(round(1.0 / (self.p.command_rate_hz * WATCHDOG_TICK))))
+        self._ticks = 0
+        self.create_timer(WATCHDOG_TICK, self._tick)
         self.create_timer(1.0, self._diagnostics)
         self.create_timer(1.0, self._heartbeat)
         self._io = threading.Thread(target=self._io_loop, name="serial-io", daemon=True)
@@ -140,11 +145,15 @@ class BridgeNode(Node):
         now = time.monotonic()
         trips = self.watchdog.trips
         cmd = self.current_command(now)
-        if self.watchdog.trips > trips:
+        tripped = self.watchdog.trips > trips
+        if tripped:
             self.get_logger().warn(f"no valid /lhd/cmd for {self.p.cmd_timeout} s: stopping the machine",
                                    throttle_duration_sec=1.0)
-        if self._write(cmd):
-            self.command_frames += 1
+        self._ticks += 1
+        if tripped or self._ticks >= self._frame_every:
+            self._ticks = 0
+            if self._write(cmd):
+                self.command_frames += 1
 
     def _heartbeat(self) -> None:
         self._write(HeartbeatFrame(int(time.monotonic() * 1000) & 0xFFFFFFFF))
