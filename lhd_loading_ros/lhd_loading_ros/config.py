@@ -104,7 +104,8 @@ SCHEMA: dict[str, Any] = {
         "drift_current_front": _f(0.0, 200.0), "drift_current_rear": _f(0.0, 200.0), "odom_timeout": _f(0.01, 10.0),
         "reconnect_backoff_min": _f(0.001, 10.0), "reconnect_backoff_max": _f(0.001, 60.0),
     },
-    "sim": {"timestep": _f(1e-4, 0.05), "fee_every": _i(1, 1000), "attack_timeout": _f(0.1, 100.0)},
+    "sim": {"timestep": _f(1e-4, 0.05), "fee_every": _i(1, 1000), "attack_timeout": _f(0.1, 100.0),
+            "attack_speed_min_fraction": _f(0.05, 1.0)},
 }
 
 # Relations between keys: (description, predicate).

@@ -162,7 +162,7 @@ class LhdSimulator:
         if d_attack is None:
             d_attack = rng.uniform(self.cfg["paper"]["episode"]["d_attack_min"], self.cfg["paper"]["episode"]["d_attack_max"])
         if attack_speed is None:
-            attack_speed = rng.uniform(0.6, 1.0) * p.wheels_max
+            attack_speed = rng.uniform(self.cfg["sim"]["attack_speed_min_fraction"], 1.0) * p.wheels_max
         self.d_attack, self.attack_speed = float(d_attack), float(attack_speed)
         self.place_machine(self.d_attack)
         t = 0.0
