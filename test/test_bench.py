@@ -30,3 +30,13 @@ def test_lhd_config_check_cli(tmp_path):
     res = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli", "config", "check", str(bad)],
                          capture_output=True, text=True)
     assert res.returncode == 1 and "missing key 'paper.ddpg'" in res.stderr
+
+
+def test_lhd_mjcf_writes_a_model_mujoco_loads(tmp_path):
+    import mujoco
+
+    out = tmp_path / "lhd.xml"
+    subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli", "mjcf", "--out", str(out)], check=True,
+                   capture_output=True)
+    m = mujoco.MjModel.from_xml_path(str(out))
+    assert m.nu == 6 and abs(sum(m.body_mass) - 121.0) < 1e-6

@@ -5,6 +5,7 @@
   lhd bench bridge [--json]                serial parser throughput and frame-to-publish latency
   lhd bench perception [--json]            ArUco frames/s (one core) and slope-fit time
   lhd config check [PATH]                  validate a parameter file
+  lhd mjcf [--out FILE]                    the MJCF of the scaled LHD, generated from the parameters
 """
 from __future__ import annotations
 
@@ -50,6 +51,25 @@ def _config(args) -> int:
     return 0
 
 
+def _mjcf(args) -> int:
+    from lhd_sim_node.mjcf import build_mjcf
+
+    from .config import ConfigError, load_config
+
+    try:
+        xml = build_mjcf(load_config(args.config))
+    except ConfigError as exc:
+        print(exc, file=sys.stderr)
+        return 1
+    if args.out:
+        with open(args.out, "w") as f:
+            f.write(xml)
+        print(f"wrote {args.out} (view it: python -m mujoco.viewer --mjcf={args.out})")
+    else:
+        print(xml)
+    return 0
+
+
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     ap = argparse.ArgumentParser(prog="lhd", description="LHD loading: simulator, training and ROS tools")
@@ -65,6 +85,9 @@ def main(argv=None) -> int:
     p_bench.add_argument("--seed", type=int, default=0)
     p_bench.add_argument("--rounds", type=int, default=3, help="alternating runs; the best of each is reported")
     p_bench.add_argument("--config", default=None, help="parameter file (default: config/lhd_params.yaml)")
+    p_mjcf = sub.add_parser("mjcf", help="write the MJCF of the scaled LHD generated from the parameter file")
+    p_mjcf.add_argument("--out", help="file to write (default: print)")
+    p_mjcf.add_argument("--config", default=None)
     p_cfg = sub.add_parser("config", help="parameter file tools")
     p_cfg.add_argument("action", choices=["check"])
     p_cfg.add_argument("path", nargs="?")
@@ -77,6 +100,8 @@ def main(argv=None) -> int:
         return _bench(args)
     if args.cmd == "config":
         return _config(args)
+    if args.cmd == "mjcf":
+        return _mjcf(args)
     ap.error(f"unknown command {args.cmd}")
     return 2
 
