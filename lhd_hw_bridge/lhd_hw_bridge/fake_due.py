@@ -22,13 +22,19 @@ import time
 import tty
 from dataclasses import dataclass, field
 
-from .protocol import (FLAG_ENABLED, FLAG_WATCHDOG, CommandFrame, FrameParser, HeartbeatFrame, SensorFrame, encode)
+from .protocol import (FLAG_ENABLED, FLAG_WATCHDOG, CommandFrame, FrameParser, SensorFrame, encode)
 
 BOOM_SPEED = 0.191
 BUCKET_SPEED = 0.2
 BOOM_RANGE = (-1.0, 0.05)
 BUCKET_RANGE = (-0.1, 1.4)
 WHEEL_TAU = 0.1
+
+
+def _move(angle: float, rate: float, limits: tuple[float, float], dt: float) -> tuple[float, float]:
+    """A hydraulic joint at `rate` for dt, stopped by its limits: (new angle, actual rate)."""
+    new = min(max(angle + rate * dt, limits[0]), limits[1])
+    return new, (new - angle) / dt
 
 
 @dataclass
@@ -47,14 +53,8 @@ class Plant:
 
     def step(self, dt: float, drift_front: bool, drift_rear: bool) -> None:
         # valve +1 raises the boom (its angle decreases), +1 curls the bucket (angle increases)
-        self.boom_rate = -BOOM_SPEED * self.valve_boom
-        new_boom = min(max(self.boom + self.boom_rate * dt, BOOM_RANGE[0]), BOOM_RANGE[1])
-        self.boom_rate = (new_boom - self.boom) / dt
-        self.boom = new_boom
-        self.bucket_rate = BUCKET_SPEED * self.valve_bucket
-        new_bucket = min(max(self.bucket + self.bucket_rate * dt, BUCKET_RANGE[0]), BUCKET_RANGE[1])
-        self.bucket_rate = (new_bucket - self.bucket) / dt
-        self.bucket = new_bucket
+        self.boom, self.boom_rate = _move(self.boom, -BOOM_SPEED * self.valve_boom, BOOM_RANGE, dt)
+        self.bucket, self.bucket_rate = _move(self.bucket, BUCKET_SPEED * self.valve_bucket, BUCKET_RANGE, dt)
         a = min(dt / WHEEL_TAU, 1.0)
         target = self.wheel_setpoint if self.enabled else 0.0
         self.wheel_fl += a * (target * (1.6 if drift_front else 1.0) - self.wheel_fl)
@@ -215,9 +215,6 @@ class FakeDue:
 
     def last_commands(self) -> list:
         return [(t, m) for t, m in self.received if isinstance(m, CommandFrame)]
-
-    def heartbeats(self) -> list:
-        return [(t, m) for t, m in self.received if isinstance(m, HeartbeatFrame)]
 
 
 def main(argv=None) -> int:

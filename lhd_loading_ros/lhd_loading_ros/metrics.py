@@ -2,7 +2,6 @@
 elapsed time, front and rear drift as a percentage of the episode's time."""
 from __future__ import annotations
 
-import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -71,6 +70,3 @@ def aggregate(results: list[EpisodeResult], bucket_capacity: float) -> dict:
 def drift_pct(flags: list[bool]) -> float:
     return 100.0 * (sum(1 for f in flags if f) / len(flags)) if flags else 0.0
 
-
-def isfinite_all(d: dict) -> bool:
-    return all(math.isfinite(v) for v in d.values() if isinstance(v, float))

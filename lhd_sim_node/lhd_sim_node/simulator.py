@@ -75,7 +75,6 @@ class LhdSimulator:
         self.bid_bucket = m.body("bucket").id
         self.sid_tip = m.site("tip").id
         self.sid_bottom = m.site("bottom").id
-        self.sid_base = m.site("base_link").id
         self.tid_fee = m.tendon("fee_x").id
         self.wheel_dof = np.array([m.jnt_dofadr[m.joint(w).id] for w in WHEELS])
         self._wheel_dofs = [int(i) for i in self.wheel_dof]

@@ -134,10 +134,6 @@ def level(T: np.ndarray) -> np.ndarray:
     return out
 
 
-def base_pose_in_pile(T_pile_cam: np.ndarray, T_cam_marker: np.ndarray, T_marker_base: np.ndarray) -> np.ndarray:
-    return T_pile_cam @ T_cam_marker @ T_marker_base
-
-
 def project(K: np.ndarray, T_cam_obj: np.ndarray, pts: np.ndarray) -> np.ndarray:
     """Pinhole projection of object points (n, 3) given the object's pose in the camera."""
     pc = apply(T_cam_obj, pts)
