@@ -29,6 +29,10 @@ def _i(lo=-INF, hi=INF):
     return ("int", lo, hi)
 
 
+def _ilist(lo=-INF, hi=INF, min_len=1, max_len=16):
+    return ("intlist", lo, hi, min_len, max_len)
+
+
 # (type, min, max) for every key. Ranges are physical or structural limits, not tuning advice.
 SCHEMA: dict[str, Any] = {
     "paper": {
@@ -106,6 +110,12 @@ SCHEMA: dict[str, Any] = {
     },
     "sim": {"timestep": _f(1e-4, 0.05), "fee_every": _i(1, 1000), "attack_timeout": _f(0.1, 100.0),
             "attack_speed_min_fraction": _f(0.05, 1.0)},
+    "training": {
+        "total_steps": _i(1, 100_000_000), "noise_decay_steps": _i(0, 100_000_000), "noise_final_scale": _f(0.0, 1.0),
+        "learning_starts": _i(1, 10_000_000), "hidden_sizes": _ilist(1, 4096, 1, 8), "reward_scale": _f(1e-6, 1e3),
+        "eval_every": _i(1, 100_000_000), "eval_episodes": _i(1, 100_000), "eval_seed": _i(0, 2**31 - 1),
+        "checkpoint_every": _i(1, 100_000_000), "torch_threads": _i(1, 256),
+    },
 }
 
 # Relations between keys: (description, predicate).
@@ -137,6 +147,10 @@ _RELATIONS = [
                    + 4 * c["machine"]["wheel_mass"] - c["machine"]["total_mass"]) <= 1.0),
     ("paper.control.wheels_max * machine.wheel_radius < task.v_x_max",
      lambda c: c["paper"]["control"]["wheels_max"] * c["machine"]["wheel_radius"] < c["task"]["v_x_max"]),
+    ("training.noise_decay_steps <= training.total_steps",
+     lambda c: c["training"]["noise_decay_steps"] <= c["training"]["total_steps"]),
+    ("training.learning_starts >= paper.ddpg.batch_size",
+     lambda c: c["training"]["learning_starts"] >= c["paper"]["ddpg"]["batch_size"]),
 ]
 
 
@@ -158,7 +172,14 @@ def _check(node: Any, schema: Any, path: str, errors: list[str]) -> None:
         if isinstance(spec, dict):
             _check(val, spec, full + ".", errors)
             continue
-        kind, lo, hi = spec
+        kind, lo, hi = spec[:3]
+        if kind == "intlist":
+            min_len, max_len = spec[3:]
+            ok = (isinstance(val, list) and min_len <= len(val) <= max_len
+                  and all(isinstance(v, int) and not isinstance(v, bool) and lo <= v <= hi for v in val))
+            if not ok:
+                errors.append(f"'{full}' = {val!r} is not valid; expected {_describe(spec)}")
+            continue
         if isinstance(val, bool) or not isinstance(val, (int, float)):
             errors.append(f"'{full}' = {val!r} is not a number; expected {_describe(spec)}")
             continue
@@ -170,7 +191,9 @@ def _check(node: Any, schema: Any, path: str, errors: list[str]) -> None:
 
 
 def _describe(spec) -> str:
-    kind, lo, hi = spec
+    kind, lo, hi = spec[:3]
+    if kind == "intlist":
+        return f"a list of {spec[3]} to {spec[4]} integers in [{lo:g}, {hi:g}]"
     return f"{kind} in [{lo:g}, {hi:g}]"
 
 
@@ -192,6 +215,8 @@ def _coerce(node, schema):
     for key, spec in schema.items():
         if isinstance(spec, dict):
             _coerce(node[key], spec)
+        elif spec[0] == "intlist":
+            node[key] = [int(v) for v in node[key]]
         elif spec[0] == "int":
             node[key] = int(node[key])
         else:

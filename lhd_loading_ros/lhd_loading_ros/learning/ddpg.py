@@ -1,0 +1,209 @@
+"""DDPG (Lillicrap et al. 2015) as the paper trains it: one critic and one actor update per
+environment step, soft target updates, Ornstein-Uhlenbeck exploration noise scaled by a
+factor that decays linearly.
+
+Everything numeric comes from :class:`DdpgConfig`, built from config/lhd_params.yaml
+(``paper.ddpg`` for the paper's table, ``training`` for what the paper leaves open).
+Time-limit truncation is not terminal: the replay stores ``not_terminal`` = 1 - terminated,
+so a truncated transition still bootstraps from Q'(o', mu'(o')).
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+import torch
+
+from ..observation import OBS_DIM
+from ..actions import ACT_DIM
+from .mlp import FlatAdam, FlatMlp
+
+
+@dataclass(frozen=True)
+class DdpgConfig:
+    actor_lr: float
+    critic_lr: float
+    gamma: float
+    replay_size: int
+    batch_size: int
+    tau: float
+    ou_mu: float
+    ou_sigma: float
+    ou_theta: float
+    ou_dt: float
+    total_steps: int
+    noise_decay_steps: int
+    noise_final_scale: float
+    learning_starts: int
+    hidden_sizes: tuple
+    reward_scale: float
+    eval_every: int
+    eval_episodes: int
+    eval_seed: int
+    checkpoint_every: int
+
+    @classmethod
+    def from_config(cls, cfg: dict) -> "DdpgConfig":
+        d, t = cfg["paper"]["ddpg"], cfg["training"]
+        return cls(
+            actor_lr=d["actor_lr"], critic_lr=d["critic_lr"], gamma=d["gamma"], replay_size=d["replay_size"],
+            batch_size=d["batch_size"], tau=d["tau"], ou_mu=d["ou_mu"], ou_sigma=d["ou_sigma"],
+            ou_theta=d["ou_theta"], ou_dt=d["ou_dt"], total_steps=t["total_steps"],
+            noise_decay_steps=t["noise_decay_steps"], noise_final_scale=t["noise_final_scale"],
+            learning_starts=t["learning_starts"], hidden_sizes=tuple(t["hidden_sizes"]),
+            reward_scale=t["reward_scale"], eval_every=t["eval_every"], eval_episodes=t["eval_episodes"],
+            eval_seed=t["eval_seed"], checkpoint_every=t["checkpoint_every"],
+        )
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["hidden_sizes"] = list(self.hidden_sizes)
+        return d
+
+
+# ---------------------------------------------------------------------- exploration
+class OUNoise:
+    """Ornstein-Uhlenbeck process, Euler-Maruyama:
+    x <- x + theta (mu - x) dt + sigma sqrt(dt) N(0, 1)."""
+
+    def __init__(self, dim: int, mu: float, sigma: float, theta: float, dt: float, rng: np.random.Generator):
+        self.dim, self.mu, self.sigma, self.theta, self.dt = dim, mu, sigma, theta, dt
+        self.rng = rng
+        self.x = np.full(dim, mu, dtype=np.float64)
+
+    def reset(self) -> None:
+        self.x[:] = self.mu
+
+    def sample(self) -> np.ndarray:
+        self.x += self.theta * (self.mu - self.x) * self.dt + self.sigma * np.sqrt(self.dt) * self.rng.standard_normal(self.dim)
+        return self.x.copy()
+
+
+def noise_scale(step: int, decay_steps: int, final: float) -> float:
+    """Linear decay from 1 at step 0 to `final` at `decay_steps`, then constant."""
+    if decay_steps <= 0:
+        return final
+    f = min(1.0, max(0.0, step / decay_steps))
+    return 1.0 + (final - 1.0) * f
+
+
+# ---------------------------------------------------------------------- replay
+class ReplayBuffer:
+    """Ring buffer of transitions in one float32 tensor per row:
+    [o (12) | a (3) | r | not_terminal | o' (12)], sampled uniformly with replacement."""
+
+    def __init__(self, capacity: int, obs_dim: int = OBS_DIM, act_dim: int = ACT_DIM):
+        if capacity < 1:
+            raise ValueError(f"replay capacity must be >= 1, got {capacity}")
+        self.obs_dim, self.act_dim = obs_dim, act_dim
+        self.width = 2 * obs_dim + act_dim + 2
+        self.data = torch.zeros(capacity, self.width, dtype=torch.float32)
+        self._np = self.data.numpy()      # shares memory: writes without torch overhead
+        self.capacity = capacity
+        self.size = 0
+        self.pos = 0
+
+    def add(self, o, a, r: float, terminated: bool, o2) -> None:
+        row = self._np[self.pos]
+        k = self.obs_dim
+        row[:k] = o
+        row[k:k + self.act_dim] = a
+        k += self.act_dim
+        row[k] = r
+        row[k + 1] = 0.0 if terminated else 1.0
+        row[k + 2:] = o2
+        self.pos = (self.pos + 1) % self.capacity
+        self.size = min(self.size + 1, self.capacity)
+
+    def sample(self, batch: int, generator: torch.Generator):
+        idx = torch.randint(self.size, (batch,), generator=generator)
+        b = self.data.index_select(0, idx)
+        k = self.obs_dim + self.act_dim
+        return b[:, :k], b[:, k:k + 1], b[:, k + 1:k + 2], b[:, k + 2:]   # (o|a), r, not_terminal, o'
+
+    def state_dict(self) -> dict:
+        return {"data": self.data[: self.size].clone(), "pos": self.pos, "size": self.size}
+
+    def load_state_dict(self, d: dict) -> None:
+        n = int(d["size"])
+        if d["data"].shape[1] != self.width or n > self.capacity:
+            raise ValueError("replay checkpoint does not match this buffer's layout or capacity")
+        self.data[:n].copy_(d["data"])
+        self.size, self.pos = n, int(d["pos"])
+
+
+# ---------------------------------------------------------------------- agent
+class DdpgAgent:
+    def __init__(self, cfg: DdpgConfig, seed: int, obs_dim: int = OBS_DIM, act_dim: int = ACT_DIM):
+        self.cfg = cfg
+        self.obs_dim, self.act_dim = obs_dim, act_dim
+        self.gen = torch.Generator().manual_seed(int(seed))
+        h = list(cfg.hidden_sizes)
+        self.actor = FlatMlp([obs_dim, *h, act_dim], "tanh", generator=self.gen)
+        self.critic = FlatMlp([obs_dim + act_dim, *h, 1], "identity", generator=self.gen)
+        self.actor_t = FlatMlp(self.actor.sizes, "tanh")
+        self.critic_t = FlatMlp(self.critic.sizes, "identity")
+        self.actor_t.copy_from(self.actor)
+        self.critic_t.copy_from(self.critic)
+        self.actor_opt = FlatAdam(self.actor, cfg.actor_lr)
+        self.critic_opt = FlatAdam(self.critic, cfg.critic_lr)
+        self.updates = 0
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        """Deterministic action mu(o) in [-1, 1]^3 (float64)."""
+        with torch.no_grad():
+            x = torch.from_numpy(np.asarray(obs, dtype=np.float32).reshape(1, -1))
+            return self.actor(x)[0].double().numpy()
+
+    def actor_numpy(self):
+        """A snapshot of the actor as the exported NumpyActor (what the policy node runs)."""
+        from ..policy_file import NumpyActor
+        return NumpyActor(self.actor.numpy_weights())
+
+    def update(self, oa: torch.Tensor, r: torch.Tensor, not_term: torch.Tensor, o2: torch.Tensor) -> tuple[float, float]:
+        """One critic step on the TD target and one actor step on -Q(o, mu(o)); then the
+        soft target updates. Returns the TD errors and Q(o, mu(o)) of the batch (tensors)."""
+        cfg = self.cfg
+        B = oa.shape[0]
+        # TD target y = s r + gamma (1 - terminated) Q'(o', mu'(o'))
+        a2 = self.actor_t(o2)
+        q2 = self.critic_t(torch.cat((o2, a2), 1))
+        y = torch.addcmul(r * cfg.reward_scale, not_term, q2, value=cfg.gamma)
+        # critic: L = mean (Q(o, a) - y)^2
+        q, cache = self.critic.forward(oa)
+        err = q - y
+        self.critic.backward(cache, err * (2.0 / B))
+        self.critic_opt.step()
+        # actor: maximise Q(o, mu(o)) through the updated critic (as CleanRL / Lillicrap)
+        o = oa[:, : self.obs_dim]
+        pi, acache = self.actor.forward(o)
+        qpi, ccache = self.critic.forward(torch.cat((o, pi), 1))
+        dq = torch.full_like(qpi, -1.0 / B)
+        dx = self.critic.backward(ccache, dq, weight_grads=False, input_grad=True)
+        self.actor.backward(acache, dx[:, self.obs_dim:])
+        self.actor_opt.step()
+        self.actor_t.soft_update_from(self.actor, cfg.tau)
+        self.critic_t.soft_update_from(self.critic, cfg.tau)
+        self.updates += 1
+        return err, qpi
+
+    # ------------------------------------------------------------------ checkpoints
+    def state_dict(self) -> dict:
+        return {
+            "actor": self.actor.flat.clone(), "critic": self.critic.flat.clone(),
+            "actor_t": self.actor_t.flat.clone(), "critic_t": self.critic_t.flat.clone(),
+            "actor_opt": self.actor_opt.state_dict(), "critic_opt": self.critic_opt.state_dict(),
+            "updates": self.updates, "gen": self.gen.get_state(),
+        }
+
+    def load_state_dict(self, d: dict) -> None:
+        for name in ("actor", "critic", "actor_t", "critic_t"):
+            net = getattr(self, name)
+            if d[name].shape != net.flat.shape:
+                raise ValueError(f"checkpoint's {name} has {d[name].numel()} parameters, this agent "
+                                 f"{net.n_params} (hidden sizes differ?)")
+            net.flat.copy_(d[name])
+        self.actor_opt.load_state_dict(d["actor_opt"])
+        self.critic_opt.load_state_dict(d["critic_opt"])
+        self.updates = int(d["updates"])
+        self.gen.set_state(d["gen"])

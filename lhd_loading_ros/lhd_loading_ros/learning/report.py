@@ -1,0 +1,100 @@
+"""Aggregate several training runs: final figures across seeds (mean +- sd, interquartile
+mean with a bootstrap 95 % interval) and the training curves of AR, AML and ASL with their
+spread across seeds (like the paper's performance-evolution figures)."""
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+
+METRICS = ("ar", "aml", "aff", "asl", "success_rate", "elapsed_s", "front_drift_pct", "rear_drift_pct")
+
+
+def read_evals(run_dir) -> dict[str, np.ndarray]:
+    path = Path(run_dir) / "evals.csv"
+    if not path.is_file():
+        raise FileNotFoundError(f"{run_dir} is not a training run: no evals.csv (expected the --out of lhd train)")
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    if not rows:
+        raise ValueError(f"{path} has no evaluations yet")
+    return {k: np.array([float(r[k]) for r in rows]) for k in rows[0] if r_is_number(rows[0][k])}
+
+
+def r_is_number(s: str) -> bool:
+    try:
+        float(s)
+        return True
+    except ValueError:
+        return False
+
+
+def iqm(x) -> float:
+    """Interquartile mean: the mean of the middle 50 % (floor(n/4) values dropped at each end)."""
+    x = np.sort(np.asarray(x, dtype=float))
+    k = len(x) // 4
+    return float(np.mean(x[k: len(x) - k]))
+
+
+def bootstrap_ci(x, stat=iqm, n: int = 10_000, level: float = 0.95, seed: int = 0) -> tuple[float, float]:
+    """Percentile bootstrap interval of stat over runs (resampling runs with replacement)."""
+    x = np.asarray(x, dtype=float)
+    rng = np.random.default_rng(seed)
+    idx = rng.integers(0, len(x), size=(n, len(x)))
+    vals = np.array([stat(x[i]) for i in idx])
+    lo, hi = np.quantile(vals, [(1 - level) / 2, 1 - (1 - level) / 2])
+    return float(lo), float(hi)
+
+
+def summarize(run_dirs: list) -> dict:
+    """Final evaluation of each run -> per metric: mean, sd, iqm, iqm_ci95, values."""
+    finals = [read_evals(d) for d in run_dirs]
+    steps = [int(f["step"][-1]) for f in finals]
+    out = {"runs": [str(d) for d in run_dirs], "final_steps": steps, "metrics": {}}
+    for m in METRICS:
+        vals = np.array([f[m][-1] for f in finals if m in f])
+        if len(vals) == 0:
+            continue
+        out["metrics"][m] = {"mean": float(vals.mean()), "sd": float(vals.std(ddof=1)) if len(vals) > 1 else 0.0,
+                             "iqm": iqm(vals), "iqm_ci95": list(bootstrap_ci(vals)), "values": vals.tolist()}
+    return out
+
+
+def plot_curves(groups: dict[str, list], path) -> Path:
+    """groups: label -> run dirs. One panel per metric (AR, AML, ASL): mean across seeds with a
+    +-1 sd band, on the evaluation steps the runs share."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.6))
+    for label, dirs in groups.items():
+        evs = [read_evals(d) for d in dirs]
+        n = min(len(e["step"]) for e in evs)
+        x = evs[0]["step"][:n] / 1000.0
+        for ax, (m, title) in zip(axes, (("ar", "Average return"), ("aml", "Average material loaded [kg]"),
+                                         ("asl", "Average success level"))):
+            y = np.stack([e[m][:n] for e in evs])
+            mu, sd = y.mean(0), y.std(0)
+            ax.plot(x, mu, label=f"{label} ({len(evs)} seeds)")
+            ax.fill_between(x, mu - sd, mu + sd, alpha=0.25)
+            ax.set_title(title)
+            ax.set_xlabel("training steps [x1000]")
+            ax.grid(alpha=0.3)
+    axes[0].legend()
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def format_summary(label: str, s: dict) -> str:
+    lines = [f"{label}: {len(s['runs'])} runs, final step {min(s['final_steps']):,}"]
+    for m, v in s["metrics"].items():
+        lines.append(f"  {m:>16}: {v['mean']:9.3f} +- {v['sd']:7.3f}   IQM {v['iqm']:9.3f} "
+                     f"[{v['iqm_ci95'][0]:.3f}, {v['iqm_ci95'][1]:.3f}]")
+    return "\n".join(lines)

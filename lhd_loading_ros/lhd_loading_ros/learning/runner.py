@@ -1,0 +1,70 @@
+"""Several training seeds in parallel processes (``lhd train --seeds 0-4``)."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+
+def parse_seeds(text: str) -> list[int]:
+    """'0-4' -> [0, 1, 2, 3, 4]; '0,2,5' -> [0, 2, 5]; '3' -> [3]."""
+    seeds: list[int] = []
+    try:
+        for part in text.split(","):
+            part = part.strip()
+            if "-" in part[1:]:
+                lo, hi = part.split("-", 1)
+                a, b = int(lo), int(hi)
+                if b < a:
+                    raise ValueError
+                seeds.extend(range(a, b + 1))
+            else:
+                seeds.append(int(part))
+    except ValueError:
+        raise ValueError(f"seeds {text!r} not understood; expected e.g. '0-4', '0,2,5' or '3'") from None
+    if any(s < 0 for s in seeds) or len(set(seeds)) != len(seeds):
+        raise ValueError(f"seeds {text!r}: expected distinct non-negative integers")
+    return seeds
+
+
+def run_seeds(variant: str, seeds: list[int], out: Path, jobs: int, extra: list[str]) -> int:
+    """Run `lhd train` for each seed as a child process, at most `jobs` at a time. Logs go to
+    out/seed_N.log. Ctrl-C stops every child (their checkpoints let them resume)."""
+    out.mkdir(parents=True, exist_ok=True)
+    pending = list(seeds)
+    running: dict[int, subprocess.Popen] = {}
+    failed = []
+    try:
+        while pending or running:
+            while pending and len(running) < jobs:
+                s = pending.pop(0)
+                cmd = [sys.executable, "-m", "lhd_loading_ros.cli", "train", "--variant", variant, "--seed", str(s),
+                       "--out", str(out / f"seed_{s}"), "--no-progress", *extra]
+                log = open(out / f"seed_{s}.log", "ab")
+                running[s] = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+                log.close()
+                print(f"seed {s}: started (log {out / f'seed_{s}.log'})", flush=True)
+            time.sleep(1.0)
+            for s, p in list(running.items()):
+                if p.poll() is not None:
+                    del running[s]
+                    print(f"seed {s}: exit {p.returncode}", flush=True)
+                    if p.returncode:
+                        failed.append(s)
+    except KeyboardInterrupt:
+        for p in running.values():
+            os.killpg(p.pid, signal.SIGINT)
+        for p in running.values():
+            try:
+                p.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                os.killpg(p.pid, signal.SIGKILL)
+        print("interrupted; rerun the same command to resume from the checkpoints", file=sys.stderr)
+        return 130
+    if failed:
+        print(f"failed seeds: {failed} (see their logs)", file=sys.stderr)
+        return 1
+    return 0

@@ -1,0 +1,234 @@
+"""The DDPG training loop: collect, update, evaluate, checkpoint, export.
+
+A run directory holds
+  run.json          arguments, config hash, DDPG settings
+  evals.csv         one row per evaluation (every eval_every steps): AR, AML, AFF, ASL, ...
+  episodes.csv      one row per training episode (return, loaded mass, outcome, noise scale)
+  checkpoint.pt     agent, optimisers, replay buffer, RNG states (tensors and plain values
+                    only: loaded with torch.load(weights_only=True)); written every
+                    checkpoint_every steps, atomically
+  best/             exported actor with the best evaluation so far (ASL, then success, then AR)
+  final/            exported actor at the end of training
+Interrupted runs resume from checkpoint.pt: the agent, replay and noise continue exactly; the
+episode in progress is dropped and the next one starts (training episode k always uses the
+pile of seed (run seed, k), so the sequence of piles is the same with or without a resume).
+"""
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from ..config import config_hash, load_config
+from .ddpg import DdpgAgent, DdpgConfig, OUNoise, ReplayBuffer, noise_scale
+from .evaluate import evaluate
+from .export import export_actor
+
+EVAL_FIELDS = ("step", "ar", "aml", "aff", "asl", "success_rate", "end_zone_rate", "elapsed_s",
+               "front_drift_pct", "rear_drift_pct", "noise_scale", "critic_loss", "q_mean", "episodes_done",
+               "wall_s", "eval_wall_s")
+EPISODE_FIELDS = ("episode", "step", "return", "loaded", "outcome", "steps", "alpha_deg", "material", "noise_scale")
+
+
+def episode_seed(run_seed: int, k: int) -> int:
+    return (int(run_seed) * 1_000_003 + int(k)) % (2**31 - 1)
+
+
+class _Progress:
+    def __init__(self, label: str, total: int, enabled: bool):
+        self.label, self.total, self.enabled = label, total, enabled
+        self.t0 = time.perf_counter()
+        self.start_step = None
+        self.last = 0.0
+        self.eval_text = "no evaluation yet"
+
+    def update(self, step: int, force: bool = False) -> None:
+        if not self.enabled:
+            return
+        now = time.perf_counter()
+        if self.start_step is None:
+            self.start_step, self.t0 = step, now
+        if not force and now - self.last < 1.0:
+            return
+        self.last = now
+        rate = (step - self.start_step) / max(now - self.t0, 1e-9)
+        eta = (self.total - step) / rate if rate > 0 else float("inf")
+        frac = step / self.total
+        bar = "#" * int(20 * frac) + "-" * (20 - int(20 * frac))
+        eta_s = "--:--" if not math.isfinite(eta) else f"{int(eta // 60)}:{int(eta % 60):02d}"
+        sys.stderr.write(f"\r{self.label} [{bar}] {step:,}/{self.total:,} {rate:,.0f} steps/s ETA {eta_s} | "
+                         f"{self.eval_text}   ")
+        sys.stderr.flush()
+
+    def close(self):
+        if self.enabled:
+            sys.stderr.write("\n")
+
+
+def _tensorboard(out: Path):
+    try:
+        from torch.utils.tensorboard import SummaryWriter  # needs the optional tensorboard package
+    except Exception:
+        return None
+    return SummaryWriter(str(out / "tb"))
+
+
+def _append_csv(path: Path, fields, row: dict) -> None:
+    new = not path.exists()
+    with open(path, "a", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=fields)
+        if new:
+            w.writeheader()
+        w.writerow({k: row.get(k, "") for k in fields})
+
+
+def _truncate_csv(path: Path, key: str, limit: int) -> None:
+    """Drop rows written after the checkpoint we resume from (their steps will be redone)."""
+    if not path.exists():
+        return
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+        fields = rows and list(rows[0].keys())
+    kept = [r for r in rows if int(float(r[key])) <= limit]
+    with open(path, "w", newline="") as f:
+        if fields:
+            w = csv.DictWriter(f, fieldnames=fields)
+            w.writeheader()
+            w.writerows(kept)
+
+
+def _rank(ev: dict) -> tuple:
+    return (round(ev["asl"], 6), round(ev["success_rate"], 6), ev["ar"])
+
+
+def train(variant: str, seed: int, out, steps: int | None = None, config=None, resume: bool = True,
+          progress: bool = True, eval_episodes: int | None = None, eval_every: int | None = None,
+          checkpoint_every: int | None = None, log=print) -> dict:
+    """Train one DDPG agent; return the last evaluation (dict). See the module docstring."""
+    from lhd_sim_node.env import LhdLoadingEnv   # the simulator is only needed to train
+
+    cfg = config if isinstance(config, dict) else load_config(config)
+    dc = DdpgConfig.from_config(cfg)
+    over = {k: v for k, v in (("total_steps", steps), ("eval_episodes", eval_episodes),
+                               ("eval_every", eval_every), ("checkpoint_every", checkpoint_every)) if v is not None}
+    if over:
+        dc = DdpgConfig(**{**dc.__dict__, **over})
+    if dc.total_steps < 1:
+        raise ValueError(f"steps must be >= 1, got {dc.total_steps}")
+    torch.set_num_threads(cfg["training"]["torch_threads"])
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    chash = config_hash(cfg)
+
+    env = LhdLoadingEnv(variant, cfg)
+    eval_env = LhdLoadingEnv(variant, cfg)
+    agent = DdpgAgent(dc, seed)
+    replay = ReplayBuffer(dc.replay_size)
+    rng = np.random.default_rng(seed)
+    noise = OUNoise(3, dc.ou_mu, dc.ou_sigma, dc.ou_theta, dc.ou_dt, rng)
+    step, episode, best, wall_before = 0, 0, None, 0.0
+
+    ckpt = out / "checkpoint.pt"
+    if resume and ckpt.exists():
+        st = torch.load(ckpt, weights_only=True)
+        if st["variant"] != variant or st["seed"] != seed:
+            raise ValueError(f"{ckpt} belongs to variant {st['variant']} seed {st['seed']}, not {variant} seed "
+                             f"{seed}; use another --out or remove the checkpoint")
+        if st["config_hash"] != chash:
+            raise ValueError(f"{ckpt} was trained with another parameter file (config hash {st['config_hash'][:12]} "
+                             f"!= {chash[:12]}); use another --out or the same config")
+        agent.load_state_dict(st["agent"])
+        replay.load_state_dict(st["replay"])
+        rng.bit_generator.state = json.loads(st["rng"])
+        noise.x[:] = st["noise_x"].numpy()
+        step, episode = int(st["step"]), int(st["episode"])
+        best = json.loads(st["best"]) if st["best"] else None
+        wall_before = float(st["wall_s"])
+        _truncate_csv(out / "evals.csv", "step", step)
+        _truncate_csv(out / "episodes.csv", "step", step)
+        log(f"resumed {out} at step {step:,} (episode {episode})")
+    else:
+        for f in ("evals.csv", "episodes.csv"):
+            (out / f).unlink(missing_ok=True)
+    (out / "run.json").write_text(json.dumps({
+        "variant": variant, "seed": seed, "config_hash": chash, "ddpg": dc.to_dict(),
+        "torch": torch.__version__, "command": sys.argv}, indent=2) + "\n")
+
+    meta_base = {"variant": variant, "seed": seed, "config_hash": chash, "ddpg": dc.to_dict()}
+
+    def export(name: str, ev: dict) -> None:
+        export_actor(out / name, agent.actor, cfg, {**meta_base, "steps": step, "evaluation": ev})
+
+    def save_checkpoint() -> None:
+        st = {"variant": variant, "seed": seed, "config_hash": chash, "step": step, "episode": episode,
+              "agent": agent.state_dict(), "replay": replay.state_dict(),
+              "rng": json.dumps(rng.bit_generator.state), "noise_x": torch.from_numpy(noise.x.copy()),
+              "best": json.dumps(best) if best else "", "wall_s": wall_before + time.perf_counter() - t0}
+        tmp = out / "checkpoint.pt.tmp"
+        torch.save(st, tmp)
+        os.replace(tmp, ckpt)
+
+    tb = _tensorboard(out)
+    bar = _Progress(f"{variant} seed {seed}", dc.total_steps, progress)
+    t0 = time.perf_counter()
+    obs, info = env.reset(seed=episode_seed(seed, episode))
+    noise.reset() if step == 0 else None
+    ep_ret, last_eval, closs, qmean = 0.0, None, float("nan"), float("nan")
+    bucket = cfg["task"]["bucket_capacity"]
+    try:
+        while step < dc.total_steps:
+            scale = noise_scale(step, dc.noise_decay_steps, dc.noise_final_scale)
+            a = np.clip(agent.act(obs) + scale * noise.sample(), -1.0, 1.0)
+            obs2, r, term, trunc, info = env.step(a)
+            replay.add(obs, a, r, term, obs2)
+            ep_ret += r
+            step += 1
+            if replay.size >= dc.learning_starts:
+                err, q = agent.update(*replay.sample(dc.batch_size, agent.gen))
+            obs = obs2
+            if term or trunc:
+                res = info["episode_result"]
+                _append_csv(out / "episodes.csv", EPISODE_FIELDS, {
+                    "episode": episode, "step": step, "return": f"{ep_ret:.3f}", "loaded": f"{res.loaded:.3f}",
+                    "outcome": info["outcome"] if term else "timeout", "steps": res.steps,
+                    "alpha_deg": f"{res.alpha_deg:.2f}", "material": res.material, "noise_scale": f"{scale:.4f}"})
+                episode += 1
+                ep_ret = 0.0
+                noise.reset()
+                obs, info = env.reset(seed=episode_seed(seed, episode))
+            if step % dc.eval_every == 0 or step == dc.total_steps:
+                if replay.size >= dc.learning_starts:
+                    closs = float((err * err).mean()) / dc.reward_scale ** 2
+                    qmean = float(q.mean()) / dc.reward_scale
+                ev = evaluate(eval_env, agent.actor_numpy(), dc.eval_episodes, dc.eval_seed, bucket, breakdown=False)
+                row = {"step": step, "noise_scale": scale, "critic_loss": closs, "q_mean": qmean,
+                       "episodes_done": episode, "wall_s": wall_before + time.perf_counter() - t0,
+                       "eval_wall_s": ev["wall_s"], **{k: ev[k] for k in EVAL_FIELDS if k in ev and k != "wall_s"}}
+                _append_csv(out / "evals.csv", EVAL_FIELDS, {k: (f"{v:.6g}" if isinstance(v, float) else v)
+                                                             for k, v in row.items()})
+                if tb is not None:
+                    for k in ("ar", "aml", "aff", "asl", "success_rate", "critic_loss", "q_mean"):
+                        tb.add_scalar(f"eval/{k}", row[k], step)
+                last_eval = {k: row[k] for k in EVAL_FIELDS if k in row}
+                if best is None or _rank(last_eval) > _rank(best):
+                    best = dict(last_eval)
+                    export("best", best)
+                bar.eval_text = (f"eval@{step // 1000}k SR {ev['success_rate']:.2f} ASL {ev['asl']:.2f} "
+                                 f"AML {ev['aml']:.1f} AR {ev['ar']:.0f}")
+                bar.update(step, force=True)
+            if step % dc.checkpoint_every == 0 or step == dc.total_steps:
+                save_checkpoint()
+            bar.update(step)
+    finally:
+        bar.close()
+        if tb is not None:
+            tb.close()
+    export("final", last_eval)
+    return last_eval

@@ -1,0 +1,150 @@
+"""Exported actors: a policy directory the policy node loads without training code or torch.
+
+Layout of a policy directory (format ``lhd-actor/1``, docs/training.md says why):
+
+- ``actor.npz``: the layer weights ``W0, b0, W1, b1, ...`` as float32 arrays (``np.load`` with
+  ``allow_pickle=False``: no Python object is ever unpickled);
+- ``policy.json``: architecture (layer sizes, ReLU hidden, tanh output), variant, observation
+  names and normalization, action names and actuator ranges, filter thresholds, the config
+  hash, seed, steps, evaluation figures and the SHA-256 of ``actor.npz``.
+
+:class:`NumpyActor` runs the network in numpy (about 10 us per observation).
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+FORMAT = "lhd-actor/1"
+ACTOR_FILE = "actor.npz"
+META_FILE = "policy.json"
+
+
+class PolicyFileError(ValueError):
+    """A policy directory is missing, incomplete or inconsistent."""
+
+
+class NumpyActor:
+    """mu(o) = tanh(W_n relu(... relu(W_1 o + b_1) ...) + b_n), float32."""
+
+    def __init__(self, layers: list[tuple[np.ndarray, np.ndarray]]):
+        if not layers:
+            raise PolicyFileError("actor has no layers")
+        self.layers = [(np.ascontiguousarray(W, dtype=np.float32), np.ascontiguousarray(b, dtype=np.float32))
+                       for W, b in layers]
+        for j, (W, b) in enumerate(self.layers):
+            if W.ndim != 2 or b.shape != (W.shape[0],):
+                raise PolicyFileError(f"layer {j}: weight {W.shape} and bias {b.shape} do not form a dense layer")
+            if j and W.shape[1] != self.layers[j - 1][0].shape[0]:
+                raise PolicyFileError(f"layer {j} takes {W.shape[1]} inputs but layer {j - 1} gives "
+                                      f"{self.layers[j - 1][0].shape[0]}")
+            if not (np.isfinite(W).all() and np.isfinite(b).all()):
+                raise PolicyFileError(f"layer {j} holds non-finite weights")
+        self.obs_dim = self.layers[0][0].shape[1]
+        self.act_dim = self.layers[-1][0].shape[0]
+
+    @property
+    def sizes(self) -> list[int]:
+        return [self.obs_dim] + [W.shape[0] for W, _ in self.layers]
+
+    def __call__(self, obs) -> np.ndarray:
+        """obs (obs_dim,) or (n, obs_dim) -> actions in [-1, 1], same leading shape, float32."""
+        x = np.asarray(obs, dtype=np.float32)
+        single = x.ndim == 1
+        if x.shape[-1] != self.obs_dim or x.ndim > 2:
+            raise ValueError(f"observation must have shape ({self.obs_dim},) or (n, {self.obs_dim}), got {x.shape}")
+        h = x.reshape(1, -1) if single else x
+        last = len(self.layers) - 1
+        for j, (W, b) in enumerate(self.layers):
+            h = h @ W.T + b
+            h = np.maximum(h, 0.0, out=h) if j < last else np.tanh(h, out=h)
+        return h[0] if single else h
+
+
+@dataclass
+class LoadedPolicy:
+    actor: NumpyActor
+    meta: dict
+    path: Path
+
+    @property
+    def variant(self) -> str:
+        return self.meta["variant"]
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def save_policy(directory, layers: list[tuple[np.ndarray, np.ndarray]], meta: dict) -> Path:
+    """Write actor.npz and policy.json into `directory` (created); return the directory."""
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+    actor = NumpyActor(layers)     # validates shapes and finiteness
+    arrays = {}
+    for j, (W, b) in enumerate(actor.layers):
+        arrays[f"W{j}"], arrays[f"b{j}"] = W, b
+    tmp = d / (ACTOR_FILE + ".tmp.npz")
+    np.savez(tmp, **arrays)
+    tmp.replace(d / ACTOR_FILE)
+    full = dict(meta)
+    full.update({
+        "format": FORMAT,
+        "architecture": {"sizes": actor.sizes, "hidden_activation": "relu", "output_activation": "tanh",
+                         "dtype": "float32", "layout": "y = x @ W.T + b per layer"},
+        "actor_sha256": _sha256(d / ACTOR_FILE),
+    })
+    tmpj = d / (META_FILE + ".tmp")
+    tmpj.write_text(json.dumps(full, indent=2, sort_keys=True, default=_json_default) + "\n")
+    tmpj.replace(d / META_FILE)
+    return d
+
+
+def _json_default(o):
+    if isinstance(o, (np.floating, np.integer)):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
+def load_policy(directory) -> LoadedPolicy:
+    """Load and check a policy directory. Raises PolicyFileError naming what is wrong."""
+    d = Path(directory)
+    if not d.is_dir():
+        raise PolicyFileError(f"policy directory {d} does not exist; expected a directory with {ACTOR_FILE} "
+                              f"and {META_FILE} (see policies/README.md)")
+    for name in (ACTOR_FILE, META_FILE):
+        if not (d / name).is_file():
+            raise PolicyFileError(f"policy directory {d} has no {name}; expected {ACTOR_FILE} and {META_FILE}")
+    try:
+        meta = json.loads((d / META_FILE).read_text())
+    except json.JSONDecodeError as exc:
+        raise PolicyFileError(f"{d / META_FILE} is not valid JSON: {exc}") from exc
+    if meta.get("format") != FORMAT:
+        raise PolicyFileError(f"{d / META_FILE}: format {meta.get('format')!r}, expected {FORMAT!r}")
+    if meta.get("variant") not in ("rld", "rlc"):
+        raise PolicyFileError(f"{d / META_FILE}: variant {meta.get('variant')!r}, expected 'rld' or 'rlc'")
+    digest = _sha256(d / ACTOR_FILE)
+    if meta.get("actor_sha256") != digest:
+        raise PolicyFileError(f"{d / ACTOR_FILE} does not match the SHA-256 recorded in {META_FILE} "
+                              "(file replaced or corrupted)")
+    with np.load(d / ACTOR_FILE, allow_pickle=False) as z:
+        n = len([k for k in z.files if k.startswith("W")])
+        try:
+            layers = [(z[f"W{j}"], z[f"b{j}"]) for j in range(n)]
+        except KeyError as exc:
+            raise PolicyFileError(f"{d / ACTOR_FILE} lacks array {exc}; expected W0, b0, W1, b1, ...") from exc
+    actor = NumpyActor(layers)
+    if actor.sizes != meta["architecture"]["sizes"]:
+        raise PolicyFileError(f"{d}: weights have sizes {actor.sizes}, {META_FILE} says {meta['architecture']['sizes']}")
+    return LoadedPolicy(actor, meta, d)
+
+
+def finite(x) -> bool:
+    return all(math.isfinite(float(v)) for v in np.ravel(x))
