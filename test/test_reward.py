@@ -61,9 +61,19 @@ def test_stuck(params):
     assert R.r_stuck(deque([0.001] * 8 + [0.01]), params) == 0.0
 
 
-def test_dump(params):
-    assert R.r_dump(r(40), params) == -20.0
-    assert R.r_dump(r(39.9), params) == 0.0
+def test_dump_penalises_forward_tilt(params):
+    """Default (r_dump_sign = -1, the paper's prose): tilted forward by 40 deg or more."""
+    assert params.r_dump_sign == -1
+    assert R.r_dump(r(-40), params) == -20.0
+    assert R.r_dump(r(-39.9), params) == 0.0
+    assert R.r_dump(r(45), params) == 0.0     # curled back past 40 deg: the pose success asks for
+
+
+def test_dump_literal_inequality(params):
+    import dataclasses
+    lit = dataclasses.replace(params, r_dump_sign=1)
+    assert R.r_dump(r(40), lit) == -20.0
+    assert R.r_dump(r(39.9), lit) == 0.0
 
 
 def test_bottom(params):
@@ -76,7 +86,19 @@ def test_weight(params):
     assert R.r_weight(12.5, params) == 12.5
 
 
+def test_success_pitch_target_lies_above_the_success_test(params):
+    """Default: target 40 + 7.5 deg, so Delta_pitch is maximal on [42.5, 52.5] deg (all SL-valid)
+    and smaller at 36 deg, where the paper's target would pay in full with SL = 0."""
+    assert math.degrees(params.phi_target) == pytest.approx(47.5)
+    assert R.success_deltas(30.0, r(43), params)[1] == 1.0
+    assert R.success_deltas(30.0, r(52), params)[1] == 1.0
+    assert R.success_deltas(30.0, r(36), params)[1] < 0.95
+    assert R.r_success(30.0, r(44), params) > R.r_success(30.0, r(37), params)
+
+
 def test_success(params):
+    import dataclasses
+    params = dataclasses.replace(params, phi_target=r(40))   # the paper's target (margin 0)
     assert R.r_success(30.0, r(40), params) == pytest.approx(40 * 1.0 * 30)
     # Delta_W(15): delta = (15 + ln 15) - (1 + ln 1) = 16.70805; max at W = 0: 30 + ln 30 - 1 = 32.40120
     d_w = 1 - 16.708050201 / 32.401197273

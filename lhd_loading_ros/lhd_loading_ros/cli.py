@@ -1,6 +1,8 @@
 """The `lhd` command line.
 
-  lhd demo [--slopes ...] [--episodes N]   the main job (scripted loading on the simulator)
+  lhd demo                                 the main job: sim node + policy node (shipped RLD actor) on 15-30 deg piles
+  lhd up sim [--policy DIR] [--slope DEG] [--episodes N]   sim node + policy node over DDS until done / Ctrl-C
+  lhd echo TOPIC [--count N]               print a topic's messages as YAML
   lhd bench sim [--json] [--steps N]       simulator speed
   lhd bench bridge [--json]                serial parser throughput and frame-to-publish latency
   lhd bench perception [--json]            ArUco frames/s (one core) and slope-fit time
@@ -186,9 +188,10 @@ def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     ap = argparse.ArgumentParser(prog="lhd", description="LHD loading: simulator, training and ROS tools")
     sub = ap.add_subparsers(dest="cmd", required=True)
-    p_demo = sub.add_parser("demo", help="the main job: load piles of 15-30 deg and print the results table",
-                            add_help=False)
-    p_demo.add_argument("rest", nargs=argparse.REMAINDER)
+    for name, hlp in (("demo", "the main job: sim + policy nodes load piles of 15-30 deg, results table"),
+                      ("up", "up sim: start the sim node and the policy node over DDS"),
+                      ("echo", "print a topic's messages as YAML")):
+        sub.add_parser(name, help=hlp, add_help=False).add_argument("rest", nargs=argparse.REMAINDER)
     p_bench = sub.add_parser("bench", help="benchmarks that print their figures")
     p_bench.add_argument("what", help="sim | train | bridge | perception")
     p_bench.add_argument("--vs-sb3", action="store_true", help="train: also time Stable-Baselines3's DDPG")
@@ -226,9 +229,20 @@ def main(argv=None) -> int:
     p_cfg.add_argument("action", choices=["check"])
     p_cfg.add_argument("path", nargs="?")
     if argv[:1] == ["demo"]:
-        from lhd_sim_node.demo import main as demo_main
+        from .launcher import main as up_main
 
-        return demo_main(argv[1:])
+        return up_main(argv[1:], demo=True)
+    if argv[:2] == ["up", "sim"]:
+        from .launcher import main as up_main
+
+        return up_main(argv[2:])
+    if argv[:1] == ["up"]:
+        print("lhd up: expected `lhd up sim [--policy DIR] [--slope DEG] [--episodes N]`", file=sys.stderr)
+        return 2
+    if argv[:1] == ["echo"]:
+        from .echo import main as echo_main
+
+        return echo_main(argv[1:])
     args = ap.parse_args(argv)
     if args.cmd == "bench":
         return _bench(args)

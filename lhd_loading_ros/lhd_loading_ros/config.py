@@ -77,6 +77,7 @@ SCHEMA: dict[str, Any] = {
         "phi_shovel_min_deg": _f(-180, 0), "phi_shovel_max_deg": _f(0, 180),
         "drift_slip_ratio": _f(0.0, 1.0), "drift_min_speed": _f(0.0, 5.0),
         "rlc_boom_saturate": _f(-1.0, 1.0), "rlc_bucket_saturate": _f(-1.0, 1.0), "rld_threshold": _f(-1.0, 1.0),
+        "r_dump_sign": _i(-1, 1), "success_pitch_margin_deg": _f(-45.0, 45.0),
         "bottom_tolerance": _f(0.0, 0.5),
     },
     "machine": {
@@ -147,6 +148,7 @@ _RELATIONS = [
                    + 4 * c["machine"]["wheel_mass"] - c["machine"]["total_mass"]) <= 1.0),
     ("paper.control.wheels_max * machine.wheel_radius < task.v_x_max",
      lambda c: c["paper"]["control"]["wheels_max"] * c["machine"]["wheel_radius"] < c["task"]["v_x_max"]),
+    ("task.r_dump_sign is -1 or +1", lambda c: c["task"]["r_dump_sign"] in (-1, 1)),
     ("training.noise_decay_steps <= training.total_steps",
      lambda c: c["training"]["noise_decay_steps"] <= c["training"]["total_steps"]),
     ("training.learning_starts >= paper.ddpg.batch_size",

@@ -74,6 +74,7 @@ class TaskParams:
     rlc_boom_saturate: float
     rlc_bucket_saturate: float
     rld_threshold: float
+    r_dump_sign: int
     bottom_tolerance: float
 
     @classmethod
@@ -87,7 +88,7 @@ class TaskParams:
             T_stuck=r["T_stuck"], delta_thresh=r["delta_thresh"], R_inact=r["R_inact"],
             u_thresh_boom=r["u_thresh_boom"], u_thresh_bucket=r["u_thresh_bucket"], R_weight=r["R_weight"],
             R_dump=r["R_dump"], phi_thresh_pitch=rad(r["phi_thresh_pitch_deg"]), R_success=r["R_success"],
-            W_target=r["W_target"], phi_target=rad(r["phi_target_deg"]), rho_thresh_W=r["rho_thresh_W"],
+            W_target=r["W_target"], phi_target=rad(r["phi_target_deg"] + t["success_pitch_margin_deg"]), rho_thresh_W=r["rho_thresh_W"],
             rho_thresh_phi=rad(r["rho_thresh_phi_deg"]),
             d_end_max=o["d_end_max"], x_init_obs=o["x_init_obs"], x_obs=o["x_obs"], y_obs=o["y_obs"], z_obs=o["z_obs"],
             control_dt=1.0 / c["frequency_hz"], wheels_min=c["wheels_min"], wheels_max=c["wheels_max"],
@@ -102,5 +103,5 @@ class TaskParams:
             bucket_angle_max=t["bucket_angle_max"], phi_shovel_min=rad(t["phi_shovel_min_deg"]),
             phi_shovel_max=rad(t["phi_shovel_max_deg"]), drift_slip_ratio=t["drift_slip_ratio"],
             drift_min_speed=t["drift_min_speed"], rlc_boom_saturate=t["rlc_boom_saturate"],
-            rlc_bucket_saturate=t["rlc_bucket_saturate"], rld_threshold=t["rld_threshold"], bottom_tolerance=t["bottom_tolerance"],
+            rlc_bucket_saturate=t["rlc_bucket_saturate"], rld_threshold=t["rld_threshold"], r_dump_sign=t["r_dump_sign"], bottom_tolerance=t["bottom_tolerance"],
         )

@@ -81,8 +81,11 @@ def r_stuck(recent_dx, p: TaskParams) -> float:
 
 
 def r_dump(phi_shovel: float, p: TaskParams) -> float:
-    """-R_dump if phi_shovel >= phi_thresh^pitch (literal paper equation; see docs/modeling.md)."""
-    return -p.R_dump if phi_shovel >= p.phi_thresh_pitch else 0.0
+    """-R_dump if r_dump_sign * phi_shovel >= phi_thresh^pitch. r_dump_sign = -1 (default):
+    the bucket tilted forward by phi_thresh or more, where material falls out (the paper's
+    prose); +1: the printed inequality, which with phi_shovel > phi_thresh required for
+    success penalises the very pose success asks for (docs/modeling.md, docs/training.md)."""
+    return -p.R_dump if p.r_dump_sign * phi_shovel >= p.phi_thresh_pitch else 0.0
 
 
 def r_bottom(z_bottom: float, z_pile_at_bottom: float, p: TaskParams) -> float:

@@ -17,21 +17,32 @@ from .scripted import run_episode, scripted_action
 def run_scripted(slopes=(15, 20, 25, 30), episodes: int = 3, material: str = "homogeneous", seed: int = 0,
                  config=None) -> dict:
     env = LhdLoadingEnv(variant="rld", config=config)
+    res = []
+    for slope in slopes:
+        for e in range(episodes):
+            res.append(run_episode(env, lambda s: scripted_action(s, env.p.x_midgoal, lift_on_drift=True),
+                                   seed=seed + 1000 * e + int(slope),
+                                   options={"slope_deg": float(slope), "material": material}))
+    return table_rows(res, slopes, {"bucket_capacity": env.p.bucket_capacity})
+
+
+def table_rows(results, slopes, meta: dict | None = None) -> dict:
+    """Per slope: aggregate metrics, plus material, time and drift over the successful attempts
+    (mean, sd), as the paper's results table reports them."""
+    cap = (meta or {}).get("bucket_capacity", 30.0)
     rows = {}
     for slope in slopes:
-        res = []
-        for e in range(episodes):
-            res.append(run_episode(env, lambda s: scripted_action(s, env.p.x_midgoal, lift_on_drift=True), seed=seed + 1000 * e + int(slope),
-                                   options={"slope_deg": float(slope), "material": material}))
+        res = [r for r in results if abs(r.alpha_deg - float(slope)) < 0.5]
+        if not res:
+            continue
         ok = [r for r in res if r.success]
-        row = aggregate(res, env.p.bucket_capacity)
+        row = aggregate(res, cap)
         row["successful"] = len(ok)
-        # the paper reports material, time and drift over successful attempts
         for key, attr in (("loaded_ok", "loaded"), ("elapsed_ok", "elapsed_s"), ("front_ok", "front_drift_pct"),
                           ("rear_ok", "rear_drift_pct")):
             vals = [getattr(r, attr) for r in ok]
             row[key] = (float(np.mean(vals)), float(np.std(vals))) if vals else (math.nan, math.nan)
-        rows[str(slope)] = row
+        rows[f"{float(slope):g}"] = row
     return rows
 
 

@@ -74,7 +74,17 @@ class LhdLoadingEnv(gym.Env):
             raise RuntimeError("step() called on a finished episode; call reset() first")
         a = validate_action(action)
         a = apply_variant_filter(a, self.variant, self.p, deploy=self.deploy_filter)
-        u = to_actuator(a, self.p)
+        return self.step_actuator(to_actuator(a, self.p))
+
+    def step_actuator(self, u):
+        """One control period with actuator commands u = (u_wheels, u_boom, u_bucket) in rad/s,
+        already filtered (what /lhd/cmd carries; the sim node steps through here). Returns
+        what step() returns."""
+        if self._done:
+            raise RuntimeError("step_actuator() called on a finished episode; call reset() first")
+        u = np.asarray(u, dtype=np.float64)
+        if u.shape != (3,) or not np.isfinite(u).all():
+            raise ValueError(f"actuator command must be 3 finite values (u_wheels, u_boom, u_bucket) rad/s, got {u}")
         self.sim.step(u)
         s = self.sim.state()
         self.steps += 1

@@ -14,27 +14,9 @@ The pile is not a collision body: it acts only through the FEE force on the buck
 """
 from __future__ import annotations
 
-import math
+from lhd_loading_ros.kinematics import FLOOR_GAP, PLATE_T, attack_geometry  # noqa: F401  (one geometry: MJCF and FK)
 
-PLATE_T = 0.01      # bucket plate thickness, m
-FLOOR_GAP = 0.005   # plate underside above the floor in the attack pose, m
 FEE_ANCHOR_X = -200.0  # m, anchor of the horizontal resistance tendon (far: the tendon stays horizontal)
-
-
-def attack_geometry(mc: dict) -> dict:
-    """Key points of the attack pose (relative to the rear axle centre on the floor)."""
-    r = mc["wheel_radius"]
-    dz_boom = mc["boom_pivot_height"] - mc["bucket_hinge_height"]
-    reach = math.sqrt(mc["boom_length"] ** 2 - dz_boom ** 2)
-    pivot_x = mc["wheelbase"] + mc["boom_pivot_ahead_of_front_axle"]
-    return {
-        "r": r,
-        "pivot": (pivot_x, mc["boom_pivot_height"]),
-        "hinge": (pivot_x + reach, mc["bucket_hinge_height"]),
-        "tip": (pivot_x + reach + mc["bucket_tip_ahead_of_hinge"], FLOOR_GAP + PLATE_T),
-        "reach": reach,
-        "dz_boom": dz_boom,
-    }
 
 
 def build_mjcf(cfg: dict) -> str:
