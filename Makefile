@@ -6,7 +6,10 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: install demo test bench clean
+COLCON_VENV := .venv-colcon
+COLCON_STAMP := $(COLCON_VENV)/.installed
+
+.PHONY: install demo test bench clean colcon-build
 
 $(STAMP): requirements.txt lhd_loading_ros/setup.py lhd_sim_node/setup.py lhd_hw_bridge/setup.py
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -20,11 +23,23 @@ install: $(STAMP)
 demo: $(STAMP)
 	$(VENV)/bin/lhd demo
 
-test: $(STAMP)
+# colcon-common-extensions lives in its own venv: it is a build tool, not a runtime dependency
+$(COLCON_STAMP):
+	test -x $(COLCON_VENV)/bin/python || $(PYTHON) -m venv $(COLCON_VENV)
+	$(COLCON_VENV)/bin/python -m pip install -q colcon-common-extensions==0.3.0
+	touch $(COLCON_STAMP)
+
+# what a user with a full ROS install does: colcon build of the three ament_python packages
+colcon-build: $(COLCON_STAMP)
+	rm -rf build install log
+	$(COLCON_VENV)/bin/colcon --log-base log build --base-paths lhd_loading_ros lhd_sim_node lhd_hw_bridge \
+		--build-base build --install-base install --event-handlers console_cohesion- summary+
+
+test: $(STAMP) colcon-build
 	$(PY) -m pytest -q test
 
 bench: $(STAMP)
 	$(VENV)/bin/lhd bench sim --json
 
 clean:
-	rm -rf $(VENV) build install log .pytest_cache
+	rm -rf $(VENV) $(COLCON_VENV) build install log .pytest_cache

@@ -14,6 +14,12 @@ data_files = [
 config_files = glob(os.path.join(os.path.relpath(os.path.join(here, "..", "config")), "*.yaml"))
 if config_files:
     data_files.append(("share/" + package_name + "/config", config_files))
+# The shipped actors (<repo>/policies/<variant>/) go to share/lhd_loading_ros/policies/<variant>/,
+# where the policy node looks for its default actor in an installed workspace.
+for variant in ("rld", "rlc"):
+    files = sorted(glob(os.path.join(os.path.relpath(os.path.join(here, "..", "policies", variant)), "*")))
+    if files:
+        data_files.append(("share/" + package_name + "/policies/" + variant, files))
 
 setup(
     name=package_name,
@@ -29,6 +35,7 @@ setup(
     entry_points={
         "console_scripts": [
             "lhd = lhd_loading_ros.cli:main",
+            "policy_node = lhd_loading_ros.policy_node:main",
             "aruco_pose_node = lhd_loading_ros.aruco_pose_node:main",
             "lidar_slope_node = lhd_loading_ros.lidar_slope_node:main",
         ],

@@ -9,6 +9,7 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
+        ("share/" + package_name + "/launch", ["launch/sim_loading.launch.py"]),
     ],
     install_requires=["setuptools", "numpy", "mujoco", "gymnasium"],
     zip_safe=True,
@@ -19,6 +20,7 @@ setup(
     entry_points={
         "console_scripts": [
             "scripted_demo = lhd_sim_node.demo:main",
+            "sim_node = lhd_sim_node.sim_node:main",
         ],
     },
 )

@@ -10,6 +10,7 @@
   lhd eval --policy DIR [--json]           the paper's metrics, overall and by slope and material
   lhd report RUNS... [--plot PNG]          final figures across seeds and the training curves
   lhd bench train [--json] [--vs-sb3]      training-loop speed and the projected protocol time
+  lhd bench node [--json]                  policy node latency and 10 Hz jitter against the sim node
   lhd config check [PATH]                  validate a parameter file
   lhd mjcf [--out FILE]                    the MJCF of the scaled LHD, generated from the parameters
 """
@@ -35,12 +36,16 @@ def _bench(args) -> int:
         from .learning.bench import bench_train
 
         res = bench_train(steps=args.steps, seed=args.seed, config=args.config, vs_sb3=args.vs_sb3)
+    elif args.what == "node":
+        from .node_bench import bench_node
+
+        res = bench_node(cycles=args.cycles)
     elif args.what == "bridge":
         from lhd_hw_bridge.bench import bench_bridge
 
         res = bench_bridge(seconds=args.seconds)
     else:
-        print(f"lhd bench: unknown benchmark {args.what!r}; expected: sim, train, bridge, perception", file=sys.stderr)
+        print(f"lhd bench: unknown benchmark {args.what!r}; expected: sim, train, node, bridge, perception", file=sys.stderr)
         return 2
     if args.json:
         print(json.dumps(res))
@@ -193,7 +198,8 @@ def main(argv=None) -> int:
                       ("echo", "print a topic's messages as YAML")):
         sub.add_parser(name, help=hlp, add_help=False).add_argument("rest", nargs=argparse.REMAINDER)
     p_bench = sub.add_parser("bench", help="benchmarks that print their figures")
-    p_bench.add_argument("what", help="sim | train | bridge | perception")
+    p_bench.add_argument("what", help="sim | train | node | bridge | perception")
+    p_bench.add_argument("--cycles", type=int, default=1000, help="node: policy cycles measured (10 Hz)")
     p_bench.add_argument("--vs-sb3", action="store_true", help="train: also time Stable-Baselines3's DDPG")
     p_bench.add_argument("--seconds", type=float, default=4.0, help="bridge: latency measurement time")
     p_bench.add_argument("--json", action="store_true")

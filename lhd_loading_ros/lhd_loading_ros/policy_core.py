@@ -29,6 +29,9 @@ class Inputs:
         self.values[name] = value
         self.arrival[name] = now
 
+    def missing(self) -> bool:
+        return any(name not in self.values for name in INPUTS)
+
     def problems(self, now: float, timeout: float) -> list[str]:
         out = []
         for name in INPUTS:

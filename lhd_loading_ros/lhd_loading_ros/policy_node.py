@@ -187,8 +187,8 @@ class PolicyNode(Node):
         t = self._stamps["joints"]
         if t is None or self._stamps["odom"] != t or self._status_stamp != t or t == self._decided_stamp:
             return
-        self._decided_stamp = t              # one decision per state (the sim node may repeat one)
-        self._cycle()
+        if self._cycle(lockstep=True):
+            self._decided_stamp = t          # one decision per state (the sim node may repeat one)
 
     def _on_timer(self) -> None:
         now = time.monotonic()
@@ -197,24 +197,30 @@ class PolicyNode(Node):
         self._last_tick = now
         self._cycle()
 
-    def _cycle(self) -> None:
+    def _cycle(self, lockstep: bool = False) -> bool:
+        """Decide and publish; returns False when a lockstep state was left undecided (inputs
+        not all received yet: the sim node repeats its state, and a zero command would step it)."""
         t0 = time.perf_counter()
         if self.episode_state is not None and self.episode_state != "running":
             key = (self.episode_key, self.episode_state)
             if self._stopped_key != key:     # episode over: one zero command, then silence
                 self._stopped_key = key
                 self.pub_cmd.publish(Float64MultiArray(data=list(ZERO_COMMAND)))
-            return
+            return True
         d = self.core.decide(self.inputs, time.monotonic(), self.input_timeout)
+        if lockstep and d.reason and self.core.actor is not None and self.inputs.missing():
+            self.get_logger().info(f"waiting for inputs: {d.reason}", throttle_duration_sec=2.0)
+            return False
         self.pub_cmd.publish(Float64MultiArray(data=list(d.command)))
-        if d.observation is not None:
+        if not d.reason:   # latency: inputs -> observation -> actor -> command published
+            self.latencies_ms.append((time.perf_counter() - t0) * 1000.0)
+        if d.observation is not None:   # for debugging, after the command
             self.pub_obs.publish(Float32MultiArray(data=d.observation.tolist()))
         self.cycles += 1
         if d.reason:
             self.zero_cycles += 1
             self.get_logger().warn(f"zero command: {d.reason}", throttle_duration_sec=2.0)
-        else:
-            self.latencies_ms.append((time.perf_counter() - t0) * 1000.0)
+        return True
 
     # ------------------------------------------------------------------ diagnostics
     def stats(self) -> dict:

@@ -1,0 +1,32 @@
+"""ros2 launch lhd_sim_node sim_loading.launch.py [policy_dir:=DIR] [slope_deg:=20.0] [episodes:=N] [mode:=realtime]
+
+The sim node and the policy node (the shipped RLD actor unless policy_dir is given), as
+`lhd up sim` starts them where `ros2 launch` is not installed."""
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument
+from launch.conditions import IfCondition, UnlessCondition
+from launch.substitutions import LaunchConfiguration, PythonExpression
+from launch_ros.actions import Node
+
+
+def generate_launch_description():
+    args = [
+        DeclareLaunchArgument("policy_dir", default_value="", description="exported actor (default: shipped RLD)"),
+        DeclareLaunchArgument("slope_deg", default_value="-1.0", description="pile slope, deg (negative: random)"),
+        DeclareLaunchArgument("material", default_value="random", description="homogeneous | nonhomogeneous | random"),
+        DeclareLaunchArgument("episodes", default_value="0", description="episodes before the sim stops (0: no limit)"),
+        DeclareLaunchArgument("mode", default_value="realtime", description="realtime | lockstep"),
+        DeclareLaunchArgument("seed", default_value="0"),
+    ]
+    lockstep = PythonExpression(["'", LaunchConfiguration("mode"), "' == 'lockstep'"])
+    sim = Node(package="lhd_sim_node", executable="sim_node", name="lhd_sim", output="screen", parameters=[{
+        "mode": LaunchConfiguration("mode"), "slope_deg": LaunchConfiguration("slope_deg"),
+        "material": LaunchConfiguration("material"), "episodes": LaunchConfiguration("episodes"),
+        "seed": LaunchConfiguration("seed")}])
+    policy_common = {"policy_dir": LaunchConfiguration("policy_dir")}
+    policy_lockstep = Node(package="lhd_loading_ros", executable="policy_node", name="lhd_policy", output="screen",
+                           parameters=[{**policy_common, "trigger": "lockstep", "input_qos": "reliable"}],
+                           condition=IfCondition(lockstep))
+    policy_timer = Node(package="lhd_loading_ros", executable="policy_node", name="lhd_policy", output="screen",
+                        parameters=[{**policy_common, "trigger": "timer"}], condition=UnlessCondition(lockstep))
+    return LaunchDescription([*args, sim, policy_lockstep, policy_timer])
