@@ -265,3 +265,45 @@ def test_parse_seeds():
     for bad in ("4-0", "a", "1,1", "-1"):
         with pytest.raises(ValueError, match="seeds"):
             parse_seeds(bad)
+
+
+def test_lhd_eval_json_has_the_metrics_and_breakdowns(cfg, tmp_path):
+    import subprocess
+    import sys
+
+    agent = DdpgAgent(DdpgConfig.from_config(small_cfg(cfg)), seed=0)
+    export_actor(tmp_path / "p", agent.actor, cfg, {"variant": "rld", "seed": 0, "steps": 0})
+    out = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli", "eval", "--policy", str(tmp_path / "p"),
+                          "--episodes", "8", "--json"], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    res = json.loads(out.stdout)
+    for k in ("ar", "aml", "aff", "asl", "success_rate", "elapsed_s", "front_drift_pct", "rear_drift_pct", "episodes"):
+        assert k in res and isinstance(res[k], (int, float))
+    assert res["episodes"] == 8
+    assert set(res["by_slope"]) == {"15", "20", "25", "30"}
+    assert set(res["by_material"]) == {"homogeneous", "nonhomogeneous"}
+    assert sum(v["episodes"] for v in res["by_slope"].values()) == 8
+    bad = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli", "eval", "--policy", str(tmp_path / "none")],
+                         capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 1 and "does not exist" in bad.stderr
+
+
+def test_ship_picks_a_seed_and_writes_the_model_card(cfg, tmp_path):
+    from lhd_loading_ros.learning.ship import ship
+    from lhd_loading_ros.learning.train import train
+
+    small_cfg(cfg)
+    for s in (0, 1):
+        train("rlc", s, tmp_path / "runs" / f"seed_{s}", steps=300, config=cfg, progress=False)
+    cfg_path = tmp_path / "cfg.yaml"
+    import yaml
+    cfg_path.write_text(yaml.safe_dump(cfg))
+    res = ship("rlc", tmp_path / "runs", tmp_path / "policies" / "rlc", episodes=4, config=str(cfg_path),
+               log=lambda *a: None)
+    out = tmp_path / "policies" / "rlc"
+    pol = load_policy(out)
+    assert pol.variant == "rlc" and res["shipped_from"].endswith(("seed_0", "seed_1"))
+    card = (out / "README.md").read_text()
+    assert "| all | 4 |" in card and "training_curves.png" in card and "| seed_1 |" in card
+    assert (out / "training_curves.png").stat().st_size > 10_000
+    assert json.loads((out / "evaluation.json").read_text())["episodes"] == 4

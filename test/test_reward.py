@@ -61,19 +61,19 @@ def test_stuck(params):
     assert R.r_stuck(deque([0.001] * 8 + [0.01]), params) == 0.0
 
 
-def test_dump_penalises_forward_tilt(params):
-    """Default (r_dump_sign = -1, the paper's prose): tilted forward by 40 deg or more."""
-    assert params.r_dump_sign == -1
-    assert R.r_dump(r(-40), params) == -20.0
-    assert R.r_dump(r(-39.9), params) == 0.0
-    assert R.r_dump(r(45), params) == 0.0     # curled back past 40 deg: the pose success asks for
-
-
 def test_dump_literal_inequality(params):
+    """Default (r_dump_sign = +1): the paper's equation, phi_shovel >= 40 deg costs R_dump."""
+    assert params.r_dump_sign == 1
+    assert R.r_dump(r(40), params) == -20.0
+    assert R.r_dump(r(39.9), params) == 0.0
+
+
+def test_dump_forward_tilt_reading(params):
     import dataclasses
-    lit = dataclasses.replace(params, r_dump_sign=1)
-    assert R.r_dump(r(40), lit) == -20.0
-    assert R.r_dump(r(39.9), lit) == 0.0
+    fwd = dataclasses.replace(params, r_dump_sign=-1)
+    assert R.r_dump(r(-40), fwd) == -20.0
+    assert R.r_dump(r(-39.9), fwd) == 0.0
+    assert R.r_dump(r(45), fwd) == 0.0
 
 
 def test_bottom(params):
@@ -140,3 +140,15 @@ def test_success_level_bands_and_aggregate():
     assert agg["success_rate"] == 0.5 and agg["end_zone_rate"] == 1.0 and agg["episodes"] == 2
     with pytest.raises(ValueError):
         aggregate([], 30.0)
+
+
+def test_success_is_the_papers_definition():
+    """SL >= 1 at the end counts, a timeout included (paper, experimental settings); the
+    restricted zone never does."""
+    e = dict(ret=0.0, loaded=30.0, phi_final=r(45), steps=200, elapsed_s=20.0, front_drift_pct=0.0,
+             rear_drift_pct=0.0, success_level=5)
+    assert EpisodeResult(reached_end_zone=False, failed=False, truncated=True, **e).success
+    assert EpisodeResult(reached_end_zone=True, failed=False, truncated=False, **e).success
+    assert not EpisodeResult(reached_end_zone=False, failed=True, truncated=False, **e).success
+    assert not EpisodeResult(reached_end_zone=True, failed=False, truncated=False,
+                             **{**e, "success_level": 0}).success

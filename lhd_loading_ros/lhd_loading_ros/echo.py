@@ -33,7 +33,7 @@ def to_plain(msg):
 def to_yaml(msg) -> str:
     import yaml
 
-    return yaml.safe_dump(to_plain(msg), sort_keys=False, default_flow_style=None).rstrip()
+    return yaml.safe_dump(to_plain(msg), sort_keys=False, default_flow_style=False).rstrip()
 
 
 def main(argv=None) -> int:

@@ -37,9 +37,11 @@ class EpisodeResult:
 
     @property
     def success(self) -> bool:
-        """A loading attempt succeeds when the bucket reaches the end zone holding at least
-        20 kg with phi^T > phi_thresh (SL >= 1), as the paper's real-world definition."""
-        return self.reached_end_zone and self.success_level >= 1
+        """The paper's definition (experimental settings): at least 20 kg loaded and
+        phi^T > phi_thresh at the end (SL >= 1); "attempts that end with a timeout and meet
+        both success conditions are considered successes". An attempt that ends in the
+        restricted zone is a failure. end_zone_rate (aggregate) counts the end zone apart."""
+        return not self.failed and self.success_level >= 1
 
     def to_dict(self) -> dict:
         d = asdict(self)

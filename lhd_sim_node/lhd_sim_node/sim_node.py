@@ -33,6 +33,7 @@ import time
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
@@ -74,7 +75,8 @@ class SimNode(Node):
         self.declare_parameter("mode", "realtime")
         self.declare_parameter("seed", 0)
         self.declare_parameter("slope_deg", -1.0)
-        self.declare_parameter("slopes_deg", "")
+        # "15,20,25,30", [15.0, 20.0] or one number: any of them from the command line or YAML
+        self.declare_parameter("slopes_deg", "", ParameterDescriptor(dynamic_typing=True))
         self.declare_parameter("material", "random")
         self.declare_parameter("episodes", 0)
         self.declare_parameter("auto_reset", True)
@@ -158,7 +160,11 @@ class SimNode(Node):
             raise ValueError(f"parameter '{name}' = {v!r} is invalid; expected an integer in [{lo}, {hi}]")
         return v
 
-    def _slope_list(self, text: str, lo: float, hi: float) -> list[float]:
+    def _slope_list(self, text, lo: float, hi: float) -> list[float]:
+        if isinstance(text, (int, float)) and not isinstance(text, bool):
+            text = str(text)
+        elif isinstance(text, (list, tuple)):
+            text = ",".join(str(v) for v in text)
         if not str(text).strip():
             return []
         try:

@@ -1,0 +1,103 @@
+"""`lhd ship --variant V RUNS_DIR`: pick the shipped actor of a variant from its seeds, evaluate
+it on the held-out seed and write the model card (policies/<variant>/README.md + curves).
+
+Selection: each seed's `best/` actor (its best training-time evaluation) is evaluated again
+on the held-out evaluation seed; the one with the highest (success rate, ASL, AR) ships."""
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+from ..config import load_config
+from ..policy_file import load_policy
+from .evaluate import evaluate
+from .report import plot_curves, summarize
+
+HELD_OUT_SEED = 2_000_000
+
+
+def _table(ev: dict) -> str:
+    head = ("| | episodes | success | ASL | AML [kg] | AFF | AR | elapsed [s] | front drift % | rear drift % | end zone |\n"
+            "|---|---|---|---|---|---|---|---|---|---|---|")
+
+    def row(name, r):
+        return (f"| {name} | {r['episodes']} | {r['success_rate']:.3f} | {r['asl']:.2f} | {r['aml']:.1f} | "
+                f"{r['aff']:.2f} | {r['ar']:.0f} | {r['elapsed_s']:.2f} | {r['front_drift_pct']:.1f} | "
+                f"{r['rear_drift_pct']:.1f} | {r['end_zone_rate']:.2f} |")
+    lines = [head, row("all", ev)]
+    lines += [row(f"{k} deg", v) for k, v in ev["by_slope"].items()]
+    lines += [row(k, v) for k, v in ev["by_material"].items()]
+    return "\n".join(lines)
+
+
+def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=print) -> dict:
+    from lhd_sim_node.env import LhdLoadingEnv
+
+    cfg = load_config(config)
+    runs = sorted(d for d in Path(runs_dir).glob("seed_*") if (d / "best" / "policy.json").is_file())
+    if not runs:
+        raise FileNotFoundError(f"{runs_dir} holds no finished seed (seed_*/best/policy.json)")
+    env = LhdLoadingEnv(variant, cfg)
+    cands = []
+    for d in runs:
+        pol = load_policy(d / "best")
+        if pol.variant != variant:
+            raise ValueError(f"{d}/best is a {pol.variant} actor, not {variant}")
+        ev = evaluate(env, pol.actor, episodes, HELD_OUT_SEED, cfg["task"]["bucket_capacity"])
+        log(f"{d.name}: held-out success {ev['success_rate']:.3f}, ASL {ev['asl']:.2f}, AML {ev['aml']:.1f}")
+        cands.append(((ev["success_rate"], ev["asl"], ev["ar"]), d, pol, ev))
+    _, best_dir, pol, ev = max(cands, key=lambda c: c[0])
+    out = Path(out)
+    if out.exists():
+        shutil.rmtree(out)
+    shutil.copytree(best_dir / "best", out)
+    summary = summarize(runs)
+    plot_curves({variant.upper(): runs}, out / "training_curves.png")
+    (out / "evaluation.json").write_text(json.dumps(ev, indent=1) + "\n")
+    m = pol.meta
+    seeds_rows = "\n".join(
+        f"| {d.name} | {e['success_rate']:.3f} | {e['asl']:.2f} | {e['aml']:.1f} | {e['ar']:.0f} |"
+        for _, d, _, e in cands)
+    fin = summary["metrics"]
+    card = f"""# {variant.upper()} loading policy ({'hybrid: continuous wheels, ternary arm' if variant == 'rld' else 'continuous actions, deployment filter on the machine'})
+
+Actor exported from `{best_dir}` (seed {m['seed']}, best training-time evaluation at step
+{m['steps']:,}), DDPG with the paper's protocol (docs/training.md). Files: `actor.npz`
+(float32 weights), `policy.json` (architecture {m['architecture']['sizes']}, observation and action
+normalisation, filter thresholds, config hash `{m['config_hash']}`, training evaluation),
+`evaluation.json` (the table below), `training_curves.png`.
+
+Run it: `lhd up sim --policy policies/{variant}` or `ros2 run lhd_loading_ros policy_node --ros-args -p policy_dir:=...`.
+
+## Evaluation in simulation (`lhd eval --policy policies/{variant} --episodes {episodes}`, held-out seed {HELD_OUT_SEED:,})
+
+{_table(ev)}
+
+Success: SL >= 1 at the end (>= 20 kg and final pitch > 40 deg), the paper's definition; the
+end-zone column is the share of attempts that reached the end zone. Material, time and drift
+are means over all attempts. {ev['failures']['restricted_zone']} attempts ended in the restricted zone,
+{ev['failures']['timeout']} at the time limit.
+
+## Across seeds
+
+Held-out evaluation of each seed's best actor (the shipped one has the highest success rate):
+
+| seed | success | ASL | AML [kg] | AR |
+|---|---|---|---|---|
+{seeds_rows}
+
+Final training-time evaluation (step {min(summary['final_steps']):,}, evaluation seed 1,000,000), {len(runs)} seeds:
+success {fin['success_rate']['mean']:.3f} ± {fin['success_rate']['sd']:.3f}, ASL {fin['asl']['mean']:.2f} ± {fin['asl']['sd']:.2f}
+(IQM {fin['asl']['iqm']:.2f}, 95 % bootstrap interval [{fin['asl']['iqm_ci95'][0]:.2f}, {fin['asl']['iqm_ci95'][1]:.2f}]),
+AML {fin['aml']['mean']:.1f} ± {fin['aml']['sd']:.1f} kg, AR {fin['ar']['mean']:.0f} ± {fin['ar']['sd']:.0f}.
+
+![training curves](training_curves.png)
+
+## Limits
+Trained and evaluated in our simulator only (MuJoCo + extended FEE, dense-ore piles of 15-30
+deg, docs/modeling.md). The reward is the paper's except the pitch target of r_success (47.5
+instead of 40 deg; docs/training.md). Not yet run on the scaled machine.
+"""
+    (out / "README.md").write_text(card)
+    return {"variant": variant, "shipped_from": str(best_dir), "evaluation": ev, "summary": summary}
