@@ -83,7 +83,22 @@ def test_bottom(params):
 
 
 def test_weight(params):
-    assert R.r_weight(12.5, params) == 12.5
+    """Default: increments (R_weight per kg entering the bucket); the paper's form pays W^t."""
+    import dataclasses
+    assert params.r_weight_increments == 1
+    assert R.r_weight(12.5, params, 10.0) == 2.5
+    assert R.r_weight(30.0, params, 30.0) == 0.0          # holding a full bucket earns nothing
+    paper = dataclasses.replace(params, r_weight_increments=0)
+    assert R.r_weight(12.5, paper, 10.0) == 12.5
+
+
+def test_weight_increments_sum_to_the_final_load(params):
+    tr = R.RewardTracker(params, Z, 0.68)
+    s = LhdState(0.30, 0.0, 0.02, 0.0, 0.3, False, 0.0, 0.0, 0.0, 0.0)
+    tr.reset(s, W0=1.5)
+    loads = [3.0, 7.5, 7.5, 20.0, 31.0, 31.0]
+    total = sum(tr.step(s, 0.0, 0.0, W, True, 0.0, "running")["weight"] for W in loads)
+    assert total == pytest.approx(31.0 - 1.5)
 
 
 def test_success_pitch_target_lies_above_the_success_test(params):

@@ -23,24 +23,23 @@ import serial
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy, HistoryPolicy, qos_profile_sensor_data
+from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64MultiArray
 
 from lhd_loading_ros.config import load_config
+from lhd_loading_ros.qos import COMMAND_QOS, MEASUREMENT_QOS
 from lhd_loading_ros.ros_main import run_node
 
 from .bridge_core import JOINT_NAMES, BridgeParams, CommandMapper, CommandRejected, Watchdog, detect_drift, joint_state_arrays
 from .protocol import CommandFrame, FrameParser, HeartbeatFrame, SensorFrame, encode
 
-# QoS. Measurements: reliable, keep-last 5 -- a reliable publisher matches both reliable and
-# best-effort (sensor-data) subscribers, and a short queue never delays fresh data behind
-# stale data. Commands: reliable, keep-last 1 -- only the newest command matters, and losing
-# it silently would let the watchdog stop the machine. Odometry in: sensor-data QoS (best
-# effort), which accepts any publisher.
+# QoS (lhd_loading_ros.qos): measurements MEASUREMENT_QOS (reliable, keep-last 5: matches
+# reliable and best-effort subscribers; a short queue never delays fresh data behind stale
+# data), commands COMMAND_QOS (reliable, keep-last 1: only the newest command matters, and
+# losing it silently would let the watchdog stop the machine). Odometry in: sensor-data QoS
+# (best effort), which accepts any publisher.
 WATCHDOG_TICK = 0.005  # s
-MEASUREMENT_QOS = QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
-COMMAND_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 
 
 class BridgeNode(Node):

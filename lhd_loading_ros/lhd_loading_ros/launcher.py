@@ -78,7 +78,8 @@ def up_sim(policy: str | None, slopes: list[float] | None, episodes: int, materi
     """Run sim node + policy node until `episodes` episodes ended (0: until Ctrl-C)."""
     import rclpy
     from diagnostic_msgs.msg import DiagnosticStatus
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    from .qos import STATUS_QOS
 
     log_dir = Path(log_dir or Path(os.environ.get("TMPDIR", "/tmp")) / f"lhd_up_{os.getpid()}")
     log_dir.mkdir(parents=True, exist_ok=True)
@@ -98,6 +99,7 @@ def up_sim(policy: str | None, slopes: list[float] | None, episodes: int, materi
 
     def on_status(msg):
         kv = {k.key: k.value for k in msg.values}
+        done["heard"] = True
         if kv.get("state", "running") == "running":
             return
         ep = int(kv["episode"])
@@ -108,14 +110,21 @@ def up_sim(policy: str | None, slopes: list[float] | None, episodes: int, materi
         if kv.get("all_done") == "True":
             done["all"] = True
 
-    qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
-                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    node.create_subscription(DiagnosticStatus, "/lhd/episode", on_status, qos)
-    children = [Child("sim_node", "lhd_sim_node.sim_node", sim_params, log_dir, quiet),
-                Child("policy_node", "lhd_loading_ros.policy_node", pol_params, log_dir, quiet)]
+    node.create_subscription(DiagnosticStatus, "/lhd/episode", on_status, STATUS_QOS)
+    # the sim node first; the policy node once this watcher hears the sim's episode status, so
+    # no episode can end before the watcher is matched (lockstep episodes take 0.1 s)
+    children = [Child("sim_node", "lhd_sim_node.sim_node", sim_params, log_dir, quiet)]
     t0 = time.monotonic()
     interrupted = False
     try:
+        while not done.get("heard"):
+            rclpy.spin_once(node, timeout_sec=0.1)
+            if not children[0].alive():
+                tail = children[0].log_path.read_text()[-2000:] if quiet else ""
+                raise RuntimeError(f"sim_node exited with status {children[0].proc.returncode}:\n{tail}")
+            if time.monotonic() - t0 > 120:
+                raise TimeoutError(f"no episode status from the sim node after 120 s (logs in {log_dir})")
+        children.append(Child("policy_node", "lhd_loading_ros.policy_node", pol_params, log_dir, quiet))
         while not done["all"]:
             rclpy.spin_once(node, timeout_sec=0.1)
             dead = [c for c in children if not c.alive()]

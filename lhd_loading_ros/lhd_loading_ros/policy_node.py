@@ -23,8 +23,7 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
-from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy,
-                       qos_profile_sensor_data)
+from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float32MultiArray, Float64, Float64MultiArray
 
@@ -33,18 +32,13 @@ from .kinematics import ArmKinematics
 from .params import TaskParams
 from .policy_core import Inputs, PolicyCore, ZERO_COMMAND
 from .policy_file import PolicyFileError, load_policy
+from .qos import COMMAND_QOS, MEASUREMENT_QOS, STATUS_QOS
 from .ros_main import run_node
 
-# QoS. Inputs: `input_qos` = sensor_data (best effort, keep-last 5) matches every publisher,
-# reliable or not (the ArUco node publishes odometry best effort); `reliable` (keep-last 5)
-# is for lockstep runs, where a lost state would stall the loop. Commands out: reliable,
-# keep-last 1 (only the newest matters; the receivers' timeouts catch a silent link).
-# Episode status in: reliable + transient local, matching the sim node.
-RELIABLE_IN = QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
-COMMAND_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
-STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
-                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
-OBS_QOS = QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+# QoS (lhd_loading_ros.qos). Inputs: `input_qos` = sensor_data (best effort) matches every
+# publisher, reliable or not (the ArUco node publishes odometry best effort); `reliable`
+# (MEASUREMENT_QOS) is for lockstep runs, where a lost state would stall the loop. Commands
+# out: COMMAND_QOS. Observation out: MEASUREMENT_QOS. Episode status in: STATUS_QOS.
 TRIGGERS = ("timer", "lockstep")
 
 
@@ -88,7 +82,7 @@ class PolicyNode(Node):
         qos_name = gp("input_qos")
         if qos_name not in ("sensor_data", "reliable"):
             raise ValueError(f"parameter 'input_qos' = {qos_name!r} is invalid; expected 'sensor_data' or 'reliable'")
-        qin = qos_profile_sensor_data if qos_name == "sensor_data" else RELIABLE_IN
+        qin = qos_profile_sensor_data if qos_name == "sensor_data" else MEASUREMENT_QOS
         ns = gp("namespace_prefix").rstrip("/")
 
         path = gp("policy_dir") or str(default_policy_dir("rld"))
@@ -118,7 +112,7 @@ class PolicyNode(Node):
         self._last_tick = None
 
         self.pub_cmd = self.create_publisher(Float64MultiArray, f"{ns}/cmd", COMMAND_QOS)
-        self.pub_obs = self.create_publisher(Float32MultiArray, f"{ns}/observation", OBS_QOS)
+        self.pub_obs = self.create_publisher(Float32MultiArray, f"{ns}/observation", MEASUREMENT_QOS)
         self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.create_subscription(JointState, f"{ns}/joint_states", self._on_js, qin)
         self.create_subscription(Odometry, f"{ns}/odom", self._on_odom, qin)

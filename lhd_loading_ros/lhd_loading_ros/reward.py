@@ -94,9 +94,11 @@ def r_bottom(z_bottom: float, z_pile_at_bottom: float, p: TaskParams) -> float:
     return -p.R_bottom if z_bottom <= z_pile_at_bottom - p.bottom_tolerance else 0.0
 
 
-def r_weight(W: float, p: TaskParams) -> float:
-    """R_weight * W^t (kg in the bucket)."""
-    return p.R_weight * W
+def r_weight(W: float, p: TaskParams, W_prev: float = 0.0) -> float:
+    """Paper: R_weight * W^t (kg in the bucket), every step. With r_weight_increments = 1
+    (default): R_weight * (W^t - W^{t-1}), the material as it enters the bucket; an episode
+    still sums to R_weight * W^T, but holding a full bucket earns nothing (docs/training.md)."""
+    return p.R_weight * (W - W_prev) if p.r_weight_increments else p.R_weight * W
 
 
 # ------------------------------------------------------------------ terminal terms
@@ -147,10 +149,13 @@ class RewardTracker:
     h_pile: float
     x_prev: float = 0.0
     z_prev: float = 0.0
+    W_prev: float = 0.0
     recent_dx: deque = field(default_factory=deque)
 
-    def reset(self, s: LhdState) -> None:
+    def reset(self, s: LhdState, W0: float = 0.0) -> None:
+        """W0: what the bucket already holds when the episode starts (cut during the attack)."""
         self.x_prev, self.z_prev = s.x_shovel, s.z_shovel
+        self.W_prev = W0
         self.recent_dx = deque(maxlen=self.p.T_stuck + 1)
 
     def step(self, s: LhdState, u_boom: float, u_bucket: float, W: float, inside_pile: bool,
@@ -167,9 +172,10 @@ class RewardTracker:
             "stuck": r_stuck(self.recent_dx, p),
             "dump": r_dump(s.phi_shovel, p),
             "bottom": r_bottom(s.z_bottom, z_pile_at_bottom, p),
-            "weight": r_weight(W, p),
+            "weight": r_weight(W, p, self.W_prev),
             "success": r_success(W, s.phi_shovel, p) if outcome == "success" else 0.0,
             "zone": r_zone(outcome == "failure", p),
         }
         self.x_prev, self.z_prev = s.x_shovel, s.z_shovel
+        self.W_prev = W
         return terms

@@ -61,7 +61,7 @@ class LhdLoadingEnv(gym.Env):
                        d_attack=options.get("d_attack"), attack_speed=options.get("attack_speed"))
         s = self.sim.state()
         self.tracker = RewardTracker(self.p, self.sim.zones, self.p.h_pile)
-        self.tracker.reset(s)
+        self.tracker.reset(s, self.sim.loaded_mass)
         self.steps = 0
         self.ret = 0.0
         self._front, self._rear = [], []

@@ -35,27 +35,23 @@ from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64, Float64MultiArray
 from std_srvs.srv import Trigger
 
 from lhd_loading_ros.config import load_config
+from lhd_loading_ros.qos import COMMAND_QOS, MEASUREMENT_QOS, STATUS_QOS
 from lhd_loading_ros.ros_main import run_node
 
 from .env import LhdLoadingEnv
 from .simulator import MATERIALS
 
-# QoS. Measurements: reliable, keep-last 5 (as the hardware bridge): a reliable publisher
-# matches reliable and best-effort (sensor-data) subscribers alike, and lockstep must not
-# lose a state. Commands: reliable, keep-last 1: only the newest command matters.
-# Episode status: reliable + transient local, so a late subscriber (a launcher, lhd echo)
-# still gets the current state of the episode.
-MEASUREMENT_QOS = QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
-COMMAND_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
-STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
-                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# QoS (lhd_loading_ros.qos, shared with the hardware bridge and the policy node): measurements
+# MEASUREMENT_QOS (reliable, keep-last 5: lockstep must not lose a state, and best-effort
+# subscribers still match), commands COMMAND_QOS (keep-last 1), episode status STATUS_QOS
+# (transient local: a launcher that starts late still sees it). /clock: reliable keep-last 1.
 CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 MODES = ("realtime", "lockstep")
 JOINTS = ("boom", "bucket", "articulation", "wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr")

@@ -1,0 +1,16 @@
+"""QoS profiles of the /lhd topics, in one place for every node and tool.
+
+MEASUREMENT_QOS  reliable, keep-last 5: a reliable publisher matches reliable and
+                 best-effort (sensor-data) subscribers alike; a short queue never delays fresh
+                 data behind stale data; lockstep simulation must not lose a state.
+COMMAND_QOS      reliable, keep-last 1: only the newest command matters, and receivers time
+                 out on arrival (0.3 s), so a silent link stops the machine.
+STATUS_QOS       reliable + transient local, keep-last 10: a late subscriber (a launcher,
+                 lhd echo) still gets the current state of the episode.
+"""
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+MEASUREMENT_QOS = QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+COMMAND_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
