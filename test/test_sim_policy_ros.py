@@ -48,6 +48,27 @@ def test_sim_node_rejects_bad_parameters(tmp_path):
         p.stop()
 
 
+def test_nodes_accept_their_ros_parameter_files(tmp_path):
+    import os
+    import signal
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    for module, name in (("lhd_sim_node.sim_node", "sim_node"), ("lhd_loading_ros.policy_node", "policy_node")):
+        p = subprocess.Popen([sys.executable, "-m", module, "--ros-args", "--params-file",
+                              str(root / "config" / f"{name}.yaml")], stdout=subprocess.PIPE,
+                             stderr=subprocess.STDOUT, text=True, start_new_session=True,
+                             env=dict(os.environ, PYTHONUNBUFFERED="1", RCUTILS_LOGGING_BUFFERED_STREAM="0"))
+        try:
+            lines = [p.stdout.readline() for _ in range(2)] if name == "policy_node" else [p.stdout.readline()]
+            assert any("sim node up: mode realtime" in x or "loaded RLD actor" in x for x in lines), lines
+        finally:
+            os.killpg(p.pid, signal.SIGINT)
+            assert p.wait(20) == 0
+
+
 def test_sim_node_topics_reset_and_stale_command_brake(ros, tmp_path):
     sim = RosProcess("lhd_sim_node.sim_node", {"mode": "realtime", "slope_deg": 20.0, "seed": 5}, tmp_path / "sim.log")
     got = {}
