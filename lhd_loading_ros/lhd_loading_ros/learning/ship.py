@@ -54,6 +54,14 @@ def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=prin
     shutil.copytree(best_dir / "best", out)
     summary = summarize(runs)
     plot_curves({variant.upper(): runs}, out / "training_curves.png")
+    deploy_note = ""
+    if variant == "rlc":   # as the policy node runs it: with the deployment filter
+        evd = evaluate(LhdLoadingEnv(variant, cfg, deploy_filter=True), pol.actor, episodes, HELD_OUT_SEED,
+                       cfg["task"]["bucket_capacity"])
+        ev["with_deployment_filter"] = {k: evd[k] for k in ("success_rate", "asl", "aml", "ar", "elapsed_s")}
+        deploy_note = (f"\nWith the deployment filter, as the policy node and the machine run it (`lhd eval --policy "
+                       f"policies/rlc --deploy-filter`): success {evd['success_rate']:.3f}, ASL {evd['asl']:.2f}, "
+                       f"AML {evd['aml']:.1f} kg, {evd['elapsed_s']:.2f} s.\n")
     (out / "evaluation.json").write_text(json.dumps(ev, indent=1) + "\n")
     m = pol.meta
     seeds_rows = "\n".join(
@@ -78,7 +86,7 @@ Success: SL >= 1 at the end (>= 20 kg and final pitch > 40 deg), the paper's def
 end-zone column is the share of attempts that reached the end zone. Material, time and drift
 are means over all attempts. {ev['failures']['restricted_zone']} attempts ended in the restricted zone,
 {ev['failures']['timeout']} at the time limit.
-
+{deploy_note}
 ## Across seeds
 
 Held-out evaluation of each seed's best actor (the shipped one has the highest success rate):
