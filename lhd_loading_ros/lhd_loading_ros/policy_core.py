@@ -5,7 +5,6 @@ and map to actuator units. Any doubt gives the zero command (wheels stopped, arm
 never a guess."""
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -80,7 +79,3 @@ class PolicyCore:
         a_f = apply_variant_filter(np.clip(a, -1.0, 1.0), self.variant, self.p, deploy=True)
         u = to_actuator(a_f, self.p)
         return Decision(tuple(float(v) for v in u), obs, a, "")
-
-
-def finite_all(values) -> bool:
-    return all(math.isfinite(float(v)) for v in values)

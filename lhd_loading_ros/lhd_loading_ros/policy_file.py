@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -144,7 +143,3 @@ def load_policy(directory) -> LoadedPolicy:
     if actor.sizes != meta["architecture"]["sizes"]:
         raise PolicyFileError(f"{d}: weights have sizes {actor.sizes}, {META_FILE} says {meta['architecture']['sizes']}")
     return LoadedPolicy(actor, meta, d)
-
-
-def finite(x) -> bool:
-    return all(math.isfinite(float(v)) for v in np.ravel(x))

@@ -27,7 +27,7 @@ from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float32MultiArray, Float64, Float64MultiArray
 
-from .config import load_config
+from .config import config_hash, load_config
 from .kinematics import ArmKinematics
 from .params import TaskParams
 from .policy_core import Inputs, PolicyCore, ZERO_COMMAND
@@ -90,7 +90,7 @@ class PolicyNode(Node):
         try:
             pol = load_policy(path)
             actor, variant = pol.actor, pol.variant
-            if pol.meta.get("config_hash") not in (None, "") and pol.meta["config_hash"] != _hash(cfg):
+            if pol.meta.get("config_hash") not in (None, "") and pol.meta["config_hash"] != config_hash(cfg):
                 self.get_logger().warn(f"policy {path} was trained with another parameter file "
                                        f"(config hash {pol.meta['config_hash']}); check the filters and ranges")
             self.get_logger().info(f"loaded {variant.upper()} actor from {path} (sizes {pol.actor.sizes})")
@@ -238,12 +238,6 @@ class PolicyNode(Node):
         arr.header.stamp = self.get_clock().now().to_msg()
         arr.status = [st]
         self.pub_diag.publish(arr)
-
-
-def _hash(cfg) -> str:
-    from .config import config_hash
-
-    return config_hash(cfg)
 
 
 def main(args=None) -> int:
