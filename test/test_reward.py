@@ -61,19 +61,19 @@ def test_stuck(params):
     assert R.r_stuck(deque([0.001] * 8 + [0.01]), params) == 0.0
 
 
-def test_dump_literal_inequality(params):
-    """Default (r_dump_sign = +1): the paper's equation, phi_shovel >= 40 deg costs R_dump."""
-    assert params.r_dump_sign == 1
-    assert R.r_dump(r(40), params) == -20.0
-    assert R.r_dump(r(39.9), params) == 0.0
-
-
 def test_dump_forward_tilt_reading(params):
+    """Default (r_dump_sign = -1, the paper's prose): tilted forward by 40 deg or more."""
+    assert params.r_dump_sign == -1
+    assert R.r_dump(r(-40), params) == -20.0
+    assert R.r_dump(r(-39.9), params) == 0.0
+    assert R.r_dump(r(45), params) == 0.0      # curled back past 40 deg: what the success test asks for
+
+
+def test_dump_literal_inequality(params):
     import dataclasses
-    fwd = dataclasses.replace(params, r_dump_sign=-1)
-    assert R.r_dump(r(-40), fwd) == -20.0
-    assert R.r_dump(r(-39.9), fwd) == 0.0
-    assert R.r_dump(r(45), fwd) == 0.0
+    lit = dataclasses.replace(params, r_dump_sign=1)
+    assert R.r_dump(r(40), lit) == -20.0
+    assert R.r_dump(r(39.9), lit) == 0.0
 
 
 def test_bottom(params):
