@@ -111,9 +111,17 @@ def test_success_pitch_target_lies_above_the_success_test(params):
     assert R.r_success(30.0, r(44), params) > R.r_success(30.0, r(37), params)
 
 
+def test_success_reward_requires_the_success_test(params):
+    """Default: nothing for reaching the end zone below 20 kg or at phi^T <= 40 deg."""
+    assert params.r_success_requires_sl == 1
+    assert R.r_success(19.9, r(45), params) == 0.0
+    assert R.r_success(30.0, r(40), params) == 0.0
+    assert R.r_success(30.0, r(44), params) == pytest.approx(40 * 30)
+
+
 def test_success(params):
     import dataclasses
-    params = dataclasses.replace(params, phi_target=r(40))   # the paper's target (margin 0)
+    params = dataclasses.replace(params, phi_target=r(40), r_success_requires_sl=0)   # the paper's printed term
     assert R.r_success(30.0, r(40), params) == pytest.approx(40 * 1.0 * 30)
     # Delta_W(15): delta = (15 + ln 15) - (1 + ln 1) = 16.70805; max at W = 0: 30 + ln 30 - 1 = 32.40120
     d_w = 1 - 16.708050201 / 32.401197273

@@ -77,7 +77,8 @@ SCHEMA: dict[str, Any] = {
         "phi_shovel_min_deg": _f(-180, 0), "phi_shovel_max_deg": _f(0, 180),
         "drift_slip_ratio": _f(0.0, 1.0), "drift_min_speed": _f(0.0, 5.0),
         "rlc_boom_saturate": _f(-1.0, 1.0), "rlc_bucket_saturate": _f(-1.0, 1.0), "rld_threshold": _f(-1.0, 1.0),
-        "r_dump_sign": _i(-1, 1), "r_weight_increments": _i(0, 1), "success_pitch_margin_deg": _f(-45.0, 45.0),
+        "r_dump_sign": _i(-1, 1), "r_weight_increments": _i(0, 1),
+        "r_success_requires_sl": _i(0, 1), "success_pitch_margin_deg": _f(-45.0, 45.0),
         "bottom_tolerance": _f(0.0, 0.5),
     },
     "machine": {

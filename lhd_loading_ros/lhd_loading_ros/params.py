@@ -76,6 +76,7 @@ class TaskParams:
     rld_threshold: float
     r_dump_sign: int
     r_weight_increments: int
+    r_success_requires_sl: int
     bottom_tolerance: float
 
     @classmethod
@@ -104,5 +105,6 @@ class TaskParams:
             bucket_angle_max=t["bucket_angle_max"], phi_shovel_min=rad(t["phi_shovel_min_deg"]),
             phi_shovel_max=rad(t["phi_shovel_max_deg"]), drift_slip_ratio=t["drift_slip_ratio"],
             drift_min_speed=t["drift_min_speed"], rlc_boom_saturate=t["rlc_boom_saturate"],
-            rlc_bucket_saturate=t["rlc_bucket_saturate"], rld_threshold=t["rld_threshold"], r_dump_sign=t["r_dump_sign"], r_weight_increments=t["r_weight_increments"], bottom_tolerance=t["bottom_tolerance"],
+            rlc_bucket_saturate=t["rlc_bucket_saturate"], rld_threshold=t["rld_threshold"], r_dump_sign=t["r_dump_sign"], r_weight_increments=t["r_weight_increments"],
+            r_success_requires_sl=t["r_success_requires_sl"], bottom_tolerance=t["bottom_tolerance"],
         )
