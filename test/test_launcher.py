@@ -76,3 +76,19 @@ def test_echo_prints_a_topic_as_yaml():
     finally:
         os.killpg(sim.pid, signal.SIGINT)
         sim.wait(20)
+
+
+def test_up_sim_refuses_a_domain_where_a_simulator_already_runs():
+    env = env_with_domain()
+    sim = subprocess.Popen([sys.executable, "-m", "lhd_sim_node.sim_node"], stdout=subprocess.DEVNULL,
+                           stderr=subprocess.STDOUT, env=env, start_new_session=True)
+    try:
+        time.sleep(4.0)
+        p = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli", "up", "sim", "--episodes", "1",
+                            "--seed", "454545"], capture_output=True, text=True, timeout=120, env=env)
+        assert p.returncode == 1
+        assert "already has publishers" in p.stderr and "/lhd/joint_states" in p.stderr
+        assert leftovers("seed:=454545") == []
+    finally:
+        os.killpg(sim.pid, signal.SIGINT)
+        sim.wait(20)

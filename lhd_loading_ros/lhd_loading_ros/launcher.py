@@ -110,6 +110,17 @@ def up_sim(policy: str | None, slopes: list[float] | None, episodes: int, materi
         if kv.get("all_done") == "True":
             done["all"] = True
 
+    # another simulator, bridge or policy on this domain would mix its topics with ours
+    t_check = time.monotonic() + 1.5
+    while time.monotonic() < t_check:
+        rclpy.spin_once(node, timeout_sec=0.1)
+    busy = {t: n for t in ("/lhd/joint_states", "/lhd/odom", "/lhd/cmd") if (n := node.count_publishers(t))}
+    if busy:
+        node.destroy_node()
+        rclpy.shutdown()
+        raise RuntimeError(f"ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID', '0')} already has publishers on {busy}: "
+                           "another LHD simulator, bridge or policy is running there. Stop it, or set "
+                           "ROS_DOMAIN_ID to a free domain for this run")
     node.create_subscription(DiagnosticStatus, "/lhd/episode", on_status, STATUS_QOS)
     # the sim node first; the policy node once this watcher hears the sim's episode status, so
     # no episode can end before the watcher is matched (lockstep episodes take 0.1 s)
