@@ -268,14 +268,11 @@ class SimNode(Node):
                 self._reset_due = time.monotonic() + self.reset_delay
 
     # ------------------------------------------------------------------ publishing
-    def _status(self, stamp) -> DiagnosticStatus:
+    def _status(self) -> DiagnosticStatus:
         st = DiagnosticStatus()
         st.name = "lhd_sim/episode"
         st.hardware_id = "mujoco"
-        state = self.outcome
-        if state != "running" and self._finished_all():
-            state = "finished" if not self.auto_reset else state
-        st.message = state
+        st.message = self.outcome + (" (all episodes done)" if self._finished_all() else "")
         st.level = DiagnosticStatus.OK if self.outcome in ("running", "success") else DiagnosticStatus.WARN
         s = self.env.state
         vals = {
@@ -308,7 +305,7 @@ class SimNode(Node):
         self.pub_front.publish(Bool(data=bool(s.drift_front)))
         self.pub_rear.publish(Bool(data=bool(s.drift_rear)))
         self.pub_drift.publish(Bool(data=bool(s.drift)))
-        self.pub_status.publish(self._status(stamp))
+        self.pub_status.publish(self._status())
         od = Odometry()
         od.header.stamp = stamp
         od.header.frame_id = self.frame_id
