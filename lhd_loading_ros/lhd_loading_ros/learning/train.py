@@ -179,7 +179,6 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
     bar = _Progress(f"{variant} seed {seed}", dc.total_steps, progress)
     t0 = time.perf_counter()
     obs, info = env.reset(seed=episode_seed(seed, episode))
-    noise.reset() if step == 0 else None
     ep_ret, last_eval, closs, qmean = 0.0, None, float("nan"), float("nan")
     bucket = cfg["task"]["bucket_capacity"]
     try:
