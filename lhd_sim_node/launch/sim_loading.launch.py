@@ -7,6 +7,12 @@ from launch.actions import DeclareLaunchArgument
 from launch.conditions import IfCondition, UnlessCondition
 from launch.substitutions import LaunchConfiguration, PythonExpression
 from launch_ros.actions import Node
+from launch_ros.parameter_descriptions import ParameterValue
+
+
+def text(name):
+    """A string parameter (an empty or numeric-looking value stays a string)."""
+    return ParameterValue(LaunchConfiguration(name), value_type=str)
 
 
 def generate_launch_description():
@@ -20,10 +26,10 @@ def generate_launch_description():
     ]
     lockstep = PythonExpression(["'", LaunchConfiguration("mode"), "' == 'lockstep'"])
     sim = Node(package="lhd_sim_node", executable="sim_node", name="lhd_sim", output="screen", parameters=[{
-        "mode": LaunchConfiguration("mode"), "slope_deg": LaunchConfiguration("slope_deg"),
-        "material": LaunchConfiguration("material"), "episodes": LaunchConfiguration("episodes"),
-        "seed": LaunchConfiguration("seed")}])
-    policy_common = {"policy_dir": LaunchConfiguration("policy_dir")}
+        "mode": text("mode"), "slope_deg": ParameterValue(LaunchConfiguration("slope_deg"), value_type=float),
+        "material": text("material"), "episodes": ParameterValue(LaunchConfiguration("episodes"), value_type=int),
+        "seed": ParameterValue(LaunchConfiguration("seed"), value_type=int)}])
+    policy_common = {"policy_dir": text("policy_dir")}
     policy_lockstep = Node(package="lhd_loading_ros", executable="policy_node", name="lhd_policy", output="screen",
                            parameters=[{**policy_common, "trigger": "lockstep", "input_qos": "reliable"}],
                            condition=IfCondition(lockstep))
