@@ -80,10 +80,12 @@ def test_echo_prints_a_topic_as_yaml():
 
 def test_up_sim_refuses_a_domain_where_a_simulator_already_runs():
     env = env_with_domain()
-    sim = subprocess.Popen([sys.executable, "-m", "lhd_sim_node.sim_node"], stdout=subprocess.DEVNULL,
-                           stderr=subprocess.STDOUT, env=env, start_new_session=True)
+    sim = subprocess.Popen([sys.executable, "-m", "lhd_sim_node.sim_node"], stdout=subprocess.PIPE,
+                           stderr=subprocess.STDOUT, text=True, start_new_session=True,
+                           env=dict(env, RCUTILS_LOGGING_BUFFERED_STREAM="0"))
     try:
-        time.sleep(4.0)
+        assert "sim node up" in sim.stdout.readline()    # publishing from here on
+        time.sleep(1.0)
         p = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli", "up", "sim", "--episodes", "1",
                             "--seed", "454545"], capture_output=True, text=True, timeout=120, env=env)
         assert p.returncode == 1

@@ -29,7 +29,7 @@ from std_msgs.msg import Bool, Float64MultiArray
 
 from lhd_loading_ros.config import load_config
 from lhd_loading_ros.qos import COMMAND_QOS, MEASUREMENT_QOS
-from lhd_loading_ros.ros_main import run_node
+from lhd_loading_ros.ros_main import number_param, run_node
 
 from .bridge_core import JOINT_NAMES, BridgeParams, CommandMapper, CommandRejected, Watchdog, detect_drift, joint_state_arrays
 from .protocol import CommandFrame, FrameParser, HeartbeatFrame, SensorFrame, encode
@@ -57,10 +57,10 @@ class BridgeNode(Node):
         self.declare_parameter("odom_timeout", base.odom_timeout)
         self.declare_parameter("namespace_prefix", "/lhd")
         gp = lambda n: self.get_parameter(n).value  # noqa: E731
-        self._check_param("cmd_timeout", gp("cmd_timeout"), 0.01, 10.0)
-        self._check_param("command_rate_hz", gp("command_rate_hz"), 1.0, 1000.0)
-        self._check_param("valve_deadband", gp("valve_deadband"), 0.0, 1.0)
-        self._check_param("odom_timeout", gp("odom_timeout"), 0.01, 10.0)
+        number_param(self, "cmd_timeout", 0.01, 10.0)
+        number_param(self, "command_rate_hz", 1.0, 1000.0)
+        number_param(self, "valve_deadband", 0.0, 1.0)
+        number_param(self, "odom_timeout", 0.01, 10.0)
         self.p = BridgeParams(**{**base.__dict__, "cmd_timeout": float(gp("cmd_timeout")),
                                  "command_rate_hz": float(gp("command_rate_hz")),
                                  "valve_deadband": float(gp("valve_deadband")), "odom_timeout": float(gp("odom_timeout"))})
@@ -100,10 +100,6 @@ class BridgeNode(Node):
         self.create_timer(1.0, self._heartbeat)
         self._io = threading.Thread(target=self._io_loop, name="serial-io", daemon=True)
         self._io.start()
-
-    def _check_param(self, name, value, lo, hi):
-        if not isinstance(value, (int, float)) or not (lo <= value <= hi):
-            raise ValueError(f"parameter '{name}' = {value!r} is invalid; expected a number in [{lo}, {hi}]")
 
     # ------------------------------------------------------------------ ROS inputs
     def _on_cmd(self, msg: Float64MultiArray) -> None:

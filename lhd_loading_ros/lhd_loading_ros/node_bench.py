@@ -4,10 +4,9 @@ command publish; jitter = |timer period - 100 ms|. At least 1,000 cycles (100 s)
 from __future__ import annotations
 
 import os
-import signal
-import subprocess
-import sys
+import tempfile
 import time
+from pathlib import Path
 
 
 def bench_node(cycles: int = 1000, policy: str | None = None) -> dict:
@@ -15,14 +14,12 @@ def bench_node(cycles: int = 1000, policy: str | None = None) -> dict:
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
 
+    from .launcher import Child
     from .policy_node import PolicyNode
 
-    env = dict(os.environ, PYTHONUNBUFFERED="1")
-    env.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 100))
-    os.environ["ROS_DOMAIN_ID"] = env["ROS_DOMAIN_ID"]
-    sim = subprocess.Popen([sys.executable, "-m", "lhd_sim_node.sim_node", "--ros-args", "-p", "mode:=realtime",
-                            "-p", "reset_delay:=0.0"], stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT, env=env,
-                           start_new_session=True)
+    os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 100))
+    log_dir = Path(tempfile.mkdtemp(prefix="lhd_bench_node_"))
+    sim = Child("sim_node", "lhd_sim_node.sim_node", {"mode": "realtime", "reset_delay": 0.0}, log_dir, quiet=True)
     rclpy.init()
     overrides = [Parameter("policy_dir", value=policy)] if policy else []
     node = PolicyNode(parameter_overrides=overrides)
@@ -43,11 +40,7 @@ def bench_node(cycles: int = 1000, policy: str | None = None) -> dict:
         ex.remove_node(node)
         node.destroy_node()
         rclpy.shutdown()
-        os.killpg(sim.pid, signal.SIGINT)
-        try:
-            sim.wait(10)
-        except subprocess.TimeoutExpired:
-            os.killpg(sim.pid, signal.SIGKILL)
+        sim.stop()
     return {"latency_p50_ms": round(s["latency_p50_ms"], 4), "latency_p99_ms": round(s["latency_p99_ms"], 4),
             "jitter_p99_ms": round(s["jitter_p99_ms"], 3), "cycles": len(node.latencies_ms),
             "rate_hz": node.rate_hz}

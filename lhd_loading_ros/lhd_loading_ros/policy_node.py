@@ -33,7 +33,7 @@ from .params import TaskParams
 from .policy_core import Inputs, PolicyCore, ZERO_COMMAND
 from .policy_file import PolicyFileError, load_policy
 from .qos import COMMAND_QOS, MEASUREMENT_QOS, STATUS_QOS
-from .ros_main import run_node
+from .ros_main import number_param, run_node
 
 # QoS (lhd_loading_ros.qos). Inputs: `input_qos` = sensor_data (best effort) matches every
 # publisher, reliable or not (the ArUco node publishes odometry best effort); `reliable`
@@ -74,8 +74,8 @@ class PolicyNode(Node):
         self.declare_parameter("input_qos", "sensor_data")
         self.declare_parameter("namespace_prefix", "/lhd")
         gp = lambda n: self.get_parameter(n).value  # noqa: E731
-        self.rate_hz = self._number("rate_hz", 0.1, 1000.0)
-        self.input_timeout = self._number("input_timeout", 0.01, 60.0)
+        self.rate_hz = number_param(self, "rate_hz", 0.1, 1000.0)
+        self.input_timeout = number_param(self, "input_timeout", 0.01, 60.0)
         self.trigger = gp("trigger")
         if self.trigger not in TRIGGERS:
             raise ValueError(f"parameter 'trigger' = {self.trigger!r} is invalid; expected one of {TRIGGERS}")
@@ -124,12 +124,6 @@ class PolicyNode(Node):
         if self.trigger == "timer":
             self.create_timer(1.0 / self.rate_hz, self._on_timer)
         self.create_timer(1.0, self._diagnostics)
-
-    def _number(self, name, lo, hi) -> float:
-        v = self.get_parameter(name).value
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (lo <= v <= hi):
-            raise ValueError(f"parameter '{name}' = {v!r} is invalid; expected a number in [{lo}, {hi}]")
-        return float(v)
 
     # ------------------------------------------------------------------ inputs
     def _put(self, name, value) -> None:

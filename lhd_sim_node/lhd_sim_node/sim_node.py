@@ -43,7 +43,7 @@ from std_srvs.srv import Trigger
 
 from lhd_loading_ros.config import load_config
 from lhd_loading_ros.qos import COMMAND_QOS, MEASUREMENT_QOS, STATUS_QOS
-from lhd_loading_ros.ros_main import run_node
+from lhd_loading_ros.ros_main import number_param, run_node
 
 from .env import LhdLoadingEnv
 from .simulator import MATERIALS
@@ -85,8 +85,8 @@ class SimNode(Node):
         self.mode = gp("mode")
         if self.mode not in MODES:
             raise ValueError(f"parameter 'mode' = {self.mode!r} is invalid; expected one of {MODES}")
-        self.seed = self._int_param("seed", 0, 2**31 - 1)
-        self.episodes_max = self._int_param("episodes", 0, 10**9)
+        self.seed = number_param(self, "seed", 0, 2**31 - 1, integer=True)
+        self.episodes_max = number_param(self, "episodes", 0, 10**9, integer=True)
         slope = gp("slope_deg")
         if not isinstance(slope, (int, float)) or not math.isfinite(slope):
             raise ValueError(f"parameter 'slope_deg' = {slope!r} is invalid; expected degrees, negative for random")
@@ -100,8 +100,8 @@ class SimNode(Node):
         if material not in (*MATERIALS, "random"):
             raise ValueError(f"parameter 'material' = {material!r} is invalid; expected one of {(*MATERIALS, 'random')}")
         self.material = None if material == "random" else material
-        self.cmd_timeout = self._float_param("cmd_timeout", 0.01, 10.0)
-        self.reset_delay = self._float_param("reset_delay", 0.0, 60.0)
+        self.cmd_timeout = number_param(self, "cmd_timeout", 0.01, 10.0)
+        self.reset_delay = number_param(self, "reset_delay", 0.0, 60.0)
         self.auto_reset = bool(gp("auto_reset"))
         self.frame_id, self.base_frame_id = gp("frame_id"), gp("base_frame_id")
         ns = gp("namespace_prefix").rstrip("/")
@@ -150,12 +150,6 @@ class SimNode(Node):
                                f"{'random' if self.slope_deg is None else self.slope_deg}, material {material}")
 
     # ------------------------------------------------------------------ parameters
-    def _int_param(self, name, lo, hi) -> int:
-        v = self.get_parameter(name).value
-        if isinstance(v, bool) or not isinstance(v, int) or not (lo <= v <= hi):
-            raise ValueError(f"parameter '{name}' = {v!r} is invalid; expected an integer in [{lo}, {hi}]")
-        return v
-
     def _slope_list(self, text, lo: float, hi: float) -> list[float]:
         if isinstance(text, (int, float)) and not isinstance(text, bool):
             text = str(text)
@@ -172,12 +166,6 @@ class SimNode(Node):
         if bad:
             raise ValueError(f"parameter 'slopes_deg': {bad} out of range; expected degrees in [{lo}, {hi}]")
         return vals
-
-    def _float_param(self, name, lo, hi) -> float:
-        v = self.get_parameter(name).value
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (lo <= v <= hi):
-            raise ValueError(f"parameter '{name}' = {v!r} is invalid; expected a number in [{lo}, {hi}]")
-        return float(v)
 
     # ------------------------------------------------------------------ episodes
     def _new_episode(self) -> None:

@@ -17,7 +17,7 @@ import numpy as np
 import torch
 
 from ..config import load_config
-from .ddpg import DdpgAgent, DdpgConfig, OUNoise, ReplayBuffer, noise_scale
+from .ddpg import DdpgAgent, DdpgConfig, OUNoise, ReplayBuffer
 
 EVAL_EPISODE_STEPS = 40     # a trained policy's episode (about 4 s at 10 Hz); see docs/training.md
 
@@ -37,7 +37,7 @@ def bench_train(steps: int = 3000, seed: int = 0, config=None, variant: str = "r
 
     def env_step():
         nonlocal obs, ep
-        a = np.clip(agent.act(obs) + noise_scale(0, 1, 1.0) * noise.sample(), -1.0, 1.0)
+        a = np.clip(agent.act(obs) + noise.sample(), -1.0, 1.0)
         obs2, r, term, trunc, _ = env.step(a)
         replay.add(obs, a, r, term, obs2)
         obs = obs2
