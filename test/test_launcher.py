@@ -85,7 +85,9 @@ def test_up_sim_refuses_a_domain_where_a_simulator_already_runs():
                            env=dict(env, RCUTILS_LOGGING_BUFFERED_STREAM="0"))
     try:
         assert "sim node up" in sim.stdout.readline()    # publishing from here on
-        time.sleep(1.0)
+        seen = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli", "echo", "/lhd/joint_states", "--count",
+                               "1", "--wait", "30"], capture_output=True, text=True, timeout=60, env=env)
+        assert seen.returncode == 0, seen.stderr                # another process sees it on the graph
         p = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli", "up", "sim", "--episodes", "1",
                             "--seed", "454545"], capture_output=True, text=True, timeout=120, env=env)
         assert p.returncode == 1

@@ -111,11 +111,12 @@ def up_sim(policy: str | None, slopes: list[float] | None, episodes: int, materi
             done["all"] = True
 
     # another simulator, bridge or policy on this domain would mix its topics with ours
-    t_check = time.monotonic() + 2.0      # DDS discovery of existing participants
+    t_check = time.monotonic() + 3.0      # DDS discovery of existing participants
     busy = {}
     while not busy and time.monotonic() < t_check:
         rclpy.spin_once(node, timeout_sec=0.1)
-        busy = {t: n for t in ("/lhd/joint_states", "/lhd/odom", "/lhd/cmd") if (n := node.count_publishers(t))}
+        busy = {t: n for t in ("/lhd/joint_states", "/lhd/odom", "/lhd/cmd", "/lhd/episode")
+                if (n := node.count_publishers(t))}
     if busy:
         node.destroy_node()
         rclpy.shutdown()
