@@ -164,6 +164,11 @@ class PolicyNode(Node):
         self.episode_key = kv.get("episode")
         try:
             self._status_stamp = int(kv["stamp_ns"])
+            if self.trigger == "lockstep":   # the unstamped inputs of exactly this state
+                self._put("drift_front", kv["drift_front"] == "True")
+                self._put("drift_rear", kv["drift_rear"] == "True")
+                self._put("slope", float(kv["slope_rad"]))
+                self._put("end_zone", tuple(float(v) for v in kv["end_zone"].split(",")))
         except (KeyError, ValueError):
             self._status_stamp = None
         self._maybe_lockstep()

@@ -269,6 +269,11 @@ class SimNode(Node):
             "slope_deg": f"{math.degrees(self.sim.pile.alpha):.3f}", "material": self.sim.material,
             "x_shovel": f"{s.x_shovel:.4f}", "z_shovel": f"{s.z_shovel:.4f}",
             "episodes_done": self.episodes_done, "all_done": self._finished_all(),
+            # the unstamped inputs of this very state, exact (repr), for lockstep subscribers:
+            # separate topics give no ordering guarantee against the stamped ones
+            "drift_front": bool(s.drift_front), "drift_rear": bool(s.drift_rear),
+            "slope_rad": repr(float(self.sim.pile.alpha)),
+            "end_zone": ",".join(repr(float(v)) for v in (self.sim.zones.x_min, self.sim.zones.x_max, self.sim.zones.z_min)),
         }
         if self.result is not None:
             r = self.result
