@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
@@ -200,7 +201,13 @@ class PolicyNode(Node):
                 self._stopped_key = key
                 self.pub_cmd.publish(Float64MultiArray(data=list(ZERO_COMMAND)))
             return True
-        d = self.core.decide(self.inputs, time.monotonic(), self.input_timeout)
+        # Lockstep: the decision waits for joints, odometry and the status (drift, slope, end
+        # zone) of one stamp, so every input is of exactly this state however long ago one of
+        # them arrived (the sim node repeats a state whose first copy went unheard, and is paused
+        # meanwhile); a wall-clock age would only turn a slow start into a spurious zero command
+        # that steps the simulator. Only "never received" counts there.
+        timeout = math.inf if lockstep else self.input_timeout
+        d = self.core.decide(self.inputs, time.monotonic(), timeout)
         if lockstep and d.reason and self.core.actor is not None and self.inputs.missing():
             self.get_logger().info(f"waiting for inputs: {d.reason}", throttle_duration_sec=2.0)
             return False
@@ -214,6 +221,16 @@ class PolicyNode(Node):
             self.zero_cycles += 1
             self.get_logger().warn(f"zero command: {d.reason}", throttle_duration_sec=2.0)
         return True
+
+    def stop_commanding(self) -> None:
+        """On the way out (Ctrl-C, SIGTERM): in timer mode one last zero command, so that a
+        machine holding its last command (sample-and-hold) stops now rather than at its command
+        timeout. Not in lockstep mode, where every command steps the simulator."""
+        if self.trigger == "timer" and self.context.ok():
+            self.pub_cmd.publish(Float64MultiArray(data=list(ZERO_COMMAND)))
+            # a reliable writer destroyed right after a write may drop it: wait for the acks
+            acked = self.pub_cmd.wait_for_all_acked(Duration(seconds=0.5))
+            self.get_logger().info("stopping: sent a zero command" + ("" if acked else " (not acknowledged in 0.5 s)"))
 
     # ------------------------------------------------------------------ diagnostics
     def stats(self) -> dict:
@@ -240,7 +257,7 @@ class PolicyNode(Node):
 
 
 def main(args=None) -> int:
-    return run_node(PolicyNode, "lhd_policy", args)
+    return run_node(PolicyNode, "lhd_policy", args, before_destroy=lambda n: n.stop_commanding())
 
 
 if __name__ == "__main__":

@@ -1,11 +1,26 @@
-"""The one `main()` of every node: init, spin, clean shutdown on Ctrl-C / SIGTERM, and a
-clear message (exit status 2) for a bad parameter or config instead of a traceback."""
+"""The one `main()` of every node: init, spin, an orderly shutdown on Ctrl-C / SIGTERM, and a
+clear message (exit status 2) for a bad parameter or config instead of a traceback.
+
+Why not rclpy's own signal handlers: on SIGINT they shut the context down from a helper thread
+*and* chain to Python's handler, so a KeyboardInterrupt lands at an arbitrary bytecode, sometimes
+inside a timer callback that is publishing (RCLError: context invalid) or inside the clean-up
+that must still reach the hardware (the bridge's stop frame, the policy's last zero command).
+That race made a node exit 1 now and then on a plain Ctrl-C. Here the signal only sets a flag;
+the spin loop notices it within SPIN_PERIOD_S, and the clean-up runs with the context still
+valid, so a node's last messages leave before rclpy shuts down. A second Ctrl-C during the
+clean-up is ignored rather than tearing it in half.
+"""
 from __future__ import annotations
 
+import signal
+import threading
 from typing import Callable
 
 import rclpy
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.signals import SignalHandlerOptions
+
+SPIN_PERIOD_S = 0.1     # the longest a stop request waits for the spin loop to see it
 
 
 def number_param(node, name: str, lo: float, hi: float, integer: bool = False):
@@ -19,22 +34,43 @@ def number_param(node, name: str, lo: float, hi: float, integer: bool = False):
     return int(v) if integer else float(v)
 
 
-def run_node(make_node: Callable, name: str, args=None, before_destroy: Callable | None = None) -> int:
-    rclpy.init(args=args)
+def run_node(make_node: Callable, name: str, args=None, before_destroy: Callable | None = None,
+             stop: threading.Event | None = None) -> int:
+    """Run one node until SIGINT/SIGTERM (or `stop` is set); returns the exit status:
+    0 after a requested stop, 2 for a bad parameter (message printed). `before_destroy(node)`
+    runs while the node can still publish and talk to its hardware."""
+    stop = stop or threading.Event()
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            previous[sig] = signal.signal(sig, lambda *_: stop.set())
+    executor = SingleThreadedExecutor()
     node = None
+    rc = 0
     try:
         node = make_node()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
+        executor.add_node(node)
+        while not stop.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=SPIN_PERIOD_S)
+    except ExternalShutdownException:
         pass
     except ValueError as exc:
         print(f"{name}: {exc}", flush=True)
-        return 2
+        rc = 2
     finally:
-        if node is not None:
-            if before_destroy is not None:
-                before_destroy(node)
-            node.destroy_node()
-        if rclpy.ok():
-            rclpy.shutdown()
-    return 0
+        try:
+            if node is not None:
+                try:
+                    if before_destroy is not None:
+                        before_destroy(node)
+                finally:
+                    executor.remove_node(node)
+                    node.destroy_node()
+        finally:
+            executor.shutdown()
+            if rclpy.ok():
+                rclpy.shutdown()
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+    return rc
