@@ -34,10 +34,10 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "lhd = lhd_loading_ros.cli:main",
-            "policy_node = lhd_loading_ros.policy_node:main",
-            "aruco_pose_node = lhd_loading_ros.aruco_pose_node:main",
-            "lidar_slope_node = lhd_loading_ros.lidar_slope_node:main",
+            "lhd = lhd_loading_ros.cli.main:main",
+            "policy_node = lhd_loading_ros.nodes.policy_node:main",
+            "aruco_pose_node = lhd_loading_ros.nodes.aruco_pose_node:main",
+            "lidar_slope_node = lhd_loading_ros.nodes.lidar_slope_node:main",
         ],
     },
 )

@@ -3,8 +3,8 @@ import math
 
 import pytest
 
-from lhd_loading_ros.config import load_config
-from lhd_loading_ros.params import TaskParams
+from lhd_loading_ros.task.config import load_config
+from lhd_loading_ros.task.params import TaskParams
 
 
 @pytest.fixture(scope="session")

@@ -27,14 +27,14 @@ from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64MultiArray
 
-from lhd_loading_ros.config import load_config
-from lhd_loading_ros.qos import COMMAND_QOS, MEASUREMENT_QOS
-from lhd_loading_ros.ros_main import number_param, run_node
+from lhd_loading_ros.task.config import load_config
+from lhd_loading_ros.ros.qos import COMMAND_QOS, MEASUREMENT_QOS
+from lhd_loading_ros.ros.run import number_param, run_node
 
 from .bridge_core import JOINT_NAMES, BridgeParams, CommandMapper, CommandRejected, Watchdog, detect_drift, joint_state_arrays
 from .protocol import CommandFrame, FrameParser, HeartbeatFrame, SensorFrame, encode
 
-# QoS (lhd_loading_ros.qos): measurements MEASUREMENT_QOS (reliable, keep-last 5: matches
+# QoS (lhd_loading_ros.ros.qos): measurements MEASUREMENT_QOS (reliable, keep-last 5: matches
 # reliable and best-effort subscribers; a short queue never delays fresh data behind stale
 # data), commands COMMAND_QOS (reliable, keep-last 1: only the newest command matters, and
 # losing it silently would let the watchdog stop the machine). Odometry in: sensor-data QoS

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from lhd_loading_ros.metrics import aggregate
+from lhd_loading_ros.task.metrics import aggregate
 
 from .env import LhdLoadingEnv
 from .scripted import run_episode, scripted_action

@@ -1,6 +1,6 @@
 """Gymnasium environment ``LhdLoading-v0``: the paper's loading POMDP on the MuJoCo simulator.
 
-Observation: the 12-vector of lhd_loading_ros.observation. Action: [-1, 1]^3
+Observation: the 12-vector of lhd_loading_ros.task.observation. Action: [-1, 1]^3
 (wheels, boom, bucket). variant="rld" passes boom and bucket through the hybrid filter
 (threshold 0) before they reach the machine; variant="rlc" keeps them continuous
 (deploy_filter=True adds the RLC deployment filter, as on the real machine).
@@ -15,12 +15,12 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from lhd_loading_ros.actions import apply_variant_filter, to_actuator, validate_action
-from lhd_loading_ros.config import load_config
-from lhd_loading_ros.metrics import EpisodeResult, drift_pct, success_level
-from lhd_loading_ros.observation import OBS_HIGH, OBS_LOW, build_observation
-from lhd_loading_ros.reward import RewardTracker
-from lhd_loading_ros.zones import classify
+from lhd_loading_ros.task.actions import apply_variant_filter, to_actuator, validate_action
+from lhd_loading_ros.task.config import load_config
+from lhd_loading_ros.task.metrics import EpisodeResult, drift_pct, success_level
+from lhd_loading_ros.task.observation import OBS_HIGH, OBS_LOW, build_observation
+from lhd_loading_ros.task.reward import RewardTracker
+from lhd_loading_ros.task.zones import classify
 
 from .simulator import MATERIALS, LhdSimulator
 

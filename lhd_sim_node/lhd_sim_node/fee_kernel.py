@@ -1,7 +1,7 @@
 """Compiled (numba) inner loop of the pile: cutting and the FEE for all slices at once.
 
 It computes exactly what :class:`lhd_sim_node.fee.FeeTable` and
-:meth:`lhd_loading_ros.pile.VoxelPile.cut` compute in numpy (``test_fee_kernel`` checks
+:meth:`lhd_loading_ros.task.pile.VoxelPile.cut` compute in numpy (``test_fee_kernel`` checks
 the two against each other), without the Python and numpy call overhead that would
 otherwise dominate the 50 Hz FEE updates inside each control period.
 """

@@ -14,7 +14,7 @@ The pile is not a collision body: it acts only through the FEE force on the buck
 """
 from __future__ import annotations
 
-from lhd_loading_ros.kinematics import FLOOR_GAP, PLATE_T, attack_geometry  # noqa: F401  (one geometry: MJCF and FK)
+from lhd_loading_ros.task.kinematics import FLOOR_GAP, PLATE_T, attack_geometry  # noqa: F401  (one geometry: MJCF and FK)
 
 FEE_ANCHOR_X = -200.0  # m, anchor of the horizontal resistance tendon (far: the tendon stays horizontal)
 

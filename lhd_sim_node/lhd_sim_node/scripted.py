@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from lhd_loading_ros.state import LhdState
+from lhd_loading_ros.task.state import LhdState
 
 ARM_STILL = np.array([1.0, 1.0, -1.0])      # wheels full, boom still, bucket still
 

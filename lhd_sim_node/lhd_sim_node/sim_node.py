@@ -41,14 +41,14 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64, Float64MultiArray
 from std_srvs.srv import Trigger
 
-from lhd_loading_ros.config import load_config
-from lhd_loading_ros.qos import COMMAND_QOS, MEASUREMENT_QOS, STATUS_QOS
-from lhd_loading_ros.ros_main import number_param, run_node
+from lhd_loading_ros.task.config import load_config
+from lhd_loading_ros.ros.qos import COMMAND_QOS, MEASUREMENT_QOS, STATUS_QOS
+from lhd_loading_ros.ros.run import number_param, run_node
 
 from .env import LhdLoadingEnv
 from .simulator import MATERIALS
 
-# QoS (lhd_loading_ros.qos, shared with the hardware bridge and the policy node): measurements
+# QoS (lhd_loading_ros.ros.qos, shared with the hardware bridge and the policy node): measurements
 # MEASUREMENT_QOS (reliable, keep-last 5: lockstep must not lose a state, and best-effort
 # subscribers still match), commands COMMAND_QOS (keep-last 1), episode status STATUS_QOS
 # (transient local: a launcher that starts late still sees it). /clock: reliable keep-last 1.

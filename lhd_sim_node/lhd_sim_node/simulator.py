@@ -15,10 +15,10 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from lhd_loading_ros.params import TaskParams
-from lhd_loading_ros.pile import SoilRanges, VoxelPile
-from lhd_loading_ros.state import LhdState
-from lhd_loading_ros.zones import Zones
+from lhd_loading_ros.task.params import TaskParams
+from lhd_loading_ros.task.pile import SoilRanges, VoxelPile
+from lhd_loading_ros.task.state import LhdState
+from lhd_loading_ros.task.zones import Zones
 
 from .fee import BETA_GRID, FeeTable
 from .fee_kernel import (OUT_SIZE, P_ALPHA, P_BID_BUCKET, P_BUCKET_MASS0, P_CA, P_DX, P_DZ, P_FEE_DT,

@@ -14,9 +14,9 @@ from dataclasses import asdict, dataclass
 import numpy as np
 import torch
 
-from ..observation import OBS_DIM
-from ..actions import ACT_DIM
-from .mlp import FlatAdam, FlatMlp
+from lhd_loading_ros.task.observation import OBS_DIM
+from lhd_loading_ros.task.actions import ACT_DIM
+from lhd_loading_ros.learning.mlp import FlatAdam, FlatMlp
 
 
 @dataclass(frozen=True)
@@ -157,7 +157,7 @@ class DdpgAgent:
 
     def actor_numpy(self):
         """A snapshot of the actor as the exported NumpyActor (what the policy node runs)."""
-        from ..policy_file import NumpyActor
+        from lhd_loading_ros.policy.actor_file import NumpyActor
         return NumpyActor(self.actor.numpy_weights())
 
     def update(self, oa: torch.Tensor, r: torch.Tensor, not_term: torch.Tensor, o2: torch.Tensor) -> tuple[float, float]:

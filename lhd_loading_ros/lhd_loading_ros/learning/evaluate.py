@@ -13,7 +13,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..metrics import EpisodeResult, aggregate
+from lhd_loading_ros.task.metrics import EpisodeResult, aggregate
 
 EVAL_SLOPES = (15.0, 20.0, 25.0, 30.0)
 EVAL_MATERIALS = ("homogeneous", "nonhomogeneous")

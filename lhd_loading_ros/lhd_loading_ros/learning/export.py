@@ -1,19 +1,19 @@
-"""Export a trained actor (FlatMlp) to a policy directory (see lhd_loading_ros.policy_file)."""
+"""Export a trained actor (FlatMlp) to a policy directory (see lhd_loading_ros.policy.actor_file)."""
 from __future__ import annotations
 
-from ..actions import ACT_NAMES
-from ..config import config_hash
-from ..observation import OBS_HIGH, OBS_LOW, OBS_NAMES
-from ..params import TaskParams
-from ..policy_file import save_policy
-from .mlp import FlatMlp
+from lhd_loading_ros.task.actions import ACT_NAMES
+from lhd_loading_ros.task.config import config_hash
+from lhd_loading_ros.task.observation import OBS_HIGH, OBS_LOW, OBS_NAMES
+from lhd_loading_ros.task.params import TaskParams
+from lhd_loading_ros.policy.actor_file import save_policy
+from lhd_loading_ros.learning.mlp import FlatMlp
 
 
 def export_actor(directory, actor: FlatMlp, cfg: dict, meta: dict):
     p = TaskParams.from_config(cfg)
     full = {
         "observation": {"names": list(OBS_NAMES), "low": OBS_LOW.tolist(), "high": OBS_HIGH.tolist(),
-                        "normalization": "lhd_loading_ros.observation.build_observation (docs/modeling.md)"},
+                        "normalization": "lhd_loading_ros.task.observation.build_observation (docs/modeling.md)"},
         "action": {"names": list(ACT_NAMES), "range": [-1.0, 1.0],
                    "actuator_low": [p.wheels_min, p.boom_min, p.bucket_min],
                    "actuator_high": [p.wheels_max, p.boom_max, p.bucket_max], "actuator_units": "rad/s"},

@@ -41,7 +41,7 @@ def run_seeds(variant: str, seeds: list[int], out: Path, jobs: int, extra: list[
         while pending or running:
             while pending and len(running) < jobs:
                 s = pending.pop(0)
-                cmd = [sys.executable, "-m", "lhd_loading_ros.cli", "train", "--variant", variant, "--seed", str(s),
+                cmd = [sys.executable, "-m", "lhd_loading_ros.cli.main", "train", "--variant", variant, "--seed", str(s),
                        "--out", str(out / f"seed_{s}"), "--no-progress", *extra]
                 log = open(out / f"seed_{s}.log", "ab")
                 running[s] = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)

@@ -9,10 +9,10 @@ import json
 import shutil
 from pathlib import Path
 
-from ..config import load_config
-from ..policy_file import load_policy
-from .evaluate import evaluate
-from .report import plot_curves, summarize
+from lhd_loading_ros.task.config import load_config
+from lhd_loading_ros.policy.actor_file import load_policy
+from lhd_loading_ros.learning.evaluate import evaluate
+from lhd_loading_ros.learning.report import plot_curves, summarize
 
 HELD_OUT_SEED = 2_000_000
 

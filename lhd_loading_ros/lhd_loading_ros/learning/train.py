@@ -26,10 +26,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..config import config_hash, load_config
-from .ddpg import DdpgAgent, DdpgConfig, OUNoise, ReplayBuffer, noise_scale
-from .evaluate import evaluate
-from .export import export_actor
+from lhd_loading_ros.task.config import config_hash, load_config
+from lhd_loading_ros.learning.ddpg import DdpgAgent, DdpgConfig, OUNoise, ReplayBuffer, noise_scale
+from lhd_loading_ros.learning.evaluate import evaluate
+from lhd_loading_ros.learning.export import export_actor
 
 EVAL_FIELDS = ("step", "ar", "aml", "aff", "asl", "success_rate", "end_zone_rate", "elapsed_s",
                "front_drift_pct", "rear_drift_pct", "noise_scale", "critic_loss", "q_mean", "episodes_done",

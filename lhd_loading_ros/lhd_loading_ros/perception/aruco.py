@@ -15,7 +15,7 @@ import math
 import cv2
 import numpy as np
 
-from .geometry import apply, from_rt
+from lhd_loading_ros.perception.geometry import apply, from_rt
 
 ENCODINGS = {"mono8": 1, "bgr8": 3, "rgb8": 3, "bgra8": 4, "rgba8": 4}
 

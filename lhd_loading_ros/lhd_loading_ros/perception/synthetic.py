@@ -7,8 +7,8 @@ import math
 import cv2
 import numpy as np
 
-from .aruco import dictionary, project
-from .geometry import apply, transform
+from lhd_loading_ros.perception.aruco import dictionary, project
+from lhd_loading_ros.perception.geometry import apply, transform
 
 # Camera 1.5 m above the floor looking straight down; image right = -y, image down = -x.
 CAMERA_RPY = (math.pi, 0.0, -math.pi / 2)
@@ -106,5 +106,5 @@ def synthetic_scan(alpha: float, rng: np.random.Generator, sensor_xyz=(0.6, 0.0,
 
 
 def scan_points_pile(ranges, angle_min, inc, sensor_xyz, sensor_rpy):
-    from .slope import scan_to_points
+    from lhd_loading_ros.perception.slope import scan_to_points
     return apply(transform(sensor_xyz, sensor_rpy), scan_to_points(angle_min, inc, ranges, 0.05, 30.0))

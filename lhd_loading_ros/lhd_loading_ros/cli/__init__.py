@@ -1,0 +1,1 @@
+"""The `lhd` command line: launcher, echo, benches."""

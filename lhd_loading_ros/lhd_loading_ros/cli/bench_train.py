@@ -1,0 +1,112 @@
+"""``lhd bench train``: the cost of the training loop, measured, and the projected time of
+the paper's protocol (300,000 steps, one update each, 120 evaluation episodes every 10,000).
+
+updates_per_s     DDPG updates alone (sample a batch of 256, critic step, actor step, targets)
+env_steps_per_s   environment steps with action selection and noise, without updates
+loop_steps_per_s  the real loop: action, env step, replay write, update
+projected_protocol_min = total_steps / loop_steps_per_s
+                         + evaluations x eval_episodes x eval_episode_steps / env_steps_per_s
+With --vs-sb3, Stable-Baselines3's DDPG (same networks, hyperparameters, OU noise and
+environment; an optional extra, not a dependency) is timed the same way in the same run.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import torch
+
+from lhd_loading_ros.task.config import load_config
+from lhd_loading_ros.learning.ddpg import DdpgAgent, DdpgConfig, OUNoise, ReplayBuffer
+
+EVAL_EPISODE_STEPS = 40     # a trained policy's episode (about 4 s at 10 Hz); see docs/training.md
+
+
+def bench_train(steps: int = 3000, seed: int = 0, config=None, variant: str = "rld", vs_sb3: bool = False) -> dict:
+    from lhd_sim_node.env import LhdLoadingEnv
+
+    cfg = config if isinstance(config, dict) else load_config(config)
+    dc = DdpgConfig.from_config(cfg)
+    torch.set_num_threads(cfg["training"]["torch_threads"])
+    env = LhdLoadingEnv(variant, cfg)
+    agent = DdpgAgent(dc, seed)
+    replay = ReplayBuffer(dc.replay_size)
+    noise = OUNoise(3, dc.ou_mu, dc.ou_sigma, dc.ou_theta, dc.ou_dt, np.random.default_rng(seed))
+    obs, _ = env.reset(seed=seed)
+    ep = 0
+
+    def env_step():
+        nonlocal obs, ep
+        a = np.clip(agent.act(obs) + noise.sample(), -1.0, 1.0)
+        obs2, r, term, trunc, _ = env.step(a)
+        replay.add(obs, a, r, term, obs2)
+        obs = obs2
+        if term or trunc:
+            ep += 1
+            noise.reset()
+            obs, _ = env.reset(seed=seed + ep)
+
+    n_warm = max(dc.learning_starts, dc.batch_size)
+    t = time.perf_counter()
+    for _ in range(n_warm):
+        env_step()
+    env_rate = n_warm / (time.perf_counter() - t)
+    for _ in range(20):
+        agent.update(*replay.sample(dc.batch_size, agent.gen))
+    t = time.perf_counter()
+    for _ in range(steps):
+        agent.update(*replay.sample(dc.batch_size, agent.gen))
+    upd_rate = steps / (time.perf_counter() - t)
+    t = time.perf_counter()
+    for _ in range(steps):
+        env_step()
+        agent.update(*replay.sample(dc.batch_size, agent.gen))
+    loop_rate = steps / (time.perf_counter() - t)
+    n_evals = dc.total_steps // dc.eval_every
+    eval_s = n_evals * dc.eval_episodes * EVAL_EPISODE_STEPS / env_rate
+    res = {
+        "updates_per_s": round(upd_rate, 1), "env_steps_per_s": round(env_rate, 1),
+        "loop_steps_per_s": round(loop_rate, 1),
+        "projected_protocol_min": round((dc.total_steps / loop_rate + eval_s) / 60.0, 2),
+        "hidden_sizes": list(dc.hidden_sizes), "batch_size": dc.batch_size, "torch_threads": torch.get_num_threads(),
+        "steps": steps,
+    }
+    if vs_sb3:
+        res.update(_bench_sb3(cfg, dc, variant, steps, seed))
+        res["speedup_vs_sb3"] = round(res["updates_per_s"] / res["sb3_updates_per_s"], 2)
+    return res
+
+
+def _bench_sb3(cfg, dc: DdpgConfig, variant: str, steps: int, seed: int) -> dict:
+    try:
+        from stable_baselines3 import DDPG
+        from stable_baselines3.common.noise import OrnsteinUhlenbeckActionNoise
+    except ImportError as exc:
+        raise SystemExit("lhd bench train --vs-sb3 needs Stable-Baselines3, an optional benchmark extra: "
+                         f".venv/bin/pip install stable-baselines3 ({exc})") from None
+    from lhd_sim_node.env import LhdLoadingEnv
+
+    class PaperDDPG(DDPG):
+        """SB3 has one learning rate for actor and critic; keep the paper's two."""
+
+        def _update_learning_rate(self, optimizers):
+            for g in self.actor.optimizer.param_groups:
+                g["lr"] = dc.actor_lr
+            for g in self.critic.optimizer.param_groups:
+                g["lr"] = dc.critic_lr
+
+    env = LhdLoadingEnv(variant, cfg)
+    noise = OrnsteinUhlenbeckActionNoise(mean=np.full(3, dc.ou_mu), sigma=np.full(3, dc.ou_sigma),
+                                         theta=dc.ou_theta, dt=dc.ou_dt)
+    model = PaperDDPG("MlpPolicy", env, learning_rate=dc.critic_lr, buffer_size=dc.replay_size,
+                      learning_starts=dc.learning_starts, batch_size=dc.batch_size, tau=dc.tau, gamma=dc.gamma,
+                      train_freq=1, gradient_steps=1, action_noise=noise, seed=seed, device="cpu",
+                      policy_kwargs={"net_arch": list(dc.hidden_sizes)}, verbose=0)
+    model.learn(total_timesteps=max(dc.learning_starts, dc.batch_size) + 50)
+    t = time.perf_counter()
+    model.train(gradient_steps=steps, batch_size=dc.batch_size)
+    upd = steps / (time.perf_counter() - t)
+    t = time.perf_counter()
+    model.learn(total_timesteps=steps, reset_num_timesteps=False)
+    loop = steps / (time.perf_counter() - t)
+    return {"sb3_updates_per_s": round(upd, 1), "sb3_loop_steps_per_s": round(loop, 1)}

@@ -1,0 +1,225 @@
+"""`lhd up sim`: the sim node and the policy node as separate processes on real DDS (what
+launch/sim_loading.launch.py does where `ros2 launch` exists), watched until the asked
+episodes are done, then stopped cleanly. Ctrl-C stops both; children also die with the
+launcher (PR_SET_PDEATHSIG), so no orphan is left behind.
+
+`lhd demo` is `lhd up sim` on piles of 15, 20, 25 and 30 deg (homogeneous, 3 attempts each)
+with the shipped RLD actor, printing the paper's results-table layout.
+"""
+from __future__ import annotations
+
+import argparse
+import ctypes
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from lhd_loading_ros.task.metrics import EpisodeResult
+
+PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent():
+    try:
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+    except OSError:
+        pass
+    os.setsid()
+
+
+class Child:
+    def __init__(self, name: str, module: str, params: dict, log_dir: Path, quiet: bool):
+        args = [sys.executable, "-m", module, "--ros-args"]
+        for k, v in params.items():
+            args += ["-p", f"{k}:={v}"]
+        self.name = name
+        self.log_path = log_dir / f"{name}.log"
+        self._log = open(self.log_path, "w")
+        out = self._log if quiet else None
+        self.proc = subprocess.Popen(args, stdout=out, stderr=subprocess.STDOUT if quiet else None,
+                                     env=dict(os.environ, PYTHONUNBUFFERED="1"), preexec_fn=_die_with_parent)
+
+    def alive(self) -> bool:
+        return self.proc.poll() is None
+
+    def stop(self, timeout: float = 10.0) -> int:
+        if self.proc.poll() is None:
+            try:
+                os.killpg(self.proc.pid, signal.SIGINT)
+                self.proc.wait(timeout)
+            except subprocess.TimeoutExpired:
+                os.killpg(self.proc.pid, signal.SIGKILL)
+                self.proc.wait()
+            except ProcessLookupError:
+                pass
+        self._log.close()
+        return self.proc.returncode
+
+
+def result_from_status(kv: dict) -> EpisodeResult:
+    state = kv["state"]
+    return EpisodeResult(
+        ret=float(kv.get("return", "nan")), loaded=float(kv["loaded_mass"]),
+        phi_final=math.radians(float(kv.get("phi_final_deg", "nan"))), reached_end_zone=state == "success",
+        failed=state == "failure", truncated=state == "timeout", steps=int(kv["step"]),
+        elapsed_s=float(kv["elapsed_s"]), front_drift_pct=float(kv["front_drift_pct"]),
+        rear_drift_pct=float(kv["rear_drift_pct"]), success_level=int(kv["success_level"]),
+        alpha_deg=float(kv["slope_deg"]), material=kv["material"])
+
+
+def up_sim(policy: str | None, slopes: list[float] | None, episodes: int, material: str, mode: str, seed: int,
+           config: str | None, quiet: bool = True, log_dir: Path | None = None, timeout_s: float = 0.0,
+           on_episode=None) -> list[EpisodeResult]:
+    """Run sim node + policy node until `episodes` episodes ended (0: until Ctrl-C)."""
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticStatus
+
+    from lhd_loading_ros.ros.qos import STATUS_QOS
+
+    log_dir = Path(log_dir or Path(os.environ.get("TMPDIR", "/tmp")) / f"lhd_up_{os.getpid()}")
+    log_dir.mkdir(parents=True, exist_ok=True)
+    common = {"config": config} if config else {}
+    sim_params = {**common, "mode": mode, "seed": seed, "episodes": episodes, "material": material,
+                  "auto_reset": "true", "reset_delay": 0.5}
+    if slopes:
+        sim_params["slopes_deg"] = ",".join(f"{s:g}" for s in slopes)
+    pol_params = {**common, "trigger": "lockstep" if mode == "lockstep" else "timer",
+                  "input_qos": "reliable" if mode == "lockstep" else "sensor_data"}
+    if policy:
+        pol_params["policy_dir"] = str(Path(policy).resolve())
+    rclpy.init()
+    node = rclpy.create_node("lhd_up")
+    seen: dict[int, EpisodeResult] = {}
+    done = {"all": False}
+
+    def on_status(msg):
+        kv = {k.key: k.value for k in msg.values}
+        done["heard"] = True
+        if kv.get("state", "running") == "running":
+            return
+        ep = int(kv["episode"])
+        if ep not in seen:
+            seen[ep] = result_from_status(kv)
+            if on_episode:
+                on_episode(ep, seen[ep])
+        if kv.get("all_done") == "True":
+            done["all"] = True
+
+    # another simulator, bridge or policy on this domain would mix its topics with ours
+    t_check = time.monotonic() + 3.0      # DDS discovery of existing participants
+    busy = {}
+    while not busy and time.monotonic() < t_check:
+        rclpy.spin_once(node, timeout_sec=0.1)
+        busy = {t: n for t in ("/lhd/joint_states", "/lhd/odom", "/lhd/cmd", "/lhd/episode")
+                if (n := node.count_publishers(t))}
+    if busy:
+        node.destroy_node()
+        rclpy.shutdown()
+        raise RuntimeError(f"ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID', '0')} already has publishers on {busy}: "
+                           "another LHD simulator, bridge or policy is running there. Stop it, or set "
+                           "ROS_DOMAIN_ID to a free domain for this run")
+    node.create_subscription(DiagnosticStatus, "/lhd/episode", on_status, STATUS_QOS)
+    # the sim node first; the policy node once this watcher hears the sim's episode status, so
+    # no episode can end before the watcher is matched (lockstep episodes take 0.1 s)
+    children = [Child("sim_node", "lhd_sim_node.sim_node", sim_params, log_dir, quiet)]
+    t0 = time.monotonic()
+    interrupted = False
+    try:
+        while not done.get("heard"):
+            rclpy.spin_once(node, timeout_sec=0.1)
+            if not children[0].alive():
+                tail = children[0].log_path.read_text()[-2000:] if quiet else ""
+                raise RuntimeError(f"sim_node exited with status {children[0].proc.returncode}:\n{tail}")
+            if time.monotonic() - t0 > 120:
+                raise TimeoutError(f"no episode status from the sim node after 120 s (logs in {log_dir})")
+        children.append(Child("policy_node", "lhd_loading_ros.nodes.policy_node", pol_params, log_dir, quiet))
+        while not done["all"]:
+            rclpy.spin_once(node, timeout_sec=0.1)
+            dead = [c for c in children if not c.alive()]
+            if dead:
+                c = dead[0]
+                tail = c.log_path.read_text()[-2000:] if quiet else ""
+                raise RuntimeError(f"{c.name} exited with status {c.proc.returncode}:\n{tail}")
+            if timeout_s and time.monotonic() - t0 > timeout_s:
+                raise TimeoutError(f"episodes not done after {timeout_s:.0f} s (logs in {log_dir})")
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        for c in reversed(children):     # the policy first: the machine gets no command after the sim stops
+            c.stop()
+        node.destroy_node()
+        if rclpy.ok():
+            rclpy.shutdown()
+    if interrupted:
+        print("\ninterrupted: nodes stopped", file=sys.stderr)
+    return [seen[k] for k in sorted(seen)]
+
+
+def main(argv=None, demo: bool = False) -> int:
+    ap = argparse.ArgumentParser(prog="lhd demo" if demo else "lhd up sim",
+                                 description="sim node + policy node over DDS" + (" (the main job)" if demo else ""))
+    ap.add_argument("--policy", help="policy directory (default: policies/rld, the shipped RLD actor)")
+    ap.add_argument("--slope", type=float, help="one slope for every episode, degrees (default: random)")
+    ap.add_argument("--slopes", type=float, nargs="+", help="cycle through these slopes, degrees")
+    ap.add_argument("--episodes", type=int, default=12 if demo else 0, help="stop after N episodes (0: until Ctrl-C)")
+    ap.add_argument("--material", choices=["homogeneous", "nonhomogeneous", "random"],
+                    default="homogeneous" if demo else "random")
+    ap.add_argument("--mode", choices=["realtime", "lockstep"], default="realtime")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--config", default=None)
+    ap.add_argument("--verbose", action="store_true", help="show the nodes' logs")
+    ap.add_argument("--json", action="store_true")
+    ap.add_argument("--scripted", action="store_true", help=argparse.SUPPRESS if not demo else
+                    "the scripted maneuver on the simulator instead of the nodes (no ROS)")
+    args = ap.parse_args(argv)
+    if demo and args.scripted:
+        from lhd_sim_node.demo import main as scripted_main
+
+        return scripted_main(["--json"] if args.json else [])
+    if args.episodes < 0:
+        ap.error(f"--episodes must be >= 0, got {args.episodes}")
+    slopes = args.slopes or ([args.slope] if args.slope is not None else ([15, 20, 25, 30] if demo else None))
+    from lhd_loading_ros.policy.actor_file import PolicyFileError, load_policy
+    from lhd_loading_ros.nodes.policy_node import default_policy_dir
+
+    policy = args.policy or str(default_policy_dir("rld"))
+    try:
+        pol = load_policy(policy)
+    except PolicyFileError as exc:
+        print(f"{ap.prog}: {exc}", file=sys.stderr)
+        return 1
+
+    def show(ep, r):
+        if not args.json:
+            print(f"episode {ep:3d}: {r.alpha_deg:4.1f} deg {r.material:<14} "
+                  f"{'success' if r.success else ('end zone' if r.reached_end_zone else ('restricted zone' if r.failed else 'timeout')):<15} "
+                  f"loaded {r.loaded:5.1f} kg  SL {r.success_level}  {r.elapsed_s:4.1f} s  "
+                  f"drift front {r.front_drift_pct:4.1f} % rear {r.rear_drift_pct:4.1f} %", flush=True)
+
+    if not args.json:
+        print(f"{ap.prog}: sim node ({args.mode}) + policy node ({pol.variant.upper()} actor {policy}), "
+              f"{args.episodes or 'unlimited'} episodes, Ctrl-C stops", flush=True)
+    t0 = time.monotonic()
+    try:
+        results = up_sim(policy, slopes, args.episodes, args.material, args.mode, args.seed, args.config,
+                         quiet=not args.verbose, on_episode=show, timeout_s=0.0)
+    except (RuntimeError, TimeoutError) as exc:
+        print(f"{ap.prog}: {exc}", file=sys.stderr)
+        return 1
+    if not results:
+        return 0
+    from lhd_sim_node.demo import format_table, table_rows
+
+    rows = table_rows(results, slopes or sorted({round(r.alpha_deg) for r in results}), pol.meta)
+    if args.json:
+        print(json.dumps({"rows": rows, "episodes": [r.to_dict() for r in results], "policy": policy,
+                          "wall_s": time.monotonic() - t0}))
+    else:
+        print(format_table(rows, f"{pol.variant.upper()} policy through the ROS nodes ({args.mode}), {args.material} "
+                                 f"material, {len(results)} attempts, {time.monotonic() - t0:.0f} s"))
+    return 0

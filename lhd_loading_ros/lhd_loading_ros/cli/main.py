@@ -1,0 +1,287 @@
+"""The `lhd` command line.
+
+  lhd demo                                 the main job: sim node + policy node (shipped RLD actor) on 15-30 deg piles
+  lhd up sim [--policy DIR] [--slope DEG] [--episodes N]   sim node + policy node over DDS until done / Ctrl-C
+  lhd echo TOPIC [--count N]               print a topic's messages as YAML
+  lhd bench sim [--json] [--steps N]       simulator speed
+  lhd bench bridge [--json]                serial parser throughput and frame-to-publish latency
+  lhd bench perception [--json]            ArUco frames/s (one core) and slope-fit time
+  lhd train --variant rld|rlc --seed N     DDPG with the paper's protocol (resumable; --seeds 0-4 in parallel)
+  lhd eval --policy DIR [--json]           the paper's metrics, overall and by slope and material
+  lhd report RUNS... [--plot PNG]          final figures across seeds and the training curves
+  lhd ship --variant V RUNS_DIR            ship a variant's best seed to policies/V with its model card
+  lhd bench train [--json] [--vs-sb3]      training-loop speed and the projected protocol time
+  lhd bench node [--json]                  policy node latency and 10 Hz jitter against the sim node
+  lhd config check [PATH]                  validate a parameter file
+  lhd mjcf [--out FILE]                    the MJCF of the scaled LHD, generated from the parameters
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from pathlib import Path
+
+
+def _bench(args) -> int:
+    if args.what == "sim":
+        from lhd_sim_node.bench import bench_sim
+
+        res = bench_sim(steps=args.steps, seed=args.seed, config=args.config, rounds=args.rounds)
+    elif args.what == "perception":
+        from lhd_loading_ros.cli.bench_perception import bench_perception
+
+        res = bench_perception()
+    elif args.what == "train":
+        from lhd_loading_ros.cli.bench_train import bench_train
+
+        res = bench_train(steps=args.steps, seed=args.seed, config=args.config, vs_sb3=args.vs_sb3)
+    elif args.what == "node":
+        from lhd_loading_ros.cli.bench_node import bench_node
+
+        res = bench_node(cycles=args.cycles)
+    elif args.what == "bridge":
+        from lhd_hw_bridge.bench import bench_bridge
+
+        res = bench_bridge(seconds=args.seconds)
+    else:
+        print(f"lhd bench: unknown benchmark {args.what!r}; expected: sim, train, node, bridge, perception", file=sys.stderr)
+        return 2
+    if args.json:
+        print(json.dumps(res))
+    else:
+        for k, v in res.items():
+            print(f"{k:>30}: {v}")
+    return 0
+
+
+def _train(args) -> int:
+    from lhd_loading_ros.task.config import ConfigError
+    from lhd_loading_ros.learning.runner import parse_seeds, run_seeds
+
+    try:
+        seeds = parse_seeds(args.seeds) if args.seeds else [args.seed]
+    except ValueError as exc:
+        print(f"lhd train: {exc}", file=sys.stderr)
+        return 2
+    if args.steps is not None and args.steps < 1:
+        print(f"lhd train: --steps must be >= 1, got {args.steps}", file=sys.stderr)
+        return 2
+    out = Path(args.out) if args.out else Path("runs") / args.variant
+    if len(seeds) > 1:
+        extra = (["--steps", str(args.steps)] if args.steps else []) + (["--config", args.config] if args.config else [])
+        extra += ["--no-resume"] if not args.resume else []
+        return run_seeds(args.variant, seeds, out, args.jobs or (os.cpu_count() or 1), extra)
+    from lhd_loading_ros.learning.train import train
+
+    run_dir = out if args.out and not args.seeds else out / f"seed_{seeds[0]}"
+    try:
+        ev = train(args.variant, seeds[0], run_dir, steps=args.steps, config=args.config, resume=args.resume,
+                   progress=args.progress)
+    except (ConfigError, ValueError) as exc:
+        print(f"lhd train: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(f"\ninterrupted; run the same command again to resume from {run_dir}/checkpoint.pt", file=sys.stderr)
+        return 130
+    print(json.dumps({"run": str(run_dir), "final": ev}))
+    return 0
+
+
+def _eval(args) -> int:
+    from lhd_sim_node.env import LhdLoadingEnv
+
+    from lhd_loading_ros.task.config import ConfigError, load_config
+    from lhd_loading_ros.learning.evaluate import evaluate
+    from lhd_loading_ros.policy.actor_file import PolicyFileError, load_policy
+
+    if args.episodes < 1:
+        print(f"lhd eval: --episodes must be >= 1, got {args.episodes}", file=sys.stderr)
+        return 2
+    try:
+        pol = load_policy(args.policy)
+        cfg = load_config(args.config)
+    except (PolicyFileError, ConfigError) as exc:
+        print(f"lhd eval: {exc}", file=sys.stderr)
+        return 1
+    deploy = args.deploy_filter
+    env = LhdLoadingEnv(pol.variant, cfg, deploy_filter=deploy)
+    res = evaluate(env, pol.actor, args.episodes, args.seed, cfg["task"]["bucket_capacity"])
+    res.update({"policy": str(args.policy), "variant": pol.variant, "seed": args.seed, "deploy_filter": deploy})
+    if args.json:
+        print(json.dumps(res))
+    else:
+        print(format_eval(res))
+    return 0
+
+
+def format_eval(res: dict) -> str:
+    head = f"{'':>16} {'episodes':>8} {'success':>8} {'ASL':>5} {'AML kg':>7} {'AFF':>5} {'AR':>8} {'time s':>6} {'front %':>7} {'rear %':>6}"
+    def row(name, r):
+        return (f"{name:>16} {r['episodes']:>8} {r['success_rate']:>8.2f} {r['asl']:>5.2f} {r['aml']:>7.1f} "
+                f"{r['aff']:>5.2f} {r['ar']:>8.1f} {r['elapsed_s']:>6.2f} {r['front_drift_pct']:>7.1f} {r['rear_drift_pct']:>6.1f}")
+    lines = [f"policy {res['policy']} ({res['variant'].upper()}), evaluation seed {res['seed']}", head, row("all", res)]
+    lines += [row(f"{k} deg", v) for k, v in res.get("by_slope", {}).items()]
+    lines += [row(k, v) for k, v in res.get("by_material", {}).items()]
+    f = res.get("failures", {})
+    lines.append(f"failures: restricted zone {f.get('restricted_zone', 0)}, timeout {f.get('timeout', 0)}, "
+                 f"end zone below SL 1 {f.get('end_zone_low_level', 0)}")
+    return "\n".join(lines)
+
+
+def _report(args) -> int:
+    from lhd_loading_ros.learning.report import format_summary, plot_curves, summarize
+
+    groups: dict[str, list] = {}
+    for r in args.runs:
+        p = Path(r)
+        dirs = sorted(d for d in p.glob("seed_*") if d.is_dir()) if not (p / "evals.csv").exists() else [p]
+        if not dirs:
+            print(f"lhd report: {r} holds no training run (no evals.csv, no seed_*/)", file=sys.stderr)
+            return 1
+        groups[p.name if len(dirs) > 1 else str(p)] = dirs
+    try:
+        summaries = {k: summarize(v) for k, v in groups.items()}
+    except (FileNotFoundError, ValueError) as exc:
+        print(f"lhd report: {exc}", file=sys.stderr)
+        return 1
+    if args.plot:
+        plot_curves(groups, args.plot)
+    if args.json:
+        print(json.dumps(summaries))
+    else:
+        for k, s in summaries.items():
+            print(format_summary(k, s))
+        if args.plot:
+            print(f"training curves: {args.plot}")
+    return 0
+
+
+def _config(args) -> int:
+    from lhd_loading_ros.task.config import ConfigError, default_config_path, load_config
+
+    try:
+        path = args.path or default_config_path()
+        load_config(path)
+    except ConfigError as exc:
+        print(exc, file=sys.stderr)
+        return 1
+    print(f"{path}: ok")
+    return 0
+
+
+def _mjcf(args) -> int:
+    from lhd_sim_node.mjcf import build_mjcf
+
+    from lhd_loading_ros.task.config import ConfigError, load_config
+
+    try:
+        xml = build_mjcf(load_config(args.config))
+    except ConfigError as exc:
+        print(exc, file=sys.stderr)
+        return 1
+    if args.out:
+        with open(args.out, "w") as f:
+            f.write(xml)
+        print(f"wrote {args.out} (view it: python -m mujoco.viewer --mjcf={args.out})")
+    else:
+        print(xml)
+    return 0
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    ap = argparse.ArgumentParser(prog="lhd", description="LHD loading: simulator, training and ROS tools")
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    for name, hlp in (("demo", "the main job: sim + policy nodes load piles of 15-30 deg, results table"),
+                      ("up", "up sim: start the sim node and the policy node over DDS"),
+                      ("echo", "print a topic's messages as YAML")):
+        sub.add_parser(name, help=hlp, add_help=False).add_argument("rest", nargs=argparse.REMAINDER)
+    p_bench = sub.add_parser("bench", help="benchmarks that print their figures")
+    p_bench.add_argument("what", help="sim | train | node | bridge | perception")
+    p_bench.add_argument("--cycles", type=int, default=1000, help="node: policy cycles measured (10 Hz)")
+    p_bench.add_argument("--vs-sb3", action="store_true", help="train: also time Stable-Baselines3's DDPG")
+    p_bench.add_argument("--seconds", type=float, default=4.0, help="bridge: latency measurement time")
+    p_bench.add_argument("--json", action="store_true")
+    p_bench.add_argument("--steps", type=int, default=3000)
+    p_bench.add_argument("--seed", type=int, default=0)
+    p_bench.add_argument("--rounds", type=int, default=3, help="alternating runs; the best of each is reported")
+    p_bench.add_argument("--config", default=None, help="parameter file (default: config/lhd_params.yaml)")
+    p_train = sub.add_parser("train", help="train a DDPG loading policy (the paper's protocol)")
+    p_train.add_argument("--variant", choices=["rld", "rlc"], required=True)
+    p_train.add_argument("--seed", type=int, default=0)
+    p_train.add_argument("--seeds", help="several seeds in parallel processes, e.g. 0-4 or 0,2,5")
+    p_train.add_argument("--jobs", type=int, default=0, help="parallel processes for --seeds (default: cores)")
+    p_train.add_argument("--steps", type=int, default=None, help="environment steps (default: training.total_steps)")
+    p_train.add_argument("--out", help="run directory (default runs/<variant>/seed_<N>; with --seeds, the parent)")
+    p_train.add_argument("--config", default=None)
+    p_train.add_argument("--no-resume", dest="resume", action="store_false", help="start over even if a checkpoint exists")
+    p_train.add_argument("--no-progress", dest="progress", action="store_false")
+    p_eval = sub.add_parser("eval", help="evaluate an exported policy on the simulator")
+    p_eval.add_argument("--policy", required=True, help="policy directory (actor.npz + policy.json)")
+    p_eval.add_argument("--episodes", type=int, default=120)
+    p_eval.add_argument("--seed", type=int, default=2_000_000, help="evaluation seed (training evaluates on 1,000,000)")
+    p_eval.add_argument("--deploy-filter", action="store_true", help="RLC: apply the deployment filter, as on the machine")
+    p_eval.add_argument("--config", default=None)
+    p_eval.add_argument("--json", action="store_true")
+    p_report = sub.add_parser("report", help="aggregate training runs across seeds")
+    p_report.add_argument("runs", nargs="+", help="run directories, or parents holding seed_*/")
+    p_report.add_argument("--plot", help="write the training curves (PNG) here")
+    p_report.add_argument("--json", action="store_true")
+    p_ship = sub.add_parser("ship", help="pick a variant's best seed, evaluate it held-out, write policies/<variant>")
+    p_ship.add_argument("--variant", choices=["rld", "rlc"], required=True)
+    p_ship.add_argument("runs", help="directory holding seed_*/ runs of this variant")
+    p_ship.add_argument("--out", help="default policies/<variant>")
+    p_ship.add_argument("--episodes", type=int, default=120)
+    p_ship.add_argument("--config", default=None)
+    p_mjcf = sub.add_parser("mjcf", help="write the MJCF of the scaled LHD generated from the parameter file")
+    p_mjcf.add_argument("--out", help="file to write (default: print)")
+    p_mjcf.add_argument("--config", default=None)
+    p_cfg = sub.add_parser("config", help="parameter file tools")
+    p_cfg.add_argument("action", choices=["check"])
+    p_cfg.add_argument("path", nargs="?")
+    if argv[:1] == ["demo"]:
+        from lhd_loading_ros.cli.launcher import main as up_main
+
+        return up_main(argv[1:], demo=True)
+    if argv[:2] == ["up", "sim"]:
+        from lhd_loading_ros.cli.launcher import main as up_main
+
+        return up_main(argv[2:])
+    if argv[:1] == ["up"]:
+        print("lhd up: expected `lhd up sim [--policy DIR] [--slope DEG] [--episodes N]`", file=sys.stderr)
+        return 2
+    if argv[:1] == ["echo"]:
+        from lhd_loading_ros.cli.echo import main as echo_main
+
+        return echo_main(argv[1:])
+    args = ap.parse_args(argv)
+    if args.cmd == "bench":
+        return _bench(args)
+    if args.cmd == "train":
+        return _train(args)
+    if args.cmd == "eval":
+        return _eval(args)
+    if args.cmd == "report":
+        return _report(args)
+    if args.cmd == "ship":
+        from lhd_loading_ros.learning.ship import ship
+
+        try:
+            res = ship(args.variant, args.runs, args.out or f"policies/{args.variant}", args.episodes, args.config)
+        except (FileNotFoundError, ValueError) as exc:
+            print(f"lhd ship: {exc}", file=sys.stderr)
+            return 1
+        print(f"shipped {res['shipped_from']}/best -> {args.out or f'policies/{args.variant}'}")
+        return 0
+    if args.cmd == "config":
+        return _config(args)
+    if args.cmd == "mjcf":
+        return _mjcf(args)
+    ap.error(f"unknown command {args.cmd}")
+    return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

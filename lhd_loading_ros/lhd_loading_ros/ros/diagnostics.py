@@ -1,0 +1,63 @@
+"""`/diagnostics` from every node, the way diagnostic_aggregator and rqt_robot_monitor read it:
+one DiagnosticArray per period (steady clock, so it keeps coming with use_sim_time and no
+/clock), each status named `<node's fully qualified name>: <what>`, OK / WARN / ERROR with
+the reason in `message`, figures as key/value pairs.
+
+A node gives a function returning (level, message, values); the level constants are
+DiagnosticStatus.OK / WARN / ERROR / STALE.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+
+from lhd_loading_ros.ros.params import steady_timer
+
+OK, WARN, ERROR, STALE = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR, DiagnosticStatus.STALE
+LEVEL_NAMES = {OK: "OK", WARN: "WARN", ERROR: "ERROR", STALE: "STALE"}
+
+Report = tuple  # (level, message, {key: value})
+
+
+def status(name: str, hardware_id: str, level, message: str, values: dict | None = None) -> DiagnosticStatus:
+    st = DiagnosticStatus()
+    st.name = name
+    st.hardware_id = hardware_id
+    st.level = level
+    st.message = message
+    st.values = [KeyValue(key=str(k), value=_fmt(v)) for k, v in (values or {}).items()]
+    return st
+
+
+def _fmt(v) -> str:
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return str(v)
+
+
+class Diagnostics:
+    """Publishes the statuses given by `sources` ({what: fn() -> (level, message, values)})
+    on /diagnostics every `period_s`."""
+
+    def __init__(self, node, sources: dict[str, Callable[[], Report]], hardware_id: str = "", period_s: float = 1.0):
+        self.node = node
+        self.sources = dict(sources)
+        self.hardware_id = hardware_id
+        self.pub = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.timer = steady_timer(node, period_s, self.publish)
+        self.last: dict[str, DiagnosticStatus] = {}
+
+    def publish(self) -> None:
+        arr = DiagnosticArray()
+        arr.header.stamp = self.node.get_clock().now().to_msg()
+        fq = self.node.get_fully_qualified_name()
+        for what, fn in self.sources.items():
+            try:
+                level, message, values = fn()
+            except Exception as exc:  # noqa: BLE001 - a broken report must not stop the others
+                level, message, values = ERROR, f"diagnostics failed: {exc}", {}
+            st = status(f"{fq}: {what}", self.hardware_id, level, message, values)
+            self.last[what] = st
+            arr.status.append(st)
+        self.pub.publish(arr)

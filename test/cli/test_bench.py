@@ -1,0 +1,42 @@
+"""The simulator benchmark runs, prints its figures, and its physics-only replay goes through
+exactly the env's states (otherwise it would time different physics)."""
+import json
+import subprocess
+import sys
+
+from lhd_sim_node.bench import bench_sim
+
+
+def test_bench_replays_the_same_physics():
+    res = bench_sim(steps=150, rounds=1)
+    assert res["replay_max_qpos_error"] == 0.0
+    assert res["env_steps_per_s"] > 0 and res["physics_only_steps_per_s"] > 0
+    assert res["ratio"] == round(res["env_steps_per_s"] / res["physics_only_steps_per_s"], 3)
+    assert res["substeps_per_control_step"] == 25 and res["fee_updates_per_control_step"] == 5
+
+
+def test_lhd_bench_sim_json_cli():
+    out = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "bench", "sim", "--json", "--steps", "100",
+                          "--rounds", "1"], capture_output=True, text=True, check=True).stdout
+    res = json.loads(out)
+    assert {"env_steps_per_s", "physics_only_steps_per_s", "ratio"} <= set(res)
+
+
+def test_lhd_config_check_cli(tmp_path):
+    ok = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "config", "check"], capture_output=True, text=True)
+    assert ok.returncode == 0 and ok.stdout.strip().endswith(": ok")
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("paper: {}\n")
+    res = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "config", "check", str(bad)],
+                         capture_output=True, text=True)
+    assert res.returncode == 1 and "missing key 'paper.ddpg'" in res.stderr
+
+
+def test_lhd_mjcf_writes_a_model_mujoco_loads(tmp_path):
+    import mujoco
+
+    out = tmp_path / "lhd.xml"
+    subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "mjcf", "--out", str(out)], check=True,
+                   capture_output=True)
+    m = mujoco.MjModel.from_xml_path(str(out))
+    assert m.nu == 6 and abs(sum(m.body_mass) - 121.0) < 1e-6

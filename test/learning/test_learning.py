@@ -1,0 +1,309 @@
+"""DDPG pieces checked against PyTorch's own autograd and Adam, the paper's noise schedule,
+replay semantics (truncation is not terminal), export fidelity, and a short real training
+run with checkpoint and resume."""
+import csv
+import json
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from lhd_loading_ros.learning.ddpg import DdpgAgent, DdpgConfig, OUNoise, ReplayBuffer, noise_scale
+from lhd_loading_ros.learning.export import export_actor
+from lhd_loading_ros.learning.mlp import FlatAdam, FlatMlp
+from lhd_loading_ros.learning.report import bootstrap_ci, iqm, plot_curves, summarize
+from lhd_loading_ros.learning.runner import parse_seeds
+from lhd_loading_ros.policy.actor_file import PolicyFileError, load_policy
+
+EXPORT_ATOL = 1e-5   # exported numpy actor vs in-memory torch actor (float32 both; BLAS summation order differs)
+
+
+def small_cfg(cfg, **training):
+    cfg["training"].update({"learning_starts": 256, "eval_episodes": 4, "eval_every": 150,
+                            "checkpoint_every": 150, "hidden_sizes": [32, 32], **training})
+    return cfg
+
+
+@pytest.mark.parametrize("out_act", ["tanh", "identity"])
+def test_flat_mlp_gradients_match_autograd(out_act):
+    g = torch.Generator().manual_seed(1)
+    net = FlatMlp([15, 24, 16, 3], out_act, generator=g)
+    seq = net.to_sequential()
+    x = torch.randn(64, 15, generator=g)
+    dy = torch.randn(64, 3, generator=g)
+    y, cache = net.forward(x.clone())
+    xr = x.clone().requires_grad_(True)
+    yr = seq(xr)
+    torch.testing.assert_close(y, yr.detach(), rtol=1e-6, atol=1e-6)
+    dx = net.backward(cache, dy, weight_grads=True, input_grad=True)
+    yr.backward(dy)
+    torch.testing.assert_close(dx, xr.grad, rtol=1e-5, atol=1e-6)
+    lins = [m for m in seq if isinstance(m, torch.nn.Linear)]
+    for j, lin in enumerate(lins):
+        torch.testing.assert_close(net.gW[j], lin.weight.grad, rtol=1e-5, atol=1e-6)
+        torch.testing.assert_close(net.gb[j], lin.bias.grad, rtol=1e-5, atol=1e-6)
+
+
+def test_flat_adam_matches_torch_adam():
+    g = torch.Generator().manual_seed(2)
+    net = FlatMlp([5, 8, 2], "identity", generator=g)
+    seq = net.to_sequential()
+    opt_ref = torch.optim.Adam(seq.parameters(), lr=1e-3)
+    opt = FlatAdam(net, lr=1e-3)
+    for _ in range(5):
+        x = torch.randn(16, 5, generator=g)
+        y, cache = net.forward(x)
+        net.backward(cache, 2 * y / y.numel())
+        opt.step()
+        opt_ref.zero_grad()
+        (seq(x) ** 2).mean().backward()
+        opt_ref.step()
+    ref = torch.cat([p.detach().reshape(-1) for p in seq.parameters()])
+    torch.testing.assert_close(net.flat, ref, rtol=1e-5, atol=1e-6)
+
+
+def reference_update(actor, critic, actor_t, critic_t, oa, r, nd, o2, cfg):
+    """A DDPG update written with autograd and torch.optim.Adam (CleanRL's ddpg_continuous_action)."""
+    with torch.no_grad():
+        y = cfg.reward_scale * r + cfg.gamma * nd * critic_t(torch.cat([o2, actor_t(o2)], 1))
+    qf_loss = ((critic(oa) - y) ** 2).mean()
+    critic.opt.zero_grad()
+    qf_loss.backward()
+    critic.opt.step()
+    o = oa[:, :12]
+    actor_loss = -critic(torch.cat([o, actor(o)], 1)).mean()
+    actor.opt.zero_grad()
+    actor_loss.backward()
+    actor.opt.step()
+    with torch.no_grad():
+        for net, tgt in ((actor, actor_t), (critic, critic_t)):
+            for p, tp in zip(net.parameters(), tgt.parameters()):
+                tp.mul_(1 - cfg.tau).add_(cfg.tau * p)
+
+
+def test_ddpg_update_matches_autograd_reference(cfg):
+    dc = DdpgConfig.from_config(small_cfg(cfg))
+    agent = DdpgAgent(dc, seed=3)
+    actor, critic = agent.actor.to_sequential(), agent.critic.to_sequential()
+    actor_t, critic_t = agent.actor_t.to_sequential(), agent.critic_t.to_sequential()
+    actor.opt = torch.optim.Adam(actor.parameters(), lr=dc.actor_lr)
+    critic.opt = torch.optim.Adam(critic.parameters(), lr=dc.critic_lr)
+    g = torch.Generator().manual_seed(4)
+    for _ in range(4):
+        oa, o2 = torch.rand(dc.batch_size, 15, generator=g) * 2 - 1, torch.rand(dc.batch_size, 12, generator=g)
+        r = torch.randn(dc.batch_size, 1, generator=g) * 500
+        nd = (torch.rand(dc.batch_size, 1, generator=g) > 0.2).float()
+        agent.update(oa, r, nd, o2)
+        reference_update(actor, critic, actor_t, critic_t, oa, r, nd, o2, dc)
+    for mine, ref in ((agent.actor, actor), (agent.critic, critic), (agent.actor_t, actor_t), (agent.critic_t, critic_t)):
+        torch.testing.assert_close(mine.flat, torch.cat([p.detach().reshape(-1) for p in ref.parameters()]),
+                                   rtol=1e-4, atol=1e-5)
+
+
+def test_truncation_bootstraps_and_termination_does_not(cfg):
+    dc = DdpgConfig.from_config(small_cfg(cfg))
+    rb = ReplayBuffer(4)
+    o = np.arange(12) / 12
+    rb.add(o, [0.1, 0.2, 0.3], 5.0, False, o)   # truncated (time limit): not terminal
+    rb.add(o, [0.1, 0.2, 0.3], 5.0, True, o)    # success / failure: terminal
+    assert rb.data[0, 16] == 1.0 and rb.data[1, 16] == 0.0
+    agent = DdpgAgent(dc, seed=0)
+    o2 = rb.data[:2, 17:]
+    q2 = agent.critic_t(torch.cat([o2, agent.actor_t(o2)], 1))
+    y = torch.addcmul(rb.data[:2, 15:16] * dc.reward_scale, rb.data[:2, 16:17], q2, value=dc.gamma)
+    assert y[1, 0].item() == pytest.approx(5.0 * dc.reward_scale)
+    assert y[0, 0].item() == pytest.approx(5.0 * dc.reward_scale + dc.gamma * q2[0, 0].item())
+
+
+def test_replay_ring_overwrites_oldest():
+    rb = ReplayBuffer(3)
+    for k in range(5):
+        rb.add(np.full(12, k), np.zeros(3), float(k), False, np.full(12, k))
+    assert rb.size == 3 and sorted(rb.data[:, 15].tolist()) == [2.0, 3.0, 4.0]
+    oa, r, nd, o2 = rb.sample(7, torch.Generator().manual_seed(0))
+    assert oa.shape == (7, 15) and r.shape == (7, 1) and nd.shape == (7, 1) and o2.shape == (7, 12)
+
+
+def test_noise_schedule_is_the_papers():
+    assert noise_scale(0, 250_000, 0.05) == 1.0
+    assert noise_scale(125_000, 250_000, 0.05) == pytest.approx(0.525)
+    assert noise_scale(250_000, 250_000, 0.05) == pytest.approx(0.05)
+    assert noise_scale(300_000, 250_000, 0.05) == pytest.approx(0.05)
+
+
+def test_ou_noise_stationary_spread():
+    """Euler-Maruyama OU: stationary variance sigma^2 dt / (1 - (1 - theta dt)^2)."""
+    sigma, theta, dt = 0.4, 0.15, 0.2
+    n = OUNoise(3, 0.0, sigma, theta, dt, np.random.default_rng(0))
+    xs = np.array([n.sample() for _ in range(60_000)])[5000:]
+    expected = math.sqrt(sigma**2 * dt / (1 - (1 - theta * dt) ** 2))
+    assert xs.std() == pytest.approx(expected, rel=0.06)
+    assert abs(xs.mean()) < 0.1
+    lag1 = np.corrcoef(xs[:-1, 0], xs[1:, 0])[0, 1]
+    assert lag1 == pytest.approx(1 - theta * dt, abs=0.01)   # temporally correlated, as DDPG wants
+
+
+def test_export_reproduces_in_memory_actor(cfg, tmp_path):
+    dc = DdpgConfig.from_config(small_cfg(cfg, hidden_sizes=[64, 64]))
+    agent = DdpgAgent(dc, seed=5)
+    with torch.no_grad():
+        agent.actor.flat.mul_(20.0)     # away from the near-zero initial outputs: saturating actions too
+    export_actor(tmp_path / "p", agent.actor, cfg, {"variant": "rlc", "seed": 5, "steps": 0})
+    pol = load_policy(tmp_path / "p")
+    obs = np.random.default_rng(0).uniform(-1, 1, size=(1000, 12)).astype(np.float32)
+    with torch.no_grad():
+        ref = agent.actor(torch.from_numpy(obs)).numpy()
+    got = pol.actor(obs)
+    assert np.abs(got - ref).max() <= EXPORT_ATOL
+    assert np.abs(ref).max() > 0.99     # the check covers the saturated range
+    single = np.stack([pol.actor(o) for o in obs[:20]])
+    assert np.abs(single - ref[:20]).max() <= EXPORT_ATOL
+    meta = json.loads((tmp_path / "p" / "policy.json").read_text())
+    for key in ("variant", "observation", "action", "filters", "config_hash", "seed", "steps", "architecture"):
+        assert key in meta
+    assert meta["architecture"]["sizes"] == [12, 64, 64, 3]
+
+
+def test_load_policy_rejects_bad_directories(cfg, tmp_path):
+    with pytest.raises(PolicyFileError, match="does not exist"):
+        load_policy(tmp_path / "nowhere")
+    agent = DdpgAgent(DdpgConfig.from_config(small_cfg(cfg)), seed=0)
+    d = export_actor(tmp_path / "p", agent.actor, cfg, {"variant": "rld", "seed": 0, "steps": 0})
+    w = dict(np.load(d / "actor.npz"))
+    w["W0"] = w["W0"] * 2
+    np.savez(d / "actor.npz", **w)
+    with pytest.raises(PolicyFileError, match="SHA-256"):
+        load_policy(d)
+    (d / "actor.npz").unlink()
+    with pytest.raises(PolicyFileError, match="no actor.npz"):
+        load_policy(d)
+    d2 = export_actor(tmp_path / "q", agent.actor, cfg, {"variant": "rld", "seed": 0, "steps": 0})
+    meta = json.loads((d2 / "policy.json").read_text())
+    meta["variant"] = "ppo"
+    (d2 / "policy.json").write_text(json.dumps(meta))
+    with pytest.raises(PolicyFileError, match="variant"):
+        load_policy(d2)
+
+
+def read_csv(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_short_training_run_logs_exports_and_resumes(cfg, tmp_path):
+    from lhd_loading_ros.learning.train import train
+
+    small_cfg(cfg)
+    out = tmp_path / "run"
+    ev = train("rld", 7, out, steps=300, config=cfg, progress=False, log=lambda *a: None)
+    rows = read_csv(out / "evals.csv")
+    assert [int(r["step"]) for r in rows] == [150, 300]
+    assert set(ev) >= {"ar", "aml", "aff", "asl", "success_rate"}
+    for name in ("best", "final"):
+        pol = load_policy(out / name)
+        assert pol.variant == "rld" and pol.meta["seed"] == 7
+    assert load_policy(out / "final").meta["steps"] == 300
+    eps = read_csv(out / "episodes.csv")
+    assert eps and all(int(e["step"]) <= 300 for e in eps)
+    st = torch.load(out / "checkpoint.pt", weights_only=True)
+    assert st["step"] == 300 and st["agent"]["updates"] == 300 - 256 + 1
+    # resume: the same command with more steps continues from the checkpoint
+    logs = []
+    train("rld", 7, out, steps=450, config=cfg, progress=False, log=logs.append)
+    assert any("resumed" in m and "300" in m for m in logs)
+    assert [int(r["step"]) for r in read_csv(out / "evals.csv")] == [150, 300, 450]
+    st = torch.load(out / "checkpoint.pt", weights_only=True)
+    assert st["step"] == 450 and st["agent"]["updates"] == 450 - 256 + 1
+    with pytest.raises(ValueError, match="seed"):
+        train("rld", 8, out, steps=500, config=cfg, progress=False)
+
+
+def test_training_is_deterministic_for_a_seed(cfg, tmp_path):
+    from lhd_loading_ros.learning.train import train
+
+    small_cfg(cfg)
+    a = train("rlc", 1, tmp_path / "a", steps=300, config=cfg, progress=False)
+    b = train("rlc", 1, tmp_path / "b", steps=300, config=cfg, progress=False)
+    assert a["ar"] == b["ar"] and a["aml"] == b["aml"]
+    wa = np.load(tmp_path / "a" / "final" / "actor.npz")["W0"]
+    wb = np.load(tmp_path / "b" / "final" / "actor.npz")["W0"]
+    assert np.array_equal(wa, wb)
+
+
+def test_iqm_and_bootstrap_by_hand():
+    assert iqm([1, 2, 3, 4, 100, 6, 7, 8]) == pytest.approx(np.mean([3, 4, 6, 7]))
+    assert iqm([5.0, 1.0, 3.0]) == pytest.approx(3.0)
+    lo, hi = bootstrap_ci([1.0, 2.0, 3.0, 4.0, 5.0])
+    assert 1.0 <= lo <= 3.0 <= hi <= 5.0
+    assert bootstrap_ci([2.0, 2.0, 2.0]) == (2.0, 2.0)
+
+
+def test_report_summary_and_plot(tmp_path):
+    fields = ["step", "ar", "aml", "aff", "asl", "success_rate", "elapsed_s", "front_drift_pct", "rear_drift_pct"]
+    dirs = []
+    for s, final in enumerate([4.0, 5.0, 4.5]):
+        d = tmp_path / f"seed_{s}"
+        d.mkdir()
+        with open(d / "evals.csv", "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(fields)
+            w.writerow([10000, 100, 10, 0.3, 1.0, 0.2, 4, 5, 5])
+            w.writerow([20000, 900, 30, 1.0, final, 0.9, 4, 5, 5])
+        dirs.append(d)
+    s = summarize(dirs)
+    assert s["metrics"]["asl"]["mean"] == pytest.approx(4.5)
+    assert s["metrics"]["asl"]["sd"] == pytest.approx(0.5)
+    png = plot_curves({"rld": dirs}, tmp_path / "curves.png")
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
+
+
+def test_parse_seeds():
+    assert parse_seeds("0-4") == [0, 1, 2, 3, 4]
+    assert parse_seeds("0,2,5") == [0, 2, 5]
+    assert parse_seeds("3") == [3]
+    for bad in ("4-0", "a", "1,1", "-1"):
+        with pytest.raises(ValueError, match="seeds"):
+            parse_seeds(bad)
+
+
+def test_lhd_eval_json_has_the_metrics_and_breakdowns(cfg, tmp_path):
+    import subprocess
+    import sys
+
+    agent = DdpgAgent(DdpgConfig.from_config(small_cfg(cfg)), seed=0)
+    export_actor(tmp_path / "p", agent.actor, cfg, {"variant": "rld", "seed": 0, "steps": 0})
+    out = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "eval", "--policy", str(tmp_path / "p"),
+                          "--episodes", "8", "--json"], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    res = json.loads(out.stdout)
+    for k in ("ar", "aml", "aff", "asl", "success_rate", "elapsed_s", "front_drift_pct", "rear_drift_pct", "episodes"):
+        assert k in res and isinstance(res[k], (int, float))
+    assert res["episodes"] == 8
+    assert set(res["by_slope"]) == {"15", "20", "25", "30"}
+    assert set(res["by_material"]) == {"homogeneous", "nonhomogeneous"}
+    assert sum(v["episodes"] for v in res["by_slope"].values()) == 8
+    bad = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "eval", "--policy", str(tmp_path / "none")],
+                         capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 1 and "does not exist" in bad.stderr
+
+
+def test_ship_picks_a_seed_and_writes_the_model_card(cfg, tmp_path):
+    from lhd_loading_ros.learning.ship import ship
+    from lhd_loading_ros.learning.train import train
+
+    small_cfg(cfg)
+    for s in (0, 1):
+        train("rlc", s, tmp_path / "runs" / f"seed_{s}", steps=300, config=cfg, progress=False)
+    cfg_path = tmp_path / "cfg.yaml"
+    import yaml
+    cfg_path.write_text(yaml.safe_dump(cfg))
+    res = ship("rlc", tmp_path / "runs", tmp_path / "policies" / "rlc", episodes=4, config=str(cfg_path),
+               log=lambda *a: None)
+    out = tmp_path / "policies" / "rlc"
+    pol = load_policy(out)
+    assert pol.variant == "rlc" and res["shipped_from"].endswith(("seed_0", "seed_1"))
+    card = (out / "README.md").read_text()
+    assert "| all | 4 |" in card and "training_curves.png" in card and "| seed_1 |" in card
+    assert (out / "training_curves.png").stat().st_size > 10_000
+    assert json.loads((out / "evaluation.json").read_text())["episodes"] == 4

@@ -1,0 +1,210 @@
+"""Sim node and policy node as real processes over DDS: topics, reset service, stale-command
+braking, zero commands on doubt, and parity with the in-process environment (lockstep)."""
+import math
+import time
+
+import numpy as np
+import pytest
+from diagnostic_msgs.msg import DiagnosticStatus
+from nav_msgs.msg import Odometry
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Bool, Float32MultiArray, Float64, Float64MultiArray
+from std_srvs.srv import Trigger
+
+from lhd_loading_ros.policy.actor_file import load_policy
+from lhd_loading_ros.nodes.policy_node import default_policy_dir
+
+from rosutil import RosProcess, init_ros, shutdown_ros, spin_until
+
+OBS_ATOL = 1e-6     # node observation vs environment observation (float32; FK vs MuJoCo sites agree to 1e-14 m)
+MASS_ATOL = 1e-3    # kg, loaded mass of the same episode through the nodes and in process
+REL = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+STATUS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                    durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+@pytest.fixture(scope="module")
+def ros():
+    init_ros()
+    import rclpy
+
+    node = rclpy.create_node("test_sim_policy")
+    yield node
+    node.destroy_node()
+    shutdown_ros()
+
+
+def kv(msg):
+    return {k.key: k.value for k in msg.values}
+
+
+def test_sim_node_rejects_bad_parameters(tmp_path):
+    for params, name in (({"mode": "fast"}, "mode"), ({"slope_deg": 45.0}, "slope_deg"),
+                         ({"material": "sand"}, "material"), ({"slopes_deg": "15,x"}, "slopes_deg")):
+        p = RosProcess("lhd_sim_node.sim_node", params, tmp_path / f"{name}.log")
+        assert p.proc.wait(60) == 2
+        assert f"parameter '{name}'" in p.log()
+        p.stop()
+
+
+def test_nodes_accept_their_ros_parameter_files(tmp_path):
+    import os
+    import signal
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    for module, name in (("lhd_sim_node.sim_node", "sim_node"), ("lhd_loading_ros.nodes.policy_node", "policy_node")):
+        p = subprocess.Popen([sys.executable, "-m", module, "--ros-args", "--params-file",
+                              str(root / "config" / f"{name}.yaml")], stdout=subprocess.PIPE,
+                             stderr=subprocess.STDOUT, text=True, start_new_session=True,
+                             env=dict(os.environ, PYTHONUNBUFFERED="1", RCUTILS_LOGGING_BUFFERED_STREAM="0"))
+        try:
+            lines = [p.stdout.readline() for _ in range(2)] if name == "policy_node" else [p.stdout.readline()]
+            assert any("sim node up: mode realtime" in x or "loaded RLD actor" in x for x in lines), lines
+        finally:
+            os.killpg(p.pid, signal.SIGINT)
+            assert p.wait(20) == 0
+
+
+def test_sim_node_topics_reset_and_stale_command_brake(ros, tmp_path):
+    sim = RosProcess("lhd_sim_node.sim_node", {"mode": "realtime", "slope_deg": 20.0, "seed": 5}, tmp_path / "sim.log")
+    got = {}
+    js_log = []
+    ros.create_subscription(JointState, "/lhd/joint_states", lambda m: js_log.append((time.monotonic(), m)), REL)
+    for topic, typ in (("/lhd/odom", Odometry), ("/lhd/pile/slope", Float64), ("/lhd/wheel_drift", Bool),
+                       ("/lhd/wheel_drift/front", Bool), ("/lhd/wheel_drift/rear", Bool),
+                       ("/lhd/pile/end_zone", Float64MultiArray)):
+        ros.create_subscription(typ, topic, lambda m, t=topic: got.__setitem__(t, m), REL)
+    statuses = []
+    ros.create_subscription(DiagnosticStatus, "/lhd/episode", lambda m: statuses.append(kv(m)), STATUS)
+    pub = ros.create_publisher(Float64MultiArray, "/lhd/cmd", REL)
+    try:
+        assert spin_until(ros, lambda: len(got) == 6 and js_log and statuses, 60), sim.log()
+        assert got["/lhd/pile/slope"].data == pytest.approx(math.radians(20.0))
+        js = js_log[-1][1]
+        assert list(js.name)[:3] == ["boom", "bucket", "articulation"]
+        assert got["/lhd/odom"].header.frame_id == "pile" and got["/lhd/odom"].child_frame_id == "base_link"
+        x_min, x_max, z_min = got["/lhd/pile/end_zone"].data
+        assert 0 < x_min < x_max and z_min == pytest.approx(0.35)
+        assert statuses[-1]["state"] == "running" and statuses[-1]["episode"] == "0"
+        # drive at full wheel speed for 1 s, then go silent: the wheels must brake after 0.3 s
+        t_end = time.monotonic() + 1.0
+        while time.monotonic() < t_end:
+            pub.publish(Float64MultiArray(data=[2.7, 0.0, 0.0]))
+            spin_until(ros, lambda: False, 0.05)
+        t_last = time.monotonic()
+        assert got["/lhd/odom"].twist.twist.linear.x > 0.1
+        spin_until(ros, lambda: False, 1.2)
+        wheel_v = [(t - t_last, abs(np.mean(m.velocity[3:]))) for t, m in js_log if t > t_last]
+        assert any(v > 1.0 for dt, v in wheel_v if dt < 0.25), wheel_v      # still driving within the timeout
+        assert all(v < 0.3 for dt, v in wheel_v if dt > 0.8), wheel_v       # braked after it
+        assert "wheels braked" in sim.log()
+        cli = ros.create_client(Trigger, "/lhd_sim/reset")
+        assert cli.wait_for_service(timeout_sec=10)
+        fut = cli.call_async(Trigger.Request())
+        assert spin_until(ros, lambda: fut.done(), 10) and fut.result().success
+        assert spin_until(ros, lambda: statuses[-1]["episode"] == "1", 10)
+    finally:
+        assert sim.stop() == 0
+
+
+def test_policy_node_zero_command_without_actor_or_inputs(ros, tmp_path):
+    cmds = []
+    ros.create_subscription(Float64MultiArray, "/lhd/cmd", lambda m: cmds.append(list(m.data)), REL)
+    pol = RosProcess("lhd_loading_ros.nodes.policy_node", {"policy_dir": str(tmp_path / "missing")}, tmp_path / "p1.log")
+    try:
+        assert spin_until(ros, lambda: len(cmds) >= 5, 60), pol.log()
+        assert all(c == [0.0, 0.0, 0.0] for c in cmds)
+        assert "no actor" in pol.log()
+    finally:
+        rc = pol.stop()
+        assert rc == 0, pol.log()
+    cmds.clear()
+    pol = RosProcess("lhd_loading_ros.nodes.policy_node", {}, tmp_path / "p2.log")      # shipped actor, no inputs
+    try:
+        assert spin_until(ros, lambda: len(cmds) >= 5, 60), pol.log()
+        assert all(c == [0.0, 0.0, 0.0] for c in cmds)
+        assert "zero command: no joints received yet" in pol.log()
+    finally:
+        rc = pol.stop()
+        assert rc == 0, pol.log()
+
+
+def test_policy_node_sends_a_last_zero_command_when_stopped(ros, tmp_path):
+    """Stopped mid-episode (SIGINT from Ctrl-C, SIGTERM from a supervisor), the policy node's
+    last word is the zero command, and it exits 0: the machine is not left on its last command."""
+    import os
+    import signal
+
+    cmds = []
+    sub = ros.create_subscription(Float64MultiArray, "/lhd/cmd", lambda m: cmds.append(list(m.data)), REL)
+    sim = RosProcess("lhd_sim_node.sim_node", {"mode": "realtime", "slope_deg": 20.0, "seed": 3}, tmp_path / "sim.log")
+    try:
+        for i, sig in enumerate((signal.SIGINT, signal.SIGTERM)):
+            cmds.clear()
+            pol = RosProcess("lhd_loading_ros.nodes.policy_node", {}, tmp_path / f"pol{i}.log")
+            try:
+                assert spin_until(ros, lambda: any(c != [0.0, 0.0, 0.0] for c in cmds), 60), pol.log() + sim.log()
+            finally:
+                os.killpg(pol.proc.pid, sig)
+                assert pol.proc.wait(10) == 0, pol.log()
+                pol.stop()
+            spin_until(ros, lambda: False, 0.5)
+            assert cmds[-1] == [0.0, 0.0, 0.0], cmds[-5:]
+            assert "stopping: sent a zero command" in pol.log()
+    finally:
+        assert sim.stop() == 0
+        ros.destroy_subscription(sub)
+
+
+def run_lockstep_episode(ros, tmp_path, policy_dir, slope, material, seed):
+    obs_log, statuses = [], []
+    subs = [ros.create_subscription(Float32MultiArray, "/lhd/observation", lambda m: obs_log.append(np.array(m.data, dtype=np.float32)), REL),
+            ros.create_subscription(DiagnosticStatus, "/lhd/episode", lambda m: statuses.append(kv(m)), STATUS)]
+    pol = RosProcess("lhd_loading_ros.nodes.policy_node", {"policy_dir": str(policy_dir), "trigger": "lockstep",
+                                                     "input_qos": "reliable"}, tmp_path / "pol.log")
+    # the policy's /lhd/observation must be matched before the first state exists (volatile topic)
+    assert spin_until(ros, lambda: ros.count_publishers("/lhd/observation") >= 1, 60), pol.log()
+    spin_until(ros, lambda: False, 0.5)
+    sim = RosProcess("lhd_sim_node.sim_node", {"mode": "lockstep", "slope_deg": slope, "material": material,
+                                               "seed": seed, "episodes": 1, "auto_reset": "false"}, tmp_path / "sim.log")
+    try:
+        assert spin_until(ros, lambda: statuses and statuses[-1]["state"] != "running", 120), sim.log() + pol.log()
+        spin_until(ros, lambda: False, 0.5)
+    finally:
+        rc_pol, rc_sim = pol.stop(), sim.stop()
+        assert rc_pol == 0 and rc_sim == 0, (rc_pol, rc_sim, pol.log()[-2000:], sim.log()[-2000:])
+        for s in subs:
+            ros.destroy_subscription(s)
+    return obs_log, statuses[-1]
+
+
+@pytest.mark.parametrize("variant,slope,material", [("rld", 25.0, "homogeneous"), ("rlc", 20.0, "nonhomogeneous")])
+def test_lockstep_parity_with_the_environment(ros, tmp_path, variant, slope, material):
+    from lhd_sim_node.env import LhdLoadingEnv
+
+    policy_dir = default_policy_dir(variant)
+    pol = load_policy(policy_dir)
+    seed = 11
+    env = LhdLoadingEnv(variant, deploy_filter=True)
+    obs, _ = env.reset(seed=seed, options={"slope_deg": slope, "material": material})
+    env_obs = [obs]
+    while True:
+        obs, _, term, trunc, info = env.step(np.clip(pol.actor(obs), -1, 1))
+        if term or trunc:
+            break
+        env_obs.append(obs)
+    ref = info["episode_result"]
+    node_obs, final = run_lockstep_episode(ros, tmp_path, policy_dir, slope, material, seed)
+    assert len(node_obs) == len(env_obs) == ref.steps
+    errs = [float(np.abs(a - b).max()) for a, b in zip(node_obs, env_obs)]
+    bad = [(k, np.flatnonzero(np.abs(node_obs[k] - env_obs[k]) > OBS_ATOL).tolist(), node_obs[k].tolist(), env_obs[k].tolist())
+           for k, e in enumerate(errs) if e > OBS_ATOL]
+    assert not bad, f"{len(bad)} of {len(errs)} observations differ; first (step, indices, node, env): {bad[0]}"
+    assert final["state"] == ("success" if ref.reached_end_zone else ("failure" if ref.failed else "timeout"))
+    assert (final["success"] == "True") == ref.success
+    assert float(final["loaded_mass"]) == pytest.approx(ref.loaded, abs=MASS_ATOL)
+    assert int(final["step"]) == ref.steps

@@ -1,0 +1,95 @@
+"""The parameter file: the paper's table is all there, and bad files fail naming the key."""
+import copy
+
+import pytest
+import yaml
+
+from lhd_loading_ros.task.config import ConfigError, default_config_path, load_config, validate
+
+# Every row of the paper's table "Problem formulation parameters".
+PAPER_TABLE = {
+    ("ddpg", "actor_lr"): 0.0001, ("ddpg", "critic_lr"): 0.001, ("ddpg", "gamma"): 0.99,
+    ("ddpg", "replay_size"): 200000, ("ddpg", "batch_size"): 256, ("ddpg", "tau"): 0.001,
+    ("ddpg", "ou_mu"): 0.0, ("ddpg", "ou_sigma"): 0.4, ("ddpg", "ou_theta"): 0.15, ("ddpg", "ou_dt"): 0.2,
+    ("reward", "R_zone"): 2000, ("reward", "R_traj"): 60, ("reward", "R_drift"): 5, ("reward", "R_bottom"): 5,
+    ("reward", "R_midgoal"): 25, ("reward", "d_midgoal_max"): 0.44, ("reward", "R_stuck"): 5,
+    ("reward", "T_stuck"): 8, ("reward", "delta_thresh"): 0.005, ("reward", "R_inact"): 50,
+    ("reward", "u_thresh_boom"): 0.5, ("reward", "u_thresh_bucket"): 0.5, ("reward", "R_weight"): 1,
+    ("reward", "R_dump"): 20, ("reward", "phi_thresh_pitch_deg"): 40, ("reward", "R_success"): 40,
+    ("reward", "W_target"): 30, ("reward", "phi_target_deg"): 40, ("reward", "rho_thresh_W"): 1,
+    ("reward", "rho_thresh_phi_deg"): 5,
+    ("observation", "d_end_max"): 0.87, ("observation", "x_init_obs"): 0.1, ("observation", "x_obs"): 1.1,
+    ("observation", "y_obs"): 0.4, ("observation", "z_obs"): 0.4,
+    ("control", "frequency_hz"): 10, ("control", "wheels_min"): 0, ("control", "wheels_max"): 2.7,
+    ("control", "boom_min"): -0.191, ("control", "boom_max"): 0, ("control", "bucket_min"): 0,
+    ("control", "bucket_max"): 0.2,
+    ("voxels", "n_x"): 60, ("voxels", "n_y"): 7, ("voxels", "n_z"): 10,
+    ("end_zone", "m_min"): 65, ("end_zone", "m_max"): 170, ("end_zone", "z_min"): 0.35,
+    ("episode", "h_pile"): 0.68, ("episode", "w_pile"): 0.4, ("episode", "alpha_min_deg"): 15,
+    ("episode", "alpha_max_deg"): 30, ("episode", "d_attack_min"): 0.1, ("episode", "d_attack_max"): 0.2,
+    ("episode", "d_init"): 0.1, ("episode", "max_steps"): 200,
+}
+
+
+def test_default_file_holds_the_paper_table():
+    cfg = load_config()
+    for (section, key), value in PAPER_TABLE.items():
+        assert cfg["paper"][section][key] == pytest.approx(value), f"paper.{section}.{key}"
+    assert default_config_path().name == "lhd_params.yaml"
+
+
+def test_missing_key_is_named(cfg):
+    del cfg["paper"]["reward"]["R_zone"]
+    with pytest.raises(ConfigError, match=r"missing key 'paper\.reward\.R_zone' \(expected float in \[0, 1e\+06\]\)"):
+        validate(cfg)
+
+
+def test_misspelt_key_is_named_with_a_suggestion(cfg):
+    cfg["paper"]["reward"]["R_zon"] = cfg["paper"]["reward"].pop("R_zone")
+    with pytest.raises(ConfigError) as exc:
+        validate(cfg)
+    msg = str(exc.value)
+    assert "unknown key 'paper.reward.R_zon' (did you mean 'R_zone'?)" in msg
+    assert "missing key 'paper.reward.R_zone'" in msg
+
+
+def test_out_of_range_names_key_and_range(cfg):
+    cfg["paper"]["ddpg"]["gamma"] = 1.5
+    with pytest.raises(ConfigError, match=r"'paper\.ddpg\.gamma' = 1\.5 is out of range; expected float in \[0, 0\.9999\]"):
+        validate(cfg)
+
+
+def test_wrong_type_and_non_integer(cfg):
+    cfg["paper"]["voxels"]["n_x"] = 60.5
+    cfg["machine"]["wheel_radius"] = "big"
+    with pytest.raises(ConfigError) as exc:
+        validate(cfg)
+    assert "'paper.voxels.n_x' = 60.5 must be an integer" in str(exc.value)
+    assert "'machine.wheel_radius' = 'big' is not a number" in str(exc.value)
+
+
+def test_relations_between_keys(cfg):
+    cfg["paper"]["end_zone"]["m_min"] = 200.0
+    with pytest.raises(ConfigError, match="m_min < paper.end_zone.m_max"):
+        validate(cfg)
+
+
+def test_file_errors_name_the_file(tmp_path, cfg):
+    bad = copy.deepcopy(cfg)
+    bad["sim"]["timestep"] = -1
+    p = tmp_path / "p.yaml"
+    p.write_text(yaml.safe_dump(bad))
+    with pytest.raises(ConfigError, match=str(p)):
+        load_config(p)
+    with pytest.raises(ConfigError, match="cannot read"):
+        load_config(tmp_path / "absent.yaml")
+    p.write_text("paper: [1, 2\n")
+    with pytest.raises(ConfigError, match="not valid YAML"):
+        load_config(p)
+
+
+def test_machine_mass_and_wheel_radius_follow_the_paper(cfg):
+    m = cfg["machine"]
+    assert m["chassis_mass"] + m["boom_mass"] + m["bucket_mass"] + 4 * m["wheel_mass"] == pytest.approx(121.0)
+    # wheel radius from the 2.7 rad/s top wheel speed and the 0.37 m/s attack speed
+    assert m["wheel_radius"] == pytest.approx(0.37 / 2.7, abs=0.001)
