@@ -163,6 +163,9 @@ def test_export_reproduces_in_memory_actor(cfg, tmp_path):
     for key in ("variant", "observation", "action", "filters", "config_hash", "seed", "steps", "architecture"):
         assert key in meta
     assert meta["architecture"]["sizes"] == [12, 64, 64, 3]
+    # the card states the slopes the actor was trained on (the nodes refuse others)
+    ep = cfg["paper"]["episode"]
+    assert meta["trained_ranges"]["slope_deg"] == [ep["alpha_min_deg"], ep["alpha_max_deg"]]
 
 
 def test_load_policy_rejects_bad_directories(cfg, tmp_path):

@@ -19,6 +19,9 @@ def export_actor(directory, actor: FlatMlp, cfg: dict, meta: dict):
                    "actuator_high": [p.wheels_max, p.boom_max, p.bucket_max], "actuator_units": "rad/s"},
         "filters": {"rld_threshold": p.rld_threshold, "rlc_boom_saturate": p.rlc_boom_saturate,
                     "rlc_bucket_saturate": p.rlc_bucket_saturate},
+        # what the actor has seen in training: the nodes refuse inputs outside it (zero command and
+        # a reason) instead of clipping them into range
+        "trained_ranges": {"slope_deg": [cfg["paper"]["episode"]["alpha_min_deg"], cfg["paper"]["episode"]["alpha_max_deg"]]},
         "config_hash": config_hash(cfg),
         **meta,
     }
