@@ -1,11 +1,27 @@
 """Packaging for users with a full ROS install: the launch file (skipped where `launch` is
-not importable) and the entry points `ros2 run` looks for. The colcon build itself runs in
-`make test` (Makefile target colcon-build) before the suite."""
+not importable), the entry points `ros2 run` looks for, and those entry points started as
+processes from a sourced workspace. The colcon build itself runs in `make test` (Makefile
+target colcon-build) before the suite; without an install tree these tests skip."""
 import importlib.util
+import math
 import os
+import re
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
+import numpy as np
 import pytest
+import rclpy
+from rclpy.qos import qos_profile_sensor_data
+from sensor_msgs.msg import JointState, LaserScan
+from std_msgs.msg import Bool, Float64, Float64MultiArray
+
+from lhd_loading_ros.perception.synthetic import synthetic_scan
+
+from rosutil import init_ros, shutdown_ros, spin_until, unique_domain_id
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -34,3 +50,133 @@ def test_colcon_install_has_ros2_run_entry_points():
     assert (install / "lhd_sim_node/share/lhd_sim_node/launch/sim_loading.launch.py").is_file()
     assert (install / "lhd_loading_ros/share/lhd_loading_ros/config/lhd_params.yaml").is_file()
     assert (install / "lhd_loading_ros/share/lhd_loading_ros/policies/rld/policy.json").is_file()
+
+
+def sourced_workspace_env() -> dict:
+    """The environment of a ROS user's shell: the Python that has rclpy first on PATH (here the
+    project's .venv; on a full ROS install /usr/bin), then `. install/setup.sh`. Taken from a
+    real sourcing of colcon's script, not rebuilt by hand."""
+    base = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "AMENT_PREFIX_PATH")}
+    base["PATH"] = f"{Path(sys.executable).parent}:{base.get('PATH', '/usr/bin:/bin')}"
+    out = subprocess.run(["bash", "-c", f". '{ROOT}/install/setup.sh' >/dev/null && env -0"], env=base,
+                         capture_output=True, check=True).stdout
+    env = dict(kv.split("=", 1) for kv in out.decode().split("\0") if "=" in kv)
+    assert str(ROOT / "install/lhd_loading_ros/lib/python3") in env["PYTHONPATH"], env.get("PYTHONPATH")
+    # PYTHONVERBOSE: the process itself logs the file of every module it imports
+    return dict(env, ROS_DOMAIN_ID=str(unique_domain_id()), PYTHONUNBUFFERED="1", PYTHONVERBOSE="1")
+
+
+class Installed:
+    """An installed executable started as it is, by its path (its shebang picks the Python)."""
+
+    def __init__(self, pkg: str, exe: str, args: list[str], env: dict, log_path: Path):
+        self.path = ROOT / "install" / pkg / "lib" / pkg / exe
+        self.name, self.log_path = exe, log_path
+        self._log = open(log_path, "w")
+        self.proc = subprocess.Popen([str(self.path), *args], stdout=self._log, stderr=subprocess.STDOUT, env=env,
+                                     start_new_session=True)
+
+    def log(self) -> str:
+        return self.log_path.read_text(errors="replace")
+
+    def project_modules(self) -> set[str]:
+        """Files of the project's modules this process imported (from its PYTHONVERBOSE log)."""
+        found = re.findall(r"^# code object from '?([^'\n]+)'?$", self.log(), re.M)
+        return {f for f in found if re.search(r"/(lhd_loading_ros|lhd_sim_node|lhd_hw_bridge)/", f)}
+
+    def stop(self) -> int:
+        if self.proc.poll() is None:
+            os.killpg(self.proc.pid, signal.SIGTERM)
+            try:
+                self.proc.wait(20)
+            except subprocess.TimeoutExpired:
+                os.killpg(self.proc.pid, signal.SIGKILL)
+                self.proc.wait()
+        self._log.close()
+        return self.proc.returncode
+
+
+def needs_install_tree():
+    if not (ROOT / "install" / "lhd_sim_node").is_dir():
+        pytest.skip("no colcon install tree (run `make colcon-build`, done by `make test`)")
+
+
+def assert_ran_installed_code(p: Installed):
+    mods = p.project_modules()
+    assert mods, f"{p.name}: no project module imported?\n{p.log()[-3000:]}"
+    outside = sorted(m for m in mods if not m.startswith(str(ROOT / "install")))
+    assert not outside, f"{p.name} imported project modules from outside the install tree: {outside[:5]}"
+
+
+@pytest.fixture
+def ros_node():
+    init_ros()
+    node = rclpy.create_node("packaging_test")
+    yield node
+    node.destroy_node()
+    shutdown_ros()
+
+
+def test_installed_sim_policy_and_perception_nodes_run_and_publish(ros_node, tmp_path):
+    """`ros2 run`'s view: install/<pkg>/lib/<pkg>/<exe> in a sourced workspace. Before the
+    shebang fix these started the build tool's Python (.venv-colcon: no rclpy, no numpy)."""
+    needs_install_tree()
+    env = sourced_workspace_env()
+    node = ros_node
+    got = {k: [] for k in ("joint_states", "cmd", "stale", "slope")}
+    node.create_subscription(JointState, "/lhd/joint_states", got["joint_states"].append, 10)
+    node.create_subscription(Float64MultiArray, "/lhd/cmd", got["cmd"].append, 10)
+    node.create_subscription(Bool, "/lhd/aruco/stale", got["stale"].append, 10)
+    node.create_subscription(Float64, "/lhd/pile/slope", got["slope"].append, 10)
+    pub_scan = node.create_publisher(LaserScan, "/lidar/scan", qos_profile_sensor_data)
+    procs = [Installed("lhd_sim_node", "sim_node", ["--ros-args", "-p", "slope_deg:=20.0"], env, tmp_path / "sim.log"),
+             Installed("lhd_loading_ros", "policy_node", [], env, tmp_path / "policy.log"),
+             Installed("lhd_loading_ros", "aruco_pose_node", [], env, tmp_path / "aruco.log"),
+             Installed("lhd_loading_ros", "lidar_slope_node", [], env, tmp_path / "lidar.log")]
+    try:
+        alive_logs = lambda: "\n".join(f"--- {p.name} (rc {p.proc.poll()}):\n{p.log()[-1500:]}" for p in procs)
+        assert spin_until(node, lambda: node.count_subscribers("/lidar/scan") > 0, 90.0), alive_logs()
+        r, amin, inc, _ = synthetic_scan(math.radians(20.0), np.random.default_rng(0))
+        scan = LaserScan(angle_min=float(amin), angle_increment=float(inc), range_min=0.05, range_max=30.0,
+                         ranges=[float(v) for v in r])
+        scan.angle_max = float(amin + inc * (len(r) - 1))
+        scan.header.frame_id = "lidar"
+
+        def all_heard():
+            if not any(abs(math.degrees(s.data) - 20.0) < 1.0 for s in got["slope"][-3:]):
+                pub_scan.publish(scan)
+            return all(got.values())
+
+        assert spin_until(node, all_heard, 90.0, step=0.1), ({k: len(v) for k, v in got.items()}, alive_logs())
+        for p in procs:
+            assert p.proc.poll() is None, alive_logs()
+            assert_ran_installed_code(p)
+    finally:
+        codes = {p.name: p.stop() for p in procs}
+    assert codes == {p.name: 0 for p in procs}, alive_logs()
+
+
+def test_installed_bridge_node_runs_against_the_installed_device_emulator(ros_node, tmp_path):
+    needs_install_tree()
+    env = sourced_workspace_env()
+    node = ros_node
+    link = tmp_path / "due"
+    js = []
+    node.create_subscription(JointState, "/lhd/joint_states", js.append, 10)
+    dev = Installed("lhd_hw_bridge", "lhd-fake-due", ["--link", str(link)], env, tmp_path / "due.log")
+    procs = [dev]
+    try:
+        t_end = time.monotonic() + 60
+        while not link.exists() and time.monotonic() < t_end and dev.proc.poll() is None:
+            time.sleep(0.1)
+        assert link.exists(), dev.log()[-3000:]
+        bridge = Installed("lhd_hw_bridge", "bridge_node", ["--ros-args", "-p", f"port:={link}"], env,
+                           tmp_path / "bridge.log")
+        procs.insert(0, bridge)
+        assert spin_until(node, lambda: len(js) >= 3, 90.0), bridge.log()[-3000:]
+        assert list(js[-1].name)[:2] == ["boom", "bucket"]
+        for p in procs:
+            assert_ran_installed_code(p)
+    finally:
+        codes = {p.name: p.stop() for p in procs}
+    assert codes["bridge_node"] == 0, bridge.log()[-3000:]
