@@ -2,20 +2,26 @@
 ArUco marker on the LHD seen by a camera above the draw point (paper: real environment).
 
 In:  sensor_msgs/Image (mono8, bgr8, rgb8, bgra8, rgba8) and sensor_msgs/CameraInfo.
-Out: the marker pose (geometry_msgs/PoseStamped, pile frame), /lhd/odom (nav_msgs/Odometry:
-     base_link pose in the pile frame, twist.linear.x = v_x), /lhd/aruco/stale (std_msgs/Bool).
+Out (under /lhd, or the node's namespace):
+  aruco/marker_pose  geometry_msgs/PoseStamped  every detection, pile frame, the image's stamp
+  odom               nav_msgs/Odometry          base_link pose + twist.linear.x = v_x, ONLY when
+                                                v_x is measured (see below)
+  aruco/stale        std_msgs/Bool              true while the marker (or the camera) is gone
+and /diagnostics (OK / WARN / ERROR with the reason).
 
-Frames before the first CameraInfo are ignored. A frame without the marker holds the last
-pose with a covariance that grows with the time since the marker was last seen, and reports
-no speed (twist.linear.x = NaN, covariance -1: unknown) -- never an invented one. After
-`stale_timeout` without the marker (or without images) /lhd/aruco/stale turns true and
-odometry stops, so consumers' input timeouts take over.
+"Unknown speed" is the absence of /lhd/odom, never a number: odometry is published only for
+a detection whose v_x comes from consecutive detections (no lost or rejected frame between
+them) with strictly increasing, non-zero image stamps. A lost marker, a rejected frame, a zero
+or repeated stamp publish no odometry; a backward stamp restarts the speed window. Consumers
+time out on /lhd/odom (the policy node: input timeout -> zero command; the bridge: odom_timeout)
+and may read /lhd/aruco/stale and /diagnostics for the reason. Every published value is finite.
 """
 from __future__ import annotations
 
 import math
 import time
 
+import cv2
 import numpy as np
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry
@@ -24,131 +30,181 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_
 from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import Bool
 
-from lhd_loading_ros.perception.aruco import CameraModel, ImageEncodingError, MarkerDetector, VelocityEstimator, image_to_gray, level
-from lhd_loading_ros.ros.run import run_node
+from lhd_loading_ros.perception.aruco import (CameraModel, ImageEncodingError, MarkerDetector, MountingPrior,
+                                              VelocityEstimator, dictionary, image_to_gray, level, opencv_problem)
 from lhd_loading_ros.perception.geometry import quaternion_xyzw, transform
+from lhd_loading_ros.ros.diagnostics import ERROR, OK, WARN, Diagnostics
+from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
+from lhd_loading_ros.ros.qos import MEASUREMENT_QOS
+from lhd_loading_ros.ros.run import run_node
 
-# Camera streams are sensor data (best effort matches any publisher; late frames are useless).
-# Our outputs are consumed by the policy and the bridge: reliable, keep-last 5.
-OUT_QOS = QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 POSE_VAR = 0.005 ** 2     # m^2, position variance of a fresh detection (about 5 mm, see docs/perception.md)
 SPEED_VAR = 0.01 ** 2     # (m/s)^2
 
 
-def _vec3(node: Node, name: str) -> list[float]:
-    v = list(node.get_parameter(name).value)
-    if len(v) != 3 or not all(math.isfinite(float(x)) for x in v):
-        raise ValueError(f"parameter '{name}' must be 3 finite numbers, got {v}")
-    return [float(x) for x in v]
+def _dictionary_problem(name: str) -> str | None:
+    try:
+        dictionary(name)
+    except ValueError as exc:
+        return str(exc)
+    return None
 
 
 class ArucoPoseNode(Node):
     def __init__(self, **node_kwargs):
+        problem = opencv_problem()
+        if problem:
+            raise ValueError(problem)
         super().__init__("aruco_pose_node", **node_kwargs)
-        dp = self.declare_parameter
-        dp("dictionary", "DICT_4X4_50")
-        dp("marker_id", 7)
-        dp("marker_size", 0.12)
-        dp("camera_xyz", [-0.5, 0.0, 1.5])
-        dp("camera_rpy", [math.pi, 0.0, -math.pi / 2])
-        dp("marker_to_base_xyz", [0.10, 0.0, -0.213])
-        dp("marker_to_base_rpy", [0.0, 0.0, 0.0])
-        dp("planar_motion", True)
-        dp("velocity_window", 0.3)
-        dp("stale_timeout", 0.5)
-        dp("loss_variance_rate", 0.01)
-        dp("frame_id", "pile")
-        dp("child_frame_id", "base_link")
-        dp("image_topic", "/camera/image_raw")
-        dp("camera_info_topic", "/camera/camera_info")
-        dp("pose_topic", "/lhd/aruco/marker_pose")
-        dp("odom_topic", "/lhd/odom")
-        dp("stale_topic", "/lhd/aruco/stale")
-        dp("image_reliable", False)
-        g = lambda n: self.get_parameter(n).value  # noqa: E731
-        for n in ("velocity_window", "stale_timeout", "marker_size"):
-            if not (isinstance(g(n), (int, float)) and g(n) > 0):
-                raise ValueError(f"parameter '{n}' must be > 0, got {g(n)!r}")
-        self.detector = MarkerDetector(g("dictionary"), g("marker_id"), g("marker_size"))
-        self.T_pile_cam = transform(_vec3(self, "camera_xyz"), _vec3(self, "camera_rpy"))
-        self.T_marker_base = transform(_vec3(self, "marker_to_base_xyz"), _vec3(self, "marker_to_base_rpy"))
-        self.vel = VelocityEstimator(g("velocity_window"))
-        self.stale_timeout = float(g("stale_timeout"))
-        self.planar = bool(g("planar_motion"))
-        self.loss_rate = float(g("loss_variance_rate"))
-        self.frame_id, self.child_frame_id = g("frame_id"), g("child_frame_id")
+        self.p = p = Params(self, [
+            Param("dictionary", "DICT_4X4_50", "ArUco dictionary (a cv2.aruco DICT_* name)", check=_dictionary_problem),
+            Param("marker_id", 7, "id of the marker on the machine", lo=0, hi=4999),
+            Param("marker_size", 0.12, "side of the marker's black square (m)", lo=0.001, hi=10.0),
+            Param("camera_xyz", [-0.5, 0.0, 1.5], "camera optical frame position in the pile frame (m)", length=3),
+            Param("camera_rpy", [math.pi, 0.0, -math.pi / 2], "camera optical frame roll, pitch, yaw (rad)", length=3),
+            Param("marker_to_base_xyz", [0.10, 0.0, -0.213], "base_link position in the marker frame (m)", length=3),
+            Param("marker_to_base_rpy", [0.0, 0.0, 0.0], "base_link roll, pitch, yaw in the marker frame (rad)",
+                  length=3),
+            Param("planar_motion", True, "keep position and heading only (the machine drives on a flat floor)"),
+            Param("velocity_window", 0.3, "v_x is the least-squares slope of x(t) over this window (s)",
+                  lo=0.02, hi=10.0, on_change=self._set_window),
+            Param("stale_timeout", 0.5, "without the marker or images this long (s): stale, odometry stops",
+                  lo=0.02, hi=60.0, on_change=lambda v: setattr(self, "stale_timeout", v)),
+            Param("frame_id", "pile", "frame of the published poses"),
+            Param("child_frame_id", "base_link", "child frame of the odometry"),
+            Param("image_topic", "/camera/image_raw", "Image input"),
+            Param("camera_info_topic", "/camera/camera_info", "CameraInfo input"),
+            Param("image_reliable", False, "subscribe to images reliably (recordings, tests) instead of sensor-data QoS"),
+            Param("namespace_prefix", "/lhd", "topic prefix when the node runs in the root namespace"),
+        ])
+        n_ids = dictionary(p["dictionary"]).bytesList.shape[0]
+        if p["marker_id"] >= n_ids:
+            raise ValueError(f"parameter 'marker_id' = {p['marker_id']} is invalid; {p['dictionary']} has ids 0..{n_ids - 1}")
+        self.detector = MarkerDetector(p["dictionary"], p["marker_id"], p["marker_size"])
+        self.T_pile_cam = transform(p["camera_xyz"], p["camera_rpy"])
+        self.T_marker_base = transform(p["marker_to_base_xyz"], p["marker_to_base_rpy"])
+        self.prior = MountingPrior(self.T_pile_cam, self.T_marker_base)
+        self.vel = VelocityEstimator(p["velocity_window"])
+        self.stale_timeout = p["stale_timeout"]
+        self.planar = p["planar_motion"]
+        self.frame_id, self.child_frame_id = p["frame_id"], p["child_frame_id"]
         self.cam: CameraModel | None = None
-        self.last_seen: float | None = None   # arrival time (monotonic) of the last detection
-        self.last_base: np.ndarray | None = None
-        self.last_marker: np.ndarray | None = None
+        self.info_problem: str | None = None    # why the last CameraInfo was rejected
+        self.image_problem: str | None = None   # why the last image was rejected
+        self.stamp_problem: str | None = None   # why the last detection gave no speed
+        self.last_seen: float | None = None     # arrival time (monotonic) of the last detection
         self.last_image: float | None = None
+        self.last_v: float | None = None
+        self.lost = False                       # the last processed frame had no marker
         self.stale = True
-        self.frames = self.detections = 0
-        self.pub_pose = self.create_publisher(PoseStamped, g("pose_topic"), OUT_QOS)
-        self.pub_odom = self.create_publisher(Odometry, g("odom_topic"), OUT_QOS)
-        self.pub_stale = self.create_publisher(Bool, g("stale_topic"), OUT_QOS)
-        self.create_subscription(CameraInfo, g("camera_info_topic"), self._on_info, qos_profile_sensor_data)
+        self.frames = self.detections = self.odoms = 0
+        ns = topic_prefix(self, p["namespace_prefix"])
+        self.pub_pose = self.create_publisher(PoseStamped, f"{ns}/aruco/marker_pose", MEASUREMENT_QOS)
+        self.pub_odom = self.create_publisher(Odometry, f"{ns}/odom", MEASUREMENT_QOS)
+        self.pub_stale = self.create_publisher(Bool, f"{ns}/aruco/stale", MEASUREMENT_QOS)
+        self.create_subscription(CameraInfo, p["camera_info_topic"], self._on_info, qos_profile_sensor_data)
         # sensor-data QoS by default (best effort: matches any camera driver, late frames are
         # worthless); image_reliable=true for lossless links such as recorded data or tests
         img_qos = (QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
-                   if g("image_reliable") else qos_profile_sensor_data)
-        self.create_subscription(Image, g("image_topic"), self._on_image, img_qos)
-        self.create_timer(0.1, self._check_stale)
+                   if p["image_reliable"] else qos_profile_sensor_data)
+        self.create_subscription(Image, p["image_topic"], self._on_image, img_qos)
+        steady_timer(self, 0.1, self._check_stale)
+        self.diag = Diagnostics(self, {"pose": self._report})
 
+    def _set_window(self, v: float) -> None:
+        self.vel = VelocityEstimator(v)     # a new window: samples of the old one are not mixed in
+
+    # ------------------------------------------------------------------ inputs
     def _on_info(self, msg: CameraInfo) -> None:
         try:
-            self.cam = CameraModel.from_camera_info(msg.k, msg.d)
+            self.cam = CameraModel.from_camera_info(msg.k, msg.d, msg.width, msg.height, msg.distortion_model)
+            self.info_problem = None
         except ValueError as exc:
-            self.get_logger().warn(str(exc), throttle_duration_sec=5.0)
+            self.info_problem = f"CameraInfo invalid: {exc}"
+            kept = "; keeping the previous one" if self.cam is not None else "; images ignored"
+            self.get_logger().warn(self.info_problem + kept, throttle_duration_sec=5.0)
+
+    def _reject(self, why: str) -> None:
+        """A frame that is not a measurement: no output, and the speed window restarts (the
+        next v_x must come from consecutive measurements)."""
+        self.image_problem = why
+        self.vel.reset()
+        self.get_logger().error(why, throttle_duration_sec=5.0)
 
     def _on_image(self, msg: Image) -> None:
         now = time.monotonic()
         self.last_image = now
         if self.cam is None:
-            self.get_logger().info("waiting for CameraInfo; image ignored", throttle_duration_sec=5.0)
+            self.vel.reset()
+            self.get_logger().info("waiting for a valid CameraInfo; image ignored", throttle_duration_sec=5.0)
+            return
+        cam = self.cam
+        if cam.width and cam.height and (msg.width, msg.height) != (cam.width, cam.height):
+            self._reject(f"image {msg.width}x{msg.height} differs from CameraInfo's {cam.width}x{cam.height}; "
+                         "expected the calibrated size")
             return
         try:
             gray = image_to_gray(msg.height, msg.width, msg.encoding, msg.step, bytes(msg.data))
+            corners = self.detector.detect(gray)
+            T_cam_marker = self.detector.pose(corners, cam, self.prior) if corners is not None else None
         except ImageEncodingError as exc:
-            self.get_logger().error(str(exc), throttle_duration_sec=5.0)
+            self._reject(str(exc))
             return
+        except cv2.error as exc:   # a frame OpenCV cannot process must not end the node
+            self._reject(f"OpenCV failed on this frame: {str(exc).strip().splitlines()[-1]}")
+            return
+        self.image_problem = None
         self.frames += 1
-        t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-        corners = self.detector.detect(gray)
-        T_cam_marker = self.detector.pose(corners, self.cam) if corners is not None else None
+        self.lost = T_cam_marker is None
         if T_cam_marker is None:
-            self._publish_lost(msg, now)
+            self.vel.reset()
+            self.prior.reset()
+            if self.last_seen is not None and now - self.last_seen > self.stale_timeout:
+                self._set_stale(True)
             return
         self.detections += 1
         T_pile_marker = self.T_pile_cam @ T_cam_marker
         if self.planar:  # the machine drives on the floor: keep x, y, z and heading only
             T_pile_marker = level(T_pile_marker)
         T_base = T_pile_marker @ self.T_marker_base
-        self.last_seen, self.last_base, self.last_marker = now, T_base, T_pile_marker
-        # v_x from the marker's own position: the articulation is locked and the machine drives
-        # straight, so every point of the rear frame moves with the same v_x, and the marker
-        # origin is free of the lever-arm noise that orientation jitter puts on base_link.
-        self.vel.add(t, float(T_pile_marker[0, 3]))
+        self.last_seen = now
         self._set_stale(False)
+        self._publish_pose(msg.header.stamp, T_pile_marker)
+        v = self._speed(msg.header.stamp, float(T_pile_marker[0, 3]))
+        if v is not None:
+            self._publish_odom(msg.header.stamp, T_base, v)
+
+    def _speed(self, stamp, x: float) -> float | None:
+        """v_x from the marker's own position: the articulation is locked and the machine drives
+        straight, so every point of the rear frame moves with the same v_x, and the marker origin
+        is free of the lever-arm noise that orientation jitter puts on base_link. None unless
+        this detection is a new measurement in a run of consecutive ones."""
+        if stamp.sec == 0 and stamp.nanosec == 0:
+            self.vel.reset()
+            self.stamp_problem = "image stamp is zero: no speed (the camera driver must stamp frames)"
+            return None
+        t = stamp.sec + stamp.nanosec * 1e-9
+        last = self.vel.samples[-1][0] if self.vel.samples else None
+        if not self.vel.add(t, x):
+            self.stamp_problem = (f"image stamp {t:.3f} repeated: no speed from it" if t == last else
+                                  f"image stamp went back from {last:.3f} to {t:.3f}: speed window restarted")
+            return None
         v = self.vel.velocity()
-        self._publish(msg.header.stamp, T_pile_marker, T_base, v, POSE_VAR)
+        if v is None or not math.isfinite(v):
+            return None
+        self.stamp_problem = None
+        self.last_v = v
+        return v
 
-    def _publish_lost(self, msg: Image, now: float) -> None:
-        if self.last_base is None or self.stale:
-            return
-        lost_for = now - self.last_seen
-        if lost_for > self.stale_timeout:
-            self._set_stale(True)
-            return
-        self.vel.reset()  # a speed needs fresh consecutive detections
-        self._publish(msg.header.stamp, self.last_marker, self.last_base, None, POSE_VAR + self.loss_rate * lost_for)
-
-    def _publish(self, stamp, T_marker, T_base, v, pose_var) -> None:
+    # ------------------------------------------------------------------ outputs
+    def _publish_pose(self, stamp, T_marker) -> None:
         ps = PoseStamped()
         ps.header.stamp = stamp
         ps.header.frame_id = self.frame_id
         _fill_pose(ps.pose, T_marker)
         self.pub_pose.publish(ps)
+
+    def _publish_odom(self, stamp, T_base, v: float) -> None:
         od = Odometry()
         od.header.stamp = stamp
         od.header.frame_id = self.frame_id
@@ -156,19 +212,16 @@ class ArucoPoseNode(Node):
         _fill_pose(od.pose.pose, T_base)
         cov = [0.0] * 36
         for i in range(3):
-            cov[7 * i] = pose_var
+            cov[7 * i] = POSE_VAR
         for i in range(3, 6):
-            cov[7 * i] = pose_var * 4.0  # rad^2: orientation from a 0.12 m marker is ~2x less certain
+            cov[7 * i] = POSE_VAR * 4.0  # rad^2: orientation from a 0.12 m marker is ~2x less certain
         od.pose.covariance = cov
+        od.twist.twist.linear.x = v
         tc = [0.0] * 36
-        if v is None:
-            od.twist.twist.linear.x = float("nan")
-            tc[0] = -1.0  # unknown: no speed is reported rather than an invented one
-        else:
-            od.twist.twist.linear.x = v
-            tc[0] = SPEED_VAR
+        tc[0] = SPEED_VAR
         od.twist.covariance = tc
         self.pub_odom.publish(od)
+        self.odoms += 1
 
     def _set_stale(self, s: bool) -> None:
         if s != self.stale:
@@ -179,13 +232,39 @@ class ArucoPoseNode(Node):
             self.pub_stale.publish(Bool(data=s))
 
     def _check_stale(self) -> None:
-        """10 Hz: the marker (or the camera) gone for stale_timeout makes the estimate stale;
-        the flag is republished every tick for late subscribers."""
+        """10 Hz (steady clock): the marker (or the camera) gone for stale_timeout makes the
+        estimate stale; the flag is republished every tick for late subscribers."""
         now = time.monotonic()
         seen = self.last_seen is not None and now - self.last_seen <= self.stale_timeout
         if not seen:
             self._set_stale(True)
         self.pub_stale.publish(Bool(data=self.stale))
+
+    def _report(self):
+        now = time.monotonic()
+        values = {"frames": self.frames, "detections": self.detections, "odometry": self.odoms,
+                  "stale": self.stale}
+        if self.last_v is not None:
+            values["last_v_x"] = self.last_v
+        if self.last_image is None or now - self.last_image > self.stale_timeout:
+            since = "yet" if self.last_image is None else f"for {now - self.last_image:.1f} s"
+            return (WARN if self.last_image is None else ERROR), f"no image {since}", values
+        if self.cam is None:
+            return ERROR, self.info_problem or "no CameraInfo yet: images ignored", values
+        if self.image_problem is not None:
+            return ERROR, self.image_problem, values
+        if self.last_seen is None:
+            return WARN, "marker not seen yet", values
+        lost = now - self.last_seen
+        if lost > self.stale_timeout:
+            return ERROR, f"marker lost for {lost:.1f} s: odometry stopped", values
+        if self.info_problem is not None:
+            return WARN, self.info_problem + "; using the previous one", values
+        if self.stamp_problem is not None:
+            return WARN, self.stamp_problem, values
+        if self.lost:
+            return WARN, f"marker lost for {lost:.1f} s", values
+        return OK, "marker tracked", values
 
 
 def _fill_pose(pose, T) -> None:

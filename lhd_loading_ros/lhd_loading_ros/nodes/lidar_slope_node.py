@@ -2,64 +2,105 @@
 above the pile (paper: real environment).
 
 In:  sensor_msgs/LaserScan (a vertical scan plane over the pile) and/or sensor_msgs/PointCloud2.
-Out: /lhd/pile/slope (std_msgs/Float64, rad), /lhd/pile/toe (geometry_msgs/PointStamped, where
-     the face meets the floor, pile frame), /lhd/pile/fit_residual (std_msgs/Float64, m RMS).
+Out (under /lhd, or the node's namespace), all reliable + transient local, keep-last 1
+(latched: the slope changes once per attempt and a late policy node still gets it):
+  pile/slope          std_msgs/Float64            alpha, rad (the topic contract; no stamp)
+  pile/slope_stamped  geometry_msgs/Vector3Stamped the same fit with the scan's stamp:
+                                                   x = alpha (rad), y = toe x (m), z = RMS residual (m)
+  pile/toe            geometry_msgs/PointStamped   where the face meets the floor, pile frame
+  pile/fit_residual   std_msgs/Float64             m RMS
+and /diagnostics.
 
-The sensor's pose in the pile frame comes from parameters. Floor points are dropped, the face
-is found by RANSAC among lines of plausible slope (the floor and the back wall cannot win) and
-refined by least squares. Too few points: a warning and no publication.
+The sensor's pose in the pile frame comes from parameters. The face is fitted robustly
+(perception/slope.py: only points between floor and `max_z` and near the scan plane; the face
+must rise from the floor). A scan without a face, or with a face outside [slope_min_deg,
+slope_max_deg], publishes nothing and says why in /diagnostics and a throttled log; every output
+carries the scan's stamp, so the last value never looks fresh (consumers judge age by stamp).
 """
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
-from geometry_msgs.msg import PointStamped
+from geometry_msgs.msg import PointStamped, Vector3Stamped
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import LaserScan, PointCloud2
 from std_msgs.msg import Float64
 
-from lhd_loading_ros.ros.run import run_node
 from lhd_loading_ros.perception.geometry import apply, transform
-from lhd_loading_ros.perception.slope import TooFewPoints, cloud_to_points, fit_slope, scan_to_points
+from lhd_loading_ros.perception.slope import NoSlope, SlopeOutOfRange, cloud_to_points, fit_slope, scan_to_points
+from lhd_loading_ros.ros.diagnostics import ERROR, OK, WARN, Diagnostics
+from lhd_loading_ros.ros.params import Param, Params, topic_prefix
+from lhd_loading_ros.ros.run import run_node
 
-OUT_QOS = QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+# latched: a subscriber that starts after the fit (reliable or best effort, volatile or not) gets it
+SLOPE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
+NO_SCAN_WARN_S = 5.0     # diagnostics: WARN when no scan came for this long
 
 
 class LidarSlopeNode(Node):
     def __init__(self, **node_kwargs):
         super().__init__("lidar_slope_node", **node_kwargs)
-        dp = self.declare_parameter
-        dp("sensor_xyz", [0.6, 0.0, 1.6])
-        dp("sensor_rpy", [math.pi / 2, 0.0, 0.0])
-        dp("floor_z", 0.03)
-        dp("min_points", 30)
-        dp("ransac_iterations", 200)
-        dp("inlier_threshold", 0.02)
-        dp("slope_min_deg", 5.0)
-        dp("slope_max_deg", 50.0)
-        dp("frame_id", "pile")
-        dp("scan_topic", "/lidar/scan")
-        dp("cloud_topic", "/lidar/points")
-        dp("seed", 0)
-        g = lambda n: self.get_parameter(n).value  # noqa: E731
-        xyz, rpy = list(g("sensor_xyz")), list(g("sensor_rpy"))
-        if len(xyz) != 3 or len(rpy) != 3:
-            raise ValueError(f"parameters 'sensor_xyz' and 'sensor_rpy' must hold 3 numbers each, got {xyz}, {rpy}")
-        if not 0 < g("slope_min_deg") < g("slope_max_deg") < 90:
-            raise ValueError("parameters must satisfy 0 < slope_min_deg < slope_max_deg < 90")
-        self.T = transform(xyz, rpy)
-        self.fit_kw = dict(floor_z=float(g("floor_z")), min_points=int(g("min_points")),
-                           iterations=int(g("ransac_iterations")), threshold=float(g("inlier_threshold")),
-                           slope_min=math.radians(g("slope_min_deg")), slope_max=math.radians(g("slope_max_deg")))
-        self.rng = np.random.default_rng(int(g("seed")))
-        self.frame_id = g("frame_id")
-        self.pub_slope = self.create_publisher(Float64, "/lhd/pile/slope", OUT_QOS)
-        self.pub_toe = self.create_publisher(PointStamped, "/lhd/pile/toe", OUT_QOS)
-        self.pub_res = self.create_publisher(Float64, "/lhd/pile/fit_residual", OUT_QOS)
-        self.create_subscription(LaserScan, g("scan_topic"), self._on_scan, qos_profile_sensor_data)
-        self.create_subscription(PointCloud2, g("cloud_topic"), self._on_cloud, qos_profile_sensor_data)
+        self.p = Params(self, [
+            Param("sensor_xyz", [0.6, 0.0, 1.6], "LiDAR position in the pile frame (m)", length=3),
+            Param("sensor_rpy", [math.pi / 2, 0.0, 0.0], "LiDAR roll, pitch, yaw in the pile frame (rad)", length=3),
+            Param("floor_z", 0.03, "points at or below this height (m) are floor", lo=-0.5, hi=0.5),
+            Param("max_z", 1.5, "points at or above this height (m) are ignored: ceiling, brow, drawbell; "
+                  "must be above the pile's crest", lo=0.1, hi=20.0),
+            Param("max_abs_y", 0.3, "points farther than this (m) from the pile's XZ plane are ignored "
+                  "(drift side walls in a 3-D cloud)", lo=0.01, hi=20.0),
+            Param("min_points", 30, "points on the face needed for a slope", lo=3, hi=100000),
+            Param("ransac_iterations", 200, "RANSAC line proposals per scan", lo=10, hi=100000,
+                  on_change=lambda v: self._set_fit(iterations=v)),
+            Param("inlier_threshold", 0.02, "RANSAC inlier band (m), about twice the range noise", lo=0.001, hi=0.5,
+                  on_change=lambda v: self._set_fit(threshold=v)),
+            Param("slope_min_deg", 5.0, "smallest physical pile slope published (deg)", lo=0.5, hi=89.0,
+                  check=lambda v: self._range_problem(v, None),
+                  on_change=lambda v: self._set_fit(slope_min=math.radians(v))),
+            Param("slope_max_deg", 50.0, "largest physical pile slope published (deg)", lo=0.5, hi=89.0,
+                  check=lambda v: self._range_problem(None, v),
+                  on_change=lambda v: self._set_fit(slope_max=math.radians(v))),
+            Param("frame_id", "pile", "frame of the toe point"),
+            Param("scan_topic", "/lidar/scan", "LaserScan input (sensor-data QoS)"),
+            Param("cloud_topic", "/lidar/points", "PointCloud2 input (sensor-data QoS)"),
+            Param("seed", 0, "RANSAC random seed", lo=0, hi=2**31 - 1),
+            Param("namespace_prefix", "/lhd", "topic prefix when the node runs in the root namespace"),
+        ])
+        p = self.p
+        self.T = transform(p["sensor_xyz"], p["sensor_rpy"])
+        self.fit_kw = dict(floor_z=p["floor_z"], max_z=p["max_z"], max_abs_y=p["max_abs_y"],
+                           min_points=p["min_points"], iterations=p["ransac_iterations"],
+                           threshold=p["inlier_threshold"], slope_min=math.radians(p["slope_min_deg"]),
+                           slope_max=math.radians(p["slope_max_deg"]))
+        self.rng = np.random.default_rng(p["seed"])
+        self.frame_id = p["frame_id"]
+        ns = topic_prefix(self, p["namespace_prefix"])
+        self.pub_slope = self.create_publisher(Float64, f"{ns}/pile/slope", SLOPE_QOS)
+        self.pub_stamped = self.create_publisher(Vector3Stamped, f"{ns}/pile/slope_stamped", SLOPE_QOS)
+        self.pub_toe = self.create_publisher(PointStamped, f"{ns}/pile/toe", SLOPE_QOS)
+        self.pub_res = self.create_publisher(Float64, f"{ns}/pile/fit_residual", SLOPE_QOS)
+        self.create_subscription(LaserScan, p["scan_topic"], self._on_scan, qos_profile_sensor_data)
+        self.create_subscription(PointCloud2, p["cloud_topic"], self._on_cloud, qos_profile_sensor_data)
+        self.last_scan: float | None = None     # monotonic arrival of the last scan or cloud
+        self.last_fit = None                    # (SlopeFit, monotonic time)
+        self.problem: str | None = None         # why the last scan gave no slope
+        self.scans = self.fits = 0
+        self.diag = Diagnostics(self, {"slope": self._report})
+
+    def _range_problem(self, lo_deg, hi_deg) -> str | None:
+        """slope_min_deg < slope_max_deg, checked against the other's current value."""
+        other = "slope_max_deg" if hi_deg is None else "slope_min_deg"
+        if not self.has_parameter(other):
+            return None     # declared next; checked then
+        v = self.get_parameter(other).value
+        lo, hi = (lo_deg, v) if hi_deg is None else (v, hi_deg)
+        return None if lo < hi else f"needs slope_min_deg < slope_max_deg (got {lo:g} and {hi:g})"
+
+    def _set_fit(self, **kw) -> None:
+        self.fit_kw.update(kw)
 
     def _on_scan(self, msg: LaserScan) -> None:
         pts = scan_to_points(msg.angle_min, msg.angle_increment, msg.ranges, msg.range_min, msg.range_max)
@@ -70,23 +111,55 @@ class LidarSlopeNode(Node):
             pts = cloud_to_points(msg.fields, msg.point_step, msg.row_step, msg.width, msg.height, bytes(msg.data),
                                   msg.is_bigendian)
         except ValueError as exc:
-            self.get_logger().error(f"bad PointCloud2: {exc}", throttle_duration_sec=5.0)
+            self._no_slope(f"bad PointCloud2: {exc}")
             return
         self._fit(pts, msg.header.stamp)
 
     def _fit(self, pts_sensor: np.ndarray, stamp) -> None:
+        self.last_scan = time.monotonic()
+        self.scans += 1
         try:
             f = fit_slope(apply(self.T, pts_sensor), self.rng, **self.fit_kw)
-        except TooFewPoints as exc:
-            self.get_logger().warn(f"no slope estimate: {exc}", throttle_duration_sec=2.0)
+        except SlopeOutOfRange as exc:
+            self._no_slope(str(exc))
             return
+        except NoSlope as exc:
+            self._no_slope(f"no pile in scan: {exc}")
+            return
+        if not all(math.isfinite(v) for v in (f.alpha, f.toe_x, f.residual)):
+            self._no_slope("fit not finite")
+            return
+        self.problem = None
+        self.fits += 1
+        self.last_fit = (f, self.last_scan)
         self.pub_slope.publish(Float64(data=f.alpha))
+        vs = Vector3Stamped()
+        vs.header.stamp, vs.header.frame_id = stamp, self.frame_id
+        vs.vector.x, vs.vector.y, vs.vector.z = f.alpha, f.toe_x, f.residual
+        self.pub_stamped.publish(vs)
         toe = PointStamped()
-        toe.header.stamp = stamp
-        toe.header.frame_id = self.frame_id
+        toe.header.stamp, toe.header.frame_id = stamp, self.frame_id
         toe.point.x = f.toe_x
         self.pub_toe.publish(toe)
         self.pub_res.publish(Float64(data=f.residual))
+
+    def _no_slope(self, why: str) -> None:
+        self.problem = why
+        self.get_logger().warn(f"no slope published: {why}", throttle_duration_sec=2.0)
+
+    def _report(self):
+        now = time.monotonic()
+        values = {"scans": self.scans, "fits": self.fits}
+        if self.last_fit is not None:
+            f, t = self.last_fit
+            values.update(slope_deg=math.degrees(f.alpha), toe_x=f.toe_x, residual_m=f.residual, fit_age_s=now - t)
+        if self.last_scan is None:
+            return WARN, "no scan yet", values
+        if now - self.last_scan > NO_SCAN_WARN_S:
+            return WARN, f"no scan for {now - self.last_scan:.1f} s", values
+        if self.problem is not None:
+            return ERROR, self.problem, values
+        return OK, f"slope {math.degrees(self.last_fit[0].alpha):.1f} deg", values
 
 
 def main(args=None) -> int:

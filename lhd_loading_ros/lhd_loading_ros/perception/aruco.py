@@ -1,23 +1,49 @@
 """ArUco marker pose and machine forward speed, without ROS.
 
 Pipeline: image (numpy) -> cv2.aruco.ArucoDetector -> corners of the configured marker ->
-solvePnP(SOLVEPNP_IPPE_SQUARE) with the camera intrinsics -> marker pose in the camera frame
+solvePnPGeneric(SOLVEPNP_IPPE_SQUARE) with the camera intrinsics -> the two marker poses of the
+planar ambiguity in the camera frame -> the one consistent with the mounting and the last pose
 -> pile frame through the camera extrinsic -> base_link through the marker-to-base offset ->
 v_x from a least-squares slope of x(t) over a time window (a filtered finite difference).
+
+Needs OpenCV >= MIN_OPENCV_VERSION: `cv2.aruco.ArucoDetector` and `DetectorParameters()`
+replaced the old functional API in 4.7.0; older builds (some distribution packages) lack them.
 """
 from __future__ import annotations
 
+import math
+import re
 from collections import deque
 from dataclasses import dataclass
-
-import math
 
 import cv2
 import numpy as np
 
 from lhd_loading_ros.perception.geometry import apply, from_rt
 
+MIN_OPENCV_VERSION = "4.7.0"
 ENCODINGS = {"mono8": 1, "bgr8": 3, "rgb8": 3, "bgra8": 4, "rgba8": 4}
+DISTORTION_LENGTHS = (0, 4, 5, 8, 12, 14)   # what OpenCV's camera model accepts (0: no distortion)
+
+
+def _version_tuple(v: str) -> tuple[int, ...] | None:
+    m = re.match(r"\s*(\d+)\.(\d+)(?:\.(\d+))?", v)
+    return tuple(int(g or 0) for g in m.groups()) if m else None
+
+
+def opencv_problem(version: str | None = None, module=None) -> str | None:
+    """Why this OpenCV cannot run the ArUco code (None: it can). Called at node start, so an old
+    distribution build ends the node with this message instead of an AttributeError or worse."""
+    module = cv2 if module is None else module
+    version = getattr(module, "__version__", "?") if version is None else version
+    have, need = _version_tuple(str(version)), _version_tuple(MIN_OPENCV_VERSION)
+    fix = "install opencv-contrib-python or opencv-python >= 4.7.0 (pip), or a newer distribution build"
+    if have is None or have < need:
+        return f"OpenCV {version} is too old: the ArUco pose node needs OpenCV >= {MIN_OPENCV_VERSION}; {fix}"
+    aruco = getattr(module, "aruco", None)
+    if aruco is None or not hasattr(aruco, "ArucoDetector"):
+        return f"OpenCV {version} has no cv2.aruco.ArucoDetector (a build without the aruco module); {fix}"
+    return None
 
 
 class ImageEncodingError(ValueError):
@@ -26,6 +52,8 @@ class ImageEncodingError(ValueError):
 
 def image_to_gray(height: int, width: int, encoding: str, step: int, data: bytes) -> np.ndarray:
     """sensor_msgs/Image fields -> uint8 grayscale array (cv_bridge is not available here)."""
+    if height <= 0 or width <= 0:
+        raise ImageEncodingError(f"empty image ({width}x{height}); expected a camera frame")
     if encoding not in ENCODINGS:
         raise ImageEncodingError(f"unsupported image encoding {encoding!r}; expected one of {', '.join(ENCODINGS)}")
     ch = ENCODINGS[encoding]
@@ -51,13 +79,30 @@ def dictionary(name: str):
 class CameraModel:
     K: np.ndarray      # 3x3
     D: np.ndarray      # distortion coefficients
+    width: int = 0     # calibrated image size (0: not given)
+    height: int = 0
 
     @classmethod
-    def from_camera_info(cls, k, d) -> "CameraModel":
+    def from_camera_info(cls, k, d, width: int = 0, height: int = 0, distortion_model: str = "") -> "CameraModel":
+        """Checked CameraInfo fields; ValueError saying what is wrong and what is expected."""
+        if len(k) != 9:
+            raise ValueError(f"K has {len(k)} elements; expected 9")
         K = np.array(k, dtype=float).reshape(3, 3)
+        if not np.isfinite(K).all():
+            raise ValueError("K has NaN or inf; expected finite intrinsics")
         if K[0, 0] <= 0 or K[1, 1] <= 0:
-            raise ValueError("CameraInfo has no valid intrinsics (K[0,0] and K[1,1] must be > 0)")
-        return cls(K, np.array(d, dtype=float) if len(d) else np.zeros(5))
+            raise ValueError(f"focal lengths fx={K[0, 0]:g}, fy={K[1, 1]:g}; expected > 0")
+        if not np.allclose(K[2], [0.0, 0.0, 1.0]) or K[1, 0] != 0.0:
+            raise ValueError(f"K's last row is {K[2].tolist()}; expected a camera matrix [[fx,s,cx],[0,fy,cy],[0,0,1]]")
+        if distortion_model in ("equidistant", "fisheye"):
+            raise ValueError(f"distortion model {distortion_model!r} is not supported; expected plumb_bob or "
+                             "rational_polynomial (rectify fisheye images upstream)")
+        if len(d) not in DISTORTION_LENGTHS:
+            raise ValueError(f"{len(d)} distortion coefficients; expected one of {', '.join(map(str, DISTORTION_LENGTHS))}")
+        D = np.array(d, dtype=float)
+        if not np.isfinite(D).all():
+            raise ValueError("distortion coefficients have NaN or inf")
+        return cls(K, D if len(D) else np.zeros(5), int(width), int(height))
 
 
 class MarkerDetector:
@@ -81,13 +126,52 @@ class MarkerDetector:
                 return c.reshape(4, 2).astype(np.float64)
         return None
 
-    def pose(self, corners: np.ndarray, cam: CameraModel) -> np.ndarray | None:
-        """4x4 pose of the marker in the camera frame (optical: x right, y down, z forward)."""
-        ok, rvec, tvec = cv2.solvePnP(self.obj, corners, cam.K, cam.D, flags=cv2.SOLVEPNP_IPPE_SQUARE)
-        if not ok:
+    def pose(self, corners: np.ndarray, cam: CameraModel, choose=None) -> np.ndarray | None:
+        """4x4 pose of the marker in the camera frame (optical: x right, y down, z forward).
+        A square seen nearly face-on has two poses that fit the corners almost equally well
+        (IPPE_SQUARE returns both); `choose(candidates)` picks one (default: the lower
+        reprojection error, IPPE's first)."""
+        n, rvecs, tvecs, _ = cv2.solvePnPGeneric(self.obj, corners, cam.K, cam.D, flags=cv2.SOLVEPNP_IPPE_SQUARE)
+        cands = [from_rt(cv2.Rodrigues(r)[0], t) for r, t in zip(rvecs[:n], tvecs[:n])]
+        cands = [T for T in cands if np.isfinite(T).all()]
+        if not cands:
             return None
-        R, _ = cv2.Rodrigues(rvec)
-        return from_rt(R, tvec)
+        return choose(cands) if choose is not None else cands[0]
+
+
+class MountingPrior:
+    """Picks among the ambiguous marker poses the one consistent with how things are mounted:
+    the marker faces the camera (its normal toward the camera), the machine stands upright on
+    the floor (base_link's z axis up in the pile frame) and, when both solutions are about
+    equally upright (the marker right under the camera), the one nearer the last pose."""
+
+    def __init__(self, T_pile_cam: np.ndarray, T_marker_base: np.ndarray, tie_rad: float = math.radians(2.0)):
+        self.T_pile_cam = T_pile_cam
+        self.R_marker_base = T_marker_base[:3, :3]
+        self.tie = tie_rad
+        self.last: np.ndarray | None = None     # rotation of the last chosen marker pose (pile frame)
+
+    def __call__(self, cands: list[np.ndarray]) -> np.ndarray:
+        facing = [T for T in cands if T[2, 2] < 0.0] or cands      # marker z toward the camera
+        scored = []
+        for T in facing:
+            R_pile_base = self.T_pile_cam[:3, :3] @ T[:3, :3] @ self.R_marker_base
+            tilt = math.acos(max(-1.0, min(1.0, R_pile_base[2, 2])))
+            scored.append((tilt, T))
+        scored.sort(key=lambda s: s[0])
+        best = scored[0][1]
+        if self.last is not None and len(scored) > 1 and scored[1][0] - scored[0][0] < self.tie:
+            best = min((T for _, T in scored[:2]), key=lambda T: _angle(self.T_pile_cam[:3, :3] @ T[:3, :3], self.last))
+        self.last = self.T_pile_cam[:3, :3] @ best[:3, :3]
+        return best
+
+    def reset(self) -> None:
+        self.last = None
+
+
+def _angle(Ra: np.ndarray, Rb: np.ndarray) -> float:
+    c = (np.trace(Ra.T @ Rb) - 1.0) / 2.0
+    return math.acos(max(-1.0, min(1.0, c)))
 
 
 class VelocityEstimator:
@@ -101,12 +185,19 @@ class VelocityEstimator:
         self.min_samples = min_samples
         self.samples: deque = deque()
 
-    def add(self, t: float, x: float) -> None:
+    def add(self, t: float, x: float) -> bool:
+        """Add a measurement; False when its stamp is not after the last one (a repeated
+        frame adds nothing; a backward jump -- bag loop, sim reset -- restarts the window)."""
         if self.samples and t <= self.samples[-1][0]:
-            self.samples.clear()  # time went backwards (bag loop, sim reset): start over
+            if t == self.samples[-1][0]:
+                return False
+            self.samples.clear()
+            self.samples.append((t, x))
+            return False
         self.samples.append((t, x))
         while self.samples and t - self.samples[0][0] > self.window:
             self.samples.popleft()
+        return True
 
     def reset(self) -> None:
         self.samples.clear()

@@ -1,8 +1,10 @@
 """Synthetic sensor data with known ground truth, for tests and benchmarks: a real ArUco
-marker warped into a pinhole camera, and LiDAR scans of a pile with floor and back wall."""
+marker warped into a pinhole camera, and LiDAR scans of a pile with floor and back wall, optionally
+in a draw point (ceiling, brow, side walls, the machine itself)."""
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -59,50 +61,102 @@ def drive_poses(t: np.ndarray, x0: float, speed: float, height: float = 0.35) ->
 
 
 # ---------------------------------------------------------------- LiDAR
-def pile_profile_hits(origin: np.ndarray, dirs: np.ndarray, alpha: float, toe_x: float, h: float,
-                      back_x: float) -> np.ndarray:
-    """Range along each ray (XZ plane of the pile frame) to the first surface: floor (z = 0),
-    face (rising at alpha from the toe), top (z = h) and back wall (x = back_x)."""
-    ox, oz = origin[0], origin[2]
-    dx, dz = dirs[:, 0], dirs[:, 2]
-    inf = np.full(len(dirs), np.inf)
+FAR = 50.0   # m: "unbounded" ends of floor, walls and ceiling
+
+
+@dataclass
+class DrawPoint:
+    """What else a LiDAR over a draw point sees besides floor, face, pile top and back wall
+    (5:1 scale): the drift's ceiling at `ceiling_z` up to the brow at `brow_x`, where the
+    drawbell's front wall rises at `drawbell_deg` over the pile (a line of plausible pile slope,
+    well above the crest); the drift's side walls at y = +-`wall_y` (only a 3-D scan reaches
+    them); and the LHD itself in front of the toe: its bucket lip `bucket_gap` before the toe,
+    a load heaped in the bucket at its angle of repose, the machine's body behind."""
+    ceiling_z: float = 2.0
+    brow_x: float = 0.2
+    drawbell_deg: float = 45.0
+    wall_y: float = 0.45
+    machine: bool = True
+    bucket_gap: float = 0.05
+    heap_deg: float = 35.0
+
+
+def scene_segments(alpha: float, toe_x: float, h: float, back_x: float, clutter: DrawPoint | None) -> np.ndarray:
+    """The XZ profile of the scene as segments (m, 4): x0, z0, x1, z1."""
     top_x = toe_x + h / math.tan(alpha)
+    segs = [(-FAR, 0.0, toe_x, 0.0), (toe_x, 0.0, top_x, h), (top_x, h, back_x, h), (back_x, h, back_x, FAR)]
+    if clutter is not None:
+        c = clutter
+        rise = FAR - c.ceiling_z
+        segs += [(-FAR, c.ceiling_z, c.brow_x, c.ceiling_z),
+                 (c.brow_x, c.ceiling_z, c.brow_x + rise / math.tan(math.radians(c.drawbell_deg)), FAR)]
+        if c.machine:
+            lip = toe_x - c.bucket_gap
+            back = lip - 0.36                       # bucket: lip on the floor, 0.36 m deep, 0.22 m high
+            th = math.tan(math.radians(c.heap_deg))
+            peak_x = (lip + back) / 2.0
+            segs += [(lip, 0.02, back, 0.02), (back, 0.02, back, 0.24),
+                     (back, 0.24, peak_x, 0.24 + th * (peak_x - back)),            # the load, heaped
+                     (peak_x, 0.24 + th * (peak_x - back), lip, 0.02 + 0.22 * 0.0),
+                     (back - 0.25, 0.08, back - 0.25, 0.35), (back - 0.25, 0.35, back - 1.2, 0.35)]  # body
+    return np.array(segs, dtype=float)
+
+
+def cast_rays(ox: float, oz: float, dx: np.ndarray, dz: np.ndarray, segs: np.ndarray) -> np.ndarray:
+    """Ray parameter t of the first segment hit by each ray o + t (dx, dz) (inf: none)."""
+    ex, ez = segs[:, 2] - segs[:, 0], segs[:, 3] - segs[:, 1]
+    wx, wz = segs[:, 0] - ox, segs[:, 1] - oz
     with np.errstate(divide="ignore", invalid="ignore"):
-        t_floor = np.where(dz < 0, -oz / dz, inf)
-        xf = ox + t_floor * dx
-        t_floor = np.where((xf <= toe_x) & (t_floor > 0), t_floor, inf)
-        ta = math.tan(alpha)
-        t_face = (ta * (ox - toe_x) - oz) / (dz - ta * dx)
-        xfa = ox + t_face * dx
-        t_face = np.where((t_face > 0) & (xfa >= toe_x) & (xfa <= top_x), t_face, inf)
-        t_top = np.where(dz < 0, (h - oz) / dz, inf)
-        xt = ox + t_top * dx
-        t_top = np.where((t_top > 0) & (xt >= top_x) & (xt <= back_x), t_top, inf)
-        t_wall = np.where(dx > 0, (back_x - ox) / dx, inf)
-        zw = oz + t_wall * dz
-        t_wall = np.where((t_wall > 0) & (zw >= 0), t_wall, inf)
-    return np.minimum.reduce([t_floor, t_face, t_top, t_wall])
+        den = dx[:, None] * ez[None, :] - dz[:, None] * ex[None, :]
+        t = (wx * ez - wz * ex)[None, :] / den
+        s = (wx[None, :] * dz[:, None] - wz[None, :] * dx[:, None]) / den
+        t = np.where((np.abs(den) > 1e-12) & (t > 1e-9) & (s >= 0.0) & (s <= 1.0), t, np.inf)
+    return t.min(axis=1)
 
 
 def synthetic_scan(alpha: float, rng: np.random.Generator, sensor_xyz=(0.6, 0.0, 1.6), toe_x: float = 0.0,
                    h: float = 0.68, back_x: float | None = None, n: int = 720, angle_min: float = -math.radians(170),
                    angle_max: float = -math.radians(10), noise: float = 0.01, outliers: float = 0.1,
-                   range_max: float = 8.0):
+                   range_max: float = 8.0, clutter: DrawPoint | None = None):
     """(ranges, angle_min, angle_increment, sensor_rpy) of a vertical LaserScan over the pile:
-    the scanner's XY plane is the pile's XZ plane (roll = 90 deg)."""
+    the scanner's XY plane is the pile's XZ plane (roll = 90 deg). `clutter` adds the draw
+    point around the pile (widen the angles to see the ceiling)."""
     back_x = back_x if back_x is not None else toe_x + h / math.tan(alpha) + 0.3
     rpy = (math.pi / 2, 0.0, 0.0)
     T = transform(sensor_xyz, rpy)
     ang = np.linspace(angle_min, angle_max, n)
-    dirs_s = np.column_stack([np.cos(ang), np.sin(ang), np.zeros(n)])
-    dirs = dirs_s @ T[:3, :3].T
-    r = pile_profile_hits(np.asarray(sensor_xyz, float), dirs, alpha, toe_x, h, back_x)
+    dirs = np.column_stack([np.cos(ang), np.sin(ang), np.zeros(n)]) @ T[:3, :3].T
+    r = cast_rays(sensor_xyz[0], sensor_xyz[2], dirs[:, 0], dirs[:, 2], scene_segments(alpha, toe_x, h, back_x, clutter))
     r = r + rng.normal(0.0, noise, n)
     out = rng.random(n) < outliers
     r[out] = rng.uniform(0.2, range_max, out.sum())
-    r[~np.isfinite(r)] = np.inf
+    r[~np.isfinite(r) | (r > range_max)] = np.inf
     inc = (angle_max - angle_min) / (n - 1)
     return r, angle_min, inc, rpy
+
+
+def synthetic_cloud(alpha: float, rng: np.random.Generator, sensor_xyz=(0.6, 0.0, 1.6), toe_x: float = 0.0,
+                    h: float = 0.68, clutter: DrawPoint | None = None, yaws_deg=(-30, -15, 0, 15, 30),
+                    n: int = 720, noise: float = 0.01, range_max: float = 8.0) -> np.ndarray:
+    """Points (n_planes * n, 3) in the frame of the sensor of `synthetic_scan`: vertical scan
+    planes fanned in yaw about the sensor (a 3-D LiDAR's view), the pile's profile extruded
+    across y and, with clutter, the drift's side walls at y = +-wall_y."""
+    back_x = toe_x + h / math.tan(alpha) + 0.3
+    segs = scene_segments(alpha, toe_x, h, back_x, clutter)
+    T = transform(sensor_xyz, (math.pi / 2, 0.0, 0.0))
+    ang = np.linspace(-math.pi, math.pi, n, endpoint=False)
+    out = []
+    for yaw in np.radians(yaws_deg):
+        d = np.column_stack([np.cos(ang) * math.cos(yaw), np.cos(ang) * math.sin(yaw), np.sin(ang)])  # pile frame
+        t = cast_rays(sensor_xyz[0], sensor_xyz[2], d[:, 0], d[:, 2], segs)
+        if clutter is not None:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                wall = (np.sign(d[:, 1]) * clutter.wall_y - sensor_xyz[1]) / d[:, 1]
+            t = np.minimum(t, np.where(wall > 0, wall, np.inf))
+        t = t + rng.normal(0.0, noise, n)
+        ok = np.isfinite(t) & (t < range_max)
+        out.append(apply(np.linalg.inv(T), np.asarray(sensor_xyz) + t[ok, None] * d[ok]))
+    return np.concatenate(out)
 
 
 def scan_points_pile(ranges, angle_min, inc, sensor_xyz, sensor_rpy):
