@@ -2,6 +2,7 @@
 not importable), the entry points `ros2 run` looks for, and those entry points started as
 processes from a sourced workspace. The colcon build itself runs in `make test` (Makefile
 target colcon-build) before the suite; without an install tree these tests skip."""
+import ast
 import importlib.util
 import math
 import os
@@ -10,6 +11,7 @@ import signal
 import subprocess
 import sys
 import time
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
@@ -180,3 +182,99 @@ def test_installed_bridge_node_runs_against_the_installed_device_emulator(ros_no
     finally:
         codes = {p.name: p.stop() for p in procs}
     assert codes["bridge_node"] == 0, bridge.log()[-3000:]
+
+
+# --- package.xml declares every import ---------------------------------------------------------
+# ROS packages: the import name is the package name and the rosdep key.
+ROS_IMPORTS = {"rclpy", "rcl_interfaces", "builtin_interfaces", "ament_index_python", "launch", "launch_ros",
+               "std_msgs", "std_srvs", "sensor_msgs", "nav_msgs", "geometry_msgs", "diagnostic_msgs",
+               "rosgraph_msgs", "lhd_loading_ros", "lhd_sim_node", "lhd_hw_bridge"}
+# Python libraries: import name -> rosdep key (rosdistro's rosdep/python.yaml). A system package
+# where one exists; `-pip` keys where rosdep knows only the PyPI package.
+PYTHON_KEYS = {
+    "numpy": "python3-numpy",
+    "yaml": "python3-yaml",
+    "cv2": "python3-opencv",
+    "serial": "python3-serial",          # pyserial
+    "matplotlib": "python3-matplotlib",
+    "torch": "python3-torch",
+    "numba": "python3-numba",
+    "mujoco": "python3-mujoco-pip",
+    "gymnasium": "python3-gymnasium-pip",
+}
+# Imports deliberately not declared, with the reason; each must sit inside a function, so that
+# importing the package's modules never needs them.
+UNDECLARED = {
+    ("lhd_loading_ros", "lhd_sim_node"): "lhd demo|up|train|eval import the simulator; it depends on us (no cycle)",
+    ("lhd_loading_ros", "lhd_hw_bridge"): "lhd bench bridge; it depends on us (no cycle)",
+    ("lhd_loading_ros", "stable_baselines3"): "optional: lhd bench train --vs-sb3 only",
+}
+PACKAGES = ("lhd_loading_ros", "lhd_sim_node", "lhd_hw_bridge")
+
+
+def package_imports(pkg: str) -> dict[str, list[tuple[str, bool]]]:
+    """Top-level import names of a package's modules and launch files (setup.py excluded: build
+    time), each with where it is and whether it is at module level."""
+    found: dict[str, list[tuple[str, bool]]] = {}
+    files = sorted((ROOT / pkg / pkg).rglob("*.py")) + sorted((ROOT / pkg).glob("launch/*.py"))
+    for f in files:
+        tree = ast.parse(f.read_text(), str(f))
+        top = {id(n) for n in tree.body}
+        top |= {id(n) for s in tree.body if isinstance(s, (ast.If, ast.Try)) for n in ast.walk(s)}
+        for n in ast.walk(tree):
+            if isinstance(n, ast.Import):
+                names = [a.name for a in n.names]
+            elif isinstance(n, ast.ImportFrom) and n.level == 0:
+                names = [n.module]
+            else:
+                continue
+            for name in names:
+                root = name.split(".")[0]
+                if root not in sys.stdlib_module_names and root != pkg:
+                    found.setdefault(root, []).append((f"{f.relative_to(ROOT)}:{n.lineno}", id(n) in top))
+    return found
+
+
+def declared_exec_depends(pkg: str) -> dict[str, dict]:
+    root = ET.parse(ROOT / pkg / "package.xml").getroot()
+    return {e.text.strip(): e.attrib for e in root.findall("exec_depend")}
+
+
+@pytest.mark.parametrize("pkg", PACKAGES)
+def test_package_xml_declares_every_import(pkg):
+    imports = package_imports(pkg)
+    declared = declared_exec_depends(pkg)
+    needed, problems = set(), []
+    for name, where in sorted(imports.items()):
+        if (pkg, name) in UNDECLARED:
+            at_top = [w for w, top in where if top]
+            assert not at_top, f"{name} ({UNDECLARED[pkg, name]}) must be imported inside a function: {at_top}"
+            continue
+        key = name if name in ROS_IMPORTS else PYTHON_KEYS.get(name)
+        if key is None:
+            problems.append(f"{name} (at {where[0][0]}): unknown import; add its rosdep key to PYTHON_KEYS "
+                            "(or a reason to UNDECLARED) in this test, and the key to package.xml")
+        elif key not in declared:
+            problems.append(f"{name} (at {where[0][0]}) needs <exec_depend>{key}</exec_depend> in {pkg}/package.xml")
+        needed.add(key)
+    unused = sorted(set(declared) - needed)
+    assert not problems, "\n".join(problems)
+    assert not unused, f"{pkg}/package.xml declares exec_depends nothing imports: {unused}"
+
+
+def test_package_xml_states_the_opencv_the_aruco_code_needs():
+    """cv2.aruco.ArucoDetector arrived in OpenCV 4.7.0; distributions ship older builds."""
+    assert declared_exec_depends("lhd_loading_ros")["python3-opencv"] == {"version_gte": "4.7.0"}
+
+
+def test_the_import_check_catches_an_undeclared_import(tmp_path, monkeypatch):
+    """The check above can fail: a package whose module imports scipy and yaml, with yaml only."""
+    pkg = tmp_path / "demo_pkg"
+    (pkg / "demo_pkg").mkdir(parents=True)
+    (pkg / "demo_pkg" / "m.py").write_text("import yaml\n\ndef f():\n    from scipy import linalg\n")
+    (pkg / "package.xml").write_text("<package format='3'><name>demo_pkg</name>"
+                                     "<exec_depend>python3-yaml</exec_depend></package>")
+    monkeypatch.setattr(sys.modules[__name__], "ROOT", tmp_path)
+    assert set(package_imports("demo_pkg")) == {"yaml", "scipy"}
+    with pytest.raises(AssertionError, match="scipy .*unknown import"):
+        test_package_xml_declares_every_import("demo_pkg")
