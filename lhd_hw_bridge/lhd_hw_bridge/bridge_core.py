@@ -22,6 +22,7 @@ class BridgeParams:
     valve_deadband: float
     cmd_timeout: float
     command_rate_hz: float
+    device_watchdog: float     # s, the firmware's watchdog (WATCHDOG_MS in lhd_due.ino)
     wheel_radius: float
     drift_slip_ratio: float
     drift_min_speed: float
@@ -37,11 +38,45 @@ class BridgeParams:
         return cls(
             wheels_max=c["wheels_max"], boom_speed=abs(c["boom_min"]), bucket_speed=c["bucket_max"],
             valve_deadband=h["valve_deadband"], cmd_timeout=h["cmd_timeout"], command_rate_hz=h["command_rate_hz"],
+            device_watchdog=h["device_watchdog"],
             wheel_radius=cfg["machine"]["wheel_radius"], drift_slip_ratio=t["drift_slip_ratio"],
             drift_min_speed=t["drift_min_speed"], drift_current_front=h["drift_current_front"],
             drift_current_rear=h["drift_current_rear"], odom_timeout=h["odom_timeout"],
             backoff_min=h["reconnect_backoff_min"], backoff_max=h["reconnect_backoff_max"],
         )
+
+
+# ------------------------------------------------------------------ safety rules of the parameters
+# (docs/hardware_bridge.md, "Parameters"): each returns what is wrong, or None.
+# The longest the machine may run on its last command when /lhd/cmd stops: 10 decisions of the
+# 10 Hz policy; at full speed that is 0.37 m of travel (2.7 rad/s x 0.137 m) and 0.19 rad of
+# boom lift before the bridge stops it.
+CMD_TIMEOUT_MAX = 1.0   # s
+
+
+def deadband_problem(deadband: float) -> str | None:
+    """CommandMapper opens a valve when |u| >= valve_deadband x full speed; with a dead band of
+    0 (or less) that holds for u = 0, so a zero command would move the boom and the bucket."""
+    if deadband <= 0.0:
+        return ("a zero command would open the valves (a valve opens when |u| >= valve_deadband x full speed, "
+                "and 0 >= 0); expected a dead band > 0")
+    return None
+
+
+def min_command_rate(device_watchdog: float) -> float:
+    """The slowest safe command rate: with one command frame lost the device sees two periods
+    without a command, and that must fit in half its watchdog (the other half is margin for
+    host scheduling and USB latency), so 2 / rate <= device_watchdog / 2."""
+    return 4.0 / device_watchdog
+
+
+def command_rate_problem(rate_hz: float, device_watchdog: float) -> str | None:
+    lo = min_command_rate(device_watchdog)
+    if rate_hz < lo:
+        return (f"one lost command frame would leave the device {2000.0 / rate_hz:.0f} ms without a command, more "
+                f"than half its {device_watchdog * 1000.0:.0f} ms watchdog (it would stop the machine); "
+                f"expected >= {lo:g} Hz")
+    return None
 
 
 class CommandMapper:
@@ -102,8 +137,10 @@ class Watchdog:
         self.last_valid = now
 
     def rearm(self, now: float) -> None:
-        """After a (re)connection: commands from before it no longer count."""
+        """After a (re)connection or an emergency-stop release: commands from before it no
+        longer count. Not a timeout, so not counted as a trip."""
         self.armed_since = now
+        self._was_stale = True
 
     def stale(self, now: float) -> bool:
         s = (self.last_valid is None or self.last_valid < self.armed_since

@@ -1,105 +1,146 @@
 """`ros2 run lhd_hw_bridge bridge_node`: the LHD's Arduino Due over a serial link.
 
-Publishes what the sim node publishes (same names, SI units): /lhd/joint_states,
-/lhd/wheel_drift, /lhd/wheel_drift/front, /lhd/wheel_drift/rear, plus /diagnostics.
-Subscribes /lhd/cmd ([u_wheels, u_boom, u_bucket] rad/s) and /lhd/odom (machine speed for
-drift detection; on hardware it comes from the ArUco node).
+Topics live under the topic prefix (/lhd, or the node's namespace with `-r __ns:=/lhd2`).
+Publishes what the sim node publishes (same names, SI units): <prefix>/joint_states,
+<prefix>/wheel_drift, <prefix>/wheel_drift/front, <prefix>/wheel_drift/rear; the device's own
+report on <prefix>/hw/status (diagnostic_msgs/DiagnosticStatus: e-stop and watchdog flags, motor
+currents, valve states); and /diagnostics (serial link and device). Subscribes <prefix>/cmd
+([u_wheels, u_boom, u_bucket] rad/s) and <prefix>/odom (machine speed for drift detection; on
+hardware it comes from the ArUco node).
 
-Fail-safe behaviour:
+Fail-safe behaviour (docs/hardware_bridge.md):
 * every command goes through CommandMapper (no reverse wheels, no boom lowering, no bucket
   forward tilt; NaN / wrong length rejected and counted);
-* no valid /lhd/cmd for cmd_timeout (0.3 s) -> stop frames (watchdog, on arrival time);
+* no valid command for cmd_timeout (0.3 s) -> stop frames (watchdog on arrival time, on the
+  steady clock: use_sim_time cannot stop it);
+* parameters that would defeat the safety (a dead band of 0, a command rate too slow for the
+  device watchdog) are refused, at start (exit 2) and at run time (with the reason);
+* the port is opened exclusively: a second bridge on it keeps retrying and says why in
+  /diagnostics instead of writing too;
 * serial loss -> reopen with exponential backoff inside the node; the first frame after a
-  reconnection is a stop, and only commands received after it count;
+  reconnection is a stop, and only commands received after it count; counters survive;
+* while the device reports its emergency stop, stop frames; after the release only commands
+  received after it count;
 * on shutdown a stop frame is sent before the port closes.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import threading
 import time
 
 import serial
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticStatus
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64MultiArray
 
-from lhd_loading_ros.task.config import load_config
+from lhd_loading_ros.ros.diagnostics import ERROR, OK, STALE, WARN, Diagnostics, status
+from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
 from lhd_loading_ros.ros.qos import COMMAND_QOS, MEASUREMENT_QOS
-from lhd_loading_ros.ros.run import number_param, run_node
+from lhd_loading_ros.ros.run import run_node
+from lhd_loading_ros.task.config import load_config
 
-from .bridge_core import JOINT_NAMES, BridgeParams, CommandMapper, CommandRejected, Watchdog, detect_drift, joint_state_arrays
-from .protocol import CommandFrame, FrameParser, HeartbeatFrame, SensorFrame, encode
+from .bridge_core import (CMD_TIMEOUT_MAX, JOINT_NAMES, BridgeParams, CommandMapper, CommandRejected, Watchdog,
+                          command_rate_problem, deadband_problem, detect_drift, joint_state_arrays)
+from .protocol import (FLAG_ENABLED, FLAG_ESTOP, FLAG_WATCHDOG, TYPE_SENSOR, CommandFrame, FrameParser,
+                       HeartbeatFrame, SensorFrame, TxSequence)
 
-# QoS (lhd_loading_ros.ros.qos): measurements MEASUREMENT_QOS (reliable, keep-last 5: matches
-# reliable and best-effort subscribers; a short queue never delays fresh data behind stale
-# data), commands COMMAND_QOS (reliable, keep-last 1: only the newest command matters, and
-# losing it silently would let the watchdog stop the machine). Odometry in: sensor-data QoS
-# (best effort), which accepts any publisher.
-WATCHDOG_TICK = 0.005  # s
+# QoS (lhd_loading_ros.ros.qos): measurements and the device status MEASUREMENT_QOS (reliable,
+# keep-last 5: matches reliable and best-effort subscribers; a short queue never delays fresh
+# data behind stale data), commands COMMAND_QOS (reliable, keep-last 1: only the newest command
+# matters, and losing it silently would let the watchdog stop the machine). Odometry in:
+# sensor-data QoS (best effort), which accepts any publisher.
+WATCHDOG_TICK = 0.005   # s
+STATUS_PERIOD = 0.1     # s, <prefix>/hw/status (and at once when the flags or valve states change)
+DEVICE_STALE = 0.5      # s without a sensor frame: the device's report is no longer current
+
+
+def open_problem(port: str, exc: Exception) -> str:
+    """What a failed open means, for the log and /diagnostics."""
+    if "exclusively lock" in str(exc):   # pyserial's message when flock(LOCK_EX) fails
+        return f"{port} is in use by another process (it holds the port exclusively); not writing, retrying"
+    return f"cannot open {port}: {exc}"
 
 
 class BridgeNode(Node):
     def __init__(self, cfg: dict | None = None, **node_kwargs):
         super().__init__("lhd_hw_bridge", **node_kwargs)
-        self.declare_parameter("port", "/dev/ttyACM0")
-        self.declare_parameter("baud", 115200)
-        self.declare_parameter("config", "")
-        cfg_path = self.get_parameter("config").value or None
-        cfg = cfg if cfg is not None else load_config(cfg_path)
-        base = BridgeParams.from_config(cfg)
-        self.declare_parameter("cmd_timeout", base.cmd_timeout)
-        self.declare_parameter("command_rate_hz", base.command_rate_hz)
-        self.declare_parameter("valve_deadband", base.valve_deadband)
-        self.declare_parameter("odom_timeout", base.odom_timeout)
-        self.declare_parameter("namespace_prefix", "/lhd")
-        gp = lambda n: self.get_parameter(n).value  # noqa: E731
-        number_param(self, "cmd_timeout", 0.01, 10.0)
-        number_param(self, "command_rate_hz", 1.0, 1000.0)
-        number_param(self, "valve_deadband", 0.0, 1.0)
-        number_param(self, "odom_timeout", 0.01, 10.0)
-        self.p = BridgeParams(**{**base.__dict__, "cmd_timeout": float(gp("cmd_timeout")),
-                                 "command_rate_hz": float(gp("command_rate_hz")),
-                                 "valve_deadband": float(gp("valve_deadband")), "odom_timeout": float(gp("odom_timeout"))})
-        self.port = gp("port")
-        self.baud = int(gp("baud"))
-        ns = gp("namespace_prefix").rstrip("/")
+        cfg_path = Params(self, [Param("config", "", "lhd_params.yaml to read ('' = the one installed)")])["config"]
+        base = BridgeParams.from_config(cfg if cfg is not None else load_config(cfg_path or None))
+        wd = base.device_watchdog
+        self.params = Params(self, [
+            Param("port", "/dev/ttyACM0", "serial device of the Due (opened exclusively)"),
+            Param("baud", 115200, "baud rate (UART; the Due's native USB port ignores it)", lo=1200, hi=4_000_000),
+            Param("namespace_prefix", "/lhd", "topic prefix when the node runs in the root namespace"),
+            Param("cmd_timeout", base.cmd_timeout,
+                  f"s without a valid command before stop frames (at most {CMD_TIMEOUT_MAX} s)",
+                  lo=0.01, hi=CMD_TIMEOUT_MAX, on_change=lambda v: self._apply(cmd_timeout=v)),
+            Param("command_rate_hz", base.command_rate_hz,
+                  f"command frames per second; at least 4 / device watchdog = {4.0 / wd:g} Hz (a lost frame "
+                  f"must fit in half the device's {wd * 1000:.0f} ms watchdog), at most the 200 Hz watchdog tick",
+                  lo=1.0, hi=1.0 / WATCHDOG_TICK, check=lambda v: command_rate_problem(v, wd),
+                  on_change=lambda v: self._apply(command_rate_hz=v)),
+            Param("valve_deadband", base.valve_deadband,
+                  "a valve opens when |u| >= this x the joint's full speed; > 0 (0 would open it for a zero command)",
+                  lo=0.0, hi=1.0, check=deadband_problem, on_change=lambda v: self._apply(valve_deadband=v)),
+            Param("odom_timeout", base.odom_timeout, "s; an older machine speed is not used for drift",
+                  lo=0.01, hi=10.0, on_change=lambda v: self._apply(odom_timeout=v)),
+        ])
+        pv = self.params
+        self.p = dataclasses.replace(base, cmd_timeout=pv["cmd_timeout"], command_rate_hz=pv["command_rate_hz"],
+                                     valve_deadband=pv["valve_deadband"], odom_timeout=pv["odom_timeout"])
+        self.port = pv["port"]
+        self.baud = pv["baud"]
+        ns = topic_prefix(self, pv["namespace_prefix"])
         self.mapper = CommandMapper(self.p)
         self.watchdog = Watchdog(self.p.cmd_timeout)
-        self.parser = FrameParser()
+        self.parser = FrameParser(accept={TYPE_SENSOR})   # one for the node's life: counters survive reconnects
+        self._tx = TxSequence()
         self._ser: serial.Serial | None = None
         self._ser_lock = threading.Lock()
-        self._seq = 0
         self._cmd: CommandFrame | None = None
         self._v_machine: tuple[float, float] | None = None  # (speed, arrival time)
+        self._device: tuple[SensorFrame, float] | None = None  # (latest sensor frame, arrival time)
+        self._estop = False
         self._stop_evt = threading.Event()
         self.connected = False
+        self.link_problem = "not opened yet"
         self.reconnects = 0
         self.disconnects = 0
         self.sensor_frames = 0
         self.command_frames = 0
         self._rate_marks = (time.monotonic(), 0, 0)
-        self._rates = (0.0, 0.0)
         self.latency_hook = None  # for the benchmark: called with the SensorFrame after publishing
         self.pub_js = self.create_publisher(JointState, f"{ns}/joint_states", MEASUREMENT_QOS)
         self.pub_drift = self.create_publisher(Bool, f"{ns}/wheel_drift", MEASUREMENT_QOS)
         self.pub_front = self.create_publisher(Bool, f"{ns}/wheel_drift/front", MEASUREMENT_QOS)
         self.pub_rear = self.create_publisher(Bool, f"{ns}/wheel_drift/rear", MEASUREMENT_QOS)
-        self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.pub_status = self.create_publisher(DiagnosticStatus, f"{ns}/hw/status", MEASUREMENT_QOS)
         self.create_subscription(Float64MultiArray, f"{ns}/cmd", self._on_cmd, COMMAND_QOS)
         self.create_subscription(Odometry, f"{ns}/odom", self._on_odom, qos_profile_sensor_data)
-        # the watchdog is checked every WATCHDOG_TICK s and a stop leaves at once when it trips;
-        # command frames themselves go out at command_rate_hz
-        self._frame_every = max(1, int(round(1.0 / (self.p.command_rate_hz * WATCHDOG_TICK))))
-        self._ticks = 0
-        self.create_timer(WATCHDOG_TICK, self._tick)
-        self.create_timer(1.0, self._diagnostics)
-        self.create_timer(1.0, self._heartbeat)
+        # every timer on the steady clock: with use_sim_time and no /clock they must still run.
+        # The watchdog is checked every WATCHDOG_TICK s and a stop leaves at once when it trips;
+        # command frames themselves go out at command_rate_hz.
+        self._frame_period = 1.0 / self.p.command_rate_hz
+        self._next_frame = time.monotonic()
+        steady_timer(self, WATCHDOG_TICK, self._tick)
+        steady_timer(self, 1.0, self._heartbeat)
+        steady_timer(self, STATUS_PERIOD, self._publish_status)
+        self.diagnostics = Diagnostics(self, {"serial link": self._link_report, "device": self._device_report},
+                                       hardware_id=self.port)
         self._io = threading.Thread(target=self._io_loop, name="serial-io", daemon=True)
         self._io.start()
+
+    def _apply(self, **changes) -> None:
+        """A parameter changed at run time: every user of it sees the new value from now on."""
+        self.p = dataclasses.replace(self.p, **changes)
+        self.mapper.p = self.p
+        self.watchdog.timeout = self.p.cmd_timeout
+        self._frame_period = 1.0 / self.p.command_rate_hz
 
     # ------------------------------------------------------------------ ROS inputs
     def _on_cmd(self, msg: Float64MultiArray) -> None:
@@ -123,16 +164,17 @@ class BridgeNode(Node):
             if ser is None:
                 return False
             try:
-                ser.write(encode(msg, self._seq))
-                self._seq = (self._seq + 1) & 0xFF
+                ser.write(self._tx.encode(msg))
                 return True
             except (serial.SerialException, OSError) as exc:
                 self.get_logger().warn(f"serial write failed: {exc}", throttle_duration_sec=1.0)
+                self.link_problem = f"write to {self.port} failed: {exc}"
                 self._drop_port_locked()
                 return False
 
     def current_command(self, now: float) -> CommandFrame:
-        if self.watchdog.stale(now) or self._cmd is None:
+        stale = self.watchdog.stale(now)
+        if stale or self._estop or self._cmd is None:
             return CommandFrame.stop()
         return self._cmd
 
@@ -142,11 +184,10 @@ class BridgeNode(Node):
         cmd = self.current_command(now)
         tripped = self.watchdog.trips > trips
         if tripped:
-            self.get_logger().warn(f"no valid /lhd/cmd for {self.p.cmd_timeout} s: stopping the machine",
+            self.get_logger().warn(f"no valid command for {self.p.cmd_timeout} s: stopping the machine",
                                    throttle_duration_sec=1.0)
-        self._ticks += 1
-        if tripped or self._ticks >= self._frame_every:
-            self._ticks = 0
+        if tripped or now >= self._next_frame:
+            self._next_frame = max(self._next_frame + self._frame_period, now)
             if self._write(cmd):
                 self.command_frames += 1
 
@@ -166,18 +207,21 @@ class BridgeNode(Node):
 
     def _open(self) -> bool:
         try:
-            ser = serial.Serial(self.port, self.baud, timeout=0.01, write_timeout=0.1)
-        except (serial.SerialException, OSError, ValueError):
+            # exclusive: flock(LOCK_EX), so two bridges (or a terminal program) never both write
+            ser = serial.Serial(self.port, self.baud, timeout=0.01, write_timeout=0.1, exclusive=True)
+        except (serial.SerialException, OSError, ValueError) as exc:
+            self.link_problem = open_problem(self.port, exc)
+            self.get_logger().warn(self.link_problem, throttle_duration_sec=10.0)
             return False
         with self._ser_lock:
             self._ser = ser
-            self.parser = FrameParser()
+            self.parser.reset_link()
             # the first frame on a (re)opened link is a stop; older commands no longer count
             self.watchdog.rearm(time.monotonic())
             try:
-                ser.write(encode(CommandFrame.stop(), self._seq))
-                self._seq = (self._seq + 1) & 0xFF
-            except (serial.SerialException, OSError):
+                ser.write(self._tx.encode(CommandFrame.stop()))
+            except (serial.SerialException, OSError) as exc:
+                self.link_problem = f"write to {self.port} failed: {exc}"
                 self._drop_port_locked()
                 return False
             self.connected = True
@@ -203,14 +247,14 @@ class BridgeNode(Node):
                 data = ser.read(max(1, ser.in_waiting))
             except (serial.SerialException, OSError, TypeError) as exc:
                 self.get_logger().warn(f"serial link lost on {self.port}: {exc}", throttle_duration_sec=1.0)
+                self.link_problem = f"serial link lost on {self.port}: {exc}"
                 with self._ser_lock:
                     if self._ser is ser:
                         self._drop_port_locked()
                 continue
             if data:
-                for _, msg in self.parser.feed(data):
-                    if isinstance(msg, SensorFrame):
-                        self._publish(msg)
+                for _, msg in self.parser.feed(data):   # sensor frames only (accept)
+                    self._publish(msg)
 
     def _publish(self, f: SensorFrame) -> None:
         now = time.monotonic()
@@ -229,39 +273,61 @@ class BridgeNode(Node):
         self.pub_drift.publish(Bool(data=front or rear))
         if self.latency_hook is not None:
             self.latency_hook(f)
+        prev = self._device[0] if self._device is not None else None
+        self._device = (f, now)
+        estop = bool(f.flags & FLAG_ESTOP)
+        if self._estop and not estop:
+            self.watchdog.rearm(now)   # released: only commands received from now on count
+        self._estop = estop
+        if prev is None or (prev.flags, prev.valve_boom, prev.valve_bucket) != (f.flags, f.valve_boom, f.valve_bucket):
+            self._publish_status()
 
-    # ------------------------------------------------------------------ diagnostics
-    def _diagnostics(self) -> None:
+    # ------------------------------------------------------------------ status and diagnostics
+    def _device_report(self):
+        """(level, message, values) of the device: its flags, motor currents and valve states."""
+        dev = self._device
+        if dev is None:
+            return STALE, "no sensor frame from the device yet", {}
+        f, t = dev
+        age = time.monotonic() - t
+        values = {"flags": f.flags, "drive_enabled": bool(f.flags & FLAG_ENABLED),
+                  "device_watchdog_stop": bool(f.flags & FLAG_WATCHDOG), "estop": bool(f.flags & FLAG_ESTOP),
+                  "current_fl_A": round(f.current_fl, 3), "current_fr_A": round(f.current_fr, 3),
+                  "current_rear_A": round(f.current_rear, 3), "valve_boom": f.valve_boom,
+                  "valve_bucket": f.valve_bucket, "device_time_us": f.device_time_us, "age_s": round(age, 3)}
+        if age > DEVICE_STALE:
+            return STALE, f"no sensor frame from the device for {age:.1f} s", values
+        if f.flags & FLAG_ESTOP:
+            return ERROR, "emergency stop pressed on the device: machine held stopped, stop frames sent", values
+        if f.flags & FLAG_WATCHDOG:
+            return (WARN, f"device watchdog holds the machine stopped (no command frame for "
+                          f"{self.p.device_watchdog * 1000:.0f} ms); cleared by the next command", values)
+        return OK, "drive enabled" if f.flags & FLAG_ENABLED else "drive disabled (stop commanded)", values
+
+    def _publish_status(self) -> None:
+        level, message, values = self._device_report()
+        self.pub_status.publish(status(f"{self.get_fully_qualified_name()}: device", self.port, level, message,
+                                       values))
+
+    def _link_report(self):
         now = time.monotonic()
         t0, s0, c0 = self._rate_marks
         dt = max(now - t0, 1e-6)
-        self._rates = ((self.sensor_frames - s0) / dt, (self.command_frames - c0) / dt)
+        sensor_hz, command_hz = (self.sensor_frames - s0) / dt, (self.command_frames - c0) / dt
         self._rate_marks = (now, self.sensor_frames, self.command_frames)
-        st = DiagnosticStatus()
-        st.name = "lhd_hw_bridge: serial link"
-        st.hardware_id = self.port
         stale = self.watchdog.stale(now)
+        values = {"port": self.port, "connected": self.connected, "sensor_frame_rate_hz": round(sensor_hz, 1),
+                  "command_frame_rate_hz": round(command_hz, 1), **self.parser.counters(),
+                  "watchdog_trips": self.watchdog.trips, "rejected_commands": self.mapper.rejected,
+                  "clamped_commands": self.mapper.clamped, "reconnects": self.reconnects,
+                  "disconnects": self.disconnects, "command_stale": stale}
         if not self.connected:
-            st.level, st.message = DiagnosticStatus.ERROR, "serial link down"
-        elif self._rates[0] < 50.0:
-            st.level, st.message = DiagnosticStatus.WARN, f"sensor frames at {self._rates[0]:.0f} Hz (< 50 Hz)"
-        elif stale:
-            st.level, st.message = DiagnosticStatus.WARN, "no valid command: machine stopped"
-        else:
-            st.level, st.message = DiagnosticStatus.OK, "ok"
-        vals = {
-            "port": self.port, "connected": self.connected, "sensor_frame_rate_hz": round(self._rates[0], 1),
-            "command_frame_rate_hz": round(self._rates[1], 1), "crc_errors": self.parser.crc_errors,
-            "framing_errors": self.parser.framing_errors, "overflows": self.parser.overflows,
-            "sequence_gaps": self.parser.seq_gaps, "watchdog_trips": self.watchdog.trips,
-            "rejected_commands": self.mapper.rejected, "clamped_commands": self.mapper.clamped,
-            "reconnects": self.reconnects, "disconnects": self.disconnects, "command_stale": stale,
-        }
-        st.values = [KeyValue(key=k, value=str(v)) for k, v in vals.items()]
-        arr = DiagnosticArray()
-        arr.header.stamp = self.get_clock().now().to_msg()
-        arr.status = [st]
-        self.pub_diag.publish(arr)
+            return ERROR, f"serial link down: {self.link_problem}", values
+        if sensor_hz < 50.0:
+            return WARN, f"sensor frames at {sensor_hz:.0f} Hz (< 50 Hz)", values
+        if stale:
+            return WARN, "no valid command: machine stopped", values
+        return OK, "ok", values
 
     def shutdown(self) -> None:
         """Stop the machine, then close the port."""

@@ -4,10 +4,14 @@ It speaks the device side of docs/serial_protocol.md: receives command and heart
 frames, runs a small plant (the arm joints integrate their ternary valve commands at full
 speed within their limits, the wheels follow the set-point with a first-order lag, motor
 currents follow the load), sends sensor frames at `rate` Hz, and stops by itself (the
-firmware's watchdog) when command frames stop for `watchdog` seconds. Faults can be
-injected: sensor noise, dropped frames, corrupted bytes, front or rear drift (wheel spin
-and high motor current). `unplug()` closes the pty (the host sees the port vanish);
-`plug()` opens a new one behind the same symlink.
+firmware's watchdog) when command frames stop for `watchdog` seconds. Like the firmware, it
+clamps the wheel set-point to [0, 2.7] rad/s, never lowers the boom or tilts the bucket forward,
+closes a valve at its joint limit, holds everything while the emergency stop is pressed, and
+reports in each sensor frame what the valves really do and its flags. Faults can be injected:
+sensor noise, dropped frames, corrupted bytes, front or rear drift (wheel spin and high motor
+current), the emergency stop (`estop`), motor currents (`currents`), frames of an unknown type
+(`send_raw`). `unplug()` closes the pty (the host sees the port vanish); `plug()` opens a new
+one behind the same symlink.
 """
 from __future__ import annotations
 
@@ -22,13 +26,15 @@ import time
 import tty
 from dataclasses import dataclass, field
 
-from .protocol import (FLAG_ENABLED, FLAG_WATCHDOG, CommandFrame, FrameParser, SensorFrame, encode)
+from .protocol import (FLAG_ENABLED, FLAG_ESTOP, FLAG_WATCHDOG, TYPE_COMMAND, TYPE_HEARTBEAT, CommandFrame,
+                       FrameParser, SensorFrame, TxSequence)
 
 BOOM_SPEED = 0.191
 BUCKET_SPEED = 0.2
 BOOM_RANGE = (-1.0, 0.05)
 BUCKET_RANGE = (-0.1, 1.4)
 WHEEL_TAU = 0.1
+WHEEL_MAX = 2.7
 
 
 def _move(angle: float, rate: float, limits: tuple[float, float], dt: float) -> tuple[float, float]:
@@ -72,16 +78,20 @@ class FakeDue:
     corrupt: float = 0.0
     drift_front: bool = False
     drift_rear: bool = False
+    estop: bool = False                       # the emergency-stop button, pressed
+    currents: tuple[float, float, float] | None = None   # (fl, fr, rear) A reported instead of the model's
     seed: int = 0
     plant: Plant = field(default_factory=Plant)
 
     def __post_init__(self):
         self.rng = random.Random(self.seed)
-        self.parser = FrameParser()
+        self.parser = FrameParser(accept={TYPE_COMMAND, TYPE_HEARTBEAT})
         self.received: list[tuple[float, object]] = []  # (monotonic time, frame) for tests
+        self.received_seq: list[tuple[type, int]] = []   # (frame class, seq) in arrival order
         self.watchdog_trips = 0
         self.sent = 0
-        self._seq = 0
+        self._tx = TxSequence()
+        self._command: CommandFrame | None = None
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._master = self._slave = None
@@ -99,7 +109,7 @@ class FakeDue:
             os.set_blocking(master, False)
             self._master, self._slave = master, slave
             self.path = os.ttyname(slave)
-            self.parser = FrameParser()
+            self.parser.reset_link()
             if self.link:
                 tmp = self.link + ".tmp"
                 if os.path.lexists(tmp):
@@ -148,6 +158,7 @@ class FakeDue:
             dt = now - t_prev
             t_prev = now
             self._apply_watchdog(now)
+            self._apply_command()
             if dt > 0:
                 self.plant.step(dt, self.drift_front, self.drift_rear)
             if fd is not None and now >= t_next:
@@ -169,39 +180,47 @@ class FakeDue:
             return
         except OSError:
             return
-        for _, msg in self.parser.feed(data):
+        for seq, msg in self.parser.feed(data):
             self.received.append((now, msg))
+            self.received_seq.append((type(msg), seq))
             if isinstance(msg, CommandFrame):
                 self._last_cmd = now
-                p = self.plant
-                p.wheel_setpoint = max(0.0, msg.wheel_setpoint) if msg.enable else 0.0
-                p.valve_boom = msg.valve_boom if msg.enable else 0
-                p.valve_bucket = msg.valve_bucket if msg.enable else 0
-                p.enabled = msg.enable
-                self._tripped = False
+                self._command = msg
+                self._tripped = False   # a fresh valid command re-arms the machine
 
     def _apply_watchdog(self, now: float) -> None:
-        p = self.plant
-        if p.enabled or p.valve_boom or p.valve_bucket or p.wheel_setpoint:
-            if self._last_cmd is None or now - self._last_cmd > self.watchdog:
-                p.enabled, p.valve_boom, p.valve_bucket, p.wheel_setpoint = False, 0, 0, 0.0
-                self.watchdog_trips += 1
-                self._tripped = True
+        """As the firmware: no command frame for `watchdog` s after one was received -> stopped
+        (flag bit 1) until the next command frame."""
+        if self._command is not None and not self._tripped and now - self._last_cmd > self.watchdog:
+            self._tripped = True
+            self.watchdog_trips += 1
+
+    def _apply_command(self) -> None:
+        """The outputs from the last command, as the firmware's apply_outputs()."""
+        c, p = self._command, self.plant
+        run = c is not None and c.enable and not self._tripped and not self.estop
+        p.enabled = run
+        p.wheel_setpoint = min(max(c.wheel_setpoint, 0.0), WHEEL_MAX) if run else 0.0
+        boom = max(c.valve_boom, 0) if run else 0        # lowering refused (not a maintenance build)
+        bucket = max(c.valve_bucket, 0) if run else 0    # forward tilt refused
+        p.valve_boom = 0 if boom > 0 and p.boom <= BOOM_RANGE[0] else boom          # closed at the joint limit
+        p.valve_bucket = 0 if bucket > 0 and p.bucket >= BUCKET_RANGE[1] else bucket
 
     def _send(self, fd: int, t: float) -> None:
         p = self.plant
         n = lambda: self.rng.gauss(0.0, self.noise) if self.noise else 0.0  # noqa: E731
         cur = lambda w, drift: 1.5 + 0.8 * abs(w) + (10.0 if drift else 0.0)  # noqa: E731
+        currents = self.currents or (cur(p.wheel_fl, self.drift_front), cur(p.wheel_fr, False),
+                                     cur(p.wheel_rear, self.drift_rear) + 2.0)
         frame = SensorFrame(
             device_time_us=int(t * 1e6), boom_angle=p.boom + n() * 1e-3, bucket_angle=p.bucket + n() * 1e-3,
             boom_rate=p.boom_rate, bucket_rate=p.bucket_rate, wheel_fl=p.wheel_fl + n() * 1e-2,
             wheel_fr=p.wheel_fr + n() * 1e-2, wheel_rear=p.wheel_rear + n() * 1e-2,
-            current_fl=cur(p.wheel_fl, self.drift_front), current_fr=cur(p.wheel_fr, False),
-            current_rear=cur(p.wheel_rear, self.drift_rear) + 2.0, valve_boom=p.valve_boom,
+            current_fl=currents[0], current_fr=currents[1], current_rear=currents[2], valve_boom=p.valve_boom,
             valve_bucket=p.valve_bucket,
-            flags=(FLAG_ENABLED if p.enabled else 0) | (FLAG_WATCHDOG if self._tripped else 0))
-        wire = bytearray(encode(frame, self._seq))
-        self._seq = (self._seq + 1) & 0xFF
+            flags=(FLAG_ENABLED if p.enabled else 0) | (FLAG_WATCHDOG if self._tripped else 0)
+            | (FLAG_ESTOP if self.estop else 0))
+        wire = bytearray(self._tx.encode(frame))   # a dropped frame used its number: the host sees the gap
         if self.drop and self.rng.random() < self.drop:
             return
         if self.corrupt and self.rng.random() < self.corrupt:
@@ -212,6 +231,12 @@ class FakeDue:
             self.sent += 1
         except OSError:
             pass
+
+    def send_raw(self, wire: bytes) -> None:
+        """Put bytes on the line as they are (frames of an unknown type, garbage)."""
+        with self._lock:
+            if self._master is not None:
+                os.write(self._master, wire)
 
     def last_commands(self) -> list:
         return [(t, m) for t, m in self.received if isinstance(m, CommandFrame)]
@@ -228,10 +253,11 @@ def main(argv=None) -> int:
     ap.add_argument("--corrupt", type=float, default=0.0, help="probability of flipping a bit in a sensor frame")
     ap.add_argument("--drift-front", action="store_true", help="inject front wheel drift")
     ap.add_argument("--drift-rear", action="store_true", help="inject rear wheel drift")
+    ap.add_argument("--estop", action="store_true", help="start with the emergency stop pressed")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
     dev = FakeDue(link=args.link, rate=args.rate, watchdog=args.watchdog, noise=args.noise, drop=args.drop,
-                  corrupt=args.corrupt, drift_front=args.drift_front, drift_rear=args.drift_rear, seed=args.seed)
+                  corrupt=args.corrupt, drift_front=args.drift_front, drift_rear=args.drift_rear, estop=args.estop, seed=args.seed)
     path = dev.plug()
     print(f"fake Due on {dev.path} (link {path})", flush=True)
     done = threading.Event()

@@ -1,9 +1,12 @@
-"""Serial protocol between the host and the LHD's Arduino Due (docs/serial_protocol.md).
+"""Serial protocol between the host and the LHD's Arduino Due (docs/serial_protocol.md, the
+single truth of the wire format; this module follows it).
 
 Wire format: every frame is a packet, COBS-encoded, followed by one 0x00 delimiter.
 Packet = version (u8) | type (u8) | seq (u8) | length (u8) | payload (length bytes) | crc16 (u16 LE),
 with CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, no reflection, no final xor) over
-version..payload. All multi-byte fields little-endian (the Due's native order).
+version..payload. All multi-byte fields little-endian (the Due's native order). Sequence
+numbers: one counter per sender and frame type (TxSequence); a receiver checks them per type
+(FrameParser), so a gap says which kind of frame was lost.
 """
 from __future__ import annotations
 
@@ -17,8 +20,12 @@ TYPE_HEARTBEAT = 0x03
 MAX_PAYLOAD = 64
 HEADER = struct.Struct("<BBBB")
 CRC = struct.Struct("<H")
-MAX_PACKET = HEADER.size + MAX_PAYLOAD + CRC.size
-MAX_ENCODED = MAX_PACKET + MAX_PACKET // 254 + 2  # COBS overhead + delimiter
+MAX_PACKET = HEADER.size + MAX_PAYLOAD + CRC.size   # 70 bytes
+# the largest COBS-encoded packet, without its 0x00 delimiter (COBS adds one byte per 254
+# started): 71 bytes, the most a receiver keeps of a partial frame
+MAX_ENCODED = MAX_PACKET + 1 + MAX_PACKET // 255
+TYPE_NAMES = {TYPE_SENSOR: "sensor", TYPE_COMMAND: "command", TYPE_HEARTBEAT: "heartbeat"}
+ALL_TYPES = frozenset(TYPE_NAMES)
 
 # scales: physical value = raw * scale
 ANGLE_SCALE = 1e-4      # rad per count (int16: +-3.2767 rad)
@@ -154,7 +161,15 @@ class HeartbeatFrame:
 
 
 class ProtocolError(ValueError):
+    """A packet that must be dropped; the message names the fault."""
+
+
+class CrcError(ProtocolError):
     pass
+
+
+class UnknownTypeError(ProtocolError):
+    """A well-formed packet (good CRC, version 1) of a type the receiver does not take."""
 
 
 def _i16(v: float, scale: float, name: str) -> int:
@@ -197,26 +212,51 @@ def pack_payload(msg) -> tuple[int, bytes]:
     raise ProtocolError(f"cannot encode {type(msg).__name__}")
 
 
-def encode(msg, seq: int) -> bytes:
-    """The bytes on the wire for msg: COBS(packet) + 0x00."""
-    ftype, payload = pack_payload(msg)
+def frame_bytes(ftype: int, seq: int, payload: bytes) -> bytes:
+    """COBS(header | payload | crc16) + 0x00 for any type (the emulator uses it to send
+    frames of an unknown type)."""
     body = HEADER.pack(VERSION, ftype, seq & 0xFF, len(payload)) + payload
     return cobs_encode(body + CRC.pack(crc16(body))) + b"\x00"
 
 
-def decode_packet(packet: bytes):
-    """(seq, message) from a COBS-decoded packet; raises ProtocolError naming the fault."""
+def encode(msg, seq: int) -> bytes:
+    """The bytes on the wire for msg with sequence number seq: COBS(packet) + 0x00."""
+    ftype, payload = pack_payload(msg)
+    return frame_bytes(ftype, seq, payload)
+
+
+class TxSequence:
+    """A sender's sequence numbers: one counter per frame type, starting at 0 and +1 (mod 256)
+    per frame of that type handed to the link, never reset while the sender runs (a frame
+    whose write fails still used its number: the receiver rightly sees it as lost)."""
+
+    def __init__(self):
+        self._next: dict[int, int] = {}
+
+    def encode(self, msg) -> bytes:
+        ftype, payload = pack_payload(msg)
+        seq = self._next.get(ftype, 0)
+        self._next[ftype] = (seq + 1) & 0xFF
+        return frame_bytes(ftype, seq, payload)
+
+
+def decode_packet(packet: bytes, accept=ALL_TYPES):
+    """(seq, message) from a COBS-decoded packet; raises ProtocolError naming the fault
+    (CrcError for a bad CRC, UnknownTypeError for a type not in `accept`)."""
     if len(packet) < HEADER.size + CRC.size:
         raise ProtocolError(f"short packet ({len(packet)} bytes)")
     body, crc = packet[:-2], CRC.unpack(packet[-2:])[0]
     if crc16(body) != crc:
-        raise ProtocolError("bad CRC")
+        raise CrcError("bad CRC")
     version, ftype, seq, length = HEADER.unpack(body[:4])
     if version != VERSION:
         raise ProtocolError(f"unsupported protocol version {version}")
     payload = body[4:]
     if len(payload) != length:
         raise ProtocolError(f"length field {length} != payload size {len(payload)}")
+    if ftype not in accept:
+        what = f"{TYPE_NAMES[ftype]} frame" if ftype in TYPE_NAMES else "unknown frame type"
+        raise UnknownTypeError(f"{what} 0x{ftype:02x} not taken by this receiver")
     try:
         if ftype == TYPE_SENSOR:
             f = SensorFrame.STRUCT.unpack(payload)
@@ -230,10 +270,8 @@ def decode_packet(packet: bytes):
             if f[1] not in (-1, 0, 1) or f[2] not in (-1, 0, 1) or f[3] not in (0, 1):
                 raise ProtocolError("command field out of range")
             msg = CommandFrame(f[0] * WHEEL_SCALE, f[1], f[2], bool(f[3]))
-        elif ftype == TYPE_HEARTBEAT:
-            msg = HeartbeatFrame(HeartbeatFrame.STRUCT.unpack(payload)[0])
         else:
-            raise ProtocolError(f"unknown frame type 0x{ftype:02x}")
+            msg = HeartbeatFrame(HeartbeatFrame.STRUCT.unpack(payload)[0])
     except struct.error as exc:
         raise ProtocolError(f"payload of type 0x{ftype:02x} has the wrong size: {exc}") from None
     return seq, msg
@@ -242,21 +280,42 @@ def decode_packet(packet: bytes):
 class FrameParser:
     """Streaming parser: feed it any bytes, get whole frames back. Never raises on input;
     resynchronises on the next 0x00; keeps at most MAX_ENCODED bytes of a partial frame.
-    Counters: frames, crc_errors, framing_errors (COBS/length/type), overflows, seq_gaps."""
 
-    def __init__(self):
+    `accept`: the frame types this receiver takes (the host: sensor frames; the device:
+    command and heartbeat frames); any other well-formed frame counts as unknown_types.
+    Counters (cumulative for the parser's life, reset_link() keeps them): frames, crc_errors,
+    framing_errors (COBS, size, version, length, payload size, field range), overflows,
+    unknown_types, seq_gaps (frames whose seq is not the last of their type + 1) and
+    frames_lost (how many numbers each gap skipped), as docs/serial_protocol.md defines them."""
+
+    def __init__(self, accept=ALL_TYPES):
+        self.accept = frozenset(accept)
         self._buf = bytearray()
         self._discarding = False
         self.frames = 0
         self.crc_errors = 0
         self.framing_errors = 0
         self.overflows = 0
+        self.unknown_types = 0
         self.seq_gaps = 0
-        self._last_seq: dict[int, int] = {}
+        self.frames_lost = 0
+        self._last_seq: dict[type, int] = {}
 
     @property
     def buffered(self) -> int:
         return len(self._buf)
+
+    def reset_link(self) -> None:
+        """A (re)opened link: drop the partial frame and the sequence references (the first
+        frame of each type on the new link starts afresh); the counters stay."""
+        self._buf.clear()
+        self._discarding = False
+        self._last_seq.clear()
+
+    def counters(self) -> dict:
+        return {"frames": self.frames, "crc_errors": self.crc_errors, "framing_errors": self.framing_errors,
+                "overflows": self.overflows, "unknown_types": self.unknown_types, "sequence_gaps": self.seq_gaps,
+                "frames_lost": self.frames_lost}
 
     def feed(self, data: bytes) -> list:
         """Returns [(seq, message), ...] for the whole frames completed by data."""
@@ -293,22 +352,21 @@ class FrameParser:
 
     def _decode(self, frame: bytes, out: list) -> None:
         try:
-            packet = cobs_decode(frame)
-        except CobsError:
+            seq, msg = decode_packet(cobs_decode(frame), self.accept)
+        except CrcError:
+            self.crc_errors += 1
+            return
+        except UnknownTypeError:
+            self.unknown_types += 1
+            return
+        except (CobsError, ProtocolError):
             self.framing_errors += 1
             return
-        try:
-            seq, msg = decode_packet(packet)
-        except ProtocolError as exc:
-            if "CRC" in str(exc):
-                self.crc_errors += 1
-            else:
-                self.framing_errors += 1
-            return
-        key = type(msg).__name__
+        key = msg.__class__
         last = self._last_seq.get(key)
         if last is not None and seq != (last + 1) & 0xFF:
             self.seq_gaps += 1
+            self.frames_lost += (seq - last - 1) & 0xFF
         self._last_seq[key] = seq
         self.frames += 1
         out.append((seq, msg))

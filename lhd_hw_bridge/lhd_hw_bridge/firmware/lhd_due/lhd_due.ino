@@ -14,8 +14,8 @@ static const uint8_t TYPE_SENSOR = 0x01;
 static const uint8_t TYPE_COMMAND = 0x02;
 static const uint8_t TYPE_HEARTBEAT = 0x03;
 static const uint8_t MAX_PAYLOAD = 64;
-static const uint16_t MAX_PACKET = 4 + MAX_PAYLOAD + 2;
-static const uint16_t MAX_ENCODED = MAX_PACKET + MAX_PACKET / 254 + 2;
+static const uint16_t MAX_PACKET = 4 + MAX_PAYLOAD + 2;              // 70 bytes
+static const uint16_t MAX_ENCODED = MAX_PACKET + 1 + MAX_PACKET / 255; // 71: largest COBS frame, without its 0x00
 
 static const uint32_t SENSOR_PERIOD_US = 10000;   // 100 Hz
 static const uint32_t WATCHDOG_MS = 250;          // stop when command frames stop
@@ -30,7 +30,9 @@ static Command cmd = {0.0f, 0, 0, false};
 static uint32_t last_cmd_ms = 0;
 static bool have_cmd = false;
 static bool watchdog_tripped = false;
-static uint8_t seq_tx = 0;
+// sequence numbers: one counter per frame type this device sends (docs/serial_protocol.md);
+// it sends only sensor frames, so one counter, and only sensor frames ever use it
+static uint8_t seq_sensor = 0;
 static uint8_t rx_buf[MAX_ENCODED];
 static uint16_t rx_len = 0;
 static bool rx_discard = false;
@@ -80,12 +82,12 @@ static int16_t get_i16(const uint8_t *p) { return (int16_t)(p[0] | (p[1] << 8));
 static int16_t sat16(float v) { return v > 32767.0f ? 32767 : (v < -32768.0f ? -32768 : (int16_t)lroundf(v)); }
 static uint16_t satu16(float v) { return v > 65535.0f ? 65535 : (v < 0.0f ? 0 : (uint16_t)lroundf(v)); }
 
-static void send_packet(uint8_t type, const uint8_t *payload, uint8_t len) {
+static void send_packet(uint8_t type, uint8_t seq, const uint8_t *payload, uint8_t len) {
   uint8_t pkt[MAX_PACKET];
-  pkt[0] = PROTO_VERSION; pkt[1] = type; pkt[2] = seq_tx++; pkt[3] = len;
+  pkt[0] = PROTO_VERSION; pkt[1] = type; pkt[2] = seq; pkt[3] = len;
   memcpy(pkt + 4, payload, len);
   put_u16(pkt + 4 + len, crc16(pkt, 4 + len));
-  uint8_t enc[MAX_ENCODED];
+  uint8_t enc[MAX_ENCODED + 1];                                   // + the delimiter
   uint16_t n = cobs_encode(pkt, 6 + len, enc);
   enc[n++] = 0;
   SerialUSB.write(enc, n);
@@ -100,8 +102,12 @@ static void drive_wheels(float setpoint) { (void)setpoint; }        // HW: speed
 static void drive_valve(int joint, int8_t dir) { (void)joint; (void)dir; }  // HW: solenoid valves
 static bool estop_pressed() { return false; }                        // HW
 
-static void apply_outputs(float boom_angle, float bucket_angle) {
-  bool run = cmd.enable && have_cmd && !watchdog_tripped && !estop_pressed();
+// what the outputs really do, for the sensor frame
+struct Outputs { bool run; int8_t boom; int8_t bucket; bool estop; };
+
+static Outputs apply_outputs(float boom_angle, float bucket_angle) {
+  bool estop = estop_pressed();
+  bool run = cmd.enable && have_cmd && !watchdog_tripped && !estop;
   float w = run ? cmd.wheel : 0.0f;
   if (w < 0.0f) w = 0.0f;
   if (w > WHEEL_MAX) w = WHEEL_MAX;
@@ -114,6 +120,8 @@ static void apply_outputs(float boom_angle, float bucket_angle) {
   drive_wheels(w);
   drive_valve(0, boom);
   drive_valve(1, bucket);
+  Outputs o = {run, boom, bucket, estop};
+  return o;
 }
 
 // ---------------------------------------------------------------- receive
@@ -171,7 +179,7 @@ void loop() {
     cmd.enable = false; cmd.wheel = 0.0f; cmd.boom = 0; cmd.bucket = 0;
   }
   float boom = read_boom_angle(), bucket = read_bucket_angle();
-  apply_outputs(boom, bucket);
+  Outputs out = apply_outputs(boom, bucket);
   uint32_t now_us = micros();
   if ((uint32_t)(now_us - last_sensor_us) >= SENSOR_PERIOD_US) {
     float dt = (now_us - last_sensor_us) * 1e-6f;
@@ -185,10 +193,9 @@ void loop() {
     prev_boom = boom; prev_bucket = bucket;
     for (int k = 0; k < 3; k++) put_u16(p + 12 + 2 * k, (uint16_t)sat16(read_wheel(k) / 1e-3f));
     for (int k = 0; k < 3; k++) put_u16(p + 18 + 2 * k, satu16(read_current(k) / 1e-3f));
-    bool run = cmd.enable && have_cmd && !watchdog_tripped;
-    p[24] = (uint8_t)(run ? cmd.boom : 0);
-    p[25] = (uint8_t)(run ? cmd.bucket : 0);
-    p[26] = (run ? 0x01 : 0) | (watchdog_tripped ? 0x02 : 0) | (estop_pressed() ? 0x04 : 0);
-    send_packet(TYPE_SENSOR, p, sizeof p);
+    p[24] = (uint8_t)out.boom;      // what the valves do (closed at a limit, on e-stop, ...)
+    p[25] = (uint8_t)out.bucket;
+    p[26] = (out.run ? 0x01 : 0) | (watchdog_tripped ? 0x02 : 0) | (out.estop ? 0x04 : 0);
+    send_packet(TYPE_SENSOR, seq_sensor++, p, sizeof p);
   }
 }
