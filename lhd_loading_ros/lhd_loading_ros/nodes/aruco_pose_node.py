@@ -139,12 +139,11 @@ class ArucoPoseNode(Node):
             self.get_logger().info("waiting for a valid CameraInfo; image ignored", throttle_duration_sec=5.0)
             return
         cam = self.cam
-        if cam.width and cam.height and (msg.width, msg.height) != (cam.width, cam.height):
-            self._reject(f"image {msg.width}x{msg.height} differs from CameraInfo's {cam.width}x{cam.height}; "
-                         "expected the calibrated size")
-            return
         try:
             gray = image_to_gray(msg.height, msg.width, msg.encoding, msg.step, bytes(msg.data))
+            if cam.width and cam.height and (msg.width, msg.height) != (cam.width, cam.height):
+                raise ImageEncodingError(f"image {msg.width}x{msg.height} differs from CameraInfo's "
+                                         f"{cam.width}x{cam.height}; expected the calibrated size")
             corners = self.detector.detect(gray)
             T_cam_marker = self.detector.pose(corners, cam, self.prior) if corners is not None else None
         except ImageEncodingError as exc:
@@ -246,13 +245,15 @@ class ArucoPoseNode(Node):
                   "stale": self.stale}
         if self.last_v is not None:
             values["last_v_x"] = self.last_v
-        if self.last_image is None or now - self.last_image > self.stale_timeout:
-            since = "yet" if self.last_image is None else f"for {now - self.last_image:.1f} s"
-            return (WARN if self.last_image is None else ERROR), f"no image {since}", values
+        if self.last_image is None:
+            return WARN, "no image yet" + ("" if self.cam else " and no valid CameraInfo"), values
+        # the root cause first: a missing calibration, then the last image's defect, then silence
         if self.cam is None:
             return ERROR, self.info_problem or "no CameraInfo yet: images ignored", values
         if self.image_problem is not None:
             return ERROR, self.image_problem, values
+        if now - self.last_image > self.stale_timeout:
+            return ERROR, f"no image for {now - self.last_image:.1f} s", values
         if self.last_seen is None:
             return WARN, "marker not seen yet", values
         lost = now - self.last_seen
