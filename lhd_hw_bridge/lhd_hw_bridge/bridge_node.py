@@ -33,6 +33,7 @@ import time
 import serial
 from diagnostic_msgs.msg import DiagnosticStatus
 from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
@@ -69,10 +70,15 @@ def open_problem(port: str, exc: Exception) -> str:
 class BridgeNode(Node):
     def __init__(self, cfg: dict | None = None, **node_kwargs):
         super().__init__("lhd_hw_bridge", **node_kwargs)
-        cfg_path = Params(self, [Param("config", "", "lhd_params.yaml to read ('' = the one installed)")])["config"]
+        config = Param("config", "", "lhd_params.yaml to read ('' = the one installed)")
+        # the other parameters' defaults come from that file, so read it first (one Params per
+        # node: rclpy chains the pre-set callbacks of several into duplicates)
+        cfg_path = config.coerce(self.declare_parameter("config", "", ParameterDescriptor(dynamic_typing=True)).value)
+        self.undeclare_parameter("config")
         base = BridgeParams.from_config(cfg if cfg is not None else load_config(cfg_path or None))
         wd = base.device_watchdog
         self.params = Params(self, [
+            config,
             Param("port", "/dev/ttyACM0", "serial device of the Due (opened exclusively)"),
             Param("baud", 115200, "baud rate (UART; the Due's native USB port ignores it)", lo=1200, hi=4_000_000),
             Param("namespace_prefix", "/lhd", "topic prefix when the node runs in the root namespace"),

@@ -87,7 +87,6 @@ class FakeDue:
         self.rng = random.Random(self.seed)
         self.parser = FrameParser(accept={TYPE_COMMAND, TYPE_HEARTBEAT})
         self.received: list[tuple[float, object]] = []  # (monotonic time, frame) for tests
-        self.received_seq: list[tuple[type, int]] = []   # (frame class, seq) in arrival order
         self.watchdog_trips = 0
         self.sent = 0
         self._tx = TxSequence()
@@ -180,9 +179,8 @@ class FakeDue:
             return
         except OSError:
             return
-        for seq, msg in self.parser.feed(data):
+        for _, msg in self.parser.feed(data):
             self.received.append((now, msg))
-            self.received_seq.append((type(msg), seq))
             if isinstance(msg, CommandFrame):
                 self._last_cmd = now
                 self._command = msg

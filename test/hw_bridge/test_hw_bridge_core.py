@@ -65,3 +65,32 @@ def test_joint_state_contents():
     pos, vel = joint_state_arrays(f)
     assert pos[:2] == [-0.2, 0.3] and all(math.isnan(p) for p in pos[2:])
     assert vel == [-0.19, 0.2, 1.0, 1.1, 1.2, 1.2]
+
+
+def test_a_zero_dead_band_would_open_the_valves_for_a_zero_command_and_is_refused(bp):
+    import dataclasses
+
+    from lhd_hw_bridge.bridge_core import deadband_problem
+
+    # why the rule exists: the mapping itself opens both valves for u = 0 at a dead band of 0
+    assert CommandMapper(dataclasses.replace(bp, valve_deadband=0.0)).map([0.0, 0.0, 0.0]) == CommandFrame(0.0, 1, 1, True)
+    assert CommandMapper(dataclasses.replace(bp, valve_deadband=1e-6)).map([0.0, 0.0, 0.0]) == CommandFrame(0.0, 0, 0, True)
+    assert "zero command would open the valves" in deadband_problem(0.0)
+    assert deadband_problem(-0.1) and deadband_problem(1e-6) is None and deadband_problem(0.5) is None
+
+
+def test_command_rate_rule_leaves_room_for_a_lost_frame():
+    from lhd_hw_bridge.bridge_core import command_rate_problem, min_command_rate
+
+    # 250 ms device watchdog: two periods (one frame lost) within 125 ms -> period <= 62.5 ms -> 16 Hz
+    assert min_command_rate(0.25) == pytest.approx(16.0)
+    assert command_rate_problem(16.0, 0.25) is None and command_rate_problem(50.0, 0.25) is None
+    assert "expected >= 16 Hz" in command_rate_problem(15.9, 0.25)
+
+
+def test_rearming_is_not_a_watchdog_trip():
+    w = Watchdog(0.3)
+    w.feed(1.0)
+    assert not w.stale(1.1)
+    w.rearm(1.2)                           # reconnection or e-stop release while commands flow
+    assert w.stale(1.21) and w.trips == 0
