@@ -1,5 +1,6 @@
 """`lhd up sim` and `lhd demo` start real node processes; they must finish the asked episodes,
-stop cleanly on Ctrl-C, and leave no process behind. `lhd echo` prints a live topic."""
+stop cleanly on Ctrl-C or SIGTERM (also in a script's background), and leave no process and no
+temporary folder behind. `lhd echo` prints a live topic (test_echo.py has the rest)."""
 import json
 import os
 import signal
@@ -7,7 +8,15 @@ import subprocess
 import sys
 import time
 
-from rosutil import unique_domain_id
+import numpy as np
+import pytest
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from std_msgs.msg import Float64MultiArray
+
+from lhd_loading_ros.ros.qos import STATUS_QOS
+
+from rosutil import RosProcess, init_ros, shutdown_ros, spin_until, unique_domain_id
 
 
 def env_with_domain():
@@ -19,18 +28,163 @@ def leftovers(marker: str) -> list[str]:
     return [line for line in out.splitlines() if "pgrep" not in line]
 
 
-def test_up_sim_runs_episodes_and_leaves_nothing_behind():
+def test_up_sim_runs_episodes_and_leaves_nothing_behind(tmp_path):
+    """Started in the background of a non-interactive script (`... & wait`: SIGINT ignored, and
+    inherited as ignored by the nodes), it finishes its episodes, exits 0, and leaves no process
+    and no temporary folder behind."""
     marker = "seed:=424242"
-    p = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "up", "sim", "--mode", "lockstep", "--slope", "25",
-                        "--episodes", "2", "--seed", "424242", "--material", "homogeneous", "--json"],
-                       capture_output=True, text=True, timeout=240, env=env_with_domain())
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    up = f"{sys.executable} -m lhd_loading_ros.cli.main up sim --mode lockstep --slope 25 --episodes 2 " \
+         "--seed 424242 --material homogeneous --json"
+    p = subprocess.run(["bash", "-c", f"{up} & wait $!"], capture_output=True, text=True, timeout=240,
+                       env=dict(env_with_domain(), TMPDIR=str(tmp)))
     assert p.returncode == 0, p.stderr[-3000:]
     res = json.loads(p.stdout)
     assert len(res["episodes"]) == 2
     assert all(e["alpha_deg"] == 25.0 and e["material"] == "homogeneous" for e in res["episodes"])
     assert "25" in res["rows"]
+    assert "Traceback" not in p.stderr
+    assert list(tmp.iterdir()) == []         # the nodes' logs went to a temporary folder, removed
     time.sleep(0.5)
     assert leftovers(marker) == []
+
+
+def wait_for(predicate, timeout: float, step: float = 0.2) -> bool:
+    t_end = time.monotonic() + timeout
+    while time.monotonic() < t_end:
+        if predicate():
+            return True
+        time.sleep(step)
+    return predicate()
+
+
+def test_up_sim_in_a_script_background_ignores_sigint_and_stops_on_sigterm(tmp_path):
+    """The shell's rule for background jobs stands (SIGINT ignored); rclpy's own handler used to
+    override it and end the launcher with a traceback. SIGTERM stops it in order, status 0."""
+    marker = "seed:=464646"
+    tmp, out = tmp_path / "tmp", tmp_path / "out.log"
+    tmp.mkdir()
+    up = f"{sys.executable} -m lhd_loading_ros.cli.main up sim --seed 464646 --slope 20"
+    script = f"{up} > {out} 2>&1 & echo $! > {tmp_path}/pid; wait $!; echo $? > {tmp_path}/status"
+    sh = subprocess.Popen(["bash", "-c", script], env=dict(env_with_domain(), TMPDIR=str(tmp)),
+                          start_new_session=True)
+    try:
+        episodes = lambda: out.read_text().count("\nepisode ") if out.exists() else 0
+        assert wait_for(lambda: episodes() >= 1, 150), out.read_text()
+        pid = int((tmp_path / "pid").read_text())
+        os.kill(pid, signal.SIGINT)
+        n = episodes()
+        assert wait_for(lambda: episodes() > n, 60), out.read_text()      # still at work after SIGINT
+        assert sh.poll() is None
+        os.kill(pid, signal.SIGTERM)
+        sh.wait(60)
+        text = out.read_text()
+        assert (tmp_path / "status").read_text().strip() == "0", text
+        assert "interrupted: nodes stopped" in text and "Traceback" not in text
+        assert list(tmp.iterdir()) == []
+    finally:
+        if sh.poll() is None:
+            os.killpg(sh.pid, signal.SIGKILL)
+    time.sleep(0.5)
+    assert leftovers(marker) == []
+
+
+def test_up_sim_keeps_logs_on_failure_and_with_log_dir(tmp_path):
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    env = dict(env_with_domain(), TMPDIR=str(tmp))
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("not: a parameter file\n")
+    p = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "up", "sim", "--episodes", "1",
+                        "--config", str(bad)], capture_output=True, text=True, timeout=120, env=env)
+    assert p.returncode == 1
+    kept = list(tmp.iterdir())
+    assert len(kept) == 1 and f"node logs kept in {kept[0]}" in p.stderr, p.stderr
+    assert "sim_node exited" in p.stderr and (kept[0] / "sim_node.log").read_text()
+    logs = tmp_path / "logs"
+    p = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "up", "sim", "--episodes", "1", "--mode",
+                        "lockstep", "--seed", "474747", "--log-dir", str(logs)], capture_output=True, text=True,
+                       timeout=240, env=env)
+    assert p.returncode == 0, p.stderr
+    assert "episode 0" in (logs / "sim_node.log").read_text()
+    assert "loaded RLD actor" in (logs / "policy_node.log").read_text()
+    assert len(list(tmp.iterdir())) == 1      # only the failed run's folder
+
+
+def test_up_sim_first_attempt_time_is_the_environments(tmp_path):
+    """Realtime: the first attempt's simulated time equals the same seed's attempt run
+    in-process with the same actor (the node's start-up is not counted), within 0.2 s."""
+    from lhd_sim_node.env import LhdLoadingEnv
+
+    from lhd_loading_ros.nodes.policy_node import default_policy_dir
+    from lhd_loading_ros.policy.actor_file import load_policy
+
+    seed, slope = 7, 20.0
+    pol = load_policy(default_policy_dir("rld"))
+    env = LhdLoadingEnv("rld", deploy_filter=True)
+    obs, _ = env.reset(seed=seed, options={"slope_deg": slope, "material": "homogeneous"})
+    while True:
+        obs, _, term, trunc, info = env.step(np.clip(pol.actor(obs), -1, 1))
+        if term or trunc:
+            break
+    ref = info["episode_result"]
+    p = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "up", "sim", "--mode", "realtime",
+                        "--episodes", "1", "--slope", str(slope), "--material", "homogeneous", "--seed", str(seed),
+                        "--json"], capture_output=True, text=True, timeout=240, env=env_with_domain())
+    assert p.returncode == 0, p.stderr[-3000:]
+    first = json.loads(p.stdout)["episodes"][0]
+    assert first["elapsed_s"] == pytest.approx(ref.elapsed_s, abs=0.2), (first, ref)
+
+
+def test_up_sim_namespace_and_sim_time(tmp_path):
+    """--namespace: both nodes under /lhd_ns, so a simulator in the root namespace of the same
+    domain is neither refused nor disturbed; --use-sim-time: both nodes on the sim's clock,
+    which under a namespace is /lhd_ns/clock (the launcher remaps /clock for them)."""
+    init_ros()
+    node = rclpy.create_node("up_ns_test")
+    ns_status, root_cmds, stamps = [], [], {}
+
+    def on_diag(arr):
+        for st in arr.status:
+            who = st.name.split(":")[0]
+            stamps.setdefault(who, []).append(arr.header.stamp.sec + arr.header.stamp.nanosec * 1e-9)
+
+    node.create_subscription(DiagnosticStatus, "/lhd_ns/episode", ns_status.append, STATUS_QOS)
+    node.create_subscription(Float64MultiArray, "/lhd/cmd", root_cmds.append, 10)
+    node.create_subscription(DiagnosticArray, "/diagnostics", on_diag, 50)
+    root_sim = RosProcess("lhd_sim_node.sim_node", {"mode": "lockstep"}, tmp_path / "root_sim.log")
+    up = None
+    try:
+        assert spin_until(node, lambda: node.count_publishers("/lhd/joint_states") > 0, 60), root_sim.log()
+        up = subprocess.Popen([sys.executable, "-m", "lhd_loading_ros.cli.main", "up", "sim", "--namespace", "lhd_ns",
+                               "--use-sim-time", "--episodes", "2", "--slope", "20", "--seed", "484848", "--json"],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        assert spin_until(node, lambda: up.poll() is not None, 240, step=0.1)
+        out, err = up.communicate()
+        assert up.returncode == 0, err[-3000:]
+        assert [e["success_level"] > 0 for e in json.loads(out)["episodes"]] == [True, True]
+        assert any(kv.key == "state" and kv.value == "success" for m in ns_status for kv in m.values)
+        assert root_cmds == []                      # the root simulator heard no command
+        assert root_sim.alive()
+        for who in ("/lhd_ns/lhd_policy", "/lhd_ns/lhd_sim"):
+            assert stamps.get(who), sorted(stamps)
+            # sim time (seconds since the episode's start), not wall time; and it moved
+            assert max(stamps[who]) < 1e6 and max(stamps[who]) > 0, (who, stamps[who])
+        assert min(stamps["/lhd_sim"]) > 1e9       # the root simulator kept wall time
+    finally:
+        if up is not None and up.poll() is None:
+            up.kill()
+        node.destroy_node()
+        shutdown_ros()
+        assert root_sim.stop() == 0, root_sim.log()
+
+
+def test_up_sim_rejects_a_bad_namespace():
+    p = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "up", "sim", "--namespace", "/2bad"],
+                       capture_output=True, text=True, timeout=60, env=env_with_domain())
+    assert p.returncode == 2
+    assert "--namespace '/2bad'" in p.stderr and "number" in p.stderr and "Traceback" not in p.stderr
 
 
 def test_up_sim_stops_cleanly_on_ctrl_c():

@@ -1,7 +1,16 @@
 """`lhd up sim`: the sim node and the policy node as separate processes on real DDS (what
 launch/sim_loading.launch.py does where `ros2 launch` exists), watched until the asked
-episodes are done, then stopped cleanly. Ctrl-C stops both; children also die with the
-launcher (PR_SET_PDEATHSIG), so no orphan is left behind.
+episodes are done, then stopped cleanly (the policy first, by SIGTERM). Ctrl-C or SIGTERM stop
+both; children also die with the launcher (PR_SET_PDEATHSIG), so no orphan is left behind.
+
+Started in the background of a script, the shell makes it ignore SIGINT (the rule for
+background jobs, so that Ctrl-C to the script does not reach them); the launcher keeps that
+rule, stops cleanly on SIGTERM (`kill`), and takes no signal handler from rclpy, which would
+override the ignored SIGINT and shut its ROS context down under it.
+
+Logs: the nodes' output goes to a temporary folder that is removed at exit; after a failure
+(a node exited, a timeout) the folder is kept and the message says where. `--log-dir` keeps
+the logs in a folder of your choice.
 
 `lhd demo` is `lhd up sim` on piles of 15, 20, 25 and 30 deg (homogeneous, 3 attempts each)
 with the shipped RLD actor, printing the paper's results-table layout.
@@ -13,9 +22,12 @@ import ctypes
 import json
 import math
 import os
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -33,8 +45,11 @@ def _die_with_parent():
 
 
 class Child:
-    def __init__(self, name: str, module: str, params: dict, log_dir: Path, quiet: bool):
-        args = [sys.executable, "-m", module, "--ros-args"]
+    """A node process: `python -m module --ros-args [ros_args] -p k:=v ...`, output to
+    log_dir/<name>.log when quiet."""
+
+    def __init__(self, name: str, module: str, params: dict, log_dir: Path, quiet: bool, ros_args=()):
+        args = [sys.executable, "-m", module, "--ros-args", *ros_args]
         for k, v in params.items():
             args += ["-p", f"{k}:={v}"]
         self.name = name
@@ -48,9 +63,11 @@ class Child:
         return self.proc.poll() is None
 
     def stop(self, timeout: float = 10.0) -> int:
+        """SIGTERM (run_node's orderly stop; unlike SIGINT, never inherited as ignored from a
+        script's background job), SIGKILL after `timeout`."""
         if self.proc.poll() is None:
             try:
-                os.killpg(self.proc.pid, signal.SIGINT)
+                os.killpg(self.proc.pid, signal.SIGTERM)
                 self.proc.wait(timeout)
             except subprocess.TimeoutExpired:
                 os.killpg(self.proc.pid, signal.SIGKILL)
@@ -72,18 +89,57 @@ def result_from_status(kv: dict) -> EpisodeResult:
         alpha_deg=float(kv["slope_deg"]), material=kv["material"])
 
 
+class _StopOnSignals:
+    """SIGTERM, and SIGINT unless it was ignored when we started (a script's background job),
+    set `event`; the previous handlers come back on exit. Only the flag is touched in the
+    handler, so the stop runs in order from the main loop (as in ros/run.py's run_node)."""
+
+    def __init__(self, event: threading.Event):
+        self.event, self.previous = event, {}
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                if signal.getsignal(sig) is not signal.SIG_IGN:
+                    self.previous[sig] = signal.signal(sig, lambda *_: self.event.set())
+        return self
+
+    def __exit__(self, *exc):
+        for sig, handler in self.previous.items():
+            signal.signal(sig, handler)
+
+
+def namespace_ros_args(namespace: str | None, use_sim_time: bool) -> list[str]:
+    """--ros-args for both nodes: the namespace (every /lhd topic moves under it, as
+    ros/params.topic_prefix says) and, for use_sim_time, /clock remapped to the namespace's
+    clock, which is where the sim node publishes it under a namespace."""
+    args = []
+    if namespace:
+        args += ["-r", f"__ns:={namespace}"]
+        if use_sim_time:
+            args += ["-r", f"/clock:={namespace}/clock"]
+    if use_sim_time:
+        args += ["-p", "use_sim_time:=true"]
+    return args
+
+
 def up_sim(policy: str | None, slopes: list[float] | None, episodes: int, material: str, mode: str, seed: int,
            config: str | None, quiet: bool = True, log_dir: Path | None = None, timeout_s: float = 0.0,
-           on_episode=None) -> list[EpisodeResult]:
-    """Run sim node + policy node until `episodes` episodes ended (0: until Ctrl-C)."""
+           on_episode=None, namespace: str | None = None, use_sim_time: bool = False) -> list[EpisodeResult]:
+    """Run sim node + policy node until `episodes` episodes ended (0: until Ctrl-C / SIGTERM).
+    Logs go to `log_dir` (kept) or to a temporary folder, removed unless something failed."""
     import rclpy
     from diagnostic_msgs.msg import DiagnosticStatus
+    from rclpy.signals import SignalHandlerOptions
 
     from lhd_loading_ros.ros.qos import STATUS_QOS
 
-    log_dir = Path(log_dir or Path(os.environ.get("TMPDIR", "/tmp")) / f"lhd_up_{os.getpid()}")
+    keep_logs = log_dir is not None
+    log_dir = Path(log_dir) if keep_logs else Path(tempfile.mkdtemp(prefix="lhd_up_"))
     log_dir.mkdir(parents=True, exist_ok=True)
+    prefix = namespace or "/lhd"
     common = {"config": config} if config else {}
+    ros_args = namespace_ros_args(namespace, use_sim_time)
     sim_params = {**common, "mode": mode, "seed": seed, "episodes": episodes, "material": material,
                   "auto_reset": "true", "reset_delay": 0.5}
     if slopes:
@@ -92,10 +148,9 @@ def up_sim(policy: str | None, slopes: list[float] | None, episodes: int, materi
                   "input_qos": "reliable" if mode == "lockstep" else "sensor_data"}
     if policy:
         pol_params["policy_dir"] = str(Path(policy).resolve())
-    rclpy.init()
-    node = rclpy.create_node("lhd_up")
+    stop = threading.Event()
     seen: dict[int, EpisodeResult] = {}
-    done = {"all": False}
+    done = {"all": False, "heard": False}
 
     def on_status(msg):
         kv = {k.key: k.value for k in msg.values}
@@ -110,52 +165,64 @@ def up_sim(policy: str | None, slopes: list[float] | None, episodes: int, materi
         if kv.get("all_done") == "True":
             done["all"] = True
 
-    # another simulator, bridge or policy on this domain would mix its topics with ours
-    t_check = time.monotonic() + 3.0      # DDS discovery of existing participants
-    busy = {}
-    while not busy and time.monotonic() < t_check:
+    def spin_checked(children, t0):
         rclpy.spin_once(node, timeout_sec=0.1)
-        busy = {t: n for t in ("/lhd/joint_states", "/lhd/odom", "/lhd/cmd", "/lhd/episode")
-                if (n := node.count_publishers(t))}
-    if busy:
-        node.destroy_node()
-        rclpy.shutdown()
-        raise RuntimeError(f"ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID', '0')} already has publishers on {busy}: "
-                           "another LHD simulator, bridge or policy is running there. Stop it, or set "
-                           "ROS_DOMAIN_ID to a free domain for this run")
-    node.create_subscription(DiagnosticStatus, "/lhd/episode", on_status, STATUS_QOS)
-    # the sim node first; the policy node once this watcher hears the sim's episode status, so
-    # no episode can end before the watcher is matched (lockstep episodes take 0.1 s)
-    children = [Child("sim_node", "lhd_sim_node.sim_node", sim_params, log_dir, quiet)]
-    t0 = time.monotonic()
-    interrupted = False
-    try:
-        while not done.get("heard"):
-            rclpy.spin_once(node, timeout_sec=0.1)
-            if not children[0].alive():
-                tail = children[0].log_path.read_text()[-2000:] if quiet else ""
-                raise RuntimeError(f"sim_node exited with status {children[0].proc.returncode}:\n{tail}")
-            if time.monotonic() - t0 > 120:
-                raise TimeoutError(f"no episode status from the sim node after 120 s (logs in {log_dir})")
-        children.append(Child("policy_node", "lhd_loading_ros.nodes.policy_node", pol_params, log_dir, quiet))
-        while not done["all"]:
-            rclpy.spin_once(node, timeout_sec=0.1)
-            dead = [c for c in children if not c.alive()]
-            if dead:
-                c = dead[0]
+        for c in children:
+            if not c.alive():
                 tail = c.log_path.read_text()[-2000:] if quiet else ""
                 raise RuntimeError(f"{c.name} exited with status {c.proc.returncode}:\n{tail}")
-            if timeout_s and time.monotonic() - t0 > timeout_s:
-                raise TimeoutError(f"episodes not done after {timeout_s:.0f} s (logs in {log_dir})")
-    except KeyboardInterrupt:
-        interrupted = True
-    finally:
-        for c in reversed(children):     # the policy first: the machine gets no command after the sim stops
-            c.stop()
-        node.destroy_node()
-        if rclpy.ok():
-            rclpy.shutdown()
-    if interrupted:
+        if timeout_s and time.monotonic() - t0 > timeout_s:
+            raise TimeoutError(f"episodes not done after {timeout_s:.0f} s")
+
+    children: list[Child] = []
+    failed = True
+    with _StopOnSignals(stop):
+        rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+        node = rclpy.create_node("lhd_up")
+        try:
+            # another simulator, bridge or policy on this domain and namespace would mix its
+            # topics with ours
+            t_check = time.monotonic() + 3.0      # DDS discovery of existing participants
+            busy = {}
+            while not busy and time.monotonic() < t_check and not stop.is_set():
+                rclpy.spin_once(node, timeout_sec=0.1)
+                busy = {t: n for t in (f"{prefix}/{name}" for name in ("joint_states", "odom", "cmd", "episode"))
+                        if (n := node.count_publishers(t))}
+            if busy:
+                raise RuntimeError(f"ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID', '0')} already has publishers on "
+                                   f"{busy}: another LHD simulator, bridge or policy is running there. Stop it, or set "
+                                   "ROS_DOMAIN_ID to a free domain (or --namespace to a free namespace) for this run")
+            node.create_subscription(DiagnosticStatus, f"{prefix}/episode", on_status, STATUS_QOS)
+            # the sim node first; the policy node once this watcher hears the sim's episode status,
+            # so no episode can end before the watcher is matched (lockstep episodes take 0.1 s).
+            # The sim's episode waits for the first command, so the policy's start-up is not
+            # counted in the first attempt.
+            t0 = time.monotonic()
+            if not stop.is_set():
+                children.append(Child("sim_node", "lhd_sim_node.sim_node", sim_params, log_dir, quiet, ros_args))
+            while not done["heard"] and not stop.is_set():
+                spin_checked(children, t0)
+                if time.monotonic() - t0 > 120:
+                    raise TimeoutError("no episode status from the sim node after 120 s")
+            if not stop.is_set():
+                children.append(Child("policy_node", "lhd_loading_ros.nodes.policy_node", pol_params, log_dir, quiet,
+                                      ros_args))
+            while not done["all"] and not stop.is_set():
+                spin_checked(children, t0)
+            failed = False
+        except (RuntimeError, TimeoutError) as exc:
+            if children and quiet:
+                raise type(exc)(f"{exc}\n(node logs kept in {log_dir})") from None
+            raise
+        finally:
+            for c in reversed(children):     # the policy first: the machine gets no command after the sim stops
+                c.stop()
+            node.destroy_node()
+            if rclpy.ok():
+                rclpy.shutdown()
+            if not keep_logs and not (failed and quiet and children):
+                shutil.rmtree(log_dir, ignore_errors=True)
+    if stop.is_set():
         print("\ninterrupted: nodes stopped", file=sys.stderr)
     return [seen[k] for k in sorted(seen)]
 
@@ -172,6 +239,10 @@ def main(argv=None, demo: bool = False) -> int:
     ap.add_argument("--mode", choices=["realtime", "lockstep"], default="realtime")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--config", default=None)
+    ap.add_argument("--namespace", help="run both nodes in this ROS namespace (their topics move from /lhd to it)")
+    ap.add_argument("--use-sim-time", action="store_true", help="both nodes on the sim node's /clock")
+    ap.add_argument("--log-dir", type=Path, help="keep the nodes' logs here (default: a temporary folder, "
+                                                 "removed at exit unless a node failed)")
     ap.add_argument("--verbose", action="store_true", help="show the nodes' logs")
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--scripted", action="store_true", help=argparse.SUPPRESS if not demo else
@@ -183,6 +254,15 @@ def main(argv=None, demo: bool = False) -> int:
         return scripted_main(["--json"] if args.json else [])
     if args.episodes < 0:
         ap.error(f"--episodes must be >= 0, got {args.episodes}")
+    if args.namespace:
+        from rclpy.exceptions import InvalidNamespaceException
+        from rclpy.validate_namespace import validate_namespace
+
+        args.namespace = "/" + args.namespace.strip("/")
+        try:
+            validate_namespace(args.namespace)
+        except InvalidNamespaceException as exc:
+            ap.error(f"--namespace {args.namespace!r}: {str(exc).splitlines()[0].rstrip(':')}")
     slopes = args.slopes or ([args.slope] if args.slope is not None else ([15, 20, 25, 30] if demo else None))
     from lhd_loading_ros.policy.actor_file import PolicyFileError, load_policy
     from lhd_loading_ros.nodes.policy_node import default_policy_dir
@@ -203,11 +283,12 @@ def main(argv=None, demo: bool = False) -> int:
 
     if not args.json:
         print(f"{ap.prog}: sim node ({args.mode}) + policy node ({pol.variant.upper()} actor {policy}), "
-              f"{args.episodes or 'unlimited'} episodes, Ctrl-C stops", flush=True)
+              f"{args.episodes or 'unlimited'} episodes, Ctrl-C or SIGTERM stops", flush=True)
     t0 = time.monotonic()
     try:
         results = up_sim(policy, slopes, args.episodes, args.material, args.mode, args.seed, args.config,
-                         quiet=not args.verbose, on_episode=show, timeout_s=0.0)
+                         quiet=not args.verbose, log_dir=args.log_dir, on_episode=show, namespace=args.namespace,
+                         use_sim_time=args.use_sim_time)
     except (RuntimeError, TimeoutError) as exc:
         print(f"{ap.prog}: {exc}", file=sys.stderr)
         return 1
