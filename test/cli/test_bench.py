@@ -1,10 +1,13 @@
 """The simulator benchmark runs, prints its figures, and its physics-only replay goes through
 exactly the env's states (otherwise it would time different physics)."""
 import json
+import os
 import subprocess
 import sys
 
 from lhd_sim_node.bench import bench_sim
+
+from rosutil import unique_domain_id
 
 
 def test_bench_replays_the_same_physics():
@@ -40,3 +43,17 @@ def test_lhd_mjcf_writes_a_model_mujoco_loads(tmp_path):
                    capture_output=True)
     m = mujoco.MjModel.from_xml_path(str(out))
     assert m.nu == 6 and abs(sum(m.body_mass) - 121.0) < 1e-6
+
+
+def test_lhd_bench_node_runs_and_leaves_no_temporary_folder(tmp_path):
+    """The policy node against a real sim node process; the sim's log folder goes at exit."""
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    env = dict(os.environ, TMPDIR=str(tmp), ROS_DOMAIN_ID=str(unique_domain_id()))
+    p = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "bench", "node", "--json", "--cycles", "20"],
+                       capture_output=True, text=True, timeout=240, env=env)
+    assert p.returncode == 0, p.stderr[-3000:]
+    res = json.loads(p.stdout)
+    assert res["cycles"] >= 20 and res["rate_hz"] == 10.0
+    assert 0 < res["latency_p50_ms"] <= res["latency_p99_ms"]
+    assert list(tmp.iterdir()) == []

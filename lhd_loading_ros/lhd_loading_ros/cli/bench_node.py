@@ -18,29 +18,31 @@ def bench_node(cycles: int = 1000, policy: str | None = None) -> dict:
     from lhd_loading_ros.nodes.policy_node import PolicyNode
 
     os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 100))
-    log_dir = Path(tempfile.mkdtemp(prefix="lhd_bench_node_"))
-    sim = Child("sim_node", "lhd_sim_node.sim_node", {"mode": "realtime", "reset_delay": 0.0}, log_dir, quiet=True)
-    rclpy.init()
-    overrides = [Parameter("policy_dir", value=policy)] if policy else []
-    node = PolicyNode(parameter_overrides=overrides)
-    ex = SingleThreadedExecutor()
-    ex.add_node(node)
-    try:
-        t_end = time.monotonic() + 60.0
-        while not node.latencies_ms and time.monotonic() < t_end:     # the sim node is up and publishing
-            ex.spin_once(timeout_sec=0.05)
-        if not node.latencies_ms:
-            raise RuntimeError("the policy node produced no command from the sim node's topics within 60 s")
-        node.latencies_ms.clear()
-        node.periods_ms.clear()
-        while len(node.latencies_ms) < cycles:
-            ex.spin_once(timeout_sec=0.2)
-        s = node.stats()
-    finally:
-        ex.remove_node(node)
-        node.destroy_node()
-        rclpy.shutdown()
-        sim.stop()
+    with tempfile.TemporaryDirectory(prefix="lhd_bench_node_") as log_dir:
+        sim = Child("sim_node", "lhd_sim_node.sim_node", {"mode": "realtime", "reset_delay": 0.0}, Path(log_dir),
+                    quiet=True)
+        rclpy.init()
+        overrides = [Parameter("policy_dir", value=policy)] if policy else []
+        node = PolicyNode(parameter_overrides=overrides)
+        ex = SingleThreadedExecutor()
+        ex.add_node(node)
+        try:
+            t_end = time.monotonic() + 60.0
+            while not node.latencies_ms and time.monotonic() < t_end:     # the sim node is up and publishing
+                ex.spin_once(timeout_sec=0.05)
+            if not node.latencies_ms:
+                raise RuntimeError("the policy node produced no command from the sim node's topics within 60 s; "
+                                   f"sim node log:\n{sim.log_path.read_text()[-2000:]}")
+            node.latencies_ms.clear()
+            node.periods_ms.clear()
+            while len(node.latencies_ms) < cycles:
+                ex.spin_once(timeout_sec=0.2)
+            s = node.stats()
+        finally:
+            ex.remove_node(node)
+            node.destroy_node()
+            rclpy.shutdown()
+            sim.stop()
     return {"latency_p50_ms": round(s["latency_p50_ms"], 4), "latency_p99_ms": round(s["latency_p99_ms"], 4),
             "jitter_p99_ms": round(s["jitter_p99_ms"], 3), "cycles": len(node.latencies_ms),
             "rate_hz": node.rate_hz}
