@@ -1,9 +1,11 @@
 """`ros2 run lhd_sim_node sim_node`: the MuJoCo LHD and its FEE pile behind the topic contract.
 
-Publishes (namespace_prefix, default /lhd), in this order after every control period:
-  /clock                        rosgraph_msgs/Clock         sim time (nodes run with use_sim_time)
-  /lhd/pile/slope               std_msgs/Float64            alpha, rad (truth)
-  /lhd/pile/end_zone            std_msgs/Float64MultiArray  [x_min, x_max, z_min] m (truth)
+Publishes (namespace_prefix, default /lhd; under `-r __ns:=/lhd2` the namespace instead), in
+this order after every control period:
+  clock                         rosgraph_msgs/Clock         sim time; relative name: /clock in the root
+                                namespace, /lhd2/clock under /lhd2
+  /lhd/pile/slope               std_msgs/Float64            alpha, rad (truth); latched
+  /lhd/pile/end_zone            std_msgs/Float64MultiArray  [x_min, x_max, z_min] m (truth); latched
   /lhd/wheel_drift/front, /rear, /lhd/wheel_drift           std_msgs/Bool
   /lhd/episode                  diagnostic_msgs/DiagnosticStatus  state, episode, step, loaded
                                 mass, outcome and reason, stamp_ns of the state it describes
@@ -11,19 +13,24 @@ Publishes (namespace_prefix, default /lhd), in this order after every control pe
                                 twist.linear.x = v_x (forward speed along the pile's x axis)
   /lhd/joint_states             sensor_msgs/JointState      boom, bucket, articulation (position,
                                 velocity), wheels (velocity)
+and /diagnostics (episode, commands, real time) every second.
 Subscribes /lhd/cmd (std_msgs/Float64MultiArray [u_wheels, u_boom, u_bucket] rad/s).
 Service ~/reset (std_srvs/Trigger): a new episode now.
 
 Modes (parameter `mode`):
-  realtime  physics on the wall clock, one control period per 1/frequency s; the latest
-            command is held; a command older than cmd_timeout (0.3 s) brakes the wheels and
-            holds the arm (zero speeds), with a throttled warning.
+  realtime  physics on the wall clock (steady timer), one control period per 1/frequency s;
+            an episode's physics starts at its first command (until then the initial state
+            is repeated at the control rate and no simulated time passes); the latest command
+            is held; a command older than cmd_timeout (0.3 s) brakes the wheels and holds the
+            arm (zero speeds), with a throttled warning.
   lockstep  exactly one control period per received command; deterministic; as fast as the
             policy answers. The stamps of /lhd/odom, /lhd/joint_states and /lhd/episode
             name the state, so a subscriber can wait for a complete set.
 Episodes: episode k uses seed `seed + k` and the slope / material parameters (negative slope
 or "random": drawn by the simulator; `slopes_deg` "15,20,25,30" cycles through a list), like
-LhdLoadingEnv.reset(seed=seed + k, options={"slope_deg": ..., "material": ...}).
+LhdLoadingEnv.reset(seed=seed + k, options={"slope_deg": ..., "material": ...}). slope_deg,
+slopes_deg, material, auto_reset, reset_delay and cmd_timeout may change at run time
+(`ros2 param set`); the others are read-only (docs/ros_nodes.md).
 """
 from __future__ import annotations
 
@@ -43,7 +50,9 @@ from std_srvs.srv import Trigger
 
 from lhd_loading_ros.task.config import load_config
 from lhd_loading_ros.ros.qos import COMMAND_QOS, MEASUREMENT_QOS, STATUS_QOS
-from lhd_loading_ros.ros.run import number_param, run_node
+from lhd_loading_ros.ros.diagnostics import OK, WARN, Diagnostics
+from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
+from lhd_loading_ros.ros.run import run_node
 
 from .env import LhdLoadingEnv
 from .simulator import MATERIALS
@@ -66,45 +75,57 @@ def ns_time(t_ns: int):
 class SimNode(Node):
     def __init__(self, **node_kwargs):
         super().__init__("lhd_sim", **node_kwargs)
-        self.declare_parameter("config", "")
-        cfg = load_config(self.get_parameter("config").value or None)
-        self.declare_parameter("mode", "realtime")
-        self.declare_parameter("seed", 0)
-        self.declare_parameter("slope_deg", -1.0)
-        # "15,20,25,30", [15.0, 20.0] or one number: any of them from the command line or YAML
-        self.declare_parameter("slopes_deg", "", ParameterDescriptor(dynamic_typing=True))
-        self.declare_parameter("material", "random")
-        self.declare_parameter("episodes", 0)
-        self.declare_parameter("auto_reset", True)
-        self.declare_parameter("reset_delay", 1.0)
-        self.declare_parameter("cmd_timeout", cfg["hardware"]["cmd_timeout"])
-        self.declare_parameter("namespace_prefix", "/lhd")
-        self.declare_parameter("frame_id", "pile")
-        self.declare_parameter("base_frame_id", "base_link")
-        gp = lambda n: self.get_parameter(n).value  # noqa: E731
+        # the parameter file gives the defaults and ranges of the others: peek at `config` before
+        # declaring them all through one Params (rclpy concatenates the parameter lists of several
+        # pre-set callbacks, so two Params on one node would duplicate every runtime change)
+        peek = self.declare_parameter("config", "", ParameterDescriptor(dynamic_typing=True)).value
+        self.undeclare_parameter("config")
+        cfg = load_config(peek if isinstance(peek, str) and peek else None)   # a wrong type: Params says so
+        self.alpha_range_deg = (cfg["paper"]["episode"]["alpha_min_deg"], cfg["paper"]["episode"]["alpha_max_deg"])
+        lo, hi = self.alpha_range_deg
+        self.slopes: list[float] = []
+        self.slope_deg: float | None = None
+        self.params = Params(self, [
+            Param("config", "", "lhd_params.yaml to use; empty: found automatically (LHD_CONFIG, then the "
+                  "package's)"),
+            Param("mode", "realtime", "realtime: physics on the wall clock, sample-and-hold; lockstep: one control "
+                  "period per received command", choices=MODES),
+            Param("seed", 0, "episode k uses seed + k", lo=0, hi=2**31 - 1),
+            Param("slopes_deg", "", f"slopes to cycle through, degrees in [{lo:g}, {hi:g}] ('15,20,25,30', a list or "
+                  "one number; empty: use slope_deg); a change applies from the next episode", dynamic_type=True,
+                  check=self._check_slopes, on_change=self._set_slopes),
+            Param("slope_deg", -1.0, f"pile slope, degrees in [{lo:g}, {hi:g}]; negative: random per episode; a "
+                  "change applies from the next episode", check=self._check_slope, on_change=self._set_slope),
+            Param("material", "random", "pile material (random: drawn per episode); a change applies from the next "
+                  "episode", choices=(*MATERIALS, "random"), on_change=self._set_material),
+            Param("episodes", 0, "episodes to run before stopping auto-reset (0: no limit)", lo=0, hi=10**9),
+            Param("auto_reset", True, "start the next episode by itself (after reset_delay in realtime mode)",
+                  on_change=self._set_auto_reset),
+            Param("reset_delay", 1.0, "s between the end of an episode and the next one (realtime mode)",
+                  lo=0.0, hi=60.0, on_change=lambda v: setattr(self, "reset_delay", v)),
+            Param("cmd_timeout", float(cfg["hardware"]["cmd_timeout"]), "s: a command older than this brakes the "
+                  "wheels and holds the arm (realtime mode)", lo=0.01, hi=10.0,
+                  on_change=lambda v: setattr(self, "cmd_timeout", v)),
+            Param("namespace_prefix", "/lhd", "topic prefix in the root namespace (under a namespace, the "
+                  "namespace is the prefix)"),
+            Param("frame_id", "pile", "frame of /odom's pose"),
+            Param("base_frame_id", "base_link", "child frame of /odom"),
+        ])
+        gp = self.params.__getitem__
+        self._set_slopes(gp("slopes_deg"))
+        self._set_slope(gp("slope_deg"))
+        if self.slopes and self.slope_deg is not None:     # the checks above ran before both were known
+            raise ValueError(f"parameter 'slope_deg' = {self.slope_deg:g} is invalid: slopes_deg = {self.slopes} "
+                             "is set too; give one of the two")
         self.mode = gp("mode")
-        if self.mode not in MODES:
-            raise ValueError(f"parameter 'mode' = {self.mode!r} is invalid; expected one of {MODES}")
-        self.seed = number_param(self, "seed", 0, 2**31 - 1, integer=True)
-        self.episodes_max = number_param(self, "episodes", 0, 10**9, integer=True)
-        slope = gp("slope_deg")
-        if not isinstance(slope, (int, float)) or not math.isfinite(slope):
-            raise ValueError(f"parameter 'slope_deg' = {slope!r} is invalid; expected degrees, negative for random")
-        lo, hi = cfg["paper"]["episode"]["alpha_min_deg"], cfg["paper"]["episode"]["alpha_max_deg"]
-        if slope >= 0 and not (lo <= slope <= hi):
-            raise ValueError(f"parameter 'slope_deg' = {slope} is out of range; expected [{lo}, {hi}] degrees "
-                             "or negative for a random slope")
-        self.slope_deg = float(slope) if slope >= 0 else None
-        self.slopes = self._slope_list(gp("slopes_deg"), lo, hi)
-        material = gp("material")
-        if material not in (*MATERIALS, "random"):
-            raise ValueError(f"parameter 'material' = {material!r} is invalid; expected one of {(*MATERIALS, 'random')}")
-        self.material = None if material == "random" else material
-        self.cmd_timeout = number_param(self, "cmd_timeout", 0.01, 10.0)
-        self.reset_delay = number_param(self, "reset_delay", 0.0, 60.0)
-        self.auto_reset = bool(gp("auto_reset"))
+        self.seed = gp("seed")
+        self.episodes_max = gp("episodes")
+        self.material = None if gp("material") == "random" else gp("material")
+        self.cmd_timeout = gp("cmd_timeout")
+        self.reset_delay = gp("reset_delay")
+        self.auto_reset = gp("auto_reset")
         self.frame_id, self.base_frame_id = gp("frame_id"), gp("base_frame_id")
-        ns = gp("namespace_prefix").rstrip("/")
+        ns = topic_prefix(self, gp("namespace_prefix"))
 
         self.env = LhdLoadingEnv("rld", cfg)   # stepped with actuator commands: the variant is not used
         self.sim = self.env.sim
@@ -116,9 +137,13 @@ class SimNode(Node):
         self._wheel_q = [m.jnt_qposadr[m.joint(w).id] for w in JOINTS[3:]]
         self._wheel_v = [m.jnt_dofadr[m.joint(w).id] for w in JOINTS[3:]]
 
-        self.pub_clock = self.create_publisher(Clock, "/clock", CLOCK_QOS)
-        self.pub_slope = self.create_publisher(Float64, f"{ns}/pile/slope", MEASUREMENT_QOS)
-        self.pub_zone = self.create_publisher(Float64MultiArray, f"{ns}/pile/end_zone", MEASUREMENT_QOS)
+        # relative name: /clock in the root namespace, <ns>/clock under a namespace, so that two
+        # simulators on one domain do not both drive /clock (a namespaced consumer with
+        # use_sim_time remaps: -r /clock:=<ns>/clock)
+        self.pub_clock = self.create_publisher(Clock, "clock", CLOCK_QOS)
+        # slope and end zone change once per episode: latched, like a surveyed constant
+        self.pub_slope = self.create_publisher(Float64, f"{ns}/pile/slope", STATUS_QOS)
+        self.pub_zone = self.create_publisher(Float64MultiArray, f"{ns}/pile/end_zone", STATUS_QOS)
         self.pub_front = self.create_publisher(Bool, f"{ns}/wheel_drift/front", MEASUREMENT_QOS)
         self.pub_rear = self.create_publisher(Bool, f"{ns}/wheel_drift/rear", MEASUREMENT_QOS)
         self.pub_drift = self.create_publisher(Bool, f"{ns}/wheel_drift", MEASUREMENT_QOS)
@@ -135,37 +160,74 @@ class SimNode(Node):
         self.result = None
         self._cmd = np.zeros(3)
         self._cmd_time = None            # monotonic arrival time of the latest valid command
+        self._started = False            # realtime: physics runs from the episode's first command on
+        self._ended_at = None            # monotonic time the episode ended (realtime auto-reset)
         self.rejected = 0
+        self.last_rejection = ""
         self.stale_stops = 0
-        self._reset_due = None
+        self.overruns = 0                # realtime ticks later than 1.5 control periods after the previous
+        self._last_tick = None
         self._last_publish = 0.0
+        self._window = {"t": time.monotonic(), "sim_ns": 0, "rejected": 0, "stale": 0, "overruns": 0}
         self._new_episode()
+        # the steady clock: with use_sim_time the node's clock is the /clock this node publishes,
+        # and a timer on it would wait on itself
         if self.mode == "realtime":
-            self.create_timer(self.dt, self._tick_realtime)
+            steady_timer(self, self.dt, self._tick_realtime)
         else:
             # lockstep waits for a command; a subscriber that joined late (or lost a message)
             # would wait for a state: repeat the current one (same stamp) while nothing happens
-            self.create_timer(0.5, self._repeat_state)
+            steady_timer(self, 0.5, self._repeat_state)
+        self.diagnostics = Diagnostics(self, {"episode": self._diag_episode, "commands": self._diag_commands,
+                                              "real time": self._diag_realtime}, hardware_id="mujoco")
         self.get_logger().info(f"sim node up: mode {self.mode}, seed {self.seed}, slope "
-                               f"{'random' if self.slope_deg is None else self.slope_deg}, material {material}")
+                               f"{self._slope_text()}, material {gp('material')}, topics under {ns}")
 
     # ------------------------------------------------------------------ parameters
-    def _slope_list(self, text, lo: float, hi: float) -> list[float]:
-        if isinstance(text, (int, float)) and not isinstance(text, bool):
-            text = str(text)
-        elif isinstance(text, (list, tuple)):
-            text = ",".join(str(v) for v in text)
-        if not str(text).strip():
-            return []
+    @staticmethod
+    def _parse_slopes(value) -> list[float]:
+        if isinstance(value, (list, tuple)):
+            value = ",".join(str(v) for v in value)
+        text = str(value).strip()
+        return [float(v) for v in text.split(",")] if text else []
+
+    def _check_slopes(self, value) -> str | None:
+        lo, hi = self.alpha_range_deg
         try:
-            vals = [float(v) for v in str(text).split(",")]
+            vals = self._parse_slopes(value)
         except ValueError:
-            raise ValueError(f"parameter 'slopes_deg' = {text!r} is invalid; expected comma-separated degrees "
-                             "such as '15,20,25,30'") from None
+            return "expected comma-separated degrees such as '15,20,25,30'"
         bad = [v for v in vals if not (lo <= v <= hi)]
         if bad:
-            raise ValueError(f"parameter 'slopes_deg': {bad} out of range; expected degrees in [{lo}, {hi}]")
-        return vals
+            return f"{bad} out of range; expected degrees in [{lo:g}, {hi:g}]"
+        if vals and self.slope_deg is not None:
+            return f"slope_deg = {self.slope_deg:g} is set too; set slope_deg to -1 first (one of the two)"
+        return None
+
+    def _check_slope(self, value: float) -> str | None:
+        lo, hi = self.alpha_range_deg
+        if value >= 0 and not (lo <= value <= hi):
+            return f"out of range; expected degrees in [{lo:g}, {hi:g}], or negative for a random slope"
+        if value >= 0 and self.slopes:
+            return f"slopes_deg = {self.slopes} is set and would take precedence; clear slopes_deg first"
+        return None
+
+    def _set_slopes(self, value) -> None:
+        self.slopes = self._parse_slopes(value)
+
+    def _set_slope(self, value: float) -> None:
+        self.slope_deg = value if value >= 0 else None
+
+    def _set_material(self, value: str) -> None:
+        self.material = None if value == "random" else value
+
+    def _set_auto_reset(self, value: bool) -> None:
+        self.auto_reset = value
+        if value and self.mode == "lockstep" and self.outcome != "running" and not self._finished_all():
+            self._new_episode()       # realtime: the loop sees the flag at its next tick
+
+    def _slope_text(self) -> str:
+        return str(self.slopes) if self.slopes else ("random" if self.slope_deg is None else f"{self.slope_deg:g}")
 
     # ------------------------------------------------------------------ episodes
     def _new_episode(self) -> None:
@@ -178,9 +240,10 @@ class SimNode(Node):
         if self.material is not None:
             opts["material"] = self.material
         self.env.reset(seed=self.seed + self.episode, options=opts)
-        self.outcome, self.result, self._reset_due = "running", None, None
+        self.outcome, self.result, self._ended_at = "running", None, None
         self._cmd[:] = 0.0
         self._cmd_time = None
+        self._started = False
         if self.episode > 0:
             self.t_ns += self.dt_ns      # a fresh stamp for the new episode's first state
         self.publish_state()
@@ -199,8 +262,9 @@ class SimNode(Node):
         data = list(msg.data)
         if len(data) != 3 or not all(math.isfinite(v) for v in data):
             self.rejected += 1
-            self.get_logger().warn(f"rejected /cmd {data}: expected 3 finite values [u_wheels, u_boom, u_bucket] "
-                                   "rad/s", throttle_duration_sec=1.0)
+            self.last_rejection = (f"rejected /cmd {data}: expected 3 finite values [u_wheels, u_boom, u_bucket] "
+                                   "rad/s")
+            self.get_logger().warn(self.last_rejection, throttle_duration_sec=1.0)
             return
         u = np.array(data)
         lo, hi = self._ranges()
@@ -210,6 +274,7 @@ class SimNode(Node):
                                    "clamped", throttle_duration_sec=1.0)
         self._cmd = clipped
         self._cmd_time = time.monotonic()
+        self._started = True
         if self.mode == "lockstep" and self.outcome == "running":
             self._step(self._cmd)
 
@@ -222,16 +287,25 @@ class SimNode(Node):
         return (np.array([p.wheels_min, p.boom_min, p.bucket_min]), np.array([p.wheels_max, p.boom_max, p.bucket_max]))
 
     def _tick_realtime(self) -> None:
+        now = time.monotonic()
+        if self._last_tick is not None and now - self._last_tick > 1.5 * self.dt:
+            self.overruns += 1
+        self._last_tick = now
         if self.outcome != "running":
-            if self._reset_due is not None and time.monotonic() >= self._reset_due:
+            if (self.auto_reset and not self._finished_all() and self._ended_at is not None
+                    and now - self._ended_at >= self.reset_delay):
                 self._new_episode()
             return
-        now = time.monotonic()
-        if self._cmd_time is None or now - self._cmd_time > self.cmd_timeout:
-            if self._cmd_time is not None:
-                self.stale_stops += 1
-                self.get_logger().warn(f"no /cmd for {self.cmd_timeout} s: wheels braked, arm held",
-                                       throttle_duration_sec=2.0)
+        if not self._started:
+            # the episode starts when its controller does: until the first command the physics
+            # holds the initial state (no simulated time passes) and the state is repeated at the
+            # control rate, so a slow start of the controller does not count against the attempt
+            self.publish_state()
+            return
+        if now - self._cmd_time > self.cmd_timeout:
+            self.stale_stops += 1
+            self.get_logger().warn(f"no /cmd for {self.cmd_timeout} s: wheels braked, arm held",
+                                   throttle_duration_sec=2.0)
             u = np.zeros(3)
         else:
             u = self._cmd
@@ -244,16 +318,53 @@ class SimNode(Node):
             self.outcome = info["outcome"] if term else "timeout"
             self.result = info["episode_result"]
             self.episodes_done += 1
+            self._ended_at = time.monotonic()
             r = self.result
             self.get_logger().info(
                 f"episode {self.episode} {self.outcome}: loaded {r.loaded:.1f} kg, SL {r.success_level}, "
                 f"{r.elapsed_s:.1f} s, drift front {r.front_drift_pct:.0f} % rear {r.rear_drift_pct:.0f} %")
         self.publish_state()
-        if self.outcome != "running" and self.auto_reset and not self._finished_all():
-            if self.mode == "lockstep":
-                self._new_episode()
-            else:
-                self._reset_due = time.monotonic() + self.reset_delay
+        if self.outcome != "running" and self.auto_reset and not self._finished_all() and self.mode == "lockstep":
+            self._new_episode()      # realtime: after reset_delay, in _tick_realtime
+
+    # ------------------------------------------------------------------ diagnostics
+    def _since_last(self, **now_counts) -> dict:
+        """Counts since the previous diagnostics report (each source is called once a period)."""
+        out = {k: v - self._window[k] for k, v in now_counts.items()}
+        self._window.update(now_counts)
+        return out
+
+    def _diag_episode(self):
+        waiting = self.mode == "realtime" and self.outcome == "running" and not self._started
+        msg = f"episode {self.episode} {self.outcome}" + (": waiting for the first /cmd" if waiting else "")
+        if self._finished_all():
+            msg += " (all episodes done)"
+        return OK, msg, {"mode": self.mode, "episode": self.episode, "state": self.outcome, "step": self.env.steps,
+                         "sim_time_s": self.t_ns / 1e9, "slope_deg": math.degrees(self.sim.pile.alpha),
+                         "material": self.sim.material, "episodes_done": self.episodes_done,
+                         "waiting_for_first_command": waiting}
+
+    def _diag_commands(self):
+        d = self._since_last(rejected=self.rejected, stale=self.stale_stops)
+        values = {"rejected": self.rejected, "stale_stops": self.stale_stops, "cmd_timeout_s": self.cmd_timeout}
+        if d["rejected"]:
+            return WARN, f"{d['rejected']} command(s) rejected in the last period; last: {self.last_rejection}", values
+        if d["stale"]:
+            return WARN, f"no /cmd for {self.cmd_timeout} s: wheels braked, arm held", values
+        return OK, "commands ok", values
+
+    def _diag_realtime(self):
+        now = time.monotonic()
+        wall = now - self._window["t"]
+        d = self._since_last(t=now, sim_ns=self.t_ns, overruns=self.overruns)
+        rtf = d["sim_ns"] / 1e9 / wall if wall > 0 else 0.0
+        values = {"real_time_factor": rtf, "overruns": self.overruns}
+        if self.mode == "lockstep":
+            return OK, "lockstep: paced by the controller", values
+        if d["overruns"]:
+            return WARN, f"{d['overruns']} control period(s) late by more than half a period in the last period " \
+                         f"(real-time factor {rtf:.2f})", values
+        return OK, f"real-time factor {rtf:.2f}", values
 
     # ------------------------------------------------------------------ publishing
     def _status(self) -> DiagnosticStatus:

@@ -104,3 +104,72 @@ def test_quaternion_rotation_is_proper():
     R = quat_to_mat(*q)
     assert np.allclose(R @ R.T, np.eye(3)) and np.linalg.det(R) == pytest.approx(1.0)
     assert R[0, 2] == pytest.approx(math.sin(0.4))
+
+
+def test_slow_inputs_keep_their_own_timeout(cfg, params):
+    """Slope and end zone come once per attempt (a latched constant, a LiDAR at 1-5 Hz): with no
+    timeout for them, a 10 s old slope is fine while the 10 Hz inputs are fresh; with one, not."""
+    env = LhdLoadingEnv("rld", cfg)
+    env.reset(seed=2, options={"slope_deg": 20.0})
+    core = PolicyCore(lambda o: np.ones(3), "rld", params, ArmKinematics.from_config(cfg), (15.0, 30.0))
+    inp = Inputs()
+    feed(inp, env, 0.0)
+    feed(inp, env, 10.0)
+    for name in ("slope", "end_zone"):          # published once, at t = 0
+        inp.arrival[name] = 0.0
+    assert "slope is 10.10 s old (timeout 0.5 s)" in core.decide(inp, 10.1, 0.5).reason
+    assert core.decide(inp, 10.1, 0.5, {"slope": math.inf, "end_zone": math.inf}).reason == ""
+    d = core.decide(inp, 10.1, 0.5, {"slope": 5.0, "end_zone": math.inf})
+    assert d.command == ZERO_COMMAND and d.reason == "slope is 10.10 s old (timeout 5.0 s)" and d.kind == "inputs"
+    d = core.decide(inp, 10.7, 0.5, {"slope": math.inf, "end_zone": math.inf})  # the 10 Hz inputs keep theirs
+    assert d.command == ZERO_COMMAND and "joints is 0.70 s old (timeout 0.5 s)" in d.reason
+
+
+@pytest.mark.parametrize("slope_deg, refused", [(10.0, True), (14.9, True), (15.0, False), (20.0, False),
+                                                (30.0, False), (30.1, True), (40.0, True)])
+def test_slope_outside_the_trained_range_is_refused_not_clipped(cfg, params, slope_deg, refused):
+    env = LhdLoadingEnv("rld", cfg)
+    env.reset(seed=2, options={"slope_deg": 20.0})
+    core = PolicyCore(lambda o: np.ones(3), "rld", params, ArmKinematics.from_config(cfg), (15.0, 30.0))
+    inp = Inputs()
+    feed(inp, env, 0.0)
+    inp.put("slope", math.radians(slope_deg), 0.0)
+    d = core.decide(inp, 0.1, 0.5)
+    if refused:
+        assert d.command == ZERO_COMMAND and d.kind == "out_of_range" and d.observation is None
+        assert d.reason == (f"slope {slope_deg:.1f} deg is outside the range the actor was trained on [15, 30] deg: "
+                            "refused, not clipped")
+    else:
+        assert d.reason == "" and d.command != ZERO_COMMAND
+
+
+def test_trained_range_from_the_card_or_its_training_config(cfg, tmp_path):
+    import json
+    import shutil
+
+    from pathlib import Path
+
+    from lhd_loading_ros.policy.actor_file import META_FILE, PolicyFileError, load_policy
+
+    d = tmp_path / "rld"
+    shutil.copytree(Path(__file__).resolve().parents[2] / "policies" / "rld", d)
+    meta = json.loads((d / META_FILE).read_text())
+
+    def with_meta(**changes):
+        m = {k: v for k, v in meta.items() if k != "trained_ranges"}
+        m.update(changes)
+        (d / META_FILE).write_text(json.dumps(m))     # actor.npz (and its SHA-256) untouched
+        return load_policy(d)
+
+    lo, hi, src = with_meta(trained_ranges={"slope_deg": [17.5, 27.5]}).trained_slope_range_deg(cfg)
+    assert (lo, hi) == (17.5, 27.5) and "policy card" in src
+    # no explicit field: the training config's episode range (15-30 deg), when the hashes agree
+    from lhd_loading_ros.task.config import config_hash
+
+    lo, hi, src = with_meta(config_hash=config_hash(cfg)).trained_slope_range_deg(cfg)
+    assert (lo, hi) == (15.0, 30.0) and "training config" in src
+    lo, hi, src = with_meta(config_hash="0000").trained_slope_range_deg(cfg)
+    assert (lo, hi) == (15.0, 30.0) and "another config" in src
+    for bad in ([30.0, 15.0], [15.0], ["15", 30.0], [15.0, math.inf]):
+        with pytest.raises(PolicyFileError, match="trained_ranges.slope_deg"):
+            with_meta(trained_ranges={"slope_deg": bad}).trained_slope_range_deg(cfg)

@@ -4,11 +4,15 @@ Every cycle it rebuilds the task state from the latest topics (forward kinematic
 /lhd/odom and /lhd/joint_states, drift flags, slope, end zone), builds the 12-vector with
 the environment's own code (lhd_loading_ros.task.observation), runs the actor (numpy, no torch),
 applies the variant's deployment filter, maps to rad/s and publishes /lhd/cmd and
-/lhd/observation. An input older than input_timeout, a NaN, or no loaded actor gives the
-zero command (wheels stopped, arm held) and a throttled warning. When /lhd/episode reports
-the end of an episode it sends one zero command and stops commanding until the next one.
+/lhd/observation. The zero command (wheels stopped, arm held) and a throttled warning, with
+the reason on /diagnostics, when: an input is missing or older than its timeout (input_timeout
+for the 10 Hz inputs; slope_timeout / end_zone_timeout for the slow ones, none by default: a
+latched constant never goes stale), a value is NaN, no actor is loaded, or the slope is outside
+the range the actor was trained on (the policy card's trained_ranges). When /lhd/episode
+reports the end of an episode it sends one zero command and stops commanding until the next one.
 
-trigger = timer     10 Hz on the node's clock (the real machine; sim node in realtime mode)
+trigger = timer     10 Hz on the steady clock (the real machine; sim node in realtime mode),
+                    with use_sim_time too: the loop must not stall on a /clock that holds still
 trigger = lockstep  one decision per state of the sim node in lockstep mode: when
                     /lhd/joint_states, /lhd/odom and /lhd/episode carry the same stamp
 """
@@ -20,9 +24,11 @@ from collections import deque
 from pathlib import Path
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticStatus
 from nav_msgs.msg import Odometry
 from rclpy.duration import Duration
+from rclpy.event_handler import SubscriptionEventCallbacks
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
@@ -31,16 +37,25 @@ from std_msgs.msg import Bool, Float32MultiArray, Float64, Float64MultiArray
 from lhd_loading_ros.task.config import config_hash, load_config
 from lhd_loading_ros.task.kinematics import ArmKinematics
 from lhd_loading_ros.task.params import TaskParams
-from lhd_loading_ros.policy.core import Inputs, PolicyCore, ZERO_COMMAND
+from lhd_loading_ros.policy.core import INPUTS, SLOW_INPUTS, Inputs, PolicyCore, ZERO_COMMAND
 from lhd_loading_ros.policy.actor_file import PolicyFileError, load_policy
+from lhd_loading_ros.ros.diagnostics import ERROR, OK, WARN, Diagnostics
+from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
 from lhd_loading_ros.ros.qos import COMMAND_QOS, MEASUREMENT_QOS, STATUS_QOS
-from lhd_loading_ros.ros.run import number_param, run_node
+from lhd_loading_ros.ros.run import run_node
 
 # QoS (lhd_loading_ros.ros.qos). Inputs: `input_qos` = sensor_data (best effort) matches every
 # publisher, reliable or not (the ArUco node publishes odometry best effort); `reliable`
-# (MEASUREMENT_QOS) is for lockstep runs, where a lost state would stall the loop. Commands
-# out: COMMAND_QOS. Observation out: MEASUREMENT_QOS. Episode status in: STATUS_QOS.
+# (MEASUREMENT_QOS) is for lockstep runs, where a lost state would stall the loop. The slow
+# inputs (slope, end zone) have a second subscription, reliable + transient local (STATUS_QOS),
+# which alone receives what a latched publisher sent before this node started; it does not
+# match a volatile publisher (DDS), which the first one does. Commands out: COMMAND_QOS.
+# Observation out: MEASUREMENT_QOS. Episode status in: STATUS_QOS.
 TRIGGERS = ("timer", "lockstep")
+OVERTAKEN_NS = 1_000_000_000    # a slow-input sample this much older than the one in use came late
+# zero-command reasons on /diagnostics: these need a person (wrong pile, wrong actor), the rest
+# (inputs not there yet or stale, a NaN) may clear by themselves
+ERROR_KINDS = ("no_actor", "out_of_range", "actor_output")
 
 
 def default_policy_dir(variant: str = "rld") -> Path:
@@ -65,41 +80,60 @@ def stamp_ns(stamp) -> int:
 class PolicyNode(Node):
     def __init__(self, **node_kwargs):
         super().__init__("lhd_policy", **node_kwargs)
-        self.declare_parameter("config", "")
-        cfg = load_config(self.get_parameter("config").value or None)
+        # the parameter file gives the defaults and ranges of the others: peek at `config` before
+        # declaring them all through one Params (rclpy concatenates the parameter lists of several
+        # pre-set callbacks, so two Params on one node would duplicate every runtime change)
+        peek = self.declare_parameter("config", "", ParameterDescriptor(dynamic_typing=True)).value
+        self.undeclare_parameter("config")
+        cfg = load_config(peek if isinstance(peek, str) and peek else None)   # a wrong type: Params says so
         p = TaskParams.from_config(cfg)
-        self.declare_parameter("policy_dir", "")
-        self.declare_parameter("rate_hz", float(cfg["paper"]["control"]["frequency_hz"]))
-        self.declare_parameter("input_timeout", 0.5)
-        self.declare_parameter("trigger", "timer")
-        self.declare_parameter("input_qos", "sensor_data")
-        self.declare_parameter("namespace_prefix", "/lhd")
-        gp = lambda n: self.get_parameter(n).value  # noqa: E731
-        self.rate_hz = number_param(self, "rate_hz", 0.1, 1000.0)
-        self.input_timeout = number_param(self, "input_timeout", 0.01, 60.0)
+        self.params = Params(self, [
+            Param("config", "", "lhd_params.yaml to use; empty: found automatically (LHD_CONFIG, then the "
+                  "package's)"),
+            Param("policy_dir", "", "exported actor (actor.npz + policy.json); empty: the shipped policies/rld"),
+            Param("rate_hz", float(cfg["paper"]["control"]["frequency_hz"]), "decisions per second (trigger timer)",
+                  lo=0.1, hi=1000.0),
+            Param("input_timeout", 0.5, "s: a 10 Hz input (joints, odometry, drift) older than this gives the "
+                  "zero command", lo=0.01, hi=60.0, on_change=lambda v: setattr(self, "input_timeout", v)),
+            Param("slope_timeout", 0.0, "s: a slope older than this gives the zero command; 0: no timeout (a "
+                  "latched constant, e.g. a surveyed pile)", lo=0.0, hi=3600.0,
+                  on_change=lambda v: self._set_slow_timeout("slope", v)),
+            Param("end_zone_timeout", 0.0, "s: an end zone older than this gives the zero command; 0: no timeout",
+                  lo=0.0, hi=3600.0, on_change=lambda v: self._set_slow_timeout("end_zone", v)),
+            Param("trigger", "timer", "timer: rate_hz on the steady clock; lockstep: one decision per sim-node "
+                  "state", choices=TRIGGERS),
+            Param("input_qos", "sensor_data", "sensor_data: best effort, matches any publisher; reliable: for "
+                  "lockstep", choices=("sensor_data", "reliable")),
+            Param("namespace_prefix", "/lhd", "topic prefix in the root namespace (under a namespace, the "
+                  "namespace is the prefix)"),
+        ])
+        gp = self.params.__getitem__
+        self.rate_hz = gp("rate_hz")
+        self.input_timeout = gp("input_timeout")
+        self.slow_timeouts: dict[str, float] = {}
+        for name in SLOW_INPUTS:
+            self._set_slow_timeout(name, gp(f"{name}_timeout"))
         self.trigger = gp("trigger")
-        if self.trigger not in TRIGGERS:
-            raise ValueError(f"parameter 'trigger' = {self.trigger!r} is invalid; expected one of {TRIGGERS}")
-        qos_name = gp("input_qos")
-        if qos_name not in ("sensor_data", "reliable"):
-            raise ValueError(f"parameter 'input_qos' = {qos_name!r} is invalid; expected 'sensor_data' or 'reliable'")
-        qin = qos_profile_sensor_data if qos_name == "sensor_data" else MEASUREMENT_QOS
-        ns = gp("namespace_prefix").rstrip("/")
+        qin = qos_profile_sensor_data if gp("input_qos") == "sensor_data" else MEASUREMENT_QOS
+        ns = topic_prefix(self, gp("namespace_prefix"))
 
         path = gp("policy_dir") or str(default_policy_dir("rld"))
-        actor, variant = None, "rld"
+        actor, variant, slope_range = None, "rld", None
         try:
             pol = load_policy(path)
-            actor, variant = pol.actor, pol.variant
+            lo, hi, source = pol.trained_slope_range_deg(cfg)
+            actor, variant, slope_range = pol.actor, pol.variant, (lo, hi)
             if pol.meta.get("config_hash") not in (None, "") and pol.meta["config_hash"] != config_hash(cfg):
                 self.get_logger().warn(f"policy {path} was trained with another parameter file "
                                        f"(config hash {pol.meta['config_hash']}); check the filters and ranges")
-            self.get_logger().info(f"loaded {variant.upper()} actor from {path} (sizes {pol.actor.sizes})")
+            self.get_logger().info(f"loaded {variant.upper()} actor from {path} (sizes {pol.actor.sizes}); trained "
+                                   f"on slopes {lo:g}-{hi:g} deg ({source})")
         except PolicyFileError as exc:
             self.get_logger().error(f"no actor: {exc}. Publishing zero commands.")
-        self.core = PolicyCore(actor, variant, p, ArmKinematics.from_config(cfg))
+        self.core = PolicyCore(actor, variant, p, ArmKinematics.from_config(cfg), slope_range)
         self.policy_path = path
         self.inputs = Inputs()
+        self._slow_source_ns = {}        # source timestamp of the slow-input sample in use
         self.episode_state = None        # None: no /lhd/episode publisher (hardware): always running
         self.episode_key = None
         self._status_stamp = None
@@ -108,23 +142,32 @@ class PolicyNode(Node):
         self._decided_stamp = None
         self.cycles = 0
         self.zero_cycles = 0
+        self.last_decision = None        # the latest Decision, for /diagnostics
         self.latencies_ms: deque = deque(maxlen=100_000)
         self.periods_ms: deque = deque(maxlen=100_000)
         self._last_tick = None
 
         self.pub_cmd = self.create_publisher(Float64MultiArray, f"{ns}/cmd", COMMAND_QOS)
         self.pub_obs = self.create_publisher(Float32MultiArray, f"{ns}/observation", MEASUREMENT_QOS)
-        self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.create_subscription(JointState, f"{ns}/joint_states", self._on_js, qin)
         self.create_subscription(Odometry, f"{ns}/odom", self._on_odom, qin)
         self.create_subscription(Bool, f"{ns}/wheel_drift/front", lambda m: self._put("drift_front", bool(m.data)), qin)
         self.create_subscription(Bool, f"{ns}/wheel_drift/rear", lambda m: self._put("drift_rear", bool(m.data)), qin)
-        self.create_subscription(Float64, f"{ns}/pile/slope", self._on_slope, qin)
-        self.create_subscription(Float64MultiArray, f"{ns}/pile/end_zone", self._on_zone, qin)
+        # volatile / best-effort publishers, and latched ones; a volatile publisher is incompatible
+        # with the latched subscription by design (the other one takes it): no warning for that
+        quiet = SubscriptionEventCallbacks(incompatible_qos=lambda _: None)
+        for qos, events in ((qin, None), (STATUS_QOS, quiet)):
+            self.create_subscription(Float64, f"{ns}/pile/slope", self._on_slope, qos, event_callbacks=events)
+            self.create_subscription(Float64MultiArray, f"{ns}/pile/end_zone", self._on_zone, qos,
+                                     event_callbacks=events)
         self.create_subscription(DiagnosticStatus, f"{ns}/episode", self._on_status, STATUS_QOS)
         if self.trigger == "timer":
-            self.create_timer(1.0 / self.rate_hz, self._on_timer)
-        self.create_timer(1.0, self._diagnostics)
+            steady_timer(self, 1.0 / self.rate_hz, self._on_timer)
+        self.diagnostics = Diagnostics(self, {"actor": self._diag_actor, "inputs": self._diag_inputs,
+                                              "decision": self._diag_decision}, hardware_id=path)
+
+    def _set_slow_timeout(self, name: str, value: float) -> None:
+        self.slow_timeouts[name] = value if value > 0 else math.inf
 
     # ------------------------------------------------------------------ inputs
     def _put(self, name, value) -> None:
@@ -149,15 +192,26 @@ class PolicyNode(Node):
         self._stamps["odom"] = stamp_ns(msg.header.stamp)
         self._maybe_lockstep()
 
-    def _on_slope(self, msg: Float64) -> None:
-        self._put("slope", float(msg.data))
+    def _put_slow(self, name: str, value, info) -> None:
+        """A slow input arrives through both of its subscriptions when its publisher is reliable:
+        the second copy (same source time) and a sample overtaken by a newer one through the other
+        subscription are dropped; a much older source time is another publisher, taken."""
+        src = info["source_timestamp"]
+        held = self._slow_source_ns.get(name)
+        if held is not None and 0 <= held - src < OVERTAKEN_NS:
+            return
+        self._slow_source_ns[name] = src
+        self._put(name, value)
 
-    def _on_zone(self, msg: Float64MultiArray) -> None:
+    def _on_slope(self, msg: Float64, info) -> None:
+        self._put_slow("slope", float(msg.data), info)
+
+    def _on_zone(self, msg: Float64MultiArray, info) -> None:
         if len(msg.data) != 3:
             self.get_logger().warn(f"end_zone must be [x_min, x_max, z_min], got {list(msg.data)}",
                                    throttle_duration_sec=2.0)
             return
-        self._put("end_zone", tuple(float(v) for v in msg.data))
+        self._put_slow("end_zone", tuple(float(v) for v in msg.data), info)
 
     def _on_status(self, msg) -> None:
         kv = {k.key: k.value for k in msg.values}
@@ -206,12 +260,15 @@ class PolicyNode(Node):
         # them arrived (the sim node repeats a state whose first copy went unheard, and is paused
         # meanwhile); a wall-clock age would only turn a slow start into a spurious zero command
         # that steps the simulator. Only "never received" counts there.
-        timeout = math.inf if lockstep else self.input_timeout
-        d = self.core.decide(self.inputs, time.monotonic(), timeout)
+        if lockstep:
+            d = self.core.decide(self.inputs, time.monotonic(), math.inf)
+        else:
+            d = self.core.decide(self.inputs, time.monotonic(), self.input_timeout, self.slow_timeouts)
         if lockstep and d.reason and self.core.actor is not None and self.inputs.missing():
             self.get_logger().info(f"waiting for inputs: {d.reason}", throttle_duration_sec=2.0)
             return False
         self.pub_cmd.publish(Float64MultiArray(data=list(d.command)))
+        self.last_decision = d
         if not d.reason:   # latency: inputs -> observation -> actor -> command published
             self.latencies_ms.append((time.perf_counter() - t0) * 1000.0)
         if d.observation is not None:   # for debugging, after the command
@@ -219,7 +276,10 @@ class PolicyNode(Node):
         self.cycles += 1
         if d.reason:
             self.zero_cycles += 1
-            self.get_logger().warn(f"zero command: {d.reason}", throttle_duration_sec=2.0)
+            if d.kind in ERROR_KINDS:     # rclpy: one severity per call site
+                self.get_logger().error(f"zero command: {d.reason}", throttle_duration_sec=2.0)
+            else:
+                self.get_logger().warn(f"zero command: {d.reason}", throttle_duration_sec=2.0)
         return True
 
     def stop_commanding(self) -> None:
@@ -241,19 +301,44 @@ class PolicyNode(Node):
                 "latency_p50_ms": float(np.percentile(lat, 50)), "latency_p99_ms": float(np.percentile(lat, 99)),
                 "jitter_p99_ms": float(np.percentile(jit, 99))}
 
-    def _diagnostics(self) -> None:
-        st = DiagnosticStatus()
-        st.name = "lhd_policy"
-        st.hardware_id = self.policy_path
-        s = self.stats()
-        ok = self.core.actor is not None
-        st.level = DiagnosticStatus.OK if ok else DiagnosticStatus.ERROR
-        st.message = "ok" if ok else "no actor loaded"
-        st.values = [KeyValue(key=k, value=f"{v:.4g}" if isinstance(v, float) else str(v)) for k, v in s.items()]
-        arr = DiagnosticArray()
-        arr.header.stamp = self.get_clock().now().to_msg()
-        arr.status = [st]
-        self.pub_diag.publish(arr)
+    def _diag_actor(self):
+        if self.core.actor is None:
+            return ERROR, f"no actor loaded from {self.policy_path}: zero commands only", {}
+        lo, hi = self.core.slope_range_deg
+        return OK, f"{self.core.variant.upper()} actor loaded", {"path": self.policy_path, "trained_slope_deg": f"{lo:g}-{hi:g}"}
+
+    def _diag_inputs(self):
+        now = time.monotonic()
+        values, stale, missing = {}, [], []
+        for name in INPUTS:
+            if name not in self.inputs.values:
+                missing.append(name)
+                values[name] = "missing"
+                continue
+            age = now - self.inputs.arrival[name]
+            limit = self.slow_timeouts[name] if name in SLOW_INPUTS else self.input_timeout
+            values[name] = f"{age:.2f} s old" + (" (stale)" if age > limit else "")
+            if age > limit and self.trigger == "timer":
+                stale.append(f"{name} ({age:.1f} s, timeout {limit} s)")
+        slope = self.inputs.values.get("slope")
+        if slope is not None:
+            values["slope_deg"] = math.degrees(slope)
+        refusal = self.core.slope_refusal(slope) if slope is not None else ""
+        if refusal:
+            return ERROR, refusal, values
+        if missing or stale:
+            return WARN, "; ".join(filter(None, [f"missing: {', '.join(missing)}" if missing else "",
+                                                 f"stale: {', '.join(stale)}" if stale else ""])), values
+        return OK, "all inputs fresh", values
+
+    def _diag_decision(self):
+        values = self.stats()
+        d = self.last_decision
+        if d is None:
+            return WARN, "no decision yet", values
+        if d.reason:
+            return (ERROR if d.kind in ERROR_KINDS else WARN), f"zero command: {d.reason}", values
+        return OK, "actor commanding", values
 
 
 def main(args=None) -> int:

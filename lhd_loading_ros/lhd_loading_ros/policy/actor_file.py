@@ -6,7 +6,9 @@ Layout of a policy directory (format ``lhd-actor/1``, docs/training.md says why)
   ``allow_pickle=False``: no Python object is ever unpickled);
 - ``policy.json``: architecture (layer sizes, ReLU hidden, tanh output), variant, observation
   names and normalization, action names and actuator ranges, filter thresholds, the config
-  hash, seed, steps, evaluation figures and the SHA-256 of ``actor.npz``.
+  hash, seed, steps, evaluation figures, the SHA-256 of ``actor.npz`` and ``trained_ranges``
+  (``{"slope_deg": [lo, hi]}``: the slopes the actor was trained on; the policy node refuses
+  others).
 
 :class:`NumpyActor` runs the network in numpy (about 10 us per observation).
 """
@@ -14,10 +16,13 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from lhd_loading_ros.task.config import config_hash
 
 FORMAT = "lhd-actor/1"
 ACTOR_FILE = "actor.npz"
@@ -74,6 +79,27 @@ class LoadedPolicy:
     @property
     def variant(self) -> str:
         return self.meta["variant"]
+
+    def trained_slope_range_deg(self, cfg: dict) -> tuple[float, float, str]:
+        """(lo, hi, where it comes from): the card's `trained_ranges.slope_deg`; a card without it
+        (exported before the field existed) was trained on the episode range of its training
+        config (alpha_min_deg, alpha_max_deg), which `cfg` is when the config hashes agree. With
+        another config that range is an assumption, and `where` says so."""
+        rng = self.meta.get("trained_ranges", {}).get("slope_deg")
+        if rng is not None:
+            ok = (isinstance(rng, list) and len(rng) == 2
+                  and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in rng)
+                  and rng[0] < rng[1])
+            if not ok:
+                raise PolicyFileError(f"{self.path / META_FILE}: trained_ranges.slope_deg = {rng!r}; "
+                                      "expected [lo, hi] degrees, lo < hi")
+            return float(rng[0]), float(rng[1]), "policy card (trained_ranges.slope_deg)"
+        ep = cfg["paper"]["episode"]
+        lo, hi = float(ep["alpha_min_deg"]), float(ep["alpha_max_deg"])
+        if self.meta.get("config_hash") == config_hash(cfg):
+            return lo, hi, "training config (alpha_min_deg/alpha_max_deg; config hash matches the card)"
+        return lo, hi, ("this node's config (alpha_min_deg/alpha_max_deg): the card states no trained range "
+                        "and was trained with another config")
 
 
 def _sha256(path: Path) -> str:

@@ -2,9 +2,11 @@
 arrival times, decide whether they can be trusted, build the paper's 12-vector with the same
 core code as the environment, run the exported actor, apply the variant's deployment filter
 and map to actuator units. Any doubt gives the zero command (wheels stopped, arm held),
-never a guess."""
+never a guess: a missing or stale input, a NaN, no actor, or a slope outside the range the
+actor was trained on (refused, not clipped into range: the actor has never seen such a pile)."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -16,6 +18,8 @@ from lhd_loading_ros.task.params import TaskParams
 
 ZERO_COMMAND = (0.0, 0.0, 0.0)
 INPUTS = ("joints", "odom", "drift_front", "drift_rear", "slope", "end_zone")
+SLOW_INPUTS = ("slope", "end_zone")   # once per attempt: a LiDAR at 1-5 Hz or a latched constant
+RANGE_TOL_DEG = 1e-6                  # a slope published in rad at exactly a range end is inside
 
 
 @dataclass
@@ -31,13 +35,16 @@ class Inputs:
     def missing(self) -> bool:
         return any(name not in self.values for name in INPUTS)
 
-    def problems(self, now: float, timeout: float) -> list[str]:
+    def problems(self, now: float, timeout: float, timeouts: dict | None = None) -> list[str]:
+        """What is missing or stale: each input against `timeouts[name]` if given (math.inf:
+        never stale, a latched constant), else `timeout`."""
         out = []
         for name in INPUTS:
+            t = (timeouts or {}).get(name, timeout)
             if name not in self.values:
                 out.append(f"no {name} received yet")
-            elif now - self.arrival[name] > timeout:
-                out.append(f"{name} is {now - self.arrival[name]:.2f} s old (timeout {timeout} s)")
+            elif now - self.arrival[name] > t:
+                out.append(f"{name} is {now - self.arrival[name]:.2f} s old (timeout {t} s)")
         return out
 
 
@@ -47,13 +54,28 @@ class Decision:
     observation: np.ndarray | None
     action: np.ndarray | None  # raw actor output
     reason: str               # "" when the actor decided
+    kind: str = "ok"          # ok | no_actor | inputs (missing/stale) | bad_input | out_of_range | actor_output
 
 
 class PolicyCore:
-    def __init__(self, actor, variant: str, p: TaskParams, kin: ArmKinematics):
+    def __init__(self, actor, variant: str, p: TaskParams, kin: ArmKinematics,
+                 slope_range_deg: tuple[float, float] | None = None):
         if variant not in ("rld", "rlc"):
             raise ValueError(f"variant {variant!r}: expected 'rld' or 'rlc'")
         self.actor, self.variant, self.p, self.kin = actor, variant, p, kin
+        self.slope_range_deg = slope_range_deg     # the slopes the actor was trained on; None: unchecked
+
+    def slope_refusal(self, slope_rad: float) -> str:
+        """Why this slope is refused ("" when it is inside the trained range, or not a number:
+        the observation reports a NaN itself)."""
+        if self.slope_range_deg is None or not math.isfinite(slope_rad):
+            return ""
+        lo, hi = self.slope_range_deg
+        deg = math.degrees(slope_rad)
+        if lo - RANGE_TOL_DEG <= deg <= hi + RANGE_TOL_DEG:
+            return ""
+        return (f"slope {deg:.1f} deg is outside the range the actor was trained on [{lo:g}, {hi:g}] deg: "
+                "refused, not clipped")
 
     def observation(self, inp: Inputs) -> np.ndarray:
         jpos_vel = inp.values["joints"]
@@ -63,19 +85,24 @@ class PolicyCore:
         x_min, x_max, z_min = inp.values["end_zone"]
         return build_observation(s, inp.values["slope"], x_max, self.p)
 
-    def decide(self, inp: Inputs, now: float, timeout: float) -> Decision:
+    def decide(self, inp: Inputs, now: float, timeout: float, timeouts: dict | None = None) -> Decision:
+        """`timeout` for every input, `timeouts` per input where it differs (Inputs.problems)."""
         if self.actor is None:
-            return Decision(ZERO_COMMAND, None, None, "no actor loaded")
-        bad = inp.problems(now, timeout)
+            return Decision(ZERO_COMMAND, None, None, "no actor loaded", "no_actor")
+        bad = inp.problems(now, timeout, timeouts)
         if bad:
-            return Decision(ZERO_COMMAND, None, None, "; ".join(bad))
+            return Decision(ZERO_COMMAND, None, None, "; ".join(bad), "inputs")
+        refusal = self.slope_refusal(inp.values["slope"])
+        if refusal:
+            return Decision(ZERO_COMMAND, None, None, refusal, "out_of_range")
         try:
             obs = self.observation(inp)
         except ValueError as exc:           # NaN / inf in an input, broken quaternion, missing joint
-            return Decision(ZERO_COMMAND, None, None, f"bad input: {exc}")
+            return Decision(ZERO_COMMAND, None, None, f"bad input: {exc}", "bad_input")
         a = np.asarray(self.actor(obs), dtype=np.float64)
         if a.shape != (3,) or not np.isfinite(a).all():
-            return Decision(ZERO_COMMAND, obs, None, f"actor gave {a.tolist()}: expected 3 finite values")
+            return Decision(ZERO_COMMAND, obs, None, f"actor gave {a.tolist()}: expected 3 finite values",
+                            "actor_output")
         a_f = apply_variant_filter(np.clip(a, -1.0, 1.0), self.variant, self.p, deploy=True)
         u = to_actuator(a_f, self.p)
         return Decision(tuple(float(v) for v in u), obs, a, "")

@@ -1,0 +1,376 @@
+"""Sim node and policy node as ROS users meet them, over DDS with the nodes as real processes:
+parameters of the other numeric type, runtime `set_parameters` (applied or refused with a
+reason), use_sim_time, two machines under namespaces in one domain, slow and latched inputs,
+the slope-range refusal, /diagnostics, and an episode that starts with its controller."""
+import math
+import os
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from nav_msgs.msg import Odometry
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Bool, Float64, Float64MultiArray
+from std_srvs.srv import Trigger
+
+from lhd_loading_ros.nodes.policy_node import default_policy_dir
+from lhd_loading_ros.policy.actor_file import load_policy
+
+from rosutil import RosProcess, init_ros, shutdown_ros, spin_until
+
+REL = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+STATUS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                    durability=DurabilityPolicy.TRANSIENT_LOCAL)
+SIM, POLICY = "lhd_sim_node.sim_node", "lhd_loading_ros.nodes.policy_node"
+ZERO = [0.0, 0.0, 0.0]
+OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
+DT = 0.1    # control period, s (paper: 10 Hz)
+
+
+@pytest.fixture(scope="module")
+def ros():
+    init_ros()
+    node = rclpy.create_node("test_node_citizens")
+    yield node
+    node.destroy_node()
+    shutdown_ros()
+
+
+def kv(msg):
+    return {k.key: k.value for k in msg.values}
+
+
+def wait_log(proc, text, timeout=60.0):
+    t_end = time.monotonic() + timeout
+    while time.monotonic() < t_end and proc.alive():
+        if text in proc.log():
+            return True
+        time.sleep(0.1)
+    return text in proc.log()
+
+
+class DiagWatch:
+    """The latest status of each `<node>: <what>` on /diagnostics."""
+
+    def __init__(self, ros):
+        self.last = {}
+        self.sub = ros.create_subscription(DiagnosticArray, "/diagnostics", self._on, 50)
+
+    def _on(self, msg):
+        for st in msg.status:
+            self.last[st.name] = st
+
+    def get(self, name):
+        return self.last.get(name)
+
+    def has(self, name, level, text=""):
+        st = self.last.get(name)
+        return st is not None and st.level == level and text in st.message
+
+
+def set_params(ros, target, params):
+    client = AsyncParameterClient(ros, target)
+    assert client.wait_for_services(20.0), f"no parameter services for {target}"
+    fut = client.set_parameters(params)
+    assert spin_until(ros, fut.done, 20)
+    return fut.result().results
+
+
+# ------------------------------------------------------------------ parameters from the command line
+def test_other_numeric_type_starts_and_a_wrong_value_is_one_line_exit_2(tmp_path):
+    good = [RosProcess(SIM, {"slope_deg": 20, "cmd_timeout": 1, "seed": 3.0, "reset_delay": 2}, tmp_path / "sim.log"),
+            RosProcess(POLICY, {"rate_hz": 10, "input_timeout": 1, "slope_timeout": 2}, tmp_path / "pol.log")]
+    try:
+        assert wait_log(good[0], "sim node up: mode realtime, seed 3, slope 20"), good[0].log()
+        assert wait_log(good[1], "loaded RLD actor"), good[1].log()
+    finally:
+        for p in good:
+            assert p.stop() == 0, p.log()
+    for module, params, name in ((SIM, {"cmd_timeout": 0}, "cmd_timeout"), (SIM, {"seed": 2.5}, "seed"),
+                                 (SIM, {"slope_deg": 40}, "slope_deg"), (POLICY, {"rate_hz": "fast"}, "rate_hz"),
+                                 (POLICY, {"slope_timeout": -1}, "slope_timeout")):
+        p = RosProcess(module, params, tmp_path / f"bad_{name}.log")
+        assert p.proc.wait(60) == 2, p.log()
+        p.stop()
+        log = p.log()
+        assert f"parameter '{name}'" in log and "expected" in log and "Traceback" not in log, log
+        assert len(log.strip().splitlines()) == 1, log
+
+
+# ------------------------------------------------------------------ sim node: runtime parameters, hold, diagnostics
+def test_sim_node_runtime_parameters_hold_until_first_command_and_diagnostics(ros, tmp_path):
+    statuses, js = [], []
+    subs = [ros.create_subscription(DiagnosticStatus, "/lhd/episode", lambda m: statuses.append(kv(m)), STATUS),
+            ros.create_subscription(JointState, "/lhd/joint_states", lambda m: js.append(m), REL)]
+    diag = DiagWatch(ros)
+    pub = ros.create_publisher(Float64MultiArray, "/lhd/cmd", REL)
+    sim = RosProcess(SIM, {"slope_deg": 20.0, "seed": 1, "material": "homogeneous"}, tmp_path / "sim.log")
+    try:
+        assert spin_until(ros, lambda: statuses and len(js) >= 3, 60), sim.log()
+        # no controller yet: the episode holds its initial state, no simulated time passes,
+        # the state keeps coming at the control rate
+        n0 = len(js)
+        t0 = time.monotonic()
+        spin_until(ros, lambda: False, 2.0)
+        held = js[n0:]
+        assert len(held) >= 0.5 * (time.monotonic() - t0) / DT, len(held)
+        assert all(m.header.stamp.sec == 0 and m.header.stamp.nanosec == 0 for m in held)
+        assert statuses[-1]["step"] == "0" and statuses[-1]["stamp_ns"] == "0"
+        assert spin_until(ros, lambda: diag.has("/lhd_sim: episode", OK, "waiting for the first /cmd"), 10)
+        # the first command starts the physics
+        pub.publish(Float64MultiArray(data=[2.0, 0.0, 0.0]))
+        assert spin_until(ros, lambda: int(statuses[-1]["step"]) > 0, 10), sim.log()
+        assert spin_until(ros, lambda: diag.has("/lhd_sim: commands", OK, "commands ok"), 10)
+        # a bad command: rejected, WARN with the reason
+        pub.publish(Float64MultiArray(data=[math.nan, 0.0, 0.0]))
+        assert spin_until(ros, lambda: diag.has("/lhd_sim: commands", WARN, "rejected"), 10), sim.log()
+        rt = diag.get("/lhd_sim: real time")
+        assert rt is not None and "real_time_factor" in {v.key for v in rt.values}
+
+        # runtime parameters over DDS: applied (next episode), or refused with a reason
+        (r,) = set_params(ros, "/lhd_sim", [Parameter("slope_deg", value=25)])     # an int for a float
+        assert r.successful, r.reason
+        for p, why in ((Parameter("slope_deg", value=40.0), "out of range"),
+                       (Parameter("cmd_timeout", value=100.0), "out of range"),
+                       (Parameter("mode", value="lockstep"), "read-only"),
+                       (Parameter("seed", value=7), "read-only"),
+                       (Parameter("slopes_deg", value="15,20"), "slope_deg = 25 is set too")):
+            (r,) = set_params(ros, "/lhd_sim", [p])
+            assert not r.successful and why in r.reason, (p.name, r.reason)
+        cli = ros.create_client(Trigger, "/lhd_sim/reset")
+        assert cli.wait_for_service(timeout_sec=10)
+        fut = cli.call_async(Trigger.Request())
+        assert spin_until(ros, fut.done, 10) and fut.result().success
+        assert spin_until(ros, lambda: statuses[-1]["episode"] == "1", 10)
+        assert float(statuses[-1]["slope_deg"]) == pytest.approx(25.0, abs=1e-3)
+        assert float(statuses[-1]["seed"]) == 2            # seed + episode, seed unchanged
+    finally:
+        assert sim.stop() == 0, sim.log()
+        for s in subs + [diag.sub]:
+            ros.destroy_subscription(s)
+        ros.destroy_publisher(pub)
+
+
+# ------------------------------------------------------------------ policy node: slow/latched inputs, slope range
+def measured_state(slope_deg):
+    """The initial state of a real episode (in-process environment) as the topics carry it."""
+    from lhd_sim_node.env import LhdLoadingEnv
+
+    env = LhdLoadingEnv("rld")
+    env.reset(seed=0, options={"slope_deg": slope_deg, "material": "homogeneous"})
+    m, d, s = env.sim.model, env.sim.data, env.state
+    js = JointState(name=["boom", "bucket", "articulation"],
+                    position=[float(s.phi_boom), float(s.phi_bucket), float(d.qpos[m.jnt_qposadr[m.joint("articulation").id]])],
+                    velocity=[float(s.dphi_boom), float(s.dphi_bucket), 0.0])
+    od = Odometry()
+    p = od.pose.pose
+    p.position.x, p.position.y, p.position.z = (float(v) for v in d.qpos[:3])
+    p.orientation.w, p.orientation.x, p.orientation.y, p.orientation.z = (float(v) for v in d.qpos[3:7])
+    z = env.sim.zones
+    return js, od, [float(z.x_min), float(z.x_max), float(z.z_min)]
+
+
+def test_policy_node_latched_and_slow_inputs_slope_range_runtime_parameters_diagnostics(ros, tmp_path):
+    js, od, zone = measured_state(20.0)
+    # slope and end zone published ONCE, latched, before the policy node exists (a surveyed pile)
+    pub_slope = ros.create_publisher(Float64, "/lhd/pile/slope", LATCHED)
+    pub_zone = ros.create_publisher(Float64MultiArray, "/lhd/pile/end_zone", LATCHED)
+    pub_slope.publish(Float64(data=math.radians(20.0)))
+    pub_zone.publish(Float64MultiArray(data=zone))
+    fast = [ros.create_publisher(JointState, "/lhd/joint_states", qos_profile_sensor_data),
+            ros.create_publisher(Odometry, "/lhd/odom", qos_profile_sensor_data),
+            ros.create_publisher(Bool, "/lhd/wheel_drift/front", qos_profile_sensor_data),
+            ros.create_publisher(Bool, "/lhd/wheel_drift/rear", qos_profile_sensor_data)]
+    # a LiDAR-like slope source: volatile, best effort, created only when needed
+    lidar = {"pub": None, "rad": None}
+    cmds = []
+    sub = ros.create_subscription(Float64MultiArray, "/lhd/cmd", lambda m: cmds.append(list(m.data)), REL)
+    diag = DiagWatch(ros)
+
+    def tick():      # the 10 Hz inputs (and the LiDAR, when on)
+        fast[0].publish(js)
+        fast[1].publish(od)
+        fast[2].publish(Bool(data=False))
+        fast[3].publish(Bool(data=False))
+        if lidar["pub"] is not None:
+            lidar["pub"].publish(Float64(data=lidar["rad"]))
+
+    timer = ros.create_timer(DT, tick)
+
+    def commanding():
+        return len(cmds) >= 3 and all(c != ZERO for c in cmds[-3:])
+
+    def zeroed():
+        return len(cmds) >= 3 and all(c == ZERO for c in cmds[-3:])
+
+    spin_until(ros, lambda: False, 1.0)
+    pol = RosProcess(POLICY, {}, tmp_path / "pol.log")
+    try:
+        assert spin_until(ros, commanding, 60), pol.log()
+        assert spin_until(ros, lambda: diag.has("/lhd_policy: decision", OK, "actor commanding")
+                          and diag.has("/lhd_policy: inputs", OK, "all inputs fresh")
+                          and diag.has("/lhd_policy: actor", OK), 10), pol.log()
+        # a slope outside the trained range (15-30 deg), from a volatile best-effort source: refused
+        lidar["pub"] = ros.create_publisher(Float64, "/lhd/pile/slope", qos_profile_sensor_data)
+        for bad in (10.0, 40.0):
+            lidar["rad"] = math.radians(bad)
+            cmds.clear()
+            assert spin_until(ros, zeroed, 20), (bad, cmds[-5:], pol.log()[-2000:])
+            assert spin_until(ros, lambda: diag.has("/lhd_policy: decision", ERROR, f"slope {bad:.1f} deg is outside the "
+                                                    "range the actor was trained on [15, 30] deg")
+                              and diag.has("/lhd_policy: inputs", ERROR, "outside the range"), 10), pol.log()[-2000:]
+        assert "slope 10.0 deg is outside the range the actor was trained on" in pol.log()
+        lidar["rad"] = math.radians(20.0)
+        cmds.clear()
+        assert spin_until(ros, commanding, 20), pol.log()[-2000:]
+        ros.destroy_publisher(lidar["pub"])
+        lidar["pub"] = None
+
+        # runtime parameters: a slope timeout set on the running node takes effect; the silent
+        # slope source (nothing since the LiDAR stopped) now gives the zero command with the reason
+        (r,) = set_params(ros, "/lhd_policy", [Parameter("slope_timeout", value=1)])
+        assert r.successful, r.reason
+        for p, why in ((Parameter("rate_hz", value=5.0), "read-only"),
+                       (Parameter("input_timeout", value=100.0), "out of range"),
+                       (Parameter("trigger", value="lockstep"), "read-only")):
+            (r,) = set_params(ros, "/lhd_policy", [p])
+            assert not r.successful and why in r.reason, (p.name, r.reason)
+        cmds.clear()
+        assert spin_until(ros, zeroed, 20), cmds[-5:]
+        assert spin_until(ros, lambda: diag.has("/lhd_policy: decision", WARN, "zero command: slope is")
+                          and diag.has("/lhd_policy: inputs", WARN, "stale: slope"), 10), pol.log()[-2000:]
+        assert "(timeout 1.0 s)" in diag.get("/lhd_policy: decision").message
+        (r,) = set_params(ros, "/lhd_policy", [Parameter("slope_timeout", value=0.0)])    # back to: no timeout
+        assert r.successful, r.reason
+        cmds.clear()
+        assert spin_until(ros, commanding, 20), pol.log()[-2000:]
+    finally:
+        assert pol.stop() == 0, pol.log()
+        ros.destroy_timer(timer)
+        for p in fast + [pub_slope, pub_zone]:
+            ros.destroy_publisher(p)
+        ros.destroy_subscription(sub)
+        ros.destroy_subscription(diag.sub)
+
+
+def test_policy_node_without_actor_reports_error(ros, tmp_path):
+    diag = DiagWatch(ros)
+    pol = RosProcess(POLICY, {"policy_dir": str(tmp_path / "missing")}, tmp_path / "pol.log")
+    try:
+        assert spin_until(ros, lambda: diag.has("/lhd_policy: actor", ERROR, "no actor loaded")
+                          and diag.has("/lhd_policy: decision", ERROR, "zero command: no actor loaded"), 60), pol.log()
+    finally:
+        assert pol.stop() == 0
+        ros.destroy_subscription(diag.sub)
+
+
+# ------------------------------------------------------------------ whole episodes: use_sim_time, namespaces, start
+class RemappedProcess(RosProcess):
+    """RosProcess with remapping rules (-r __ns:=/lhd2 ...); RosProcess takes parameters only."""
+
+    def __init__(self, module, params, log_path, remaps=()):
+        args = [sys.executable, "-m", module, "--ros-args"]
+        args += [a for k, v in params.items() for a in ("-p", f"{k}:={v}")]
+        args += [a for r in remaps for a in ("-r", r)]
+        self.log_path = log_path
+        self._log = open(log_path, "w")
+        self.proc = subprocess.Popen(args, stdout=self._log, stderr=subprocess.STDOUT,
+                                     env=dict(os.environ, PYTHONUNBUFFERED="1"), start_new_session=True)
+
+
+def run_pair(tmp_path, tag, sim_params, pol_params, ns="", remap_clock=False):
+    remaps = [f"__ns:={ns}"] + ([f"/clock:={ns}/clock"] if remap_clock else []) if ns else []
+    sim = RemappedProcess(SIM, sim_params, tmp_path / f"sim_{tag}.log", remaps)
+    pol = RemappedProcess(POLICY, pol_params, tmp_path / f"pol_{tag}.log", remaps)
+    return sim, pol
+
+
+def test_both_nodes_with_use_sim_time_load_an_episode(ros, tmp_path):
+    statuses, clock = [], []
+    subs = [ros.create_subscription(DiagnosticStatus, "/lhd/episode", lambda m: statuses.append(kv(m)), STATUS),
+            ros.create_subscription(Clock, "/clock", lambda m: clock.append(m), 10)]
+    sim, pol = run_pair(tmp_path, "st", {"slope_deg": 20.0, "seed": 4, "episodes": 1, "use_sim_time": "true"},
+                        {"use_sim_time": "true"})
+    try:
+        assert spin_until(ros, lambda: statuses and statuses[-1]["state"] != "running", 120), sim.log() + pol.log()
+        assert int(statuses[-1]["step"]) > 5
+        # /clock carries the sim time of the last state (the policy node ran on it without waiting)
+        end_ns = int(statuses[-1]["stamp_ns"])
+        assert spin_until(ros, lambda: clock and clock[-1].clock.sec * 10**9 + clock[-1].clock.nanosec == end_ns, 10)
+    finally:
+        rc = pol.stop(), sim.stop()
+        assert rc == (0, 0), rc
+        for s in subs:
+            ros.destroy_subscription(s)
+
+
+def test_two_machines_in_namespaces_share_a_domain(ros, tmp_path):
+    seen = {"/lhd2": [], "/lhd3": []}
+    subs = [ros.create_subscription(DiagnosticStatus, f"{ns}/episode", lambda m, ns=ns: seen[ns].append(kv(m)), STATUS)
+            for ns in seen]
+    slopes = {"/lhd2": 15.0, "/lhd3": 25.0}
+    procs = []
+    for ns, slope in slopes.items():
+        # /lhd2 also runs on sim time, its own clock remapped (-r /clock:=/lhd2/clock)
+        st = {"use_sim_time": "true"} if ns == "/lhd2" else {}
+        procs += run_pair(tmp_path, ns[1:], {"slope_deg": slope, "seed": 6, "episodes": 2, "reset_delay": 0.2, **st},
+                          st, ns=ns, remap_clock=bool(st))
+    try:
+        def done():
+            return all(sum(1 for s in v if s["state"] != "running" and s.get("all_done") == "True") for v in seen.values())
+
+        assert spin_until(ros, done, 180), "\n".join(p.log()[-1500:] for p in procs)
+        for ns, v in seen.items():
+            assert {round(float(s["slope_deg"]), 3) for s in v} == {slopes[ns]}, (ns, v[-1])
+            assert {s["episode"] for s in v if s["state"] != "running"} == {"0", "1"}
+        names = dict(ros.get_topic_names_and_types())
+        assert "/lhd2/clock" in names and "/lhd3/clock" in names and "/clock" not in names, sorted(names)
+        assert not [n for n in names if n.startswith("/lhd/")], sorted(names)
+        assert "/lhd2/lhd_sim/reset" in dict(ros.get_service_names_and_types())
+    finally:
+        rcs = [p.stop() for p in procs[1::2] + procs[0::2]]
+        assert rcs == [0] * 4, rcs
+        for s in subs:
+            ros.destroy_subscription(s)
+
+
+def test_first_episode_time_is_not_inflated_by_a_slow_controller_start(ros, tmp_path):
+    """The policy node starts 3 s after the sim node (what node start-up costs under `lhd up sim`):
+    the first episode's elapsed time is the in-process one, within a few control periods."""
+    from lhd_sim_node.env import LhdLoadingEnv
+
+    seed, slope = 2, 20.0
+    pol_file = load_policy(default_policy_dir("rld"))
+    env = LhdLoadingEnv("rld", deploy_filter=True)
+    obs, _ = env.reset(seed=seed, options={"slope_deg": slope, "material": "homogeneous"})
+    while True:
+        obs, _, term, trunc, info = env.step(np.clip(pol_file.actor(obs), -1, 1))
+        if term or trunc:
+            break
+    ref = info["episode_result"]
+    statuses = []
+    sub = ros.create_subscription(DiagnosticStatus, "/lhd/episode", lambda m: statuses.append(kv(m)), STATUS)
+    sim = RosProcess(SIM, {"slope_deg": slope, "seed": seed, "material": "homogeneous", "episodes": 1},
+                     tmp_path / "sim.log")
+    pol = None
+    try:
+        assert spin_until(ros, lambda: bool(statuses), 60), sim.log()
+        spin_until(ros, lambda: False, 3.0)
+        pol = RosProcess(POLICY, {}, tmp_path / "pol.log")
+        assert spin_until(ros, lambda: statuses[-1]["state"] != "running", 120), sim.log() + pol.log()
+        elapsed = float(statuses[-1]["elapsed_s"])
+        assert elapsed == pytest.approx(ref.elapsed_s, abs=3 * DT), (elapsed, ref.elapsed_s)
+    finally:
+        rc = (pol.stop() if pol else 0), sim.stop()
+        assert rc == (0, 0), rc
+        ros.destroy_subscription(sub)
