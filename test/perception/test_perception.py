@@ -2,6 +2,7 @@
 along a straight 0.37 m/s drive (noise, blur, occlusion), LiDAR scans of 15-30 deg piles with
 1 cm noise, 10 % outliers, floor and back wall."""
 import math
+import re
 
 import numpy as np
 import pytest
@@ -151,3 +152,70 @@ def test_perception_benchmark_runs():
 
     assert aruco_fps(320, 240, n_frames=5, reps=1) > 1.0
     assert slope_fit_ms(reps=3) > 0.0
+
+
+@pytest.mark.parametrize("alpha_deg", [15.0, 20.0, 25.0, 30.0, 40.0])
+def test_draw_point_clutter_gives_the_same_slope(alpha_deg):
+    """Roof at 2 m, the brow and the drawbell's 45 deg wall above the pile (a line of plausible
+    pile slope, with more points than the face), the machine and its heaped bucket before the
+    toe: the fit ignores them (before the robust fit it returned the drawbell's 45 deg)."""
+    from lhd_loading_ros.perception.synthetic import DrawPoint
+
+    full = dict(n=1440, angle_min=-math.pi, angle_max=math.pi * (1 - 1 / 720))
+    for seed in range(3):
+        r, amin, inc, rpy = synthetic_scan(math.radians(alpha_deg), np.random.default_rng(seed))
+        clean = fit_slope(scan_points_pile(r, amin, inc, (0.6, 0.0, 1.6), rpy), np.random.default_rng(seed))
+        r, amin, inc, rpy = synthetic_scan(math.radians(alpha_deg), np.random.default_rng(seed), clutter=DrawPoint(),
+                                           **full)
+        pts = scan_points_pile(r, amin, inc, (0.6, 0.0, 1.6), rpy)
+        assert (pts[:, 2] > 1.8).sum() > 300            # the roof really is in view
+        f = fit_slope(pts, np.random.default_rng(seed))
+        assert abs(math.degrees(f.alpha - clean.alpha)) < 1.0 and abs(math.degrees(f.alpha) - alpha_deg) < 1.0
+
+
+def test_no_pile_and_out_of_range_are_named():
+    from lhd_loading_ros.perception.slope import SlopeOutOfRange
+    from lhd_loading_ros.perception.synthetic import DrawPoint
+
+    r, amin, inc, rpy = synthetic_scan(0.3, np.random.default_rng(0), h=0.0, back_x=1.5, clutter=DrawPoint(),
+                                       n=1440, angle_min=-math.pi, angle_max=math.pi * (1 - 1 / 720))
+    with pytest.raises(TooFewPoints):
+        fit_slope(scan_points_pile(r, amin, inc, (0.6, 0.0, 1.6), rpy), np.random.default_rng(0))
+    s = (-0.3, 0.0, 1.6)    # in front of the toe: a steep face is hidden from above the pile
+    r, amin, inc, rpy = synthetic_scan(math.radians(62.0), np.random.default_rng(0), sensor_xyz=s,
+                                       angle_min=-math.radians(120), angle_max=math.radians(10))
+    with pytest.raises(SlopeOutOfRange, match=r"slope 6[12]\.\d deg outside \[5, 50\]"):
+        fit_slope(scan_points_pile(r, amin, inc, s, rpy), np.random.default_rng(0))
+
+
+@pytest.mark.parametrize("n_d, ok", [(0, True), (3, False), (4, True), (5, True), (8, True), (12, True), (14, True),
+                                     (6, False)])
+def test_camera_info_distortion_lengths(n_d, ok):
+    K = intrinsics(640, 480).ravel()
+    if ok:
+        cam = CameraModel.from_camera_info(K, [0.01] * n_d, 640, 480)
+        assert len(cam.D) == (n_d or 5) and (cam.width, cam.height) == (640, 480)
+    else:
+        with pytest.raises(ValueError, match=f"{n_d} distortion coefficients; expected one of 0, 4, 5, 8, 12, 14"):
+            CameraModel.from_camera_info(K, [0.01] * n_d)
+
+
+@pytest.mark.parametrize("k, needle", [
+    ([math.nan] + [0.0] * 8, "K has NaN or inf"),
+    ([0.0] * 8 + [1.0], "focal lengths fx=0, fy=0; expected > 0"),
+    ([500.0, 0, 320, 0, 500, 240, 0, 0, 0], "last row"),
+    ([500.0] * 4, "K has 4 elements; expected 9"),
+])
+def test_camera_info_bad_intrinsics(k, needle):
+    with pytest.raises(ValueError, match=re.escape(needle)):
+        CameraModel.from_camera_info(k, [])
+
+
+def test_velocity_estimator_repeated_and_backward_stamps():
+    v = VelocityEstimator(1.0)
+    for k in range(4):
+        assert v.add(k * 0.1, 0.37 * k * 0.1)
+    assert not v.add(3 * 0.1, 5.0)               # repeated stamp: nothing added
+    assert v.velocity() == pytest.approx(0.37)
+    assert not v.add(0.1, 0.0)                   # backward: the window restarts from this sample
+    assert v.velocity() is None and len(v.samples) == 1
