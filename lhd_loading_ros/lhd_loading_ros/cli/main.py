@@ -1,8 +1,9 @@
 """The `lhd` command line.
 
   lhd demo                                 the main job: sim node + policy node (shipped RLD actor) on 15-30 deg piles
-  lhd up sim [--policy DIR] [--slope DEG] [--episodes N]   sim node + policy node over DDS until done / Ctrl-C
-  lhd echo TOPIC [--count N]               print a topic's messages as YAML
+  lhd up sim [--policy DIR] [--slope DEG] [--episodes N] [--namespace NS] [--use-sim-time] [--log-dir DIR]
+                                           sim node + policy node over DDS until done / Ctrl-C / SIGTERM
+  lhd echo TOPIC [--count N]               print a topic's messages as YAML (QoS matched to the publishers)
   lhd bench sim [--json] [--steps N]       simulator speed
   lhd bench bridge [--json]                serial parser throughput and frame-to-publish latency
   lhd bench perception [--json]            ArUco frames/s (one core) and slope-fit time
