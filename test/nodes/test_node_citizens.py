@@ -248,7 +248,7 @@ def test_policy_node_latched_and_slow_inputs_slope_range_runtime_parameters_diag
         cmds.clear()
         assert spin_until(ros, zeroed, 20), cmds[-5:]
         assert spin_until(ros, lambda: diag.has("/lhd_policy: decision", WARN, "zero command: slope is")
-                          and diag.has("/lhd_policy: inputs", WARN, "stale: slope"), 10), pol.log()[-2000:]
+                          and diag.has("/lhd_policy: inputs", WARN, "slope is"), 10), pol.log()[-2000:]
         assert "(timeout 1.0 s)" in diag.get("/lhd_policy: decision").message
         (r,) = set_params(ros, "/lhd_policy", [Parameter("slope_timeout", value=0.0)])    # back to: no timeout
         assert r.successful, r.reason

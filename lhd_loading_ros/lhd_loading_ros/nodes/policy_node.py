@@ -309,26 +309,21 @@ class PolicyNode(Node):
 
     def _diag_inputs(self):
         now = time.monotonic()
-        values, stale, missing = {}, [], []
-        for name in INPUTS:
-            if name not in self.inputs.values:
-                missing.append(name)
-                values[name] = "missing"
-                continue
-            age = now - self.inputs.arrival[name]
-            limit = self.slow_timeouts[name] if name in SLOW_INPUTS else self.input_timeout
-            values[name] = f"{age:.2f} s old" + (" (stale)" if age > limit else "")
-            if age > limit and self.trigger == "timer":
-                stale.append(f"{name} ({age:.1f} s, timeout {limit} s)")
+        values = {name: (f"{now - self.inputs.arrival[name]:.2f} s old" if name in self.inputs.values else "missing")
+                  for name in INPUTS}
         slope = self.inputs.values.get("slope")
+        refusal = ""
         if slope is not None:
             values["slope_deg"] = math.degrees(slope)
-        refusal = self.core.slope_refusal(slope) if slope is not None else ""
+            refusal = self.core.slope_refusal(slope)
         if refusal:
             return ERROR, refusal, values
-        if missing or stale:
-            return WARN, "; ".join(filter(None, [f"missing: {', '.join(missing)}" if missing else "",
-                                                 f"stale: {', '.join(stale)}" if stale else ""])), values
+        if self.trigger == "lockstep":     # lockstep judges no ages (docs/ros_nodes.md)
+            bad = self.inputs.problems(now, math.inf)
+        else:
+            bad = self.inputs.problems(now, self.input_timeout, self.slow_timeouts)
+        if bad:
+            return WARN, "; ".join(bad), values
         return OK, "all inputs fresh", values
 
     def _diag_decision(self):
