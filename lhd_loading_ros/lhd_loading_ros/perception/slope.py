@@ -112,16 +112,18 @@ def fit_slope(pts_pile: np.ndarray, rng: np.random.Generator, floor_z: float = 0
         raise TooFewPoints("no pair of points spans a plausible pile face")
     a = a[ok]
     b = z[i[ok, 0]] - a * x[i[ok, 0]]
-    # perpendicular distances of all points to all candidate lines
-    d = np.abs(a[:, None] * x[None, :] - z[None, :] + b[:, None]) / np.sqrt(1.0 + a * a)[:, None]
-    inl_all = d < threshold
-    counts = inl_all.sum(axis=1)
+    # inliers of all candidate lines: perpendicular distance |a x - z + b| / sqrt(1 + a^2) below
+    # the threshold, compared without dividing the whole matrix
+    band = threshold * np.sqrt(1.0 + a * a)
+    r = a[:, None] * x[None, :] + b[:, None] - z[None, :]
+    np.abs(r, out=r)
+    counts = (r < band[:, None]).sum(axis=1)
     best = int(counts.max())
     run = None
     for k in np.argsort(-counts, kind="stable")[:MAX_CANDIDATES]:
         if counts[k] < min_points:
             break
-        run = _face_run(x, z, inl_all[k], min_points)
+        run = _face_run(x, z, r[k] < band[k], min_points)
         if run is not None:
             break
     if run is None:
@@ -154,11 +156,11 @@ def _face_run(x: np.ndarray, z: np.ndarray, inl: np.ndarray, min_points: int) ->
     `min_points` points, its foot at the floor), else None."""
     idx = np.flatnonzero(inl)
     idx = idx[np.argsort(x[idx], kind="stable")]
-    cuts = np.flatnonzero(np.diff(x[idx]) > MAX_GAP) + 1
-    for seg in np.split(idx, cuts):     # from the toe side up the face
-        if len(seg) >= min_points:
-            if z[seg].min() > FOOT_MAX_Z:
-                return None
+    bounds = np.concatenate(([0], np.flatnonzero(np.diff(x[idx]) > MAX_GAP) + 1, [len(idx)]))
+    long_runs = np.flatnonzero(np.diff(bounds) >= min_points)
+    if len(long_runs):                  # the lowest long run, from the toe side up the face
+        seg = idx[bounds[long_runs[0]]:bounds[long_runs[0] + 1]]
+        if z[seg].min() <= FOOT_MAX_Z:
             m = np.zeros(len(x), bool)
             m[seg] = True
             return m
