@@ -430,8 +430,10 @@ def test_wrong_parameter_is_one_line_and_exit_2(tmp_path, params, needle):
 
 def test_other_numeric_type_namespace_and_runtime_parameters(ros, tmp_path):
     """`-p marker_size:=1 -p stale_timeout:=1` start the node; under `-r __ns:=/lhd2` its topics
-    are /lhd2/...; stale_timeout changes at run time and takes effect; marker_size is fixed."""
-    proc = NsProcess(MODULE, {"marker_size": 1, "stale_timeout": 1, "velocity_window": 1, "image_reliable": True},
+    are /lhd2/...; with use_sim_time and no /clock its housekeeping (stale flag) still runs;
+    stale_timeout changes at run time and takes effect; marker_size is fixed."""
+    proc = NsProcess(MODULE, {"marker_size": 1, "stale_timeout": 1, "velocity_window": 1, "image_reliable": True,
+                              "use_sim_time": True},
                      tmp_path / "ns.log", remaps=["__ns:=/lhd2"])
     node = rclpy.create_node("aruco_ns_test")
     stale = []

@@ -191,9 +191,10 @@ def test_no_pile_publishes_nothing_and_says_why_and_the_last_value_keeps_its_sta
 
 def test_range_parameters_namespace_and_runtime_changes(ros, tmp_path):
     """A scanner in front of a steep pile (a 62 deg face is hidden from one above the pile).
-    Started with ints for floats (`-p slope_max_deg:=50`) under `-r __ns:=/lhd2`."""
+    Started with ints for floats (`-p slope_max_deg:=50`) under `-r __ns:=/lhd2`, with
+    use_sim_time and no /clock (diagnostics still come: a steady timer)."""
     rig = Rig(tmp_path, {"sensor_xyz": "[-0.3, 0.0, 1.6]", "slope_max_deg": 50, "slope_min_deg": 5,
-                         "inlier_threshold": 0.02}, ns="/lhd2", remaps=["__ns:=/lhd2"])
+                         "inlier_threshold": 0.02, "use_sim_time": True}, ns="/lhd2", remaps=["__ns:=/lhd2"])
 
     def scan(alpha):
         r, amin, inc, _ = synthetic_scan(math.radians(alpha), np.random.default_rng(2), sensor_xyz=(-0.3, 0.0, 1.6),
