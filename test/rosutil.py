@@ -20,10 +20,13 @@ def unique_domain_id() -> int:
 class RosProcess:
     """A node started as a separate process (python -m module --ros-args ...)."""
 
-    def __init__(self, module: str, params: dict, log_path, extra_env: dict | None = None):
+    def __init__(self, module: str, params: dict, log_path, extra_env: dict | None = None,
+                 remaps: dict | None = None):
         args = [sys.executable, "-m", module, "--ros-args"]
         for k, v in params.items():
             args += ["-p", f"{k}:={v}"]
+        for k, v in (remaps or {}).items():     # e.g. {"__ns": "/lhd2", "/clock": "/lhd2/clock"}
+            args += ["-r", f"{k}:={v}"]
         env = dict(os.environ, PYTHONUNBUFFERED="1", **(extra_env or {}))
         self.log_path = log_path
         self._log = open(log_path, "w")

@@ -1,7 +1,10 @@
 """ros2 launch lhd_sim_node sim_loading.launch.py [policy_dir:=DIR] [slope_deg:=20.0] [episodes:=N] [mode:=realtime]
+    [namespace:=/lhd2] [use_sim_time:=true]
 
 The sim node and the policy node (the shipped RLD actor unless policy_dir is given), as
-`lhd up sim` starts them where `ros2 launch` is not installed."""
+`lhd up sim` starts them where `ros2 launch` is not installed. Under a namespace every /lhd
+topic moves there, and /clock is remapped to the relative `clock` (so `<ns>/clock`; in the
+root namespace that is /clock itself), as `lhd up sim --namespace` does."""
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument
 from launch.conditions import IfCondition, UnlessCondition
@@ -23,16 +26,22 @@ def generate_launch_description():
         DeclareLaunchArgument("episodes", default_value="0", description="episodes before the sim stops (0: no limit)"),
         DeclareLaunchArgument("mode", default_value="realtime", description="realtime | lockstep"),
         DeclareLaunchArgument("seed", default_value="0"),
+        DeclareLaunchArgument("namespace", default_value="", description="e.g. /lhd2: two machines share a domain"),
+        DeclareLaunchArgument("use_sim_time", default_value="false", description="nodes run on the sim's /clock"),
     ]
+    ns = LaunchConfiguration("namespace")
+    sim_time = ParameterValue(LaunchConfiguration("use_sim_time"), value_type=bool)
+    clock = [("/clock", "clock")]
     lockstep = PythonExpression(["'", LaunchConfiguration("mode"), "' == 'lockstep'"])
-    sim = Node(package="lhd_sim_node", executable="sim_node", name="lhd_sim", output="screen", parameters=[{
+    sim = Node(package="lhd_sim_node", executable="sim_node", name="lhd_sim", namespace=ns, output="screen",
+               remappings=clock, parameters=[{"use_sim_time": sim_time,
         "mode": text("mode"), "slope_deg": ParameterValue(LaunchConfiguration("slope_deg"), value_type=float),
         "material": text("material"), "episodes": ParameterValue(LaunchConfiguration("episodes"), value_type=int),
         "seed": ParameterValue(LaunchConfiguration("seed"), value_type=int)}])
-    policy_common = {"policy_dir": text("policy_dir")}
-    policy_lockstep = Node(package="lhd_loading_ros", executable="policy_node", name="lhd_policy", output="screen",
-                           parameters=[{**policy_common, "trigger": "lockstep", "input_qos": "reliable"}],
+    policy_common = {"policy_dir": text("policy_dir"), "use_sim_time": sim_time}
+    policy_lockstep = Node(package="lhd_loading_ros", executable="policy_node", name="lhd_policy", namespace=ns, output="screen",
+                           remappings=clock, parameters=[{**policy_common, "trigger": "lockstep", "input_qos": "reliable"}],
                            condition=IfCondition(lockstep))
-    policy_timer = Node(package="lhd_loading_ros", executable="policy_node", name="lhd_policy", output="screen",
-                        parameters=[{**policy_common, "trigger": "timer"}], condition=UnlessCondition(lockstep))
+    policy_timer = Node(package="lhd_loading_ros", executable="policy_node", name="lhd_policy", namespace=ns, output="screen",
+                        remappings=clock, parameters=[{**policy_common, "trigger": "timer"}], condition=UnlessCondition(lockstep))
     return LaunchDescription([*args, sim, policy_lockstep, policy_timer])

@@ -96,3 +96,21 @@ def test_runtime_set_takes_effect_or_is_rejected_with_a_reason_over_dds(ros):
     finally:
         client_node.destroy_node()
         node.destroy_node()
+
+
+def test_two_params_groups_on_one_node_set_at_run_time(ros):
+    """A node may declare `config` first and the rest after reading it: one set of rclpy callbacks
+    serves both (rclpy concatenates what every pre-set callback returns, so two would duplicate
+    every parameter and turn an int-for-float set into a type error)."""
+    applied = []
+    node = rclpy.create_node("t_two_groups")
+    try:
+        first = Params(node, [Param("config", "", "parameter file")])
+        second = Params(node, [Param("timeout", 0.5, "input timeout", lo=0.01, hi=60.0,
+                                     on_change=lambda v: applied.append(v))])
+        res = node.set_parameters([Parameter("timeout", value=3)])
+        assert res[0].successful, res[0].reason
+        assert applied == [3.0] and second["timeout"] == 3.0 and first["config"] == ""
+        assert node.get_parameter("timeout").type_ == Parameter.Type.DOUBLE
+    finally:
+        node.destroy_node()

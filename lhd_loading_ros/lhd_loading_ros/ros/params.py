@@ -158,9 +158,16 @@ class Params:
         self.values: dict[str, Any] = {}
         for s in specs:
             self.values[s.name] = self._declare(s)
-        node.add_pre_set_parameters_callback(self._pre_set)
-        node.add_on_set_parameters_callback(self._on_set)
-        node.add_post_set_parameters_callback(self._post_set)
+        # rclpy concatenates what every pre-set callback returns, so a node gets one set of
+        # callbacks that serves all its Params (a node may declare some parameters first, e.g.
+        # `config`, and the rest once it has read them)
+        group = getattr(node, "_lhd_params_group", None)
+        if group is None:
+            group = node._lhd_params_group = _Group()
+            node.add_pre_set_parameters_callback(group.pre_set)
+            node.add_on_set_parameters_callback(group.on_set)
+            node.add_post_set_parameters_callback(group.post_set)
+        group.members.append(self)
 
     def __getitem__(self, name: str) -> Any:
         return self.values[name]
@@ -180,11 +187,23 @@ class Params:
         node.declare_parameter(s.name, _as_param_value(s, value), s.descriptor(), ignore_override=True)
         return value
 
-    # runtime changes ----------------------------------------------------------------------
-    def _pre_set(self, params: list[Parameter]) -> list[Parameter]:
+
+class _Group:
+    """The parameter callbacks of one node, over all its Params."""
+
+    def __init__(self):
+        self.members: list[Params] = []
+
+    def _find(self, name: str):
+        for m in self.members:
+            if name in m.specs:
+                return m, m.specs[name]
+        return None, None
+
+    def pre_set(self, params: list[Parameter]) -> list[Parameter]:
         out = []
         for p in params:
-            s = self.specs.get(p.name)
+            _, s = self._find(p.name)
             if s is not None and s.kind == "float" and p.type_ == Parameter.Type.INTEGER:
                 p = Parameter(p.name, Parameter.Type.DOUBLE, float(p.value))
             elif s is not None and s.kind == "int" and p.type_ == Parameter.Type.DOUBLE and float(p.value).is_integer():
@@ -192,9 +211,9 @@ class Params:
             out.append(p)
         return out
 
-    def _on_set(self, params: list[Parameter]) -> SetParametersResult:
+    def on_set(self, params: list[Parameter]) -> SetParametersResult:
         for p in params:
-            s = self.specs.get(p.name)
+            _, s = self._find(p.name)
             if s is None:
                 continue
             if s.read_only:   # rclpy refuses these before us; kept for clarity
@@ -205,15 +224,15 @@ class Params:
                 return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
 
-    def _post_set(self, params: list[Parameter]) -> None:
+    def post_set(self, params: list[Parameter]) -> None:
         for p in params:
-            s = self.specs.get(p.name)
+            m, s = self._find(p.name)
             if s is None or s.on_change is None:
                 continue
             value = s.coerce(p.value)
-            self.values[p.name] = value
+            m.values[p.name] = value
             s.on_change(value)
-            self.node.get_logger().info(f"parameter '{p.name}' set to {value!r}")
+            m.node.get_logger().info(f"parameter '{p.name}' set to {value!r}")
 
 
 def _as_param_value(s: Param, value):
