@@ -23,17 +23,6 @@ from rclpy.signals import SignalHandlerOptions
 SPIN_PERIOD_S = 0.1     # the longest a stop request waits for the spin loop to see it
 
 
-def number_param(node, name: str, lo: float, hi: float, integer: bool = False):
-    """A declared numeric parameter, checked: raises ValueError naming it and the expected range
-    (run_node turns that into a clear message and exit status 2)."""
-    v = node.get_parameter(name).value
-    ok_type = isinstance(v, int) if integer else isinstance(v, (int, float))
-    if isinstance(v, bool) or not ok_type or not (lo <= v <= hi):
-        kind = "an integer" if integer else "a number"
-        raise ValueError(f"parameter '{name}' = {v!r} is invalid; expected {kind} in [{lo}, {hi}]")
-    return int(v) if integer else float(v)
-
-
 def run_node(make_node: Callable, name: str, args=None, before_destroy: Callable | None = None,
              stop: threading.Event | None = None) -> int:
     """Run one node until SIGINT/SIGTERM (or `stop` is set); returns the exit status:
