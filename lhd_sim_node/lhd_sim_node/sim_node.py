@@ -40,7 +40,6 @@ import time
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
@@ -75,19 +74,14 @@ def ns_time(t_ns: int):
 class SimNode(Node):
     def __init__(self, **node_kwargs):
         super().__init__("lhd_sim", **node_kwargs)
-        # the parameter file gives the defaults and ranges of the others: peek at `config` before
-        # declaring them all through one Params (rclpy concatenates the parameter lists of several
-        # pre-set callbacks, so two Params on one node would duplicate every runtime change)
-        peek = self.declare_parameter("config", "", ParameterDescriptor(dynamic_typing=True)).value
-        self.undeclare_parameter("config")
-        cfg = load_config(peek if isinstance(peek, str) and peek else None)   # a wrong type: Params says so
+        # the parameter file first: it gives the defaults and ranges of the others
+        cfg = load_config(Params(self, [Param("config", "", "lhd_params.yaml to use; empty: found automatically "
+                                                "(LHD_CONFIG, then the package's)")])["config"] or None)
         self.alpha_range_deg = (cfg["paper"]["episode"]["alpha_min_deg"], cfg["paper"]["episode"]["alpha_max_deg"])
         lo, hi = self.alpha_range_deg
         self.slopes: list[float] = []
         self.slope_deg: float | None = None
         self.params = Params(self, [
-            Param("config", "", "lhd_params.yaml to use; empty: found automatically (LHD_CONFIG, then the "
-                  "package's)"),
             Param("mode", "realtime", "realtime: physics on the wall clock, sample-and-hold; lockstep: one control "
                   "period per received command", choices=MODES),
             Param("seed", 0, "episode k uses seed + k", lo=0, hi=2**31 - 1),

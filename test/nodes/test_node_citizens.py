@@ -3,9 +3,6 @@ parameters of the other numeric type, runtime `set_parameters` (applied or refus
 reason), use_sim_time, two machines under namespaces in one domain, slow and latched inputs,
 the slope-range refusal, /diagnostics, and an episode that starts with its controller."""
 import math
-import os
-import subprocess
-import sys
 import time
 
 import numpy as np
@@ -275,23 +272,10 @@ def test_policy_node_without_actor_reports_error(ros, tmp_path):
 
 
 # ------------------------------------------------------------------ whole episodes: use_sim_time, namespaces, start
-class RemappedProcess(RosProcess):
-    """RosProcess with remapping rules (-r __ns:=/lhd2 ...); RosProcess takes parameters only."""
-
-    def __init__(self, module, params, log_path, remaps=()):
-        args = [sys.executable, "-m", module, "--ros-args"]
-        args += [a for k, v in params.items() for a in ("-p", f"{k}:={v}")]
-        args += [a for r in remaps for a in ("-r", r)]
-        self.log_path = log_path
-        self._log = open(log_path, "w")
-        self.proc = subprocess.Popen(args, stdout=self._log, stderr=subprocess.STDOUT,
-                                     env=dict(os.environ, PYTHONUNBUFFERED="1"), start_new_session=True)
-
-
 def run_pair(tmp_path, tag, sim_params, pol_params, ns="", remap_clock=False):
-    remaps = [f"__ns:={ns}"] + ([f"/clock:={ns}/clock"] if remap_clock else []) if ns else []
-    sim = RemappedProcess(SIM, sim_params, tmp_path / f"sim_{tag}.log", remaps)
-    pol = RemappedProcess(POLICY, pol_params, tmp_path / f"pol_{tag}.log", remaps)
+    remaps = {"__ns": ns, **({"/clock": f"{ns}/clock"} if remap_clock else {})} if ns else None
+    sim = RosProcess(SIM, sim_params, tmp_path / f"sim_{tag}.log", remaps=remaps)
+    pol = RosProcess(POLICY, pol_params, tmp_path / f"pol_{tag}.log", remaps=remaps)
     return sim, pol
 
 

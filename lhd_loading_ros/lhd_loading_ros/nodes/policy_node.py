@@ -28,7 +28,6 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from nav_msgs.msg import Odometry
 from rclpy.duration import Duration
 from rclpy.event_handler import SubscriptionEventCallbacks
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
@@ -80,16 +79,11 @@ def stamp_ns(stamp) -> int:
 class PolicyNode(Node):
     def __init__(self, **node_kwargs):
         super().__init__("lhd_policy", **node_kwargs)
-        # the parameter file gives the defaults and ranges of the others: peek at `config` before
-        # declaring them all through one Params (rclpy concatenates the parameter lists of several
-        # pre-set callbacks, so two Params on one node would duplicate every runtime change)
-        peek = self.declare_parameter("config", "", ParameterDescriptor(dynamic_typing=True)).value
-        self.undeclare_parameter("config")
-        cfg = load_config(peek if isinstance(peek, str) and peek else None)   # a wrong type: Params says so
+        # the parameter file first: it gives the defaults and ranges of the others
+        cfg = load_config(Params(self, [Param("config", "", "lhd_params.yaml to use; empty: found automatically "
+                                                "(LHD_CONFIG, then the package's)")])["config"] or None)
         p = TaskParams.from_config(cfg)
         self.params = Params(self, [
-            Param("config", "", "lhd_params.yaml to use; empty: found automatically (LHD_CONFIG, then the "
-                  "package's)"),
             Param("policy_dir", "", "exported actor (actor.npz + policy.json); empty: the shipped policies/rld"),
             Param("rate_hz", float(cfg["paper"]["control"]["frequency_hz"]), "decisions per second (trigger timer)",
                   lo=0.1, hi=1000.0),
