@@ -24,3 +24,19 @@ def params(cfg_session):
 
 def deg(x):
     return math.radians(x)
+
+
+@pytest.fixture(autouse=True)
+def _no_leftover_nodes():
+    """A node process a test started and did not stop (an assertion failed before its stop) is
+    stopped here, so that it cannot keep loading the machine or talking on the test's domain."""
+    try:
+        from rosutil import started_processes
+    except ImportError:       # no rclpy: no node processes either
+        yield
+        return
+    before = {id(p) for p in started_processes()}
+    yield
+    for p in started_processes():
+        if id(p) not in before and p.alive():
+            p.stop(timeout=5.0)

@@ -17,6 +17,13 @@ def unique_domain_id() -> int:
     return 1 + os.getpid() % 100
 
 
+_STARTED: list = []      # every RosProcess of this test session, for the leftover check in conftest.py
+
+
+def started_processes() -> list:
+    return list(_STARTED)
+
+
 class RosProcess:
     """A node started as a separate process (python -m module --ros-args ...)."""
 
@@ -32,11 +39,14 @@ class RosProcess:
         self._log = open(log_path, "w")
         self.proc = subprocess.Popen(args, stdout=self._log, stderr=subprocess.STDOUT, env=env,
                                      start_new_session=True)
+        _STARTED.append(self)
 
     def alive(self) -> bool:
         return self.proc.poll() is None
 
     def stop(self, timeout: float = 10.0) -> int:
+        if self._log.closed and self.proc.poll() is not None:
+            return self.proc.returncode
         if self.proc.poll() is None:
             os.killpg(self.proc.pid, signal.SIGINT)
             try:
