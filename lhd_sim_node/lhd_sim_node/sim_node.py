@@ -48,7 +48,7 @@ from std_msgs.msg import Bool, Float64, Float64MultiArray
 from std_srvs.srv import Trigger
 
 from lhd_loading_ros.task.config import load_config
-from lhd_loading_ros.ros.qos import COMMAND_QOS, MEASUREMENT_QOS, STATUS_QOS
+from lhd_loading_ros.ros.qos import COMMAND_QOS, LATCHED_QOS, MEASUREMENT_QOS, STATUS_QOS
 from lhd_loading_ros.ros.diagnostics import OK, WARN, Diagnostics
 from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
 from lhd_loading_ros.ros.run import run_node
@@ -136,8 +136,8 @@ class SimNode(Node):
         # use_sim_time remaps: -r /clock:=<ns>/clock)
         self.pub_clock = self.create_publisher(Clock, "clock", CLOCK_QOS)
         # slope and end zone change once per episode: latched, like a surveyed constant
-        self.pub_slope = self.create_publisher(Float64, f"{ns}/pile/slope", STATUS_QOS)
-        self.pub_zone = self.create_publisher(Float64MultiArray, f"{ns}/pile/end_zone", STATUS_QOS)
+        self.pub_slope = self.create_publisher(Float64, f"{ns}/pile/slope", LATCHED_QOS)
+        self.pub_zone = self.create_publisher(Float64MultiArray, f"{ns}/pile/end_zone", LATCHED_QOS)
         self.pub_front = self.create_publisher(Bool, f"{ns}/wheel_drift/front", MEASUREMENT_QOS)
         self.pub_rear = self.create_publisher(Bool, f"{ns}/wheel_drift/rear", MEASUREMENT_QOS)
         self.pub_drift = self.create_publisher(Bool, f"{ns}/wheel_drift", MEASUREMENT_QOS)

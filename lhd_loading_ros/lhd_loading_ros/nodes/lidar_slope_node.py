@@ -25,7 +25,7 @@ import time
 import numpy as np
 from geometry_msgs.msg import PointStamped, Vector3Stamped
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import LaserScan, PointCloud2
 from std_msgs.msg import Float64
 
@@ -33,11 +33,9 @@ from lhd_loading_ros.perception.geometry import apply, transform
 from lhd_loading_ros.perception.slope import NoSlope, SlopeOutOfRange, cloud_to_points, fit_slope, scan_to_points
 from lhd_loading_ros.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from lhd_loading_ros.ros.params import Param, Params, topic_prefix
+from lhd_loading_ros.ros.qos import LATCHED_QOS
 from lhd_loading_ros.ros.run import run_node
 
-# latched: a subscriber that starts after the fit (reliable or best effort, volatile or not) gets it
-SLOPE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
-                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
 NO_SCAN_WARN_S = 5.0     # diagnostics: WARN when no scan came for this long
 
 
@@ -78,10 +76,10 @@ class LidarSlopeNode(Node):
         self.rng = np.random.default_rng(p["seed"])
         self.frame_id = p["frame_id"]
         ns = topic_prefix(self, p["namespace_prefix"])
-        self.pub_slope = self.create_publisher(Float64, f"{ns}/pile/slope", SLOPE_QOS)
-        self.pub_stamped = self.create_publisher(Vector3Stamped, f"{ns}/pile/slope_stamped", SLOPE_QOS)
-        self.pub_toe = self.create_publisher(PointStamped, f"{ns}/pile/toe", SLOPE_QOS)
-        self.pub_res = self.create_publisher(Float64, f"{ns}/pile/fit_residual", SLOPE_QOS)
+        self.pub_slope = self.create_publisher(Float64, f"{ns}/pile/slope", LATCHED_QOS)
+        self.pub_stamped = self.create_publisher(Vector3Stamped, f"{ns}/pile/slope_stamped", LATCHED_QOS)
+        self.pub_toe = self.create_publisher(PointStamped, f"{ns}/pile/toe", LATCHED_QOS)
+        self.pub_res = self.create_publisher(Float64, f"{ns}/pile/fit_residual", LATCHED_QOS)
         self.create_subscription(LaserScan, p["scan_topic"], self._on_scan, qos_profile_sensor_data)
         self.create_subscription(PointCloud2, p["cloud_topic"], self._on_cloud, qos_profile_sensor_data)
         self.last_scan: float | None = None     # monotonic arrival of the last scan or cloud

@@ -7,6 +7,9 @@ COMMAND_QOS      reliable, keep-last 1: only the newest command matters, and rec
                  out on arrival (0.3 s), so a silent link stops the machine.
 STATUS_QOS       reliable + transient local, keep-last 10: a late subscriber (a launcher,
                  lhd echo) still gets the current state of the episode.
+LATCHED_QOS      reliable + transient local, keep-last 1: values that change once per attempt
+                 (pile slope, toe, end zone); a subscriber that starts later gets the latest,
+                 with its original stamp, and no older value.
 """
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -14,3 +17,5 @@ MEASUREMENT_QOS = QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE, hi
 COMMAND_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LATCHED_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
