@@ -11,7 +11,8 @@
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import astuple, dataclass, fields
 
 
 @dataclass(frozen=True)
@@ -33,6 +34,57 @@ class Zones:
             x_cutoff=pile.L - p.d_cutoff, x_obs_start=-p.x_init_obs, x_obs_end=-p.x_init_obs + p.x_obs,
             y_half=p.y_obs / 2.0, z_top=p.z_obs,
         )
+
+
+    @classmethod
+    def for_measured_pile(cls, alpha: float, toe_x: float, density: float, p) -> "Zones":
+        """Zones of a pile known only by its measured face (the real machine: LiDAR slope and toe)
+        and a nominal bulk density: the intact homogeneous wedge of height p.h_pile and width
+        p.w_pile whose face rises at `alpha` from the toe at x = toe_x of the pile frame {M}.
+        The mass between the toe and toe_x + s is density * w * tan(alpha) * s^2 / 2, so the end
+        zone's limits are s(m) = sqrt(2 m / (density w tan alpha)), capped at the wedge's depth
+        L = h / tan(alpha); every other limit is the simulator's (for_pile), shifted by toe_x."""
+        if not (math.isfinite(alpha) and 0.0 < alpha < math.pi / 2):
+            raise ValueError(f"pile slope {alpha!r} rad: expected a finite angle in (0, pi/2)")
+        if not math.isfinite(toe_x):
+            raise ValueError(f"pile toe x {toe_x!r}: expected a finite number (m)")
+        if not (math.isfinite(density) and density > 0.0):
+            raise ValueError(f"bulk density {density!r}: expected a positive number (kg/m^3)")
+        tan_a = math.tan(alpha)
+        L = p.h_pile / tan_a
+
+        def x_at(m: float) -> float:
+            return toe_x + min(math.sqrt(2.0 * m / (density * p.w_pile * tan_a)), L)
+
+        return cls(
+            x_min=x_at(p.m_min), x_max=x_at(p.m_max), z_min=p.z_min, x_cutoff=toe_x + L - p.d_cutoff,
+            x_obs_start=toe_x - p.x_init_obs, x_obs_end=toe_x - p.x_init_obs + p.x_obs,
+            y_half=p.y_obs / 2.0, z_top=p.z_obs,
+        )
+
+    def as_list(self) -> list[float]:
+        """The 8 fields in dataclass order (the /lhd/pile/zones message)."""
+        return [float(v) for v in astuple(self)]
+
+    @classmethod
+    def from_list(cls, values) -> "Zones":
+        """Inverse of as_list, validated: 8 finite values with x_min < x_max and
+        x_obs_start < x_obs_end, y_half > 0; ValueError naming what is wrong otherwise."""
+        names = [f.name for f in fields(cls)]
+        vals = [float(v) for v in values]
+        if len(vals) != len(names):
+            raise ValueError(f"zones: expected {len(names)} values [{', '.join(names)}], got {len(vals)}")
+        bad = [n for n, v in zip(names, vals) if not math.isfinite(v)]
+        if bad:
+            raise ValueError(f"zones: {', '.join(bad)} not finite in {vals}")
+        z = cls(*vals)
+        if not z.x_min < z.x_max:
+            raise ValueError(f"zones: x_min {z.x_min:g} must be below x_max {z.x_max:g}")
+        if not z.x_obs_start < z.x_obs_end:
+            raise ValueError(f"zones: x_obs_start {z.x_obs_start:g} must be below x_obs_end {z.x_obs_end:g}")
+        if not z.y_half > 0.0:
+            raise ValueError(f"zones: y_half {z.y_half:g} must be positive")
+        return z
 
 
 def in_end_zone(x: float, z: float, zones: Zones) -> bool:
