@@ -6,6 +6,8 @@ this order after every control period:
                                 namespace, /lhd2/clock under /lhd2
   /lhd/pile/slope               std_msgs/Float64            alpha, rad (truth); latched
   /lhd/pile/end_zone            std_msgs/Float64MultiArray  [x_min, x_max, z_min] m (truth); latched
+  /lhd/pile/zones               std_msgs/Float64MultiArray  all 8 limits of task.zones.Zones (as_list
+                                order), as the end-zone node publishes them on the machine; latched
   /lhd/wheel_drift/front, /rear, /lhd/wheel_drift           std_msgs/Bool
   /lhd/episode                  diagnostic_msgs/DiagnosticStatus  state, episode, step, loaded
                                 mass, outcome and reason, stamp_ns of the state it describes
@@ -138,6 +140,7 @@ class SimNode(Node):
         # slope and end zone change once per episode: latched, like a surveyed constant
         self.pub_slope = self.create_publisher(Float64, f"{ns}/pile/slope", LATCHED_QOS)
         self.pub_zone = self.create_publisher(Float64MultiArray, f"{ns}/pile/end_zone", LATCHED_QOS)
+        self.pub_zones = self.create_publisher(Float64MultiArray, f"{ns}/pile/zones", LATCHED_QOS)
         self.pub_front = self.create_publisher(Bool, f"{ns}/wheel_drift/front", MEASUREMENT_QOS)
         self.pub_rear = self.create_publisher(Bool, f"{ns}/wheel_drift/rear", MEASUREMENT_QOS)
         self.pub_drift = self.create_publisher(Bool, f"{ns}/wheel_drift", MEASUREMENT_QOS)
@@ -149,6 +152,7 @@ class SimNode(Node):
 
         self.t_ns = 0                    # sim time, never goes back (across episodes too)
         self.episode = -1
+        self._zones_sent = None
         self.episodes_done = 0
         self.outcome = "running"
         self.result = None
@@ -400,6 +404,9 @@ class SimNode(Node):
         self.pub_slope.publish(Float64(data=float(self.sim.pile.alpha)))
         z = self.sim.zones
         self.pub_zone.publish(Float64MultiArray(data=[float(z.x_min), float(z.x_max), float(z.z_min)]))
+        if self._zones_sent is not z:     # once per episode (the object changes with the pile)
+            self.pub_zones.publish(Float64MultiArray(data=z.as_list()))
+            self._zones_sent = z
         self.pub_front.publish(Bool(data=bool(s.drift_front)))
         self.pub_rear.publish(Bool(data=bool(s.drift_rear)))
         self.pub_drift.publish(Bool(data=bool(s.drift)))
