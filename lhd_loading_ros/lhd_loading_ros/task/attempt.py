@@ -1,0 +1,453 @@
+"""The life cycle of a loading attempt on the real machine, without ROS (the supervisor node is
+a thin shell over this).
+
+    idle --arm (preflight passes)--> armed --arm_delay--> running --> ended
+    ended = success | failure | timeout | estop | lost_input | aborted
+    ended --arm (preflight passes)--> armed ...
+
+Only `running` lets a controller move the machine; every other state means "stop" to every
+controller (and the command mux). `idle` is the state before the first attempt; an ended
+state stays until the next arming. While armed or running:
+  estop       /lhd/estop engaged, or the bridge reports the device's e-stop;
+  lost_input  joints, odometry, a drift flag or the bridge status older than its timeout,
+              a non-finite value, or the bridge reporting ERROR / STALE;
+and while running, checked in this order after those two:
+  success     the bucket tip in the end zone (task.zones.classify);
+  failure     the tip in the restricted zone;
+  timeout     attempt_timeout (10 s, the paper's) since running began;
+  aborted     the operator's /lhd/abort (any time while armed or running).
+The tip comes from odometry + joint states through the kinematics the policy node uses
+(task.kinematics.state_from_measurements); the zones and the slope are those of the arming
+(the pile of this attempt), so a pile estimate republished mid-attempt cannot move the goal.
+
+The figures: elapsed time from running to the end; front/rear drift % over the drift flags
+sampled once per control period (10 Hz) while running, task.metrics.drift_pct, the
+simulator's definition; the final pitch phi_shovel at the end (the last tip computed); the
+success level once weighed (task.metrics.success_level; attempt_record.judge).
+
+Times are monotonic seconds given by the caller (a fake clock in the tests)."""
+from __future__ import annotations
+
+import math
+import statistics
+from collections import deque
+from dataclasses import dataclass, field
+
+from lhd_loading_ros.task.attempt_record import AttemptRow, bag_name, check_mass, judge
+from lhd_loading_ros.task.kinematics import ArmKinematics, state_from_measurements
+from lhd_loading_ros.task.metrics import drift_pct
+from lhd_loading_ros.task.state import LhdState
+from lhd_loading_ros.task.zones import Zones, classify
+
+STATES = ("idle", "armed", "running", "success", "failure", "timeout", "estop", "lost_input", "aborted")
+ENDED = frozenset(STATES[3:])
+LIVE = frozenset(("armed", "running"))
+# diagnostic_msgs/DiagnosticStatus levels, as numbers (this module is ROS-free)
+OK, WARN, ERROR, STALE = 0, 1, 2, 3
+LEVEL_NAMES = {OK: "OK", WARN: "WARN", ERROR: "ERROR", STALE: "STALE"}
+STOP_SPEED = 0.05          # rad/s: every joint slower than this = the machine stopped (load-cell window)
+LOAD_CELL_MIN_SAMPLES = 3
+LOAD_CELL_RANGE = (-5.0, 200.0)   # kg: a reading outside is a broken amplifier, not a load (tare noise is < 0)
+RANGE_TOL_DEG = 1e-6       # a slope published in rad at exactly a range end is inside (policy core's rule)
+REASONS = {
+    "success": "bucket tip reached the end zone",
+    "failure": "bucket tip entered the restricted zone",
+    "aborted": "aborted by the operator",
+}
+
+
+@dataclass(frozen=True)
+class HwStatus:
+    """What the supervisor needs of the bridge's <prefix>/hw/status."""
+    level: int
+    estop: bool
+    message: str
+
+
+@dataclass(frozen=True)
+class Settings:
+    slope_range_deg: tuple[float, float]
+    slope_source: str                 # where the range comes from (policy card / config), for messages
+    phi_thresh: float                 # rad, the success test's pitch threshold
+    control_dt: float = 0.1           # s, drift sampling period (the 10 Hz control period)
+    attempt_timeout: float = 10.0     # s (paper: "a timeout of 10 seconds is added to the loading attempts")
+    arm_delay: float = 1.0            # s between armed and running
+    input_timeout: float = 0.5        # s, joints / odometry / drift flags
+    hw_status_timeout: float = 0.5    # s, the bridge's status
+    mass_settle_s: float = 1.0        # s, load-cell window after the machine stopped
+    prefix: str = "/lhd"              # topic prefix, for the messages
+
+    def __post_init__(self):
+        lo, hi = self.slope_range_deg
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+            raise ValueError(f"slope range {self.slope_range_deg!r}: expected [lo, hi] degrees, lo < hi")
+        for name in ("control_dt", "attempt_timeout", "input_timeout", "hw_status_timeout", "mass_settle_s"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} = {v!r}: expected a positive number of seconds")
+        if not (math.isfinite(self.arm_delay) and self.arm_delay >= 0):
+            raise ValueError(f"arm_delay = {self.arm_delay!r}: expected seconds >= 0")
+
+
+@dataclass
+class Inputs:
+    """Latest value and arrival time (monotonic s) of each input.
+    joints: {name: (position, velocity)}; odom: ((x, y, z), (w, x, y, z), v_x);
+    drift_front / drift_rear: bool; slope: rad; zones: Zones; hw: HwStatus."""
+    values: dict = field(default_factory=dict)
+    arrival: dict = field(default_factory=dict)
+    zones_error: str = ""             # the latest zones message was invalid: why
+    estop: bool = False               # <prefix>/estop (latched); never received = released
+
+    def put(self, name: str, value, now: float) -> None:
+        self.values[name] = value
+        self.arrival[name] = now
+        if name == "zones":
+            self.zones_error = ""
+
+    def age(self, name: str, now: float) -> float:
+        return now - self.arrival[name] if name in self.arrival else math.inf
+
+
+def _finite(*xs) -> bool:
+    return all(isinstance(x, (int, float)) and math.isfinite(x) for x in xs)
+
+
+@dataclass
+class Attempt:
+    number: int
+    started_utc: str
+    controller: str
+    material: str
+    slope_rad: float
+    zones: Zones
+    armed_at: float
+    running_at: float | None = None
+    ended_at: float | None = None
+    outcome: str = ""
+    reason: str = ""
+    front: list = field(default_factory=list)
+    rear: list = field(default_factory=list)
+    last_state: LhdState | None = None    # the latest tip while armed / running
+    mass: float | None = None
+    mass_source: str = ""
+    success_level: int | None = None
+    success: bool | None = None
+
+    @property
+    def elapsed_s(self) -> float:
+        if self.running_at is None:
+            return 0.0
+        return (self.ended_at if self.ended_at is not None else math.inf) - self.running_at
+
+    @property
+    def phi_final(self) -> float:
+        return self.last_state.phi_shovel if self.last_state is not None else math.nan
+
+    def row(self) -> AttemptRow:
+        return AttemptRow(attempt=self.number, started_utc=self.started_utc, controller=self.controller,
+                          slope_deg=math.degrees(self.slope_rad), material=self.material, outcome=self.outcome,
+                          reason=self.reason, mass_kg=self.mass, elapsed_s=self.elapsed_s,
+                          front_drift_pct=drift_pct(self.front), rear_drift_pct=drift_pct(self.rear),
+                          phi_final_deg=math.degrees(self.phi_final), success_level=self.success_level,
+                          success=self.success, bag=bag_name(self.number))
+
+
+class Supervisor:
+    """One machine's attempts. The caller feeds `inputs`, calls `update(now)` on every joints /
+    odometry arrival and on a fast timer, and `arm`, `abort`, `set_mass`, `load_cell`."""
+
+    def __init__(self, settings: Settings, kin: ArmKinematics, controller: str, material: str,
+                 first_attempt: int = 1):
+        self.s = settings
+        self.kin = kin
+        self.controller = controller
+        self.material = material
+        self.inputs = Inputs()
+        self.state = "idle"
+        self.next_number = first_attempt
+        self.attempt: Attempt | None = None
+        self.tip: LhdState | None = None         # the latest tip computed from fresh, finite inputs
+        self._cell: deque = deque()              # (time, kg) load-cell samples, the last few seconds
+        self._stopped_since: float | None = None
+
+    # ------------------------------------------------------------------ preflight
+    def slope_problem(self, slope: float) -> str:
+        if not _finite(slope):
+            return f"pile slope is not a finite number ({slope!r} rad) on {self.s.prefix}/pile/slope"
+        lo, hi = self.s.slope_range_deg
+        deg = math.degrees(slope)
+        if lo - RANGE_TOL_DEG <= deg <= hi + RANGE_TOL_DEG:
+            return ""
+        return (f"pile slope {deg:.1f} deg is outside the controller's range [{lo:g}, {hi:g}] deg "
+                f"({self.s.slope_source}): reshape the pile or pick a controller trained for it")
+
+    def _input_problems(self, now: float) -> list[str]:
+        """Problems of the inputs an attempt needs all the time: joints, odometry, drift flags,
+        the bridge (age, and its level unless the device's e-stop explains it)."""
+        inp, s, out = self.inputs, self.s, []
+        p = s.prefix
+        ages = (("joints", "joint states", f"{p}/joint_states, the bridge", s.input_timeout),
+                ("odom", "odometry v_x", f"{p}/odom, the ArUco node", s.input_timeout),
+                ("drift_front", "front drift flag", f"{p}/wheel_drift/front, the bridge", s.input_timeout),
+                ("drift_rear", "rear drift flag", f"{p}/wheel_drift/rear, the bridge", s.input_timeout),
+                ("hw", "bridge status", f"{p}/hw/status", s.hw_status_timeout))
+        for name, what, src, timeout in ages:
+            if name not in inp.values:
+                out.append(f"no {what} received ({src})")
+            elif inp.age(name, now) > timeout:
+                out.append(f"{what} {inp.age(name, now):.2f} s old (timeout {timeout:g} s; {src})")
+        if "joints" in inp.values:
+            j = inp.values["joints"]
+            for name in ("boom", "bucket"):
+                if name not in j:
+                    out.append(f"joint states have no '{name}' joint; expected boom and bucket")
+                elif not _finite(*j[name]):
+                    out.append(f"joint '{name}' is not finite (position, velocity = {j[name]})")
+        if "odom" in inp.values:
+            pos, quat, v_x = inp.values["odom"]
+            if not _finite(v_x):
+                out.append(f"odometry v_x is not finite ({v_x!r})")
+            if not _finite(*pos, *quat) or not any(quat):
+                out.append(f"odometry pose is not finite (position {pos}, orientation {quat})")
+        hw = inp.values.get("hw")
+        if hw is not None and inp.age("hw", now) <= s.hw_status_timeout and not hw.estop:
+            if hw.level in (ERROR, STALE):
+                out.append(f"bridge reports {LEVEL_NAMES[hw.level]}: {hw.message}")
+        return out
+
+    def _estop_problem(self, now: float) -> str:
+        if self.inputs.estop:
+            return f"emergency stop engaged ({self.s.prefix}/estop is true)"
+        hw = self.inputs.values.get("hw")
+        if hw is not None and hw.estop and self.inputs.age("hw", now) <= self.s.hw_status_timeout:
+            return "emergency stop pressed on the device (bridge status)"
+        return ""
+
+    def _compute_tip(self, now: float) -> LhdState | None:
+        """The task state from the latest joints + odometry, or None when either is missing,
+        stale or not finite."""
+        inp = self.inputs
+        if any(inp.age(n, now) > self.s.input_timeout for n in ("joints", "odom")):
+            return None
+        pos, quat, v_x = inp.values["odom"]
+        j = inp.values["joints"]
+        if "boom" not in j or "bucket" not in j or not _finite(*j["boom"], *j["bucket"], *pos, *quat, v_x):
+            return None
+        try:
+            st = state_from_measurements(self.kin, pos, quat, v_x, j, bool(inp.values.get("drift_front")),
+                                         bool(inp.values.get("drift_rear")))
+        except ValueError:          # a zero quaternion
+            return None
+        return st if _finite(st.x_shovel, st.y_shovel, st.z_shovel, st.phi_shovel) else None
+
+    def preflight(self, now: float) -> list[str]:
+        """Every reason not to start an attempt now, each a sentence; [] = ready."""
+        out = []
+        estop = self._estop_problem(now)
+        if estop:
+            out.append(estop + ": release it first")
+        out += self._input_problems(now)
+        inp, p = self.inputs, self.s.prefix
+        if "slope" not in inp.values:
+            out.append(f"no pile slope received ({p}/pile/slope, the LiDAR node)")
+        else:
+            why = self.slope_problem(inp.values["slope"])
+            if why:
+                out.append(why)
+        zones = inp.values.get("zones")
+        if inp.zones_error:
+            out.append(f"pile zones invalid ({p}/pile/zones): {inp.zones_error}")
+        elif zones is None:
+            out.append(f"no pile zones received ({p}/pile/zones, the end-zone node)")
+        tip = self._compute_tip(now)
+        if tip is not None and zones is not None and not inp.zones_error:
+            where = classify(tip.x_shovel, tip.y_shovel, tip.z_shovel, zones)
+            at = f"(x {tip.x_shovel:.3f}, y {tip.y_shovel:.3f}, z {tip.z_shovel:.3f} m)"
+            if where == "end":
+                out.append(f"bucket tip already in the end zone {at}: back the machine off to the attack pose")
+            elif where == "restricted":
+                out.append(f"bucket tip in the restricted zone {at}, outside the permitted zone x in "
+                           f"[{zones.x_obs_start:.3f}, {min(zones.x_obs_end, zones.x_cutoff):.3f}] m, |y| <= "
+                           f"{zones.y_half:.3f} m: place the machine in front of the pile")
+        return out
+
+    # ------------------------------------------------------------------ commands
+    def arm(self, now: float, utc: str) -> tuple[bool, str]:
+        """Start attempt N (armed, running after arm_delay) if the preflight passes."""
+        if self.state in LIVE:
+            return False, f"attempt {self.attempt.number} is already {self.state}: abort it first"
+        problems = self.preflight(now)
+        if problems:
+            return False, "not armed: " + "; ".join(problems)
+        inp = self.inputs
+        n = self.next_number
+        self.next_number += 1
+        self.attempt = Attempt(number=n, started_utc=utc, controller=self.controller, material=self.material,
+                               slope_rad=float(inp.values["slope"]), zones=inp.values["zones"], armed_at=now)
+        self.attempt.last_state = self._compute_tip(now)
+        self._cell.clear()
+        self._stopped_since = None
+        self.state = "armed"
+        note = ""
+        if self.s.arm_delay == 0:
+            self._start_running(now)
+        else:
+            note = f", running in {self.s.arm_delay:g} s"
+        return True, (f"attempt {n} armed{note}: controller {self.controller}, "
+                      f"slope {math.degrees(self.attempt.slope_rad):.1f} deg, {self.material}, timeout "
+                      f"{self.s.attempt_timeout:g} s")
+
+    def abort(self, now: float, reason: str = "") -> tuple[bool, str]:
+        if self.state not in LIVE:
+            what = "no attempt yet" if self.attempt is None else f"attempt {self.attempt.number} already ended " \
+                                                                  f"({self.state})"
+            return False, f"nothing to abort: {what}"
+        self._end(now, "aborted", reason or f"{REASONS['aborted']} ({self.s.prefix}/abort)")
+        return True, f"attempt {self.attempt.number} aborted"
+
+    def _start_running(self, now: float) -> None:
+        a = self.attempt
+        self.state = "running"
+        a.running_at = now
+
+    def _end(self, now: float, outcome: str, reason: str) -> None:
+        a = self.attempt
+        a.ended_at = now
+        a.outcome = outcome
+        a.reason = reason
+        a.success_level, a.success = judge(outcome, None, a.phi_final, self.s.phi_thresh)
+        self.state = outcome
+
+    # ------------------------------------------------------------------ the loop
+    def update(self, now: float) -> bool:
+        """Check the end conditions (and the load-cell window); True when the state changed."""
+        before = self.state
+        tip = self._compute_tip(now)
+        self.tip = tip
+        if self.state in LIVE:
+            self._update_live(now, tip)
+        elif self.state in ENDED:
+            self._update_load_cell(now)
+        return self.state != before
+
+    def _update_live(self, now: float, tip: LhdState | None) -> None:
+        a, s, inp = self.attempt, self.s, self.inputs
+        if self.state == "running":       # the drift flags at the end of each control period, up to now
+            while a.running_at + (len(a.front) + 1) * s.control_dt <= now + 1e-9:
+                a.front.append(bool(inp.values.get("drift_front")))
+                a.rear.append(bool(inp.values.get("drift_rear")))
+        if tip is not None:
+            a.last_state = tip
+        estop = self._estop_problem(now)
+        if estop:
+            self._end(now, "estop", estop)
+            return
+        lost = self._input_problems(now)
+        if lost:
+            self._end(now, "lost_input", "; ".join(lost))
+            return
+        if tip is None:                   # inputs fresh and finite, but no tip: a broken orientation
+            self._end(now, "lost_input", "the bucket tip cannot be computed from the odometry and joint states")
+            return
+        if self.state == "armed":
+            if now - a.armed_at >= s.arm_delay:
+                self._start_running(now)
+            return
+        where = classify(tip.x_shovel, tip.y_shovel, tip.z_shovel, a.zones)
+        if where == "end":
+            self._end(now, "success", REASONS["success"])
+        elif where == "restricted":
+            self._end(now, "failure", REASONS["failure"])
+        elif now - a.running_at >= s.attempt_timeout:
+            self._end(now, "timeout", f"attempt_timeout {s.attempt_timeout:g} s passed")
+
+    # ------------------------------------------------------------------ the loaded mass
+    def set_mass(self, kg, source: str = "operator") -> AttemptRow:
+        """The weighed mass of the latest ended attempt; ValueError saying why not. The
+        operator's scale wins over the load cell: a load-cell mass never replaces it."""
+        m = check_mass(kg)
+        a = self.attempt
+        if a is None:
+            raise ValueError("no attempt to weigh yet")
+        if self.state in LIVE:
+            raise ValueError(f"attempt {a.number} is {self.state}: weigh the bucket after it ends")
+        if source == "load_cell" and a.mass_source == "operator":
+            raise ValueError(f"attempt {a.number} was weighed by the operator; the load cell does not replace it")
+        a.mass, a.mass_source = m, source
+        a.success_level, a.success = judge(a.outcome, m, a.phi_final, self.s.phi_thresh)
+        return a.row()
+
+    def load_cell(self, kg: float, now: float) -> str:
+        """A load-cell reading (kg); returns why it was dropped, or ""."""
+        if not _finite(kg) or not LOAD_CELL_RANGE[0] <= kg <= LOAD_CELL_RANGE[1]:
+            return (f"load-cell mass {kg!r} kg dropped: expected a finite reading in "
+                    f"[{LOAD_CELL_RANGE[0]:g}, {LOAD_CELL_RANGE[1]:g}] kg")
+        self._cell.append((now, float(kg)))
+        while self._cell and self._cell[0][0] < now - 10.0 * self.s.mass_settle_s:
+            self._cell.popleft()
+        return ""
+
+    def machine_stopped(self, now: float) -> bool:
+        """Every joint of fresh joint states slower than STOP_SPEED."""
+        j = self.inputs.values.get("joints")
+        if j is None or self.inputs.age("joints", now) > self.s.input_timeout:
+            return False
+        return all(_finite(v) and abs(v) < STOP_SPEED for _, v in j.values())
+
+    def _update_load_cell(self, now: float) -> None:
+        """After the end: once the machine has stood still for mass_settle_s, the median of the
+        load-cell readings of that window is the attempt's mass (unless already weighed)."""
+        a = self.attempt
+        if a is None or a.mass is not None or not self._cell:
+            return
+        if not self.machine_stopped(now):
+            self._stopped_since = None
+            return
+        if self._stopped_since is None:
+            self._stopped_since = now
+        if now - self._stopped_since < self.s.mass_settle_s:
+            return
+        window = [kg for t, kg in self._cell if t >= now - self.s.mass_settle_s]
+        if len(window) >= LOAD_CELL_MIN_SAMPLES:
+            self.set_mass(max(0.0, statistics.median(window)), "load_cell")
+
+    # ------------------------------------------------------------------ reporting
+    def reason(self, now: float) -> str:
+        if self.state == "idle":
+            return f"no attempt yet: call {self.s.prefix}/arm"
+        a = self.attempt
+        if self.state == "armed":
+            return f"armed: running in {max(0.0, a.armed_at + self.s.arm_delay - now):.1f} s"
+        if self.state == "running":
+            return "attempt running: the controller may command"
+        return a.reason
+
+    def status_values(self, now: float) -> dict[str, str]:
+        """The keys of <prefix>/episode (the sim node's), as strings."""
+        a = self.attempt
+        tip = self.tip
+        slope = a.slope_rad if a is not None else self.inputs.values.get("slope", math.nan)
+        v = {"state": self.state, "episode": str(a.number if a is not None else 0), "controller": self.controller,
+             "loaded_mass": "nan" if a is None or a.mass is None else f"{a.mass:.2f}",
+             "slope_deg": f"{math.degrees(slope):.2f}" if _finite(slope) else "nan",
+             "material": a.material if a is not None else self.material,
+             "x_shovel": f"{tip.x_shovel:.4f}" if tip is not None else "nan",
+             "z_shovel": f"{tip.z_shovel:.4f}" if tip is not None else "nan",
+             "reason": self.reason(now)}
+        if a is not None:
+            v["bag"] = bag_name(a.number)
+            if a.running_at is not None and self.state == "running":
+                v["elapsed_s"] = f"{now - a.running_at:.2f}"
+        if a is not None and self.state in ENDED:
+            r = a.row()
+            v.update({"elapsed_s": f"{r.elapsed_s:.2f}", "front_drift_pct": f"{r.front_drift_pct:.2f}",
+                      "rear_drift_pct": f"{r.rear_drift_pct:.2f}",
+                      "phi_final_deg": f"{r.phi_final_deg:.2f}" if _finite(r.phi_final_deg) else "nan"})
+            if a.success_level is not None:
+                v["success_level"] = str(a.success_level)
+            if a.success is not None:
+                v["success"] = str(a.success)
+            if a.mass_source:
+                v["mass_source"] = a.mass_source
+        return v

@@ -1,0 +1,352 @@
+"""The attempt record of the real machine: `<run_dir>/attempts.csv`, one row per attempt, and
+the paper's results table (Table "results summary") computed from it. ROS-free.
+
+The supervisor writes a row when an attempt ends, and rewrites it when the bucket's mass
+arrives (the operator's scale or the load cell). Every write replaces the whole file
+atomically (a temporary file in the same folder, fsync, os.replace), so a reader never sees a
+half-written file and a process that dies later loses nothing already written. Writers read
+the file again before each write (read, change one row, replace), so `lhd attempt mass
+--run-dir` and the supervisor do not undo each other's rows.
+
+Success (the paper, experimental settings): an attempt succeeds when the loaded mass is at
+least 20 kg and the final pitch phi_shovel^T > phi_thresh^pitch (SL >= 1); "loading attempts
+that end with a timeout and meet both success conditions are considered successes"; an
+attempt that ends in the restricted zone is a failure, and so is one stopped by the e-stop or
+by lost input. So `success` is known at the end for failure / estop / lost_input / aborted
+(false), and only once weighed for success / timeout.
+
+The table (`summarize`, `format_table`): per controller x material x slope (the attempt's
+slope rounded to the nearest 5 deg, halves up): attempts, success rate, and over the SUCCESSFUL attempts
+only (the paper: "computed considering only successful loading attempts") the material
+loaded, elapsed time, front and rear drift, mean and standard deviation; then the row x-bar
+of each metric: the mean across the slopes of the per-slope means, with the standard
+deviation of those means (the paper's footnote a; its RLC homogeneous "material loaded"
+column 22.40, 24.18, 26.08, 27.24 -> 24.98 +- 1.84 is the population standard deviation,
+ddof = 0, which is used throughout). Attempts aborted by the operator are not counted;
+attempts whose success still waits for the weighed mass are listed apart, not counted.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import tempfile
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from lhd_loading_ros.task.metrics import success_level
+
+CSV_NAME = "attempts.csv"
+COLUMNS = ("attempt", "started_utc", "controller", "slope_deg", "material", "outcome", "reason", "mass_kg",
+           "elapsed_s", "front_drift_pct", "rear_drift_pct", "phi_final_deg", "success_level", "success", "bag")
+OUTCOMES = ("success", "failure", "timeout", "estop", "lost_input", "aborted")
+NEEDS_MASS = ("success", "timeout")          # success decided by the weighed mass and the final pitch
+NOT_COUNTED = ("aborted",)                   # the operator called the attempt off: not in the table
+MATERIALS = ("homogeneous", "nonhomogeneous")
+MAX_MASS_KG = 200.0                          # a bucket rated 30 kg (heaped 37.5): anything above is a typo
+SLOPE_BIN_DEG = 5.0
+PAPER_ORDER = ("rlc", "rld", "tampier", "teleop")
+LABELS = {"rlc": "RLC", "rld": "RLD", "tampier": "Tampier", "teleop": "Teleop"}
+
+
+def bag_name(attempt: int) -> str:
+    """The attempt's bag folder, relative to the run folder."""
+    return f"bags/attempt_{attempt:04d}"
+
+
+def check_mass(kg) -> float:
+    """The weighed mass as a float, or ValueError saying what is wrong and what is expected."""
+    try:
+        v = float(kg)
+    except (TypeError, ValueError):
+        raise ValueError(f"mass {kg!r} is not a number; expected kilograms, e.g. 23.4") from None
+    if not math.isfinite(v):
+        raise ValueError(f"mass {kg!r} is not a finite number; expected kilograms in [0, {MAX_MASS_KG:g}]")
+    if v < 0.0:
+        raise ValueError(f"mass {v:g} kg is negative; expected kilograms in [0, {MAX_MASS_KG:g}]")
+    if v > MAX_MASS_KG:
+        raise ValueError(f"mass {v:g} kg is not a plausible bucket load (the bucket is rated 30 kg); "
+                         f"expected kilograms in [0, {MAX_MASS_KG:g}]")
+    return v
+
+
+def judge(outcome: str, mass_kg: float | None, phi_final_rad: float, phi_thresh_rad: float
+          ) -> tuple[int | None, bool | None]:
+    """(success level, success) of an attempt: SL from the weighed mass and the final pitch
+    (metrics.success_level; a final pitch that was never measured gives SL 0); success as in
+    the module docstring. None where the mass is still needed."""
+    if outcome not in OUTCOMES:
+        raise ValueError(f"outcome {outcome!r}: expected one of {OUTCOMES}")
+    sl = None
+    if mass_kg is not None:
+        sl = success_level(mass_kg, phi_final_rad, phi_thresh_rad) if math.isfinite(phi_final_rad) else 0
+    if outcome not in NEEDS_MASS:
+        return sl, False
+    if sl is None:
+        return None, None
+    return sl, sl >= 1
+
+
+@dataclass(frozen=True)
+class AttemptRow:
+    attempt: int
+    started_utc: str
+    controller: str
+    slope_deg: float
+    material: str
+    outcome: str
+    reason: str
+    mass_kg: float | None          # None until weighed
+    elapsed_s: float
+    front_drift_pct: float
+    rear_drift_pct: float
+    phi_final_deg: float           # NaN when never measured (written empty)
+    success_level: int | None
+    success: bool | None
+    bag: str
+
+    def weighed(self, mass_kg: float, phi_thresh_rad: float) -> "AttemptRow":
+        """This row with the weighed mass, its SL and success."""
+        m = check_mass(mass_kg)
+        sl, ok = judge(self.outcome, m, math.radians(self.phi_final_deg), phi_thresh_rad)
+        return replace(self, mass_kg=m, success_level=sl, success=ok)
+
+    @property
+    def slope_bin(self) -> float:
+        return SLOPE_BIN_DEG * math.floor(self.slope_deg / SLOPE_BIN_DEG + 0.5)     # halves up: 22.5 -> 25
+
+    def to_csv(self) -> dict[str, str]:
+        def num(v, digits=2):
+            return "" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{v:.{digits}f}"
+
+        return {"attempt": str(self.attempt), "started_utc": self.started_utc, "controller": self.controller,
+                "slope_deg": num(self.slope_deg), "material": self.material, "outcome": self.outcome,
+                "reason": self.reason, "mass_kg": num(self.mass_kg), "elapsed_s": num(self.elapsed_s, 3),
+                "front_drift_pct": num(self.front_drift_pct), "rear_drift_pct": num(self.rear_drift_pct),
+                "phi_final_deg": num(self.phi_final_deg),
+                "success_level": "" if self.success_level is None else str(self.success_level),
+                "success": "" if self.success is None else ("true" if self.success else "false"), "bag": self.bag}
+
+    @classmethod
+    def from_csv(cls, d: dict, where: str = "") -> "AttemptRow":
+        """Parse one CSV row; ValueError naming the row and the column otherwise."""
+        at = f"{where}: " if where else ""
+
+        def get(col):
+            v = d.get(col)
+            if v is None:
+                raise ValueError(f"{at}column '{col}' missing")
+            return v.strip()
+
+        def number(col, optional=False):
+            v = get(col)
+            if v == "" and optional:
+                return None
+            try:
+                x = float(v)
+            except ValueError:
+                raise ValueError(f"{at}{col} = {v!r} is not a number") from None
+            if not math.isfinite(x):
+                raise ValueError(f"{at}{col} = {v!r} is not finite")
+            return x
+
+        try:
+            attempt = int(get("attempt"))
+        except ValueError:
+            raise ValueError(f"{at}attempt = {get('attempt')!r} is not an integer") from None
+        outcome = get("outcome")
+        if outcome not in OUTCOMES:
+            raise ValueError(f"{at}outcome = {outcome!r}; expected one of {', '.join(OUTCOMES)}")
+        material = get("material")
+        if material not in MATERIALS:
+            raise ValueError(f"{at}material = {material!r}; expected one of {', '.join(MATERIALS)}")
+        sl_raw = get("success_level")
+        try:
+            sl = None if sl_raw == "" else int(sl_raw)
+        except ValueError:
+            raise ValueError(f"{at}success_level = {sl_raw!r} is not an integer 0-5") from None
+        ok_raw = get("success").lower()
+        if ok_raw not in ("", "true", "false"):
+            raise ValueError(f"{at}success = {ok_raw!r}; expected true, false or empty")
+        phi = number("phi_final_deg", optional=True)
+        return cls(attempt=attempt, started_utc=get("started_utc"), controller=get("controller"),
+                   slope_deg=number("slope_deg"), material=material, outcome=outcome, reason=get("reason"),
+                   mass_kg=number("mass_kg", optional=True), elapsed_s=number("elapsed_s"),
+                   front_drift_pct=number("front_drift_pct"), rear_drift_pct=number("rear_drift_pct"),
+                   phi_final_deg=math.nan if phi is None else phi, success_level=sl,
+                   success=None if ok_raw == "" else ok_raw == "true", bag=get("bag"))
+
+
+def csv_path(run_dir) -> Path:
+    """attempts.csv of a run folder (a path to the CSV itself is taken as it is)."""
+    p = Path(run_dir)
+    return p if p.suffix == ".csv" else p / CSV_NAME
+
+
+def read_rows(path) -> list[AttemptRow]:
+    """The rows of an attempts.csv ([] when the file does not exist yet)."""
+    path = Path(path)
+    if not path.exists():
+        return []
+    with open(path, newline="") as f:
+        reader = csv.DictReader(f)
+        missing = [c for c in COLUMNS if c not in (reader.fieldnames or [])]
+        if missing:
+            raise ValueError(f"{path}: not an attempts record (columns {', '.join(missing)} missing)")
+        return [AttemptRow.from_csv(d, f"{path} line {reader.line_num}") for d in reader]
+
+
+def write_rows(path, rows: list[AttemptRow]) -> None:
+    """Replace `path` atomically with `rows` (sorted by attempt number)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
+    w.writeheader()
+    for r in sorted(rows, key=lambda r: r.attempt):
+        w.writerow(r.to_csv())
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", newline="") as f:
+            f.write(buf.getvalue())
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def upsert_row(path, row: AttemptRow) -> None:
+    """Write `row` into the record, replacing the row of the same attempt number if present."""
+    rows = [r for r in read_rows(path) if r.attempt != row.attempt]
+    write_rows(path, rows + [row])
+
+
+def weigh_row(path, attempt: int | None, mass_kg: float, phi_thresh_rad: float) -> AttemptRow:
+    """Set the mass of attempt `attempt` (None: the latest) in the record; returns the new row."""
+    rows = read_rows(path)
+    if not rows:
+        raise ValueError(f"{path}: no attempts recorded")
+    if attempt is None:
+        attempt = max(r.attempt for r in rows)
+    match = [r for r in rows if r.attempt == attempt]
+    if not match:
+        raise ValueError(f"{path}: no attempt {attempt} (attempts {', '.join(str(r.attempt) for r in rows)})")
+    new = match[0].weighed(mass_kg, phi_thresh_rad)
+    write_rows(path, [r for r in rows if r.attempt != attempt] + [new])
+    return new
+
+
+# ------------------------------------------------------------------ the paper's table
+METRICS = (("mass_kg", "Material loaded [kg]"), ("elapsed_s", "Elapsed time [s]"),
+           ("front_drift_pct", "Frontal drift [%]"), ("rear_drift_pct", "Rear drift [%]"))
+
+
+def _mean_std(xs: list[float]) -> dict:
+    if not xs:
+        return {"mean": None, "std": None, "n": 0}
+    m = sum(xs) / len(xs)
+    return {"mean": m, "std": math.sqrt(sum((x - m) ** 2 for x in xs) / len(xs)), "n": len(xs)}
+
+
+def controller_order(names) -> list[str]:
+    names = set(names)
+    return [c for c in PAPER_ORDER if c in names] + sorted(names - set(PAPER_ORDER))
+
+
+def summarize(rows: list[AttemptRow]) -> dict:
+    """The paper's table as data: `cells` (controller x material x slope), `across_slopes`
+    (the x-bar rows), and the attempts left out (aborted; not yet weighed)."""
+    aborted = [r.attempt for r in rows if r.outcome in NOT_COUNTED]
+    pending = [r.attempt for r in rows if r.outcome not in NOT_COUNTED and r.success is None]
+    counted = [r for r in rows if r.outcome not in NOT_COUNTED and r.success is not None]
+    groups: dict[tuple, list[AttemptRow]] = {}
+    for r in counted:
+        groups.setdefault((r.controller, r.material, r.slope_bin), []).append(r)
+    cells = []
+    for (ctrl, mat, slope), rs in groups.items():
+        ok = [r for r in rs if r.success]
+        cell = {"controller": ctrl, "material": mat, "slope_deg": slope, "attempts": len(rs),
+                "successes": len(ok), "success_rate": len(ok) / len(rs),
+                "attempt_numbers": sorted(r.attempt for r in rs)}
+        for key, _ in METRICS:
+            cell[key] = _mean_std([getattr(r, key) for r in ok])
+        cells.append(cell)
+    order = controller_order(c["controller"] for c in cells)
+    cells.sort(key=lambda c: (MATERIALS.index(c["material"]), order.index(c["controller"]), c["slope_deg"]))
+    across = []
+    for mat in MATERIALS:
+        for ctrl in order:
+            mine = [c for c in cells if c["controller"] == ctrl and c["material"] == mat]
+            if not mine:
+                continue
+            a = {"controller": ctrl, "material": mat, "slopes": [c["slope_deg"] for c in mine]}
+            for key, _ in METRICS:
+                a[key] = _mean_std([c[key]["mean"] for c in mine if c[key]["mean"] is not None])
+            across.append(a)
+    return {"rows": len(rows), "counted": len(counted), "aborted": aborted, "not_weighed": pending,
+            "cells": cells, "across_slopes": across}
+
+
+def format_table(summary: dict, title: str = "") -> str:
+    """The summary laid out like the paper's table: a block per metric, a line per slope (and
+    x-bar), a column per material x controller."""
+    cells = summary["cells"]
+    lines = [title] if title else []
+    lines.append(f"{summary['rows']} attempt(s) recorded, {summary['counted']} counted")
+    if summary["aborted"]:
+        lines.append(f"aborted by the operator, not counted: attempt(s) {', '.join(map(str, summary['aborted']))}")
+    if summary["not_weighed"]:
+        lines.append(f"not yet weighed, not counted (lhd attempt mass KG --attempt N): attempt(s) "
+                     f"{', '.join(map(str, summary['not_weighed']))}")
+    if not cells:
+        lines.append("no counted attempts yet")
+        return "\n".join(lines)
+    cols = []       # (material, controller)
+    for mat in MATERIALS:
+        for ctrl in controller_order(c["controller"] for c in cells if c["material"] == mat):
+            cols.append((mat, ctrl))
+    slopes = sorted({c["slope_deg"] for c in cells})
+    by = {(c["material"], c["controller"], c["slope_deg"]): c for c in cells}
+    across = {(a["material"], a["controller"]): a for a in summary["across_slopes"]}
+    w0, w1, w = 22, 7, 15
+
+    def fmt_ms(d):
+        return "-" if d is None or d["mean"] is None else f"{d['mean']:.2f}±{d['std']:.2f}"
+
+    widths = [w] * len(cols)         # a material's last column widens to fit the material's heading
+    head_mat = " " * (w0 + w1)
+    for mat in MATERIALS:
+        idx = [i for i, (m, _) in enumerate(cols) if m == mat]
+        if idx:
+            label = mat.capitalize() + " material"
+            widths[idx[-1]] += max(0, len(label) + 2 - w * len(idx))
+            head_mat += f"{label:<{sum(widths[i] for i in idx)}}"
+    rule = "-" * (w0 + w1 + sum(widths))
+
+    def line(name, slope, vals):
+        return (f"{name:<{w0}}{slope:<{w1}}" + "".join(f"{v:<{wd}}" for v, wd in zip(vals, widths))).rstrip()
+
+    lines.append(head_mat.rstrip())
+    lines.append(line("", "slope", [LABELS.get(c, c) for _, c in cols]))
+    lines.append(rule)
+
+    def block(name, value_of, with_mean):
+        for i, s in enumerate(slopes):
+            vals = ["" if by.get((mat, ctrl, s)) is None else value_of(by[(mat, ctrl, s)]) for mat, ctrl in cols]
+            lines.append(line(name if i == 0 else "", f"{s:g}", vals))
+        if with_mean:
+            vals = [fmt_ms(across[(mat, ctrl)][with_mean]) if (mat, ctrl) in across else "" for mat, ctrl in cols]
+            lines.append(line("", "mean", vals))
+        lines.append(rule)
+
+    block("Attempts", lambda c: str(c["attempts"]), None)
+    block("Success rate", lambda c: f"{c['success_rate']:.2f}", None)
+    for key, name in METRICS:
+        block(name, lambda c, key=key: fmt_ms(c[key]), key)
+    lines.append("metrics over successful attempts only (mean±std); row 'mean': the mean across slopes of the "
+                 "per-slope means ± their standard deviation (the paper's x̄)")
+    return "\n".join(lines)

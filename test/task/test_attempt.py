@@ -1,0 +1,460 @@
+"""The attempt life cycle of the real machine (task/attempt.py) with hand-built inputs and a
+fake clock: each preflight problem, each end condition, drift %, the final pitch, SL after
+weighing, the load-cell window."""
+import math
+
+import pytest
+
+from lhd_loading_ros.task.attempt import ERROR, OK, STALE, WARN, HwStatus, Settings, Supervisor
+from lhd_loading_ros.task.kinematics import ArmKinematics
+from lhd_loading_ros.task.zones import Zones
+
+# Hand geometry of the scaled LHD (config/lhd_params.yaml, machine): attack pose (boom = bucket
+# = 0), base_link = rear axle centre at height r = 0.137 m. Tip ahead of the rear axle:
+# wheelbase 0.80 + boom pivot ahead of the front axle 0.15 + boom reach sqrt(0.55^2 - (0.42 -
+# 0.12)^2) + tip ahead of the hinge 0.30; tip height 0.005 (floor gap) + 0.01 (plate) = 0.015.
+R_WHEEL = 0.137
+TIP_AHEAD = 0.80 + 0.15 + math.sqrt(0.55 ** 2 - 0.30 ** 2) + 0.30      # 1.710977 m
+TIP_Z = 0.015
+# With the boom lifted by b (rad, negative lifts) and the bucket curled by k, about the boom
+# pivot (0.95 m ahead of the rear axle, 0.42 m high): hinge offset (reach, -0.30), tip offset
+# from the hinge (0.30, -0.105) (tip ahead of the hinge; plate top 0.105 below the hinge),
+# rotated by R_y: (x, z) -> (c x + s z, -s x + c z).
+
+
+def rot(a, x, z):
+    c, s = math.cos(a), math.sin(a)
+    return c * x + s * z, -s * x + c * z
+
+
+def tip_hand(base_x, boom, bucket):
+    hx, hz = rot(boom, math.sqrt(0.55 ** 2 - 0.30 ** 2), -0.30)
+    tx, tz = rot(boom - bucket, 0.30, -0.105)
+    return base_x + 0.95 + hx + tx, 0.42 + hz + tz
+
+
+ZONES = Zones(x_min=0.5, x_max=1.0, z_min=0.35, x_cutoff=1.5, x_obs_start=-0.1, x_obs_end=1.1, y_half=0.2,
+              z_top=0.4)
+START_X = -TIP_AHEAD                      # tip at x = 0 (permitted), attack pose
+LIFT = (-0.5, 0.3)                        # boom, bucket: pitch 0.8 rad = 45.8 deg > 40 deg
+END_X = 0.7 - (tip_hand(0.0, *LIFT)[0])   # tip at x = 0.7, z ~ 0.52: end zone
+DEG = math.radians
+
+
+@pytest.fixture
+def kin(cfg):
+    return ArmKinematics.from_config(cfg)
+
+
+def settings(**kw):
+    base = dict(slope_range_deg=(15.0, 30.0), slope_source="test range", phi_thresh=DEG(40.0), control_dt=0.1,
+                attempt_timeout=10.0, arm_delay=1.0, input_timeout=0.5, hw_status_timeout=0.5, mass_settle_s=1.0)
+    base.update(kw)
+    return Settings(**base)
+
+
+class Rig:
+    """A supervisor and a fake clock; `feed(t)` gives every 10 Hz input at time t."""
+
+    def __init__(self, kin, **kw):
+        self.sv = Supervisor(settings(**kw), kin, "rld", "homogeneous")
+        self.t = 100.0
+        self.base_x, self.boom, self.bucket, self.v_x = START_X, 0.0, 0.0, 0.0
+        self.front = self.rear = False
+        self.hw = HwStatus(OK, False, "drive enabled")
+        self.vel = 0.0
+
+    def feed(self, t=None, joints=True, odom=True, drift=True, hw=True):
+        if t is not None:
+            self.t = t
+        i = self.sv.inputs
+        if joints:
+            i.put("joints", {"boom": (self.boom, self.vel), "bucket": (self.bucket, self.vel),
+                             "wheel_fl": (0.0, self.vel)}, self.t)
+        if odom:
+            i.put("odom", ((self.base_x, 0.0, R_WHEEL), (1.0, 0.0, 0.0, 0.0), self.v_x), self.t)
+        if drift:
+            i.put("drift_front", self.front, self.t)
+            i.put("drift_rear", self.rear, self.t)
+        if hw:
+            i.put("hw", self.hw, self.t)
+        return self
+
+    def ready(self, slope_deg=20.0):
+        self.sv.inputs.put("slope", DEG(slope_deg), self.t)
+        self.sv.inputs.put("zones", ZONES, self.t)
+        return self.feed()
+
+    def step(self, dt, **kw):
+        """Advance the clock by dt in 20 ms ticks with fresh inputs (the 50 Hz loop); times on
+        a millisecond grid, so that 1.0 s after 100.0 is exactly 101.0."""
+        ms0 = round(self.t * 1000)
+        ms_end = ms0 + round(dt * 1000)
+        ms = ms0
+        while ms < ms_end:
+            ms = min(ms + 20, ms_end)
+            self.t = ms / 1000
+            self.feed(**kw)
+            self.sv.update(self.t)
+        return self.sv.state
+
+    def arm(self):
+        ok, msg = self.sv.arm(self.t, "2025-01-01T00:00:00Z")
+        assert ok, msg
+        return msg
+
+
+def test_the_tip_is_computed_with_the_policys_kinematics(kin):
+    r = Rig(kin).ready()
+    r.sv.update(r.t)
+    assert r.sv.tip.x_shovel == pytest.approx(0.0, abs=1e-4) and r.sv.tip.z_shovel == pytest.approx(TIP_Z, abs=1e-4)
+    r.base_x, (r.boom, r.bucket) = END_X, LIFT
+    r.feed()
+    r.sv.update(r.t)
+    x, z = tip_hand(END_X, *LIFT)
+    assert (x, z) == (pytest.approx(0.7, abs=1e-9), pytest.approx(0.5198, abs=1e-3))
+    assert r.sv.tip.x_shovel == pytest.approx(x, abs=1e-4) and r.sv.tip.z_shovel == pytest.approx(z, abs=1e-4)
+    assert r.sv.tip.phi_shovel == pytest.approx(0.8, abs=1e-9)     # pitch = -boom + bucket
+
+
+# ------------------------------------------------------------------ preflight
+def test_nothing_received_lists_every_missing_input(kin):
+    sv = Supervisor(settings(), kin, "rld", "homogeneous")
+    assert sv.state == "idle"
+    problems = sv.preflight(0.0)
+    text = "\n".join(problems)
+    for what in ("no joint states received", "no odometry v_x received", "no front drift flag received",
+                 "no rear drift flag received", "no bridge status received (/lhd/hw/status)",
+                 "no pile slope received (/lhd/pile/slope", "no pile zones received (/lhd/pile/zones"):
+        assert what in text, text
+    assert len(problems) == 7, problems
+    ok, msg = sv.arm(0.0, "x")
+    assert not ok and msg.startswith("not armed: ") and sv.state == "idle" and sv.attempt is None
+
+
+def test_ready_inputs_pass_the_preflight(kin):
+    r = Rig(kin).ready()
+    assert r.sv.preflight(r.t) == []
+
+
+@pytest.mark.parametrize("case, expected", [
+    ("stale_joints", "joint states 0.60 s old (timeout 0.5 s; /lhd/joint_states, the bridge)"),
+    ("stale_odom", "odometry v_x 0.60 s old (timeout 0.5 s; /lhd/odom, the ArUco node)"),
+    ("stale_drift", "front drift flag 0.60 s old (timeout 0.5 s; /lhd/wheel_drift/front"),
+    ("stale_hw", "bridge status 0.60 s old (timeout 0.5 s; /lhd/hw/status)"),
+    ("nan_boom", "joint 'boom' is not finite"),
+    ("no_bucket", "joint states have no 'bucket' joint"),
+    ("nan_vx", "odometry v_x is not finite"),
+    ("zero_quat", "odometry pose is not finite"),
+    ("slope_high", "pile slope 35.0 deg is outside the controller's range [15, 30] deg (test range)"),
+    ("slope_low", "pile slope 12.0 deg is outside the controller's range [15, 30] deg"),
+    ("slope_nan", "pile slope is not a finite number"),
+    ("zones_bad", "pile zones invalid (/lhd/pile/zones): zones: x_min 1 must be below x_max 0.5"),
+    ("hw_error", "bridge reports ERROR: serial link lost"),
+    ("hw_stale", "bridge reports STALE: no sensor frame from the device for 0.7 s"),
+    ("hw_estop", "emergency stop pressed on the device (bridge status): release it first"),
+    ("estop_topic", "emergency stop engaged (/lhd/estop is true): release it first"),
+    ("tip_in_end_zone", "bucket tip already in the end zone (x 0.700"),
+    ("tip_restricted", "bucket tip in the restricted zone (x 1.211"),
+])
+def test_each_preflight_problem_is_named(kin, case, expected):
+    r = Rig(kin).ready()
+    i = r.sv.inputs
+    t = r.t
+    if case.startswith("stale_"):
+        name = {"stale_joints": "joints", "stale_odom": "odom", "stale_drift": "drift_front", "stale_hw": "hw"}[case]
+        r.feed(t + 0.6)
+        i.arrival[name] = t           # that one input last came 0.6 s ago
+        t = r.t
+    elif case == "nan_boom":
+        r.boom = math.nan
+        r.feed()
+    elif case == "no_bucket":
+        i.put("joints", {"boom": (0.0, 0.0)}, t)
+    elif case == "nan_vx":
+        r.v_x = math.nan
+        r.feed()
+    elif case == "zero_quat":
+        i.put("odom", ((START_X, 0.0, R_WHEEL), (0.0, 0.0, 0.0, 0.0), 0.0), t)
+    elif case in ("slope_high", "slope_low", "slope_nan"):
+        i.put("slope", {"slope_high": DEG(35.0), "slope_low": DEG(12.0), "slope_nan": math.nan}[case], t)
+    elif case == "zones_bad":
+        i.zones_error = "zones: x_min 1 must be below x_max 0.5"
+    elif case == "hw_error":
+        r.hw = HwStatus(ERROR, False, "serial link lost")
+        r.feed()
+    elif case == "hw_stale":
+        r.hw = HwStatus(STALE, False, "no sensor frame from the device for 0.7 s")
+        r.feed()
+    elif case == "hw_estop":
+        r.hw = HwStatus(ERROR, True, "emergency stop pressed on the device")
+        r.feed()
+    elif case == "estop_topic":
+        i.estop = True
+    elif case == "tip_in_end_zone":
+        r.base_x, (r.boom, r.bucket) = END_X, LIFT
+        r.feed()
+    elif case == "tip_restricted":
+        r.base_x = -0.5           # tip at x = 1.211 > min(x_obs_end 1.1, x_cutoff 1.5), on the floor
+        r.feed()
+    problems = r.sv.preflight(t)
+    assert any(expected in p for p in problems), problems
+    ok, msg = r.sv.arm(t, "x")
+    assert not ok and expected in msg and r.sv.state == "idle"
+
+
+def test_a_slope_at_the_range_end_in_radians_is_inside(kin):
+    r = Rig(kin).ready(slope_deg=30.0)
+    assert r.sv.preflight(r.t) == []
+
+
+def test_a_hw_warning_does_not_block(kin):
+    r = Rig(kin)
+    r.hw = HwStatus(WARN, False, "device watchdog holds the machine stopped")
+    r.ready()
+    assert r.sv.preflight(r.t) == []
+
+
+# ------------------------------------------------------------------ life cycle and end conditions
+def test_arm_delay_then_running_then_success_in_the_end_zone(kin):
+    r = Rig(kin).ready()
+    msg = r.arm()
+    assert r.sv.state == "armed" and "attempt 1 armed, running in 1 s" in msg and "slope 20.0 deg" in msg
+    assert r.step(0.98) == "armed"
+    assert r.step(0.02) == "running"
+    t_run = r.t
+    assert r.sv.arm(r.t, "x")[0] is False                      # no second arming while live
+    assert r.step(1.0) == "running"
+    r.base_x, (r.boom, r.bucket) = END_X, LIFT
+    r.feed(r.t + 0.01)
+    assert r.sv.update(r.t) is True and r.sv.state == "success"
+    row = r.sv.attempt.row()
+    assert row.elapsed_s == pytest.approx(r.t - t_run) and row.elapsed_s == pytest.approx(1.01)
+    assert row.phi_final_deg == pytest.approx(math.degrees(0.8))
+    assert row.reason == "bucket tip reached the end zone"
+    assert row.success is None and row.success_level is None and row.mass_kg is None      # until weighed
+    v = r.sv.status_values(r.t)
+    assert v["state"] == "success" and v["episode"] == "1" and v["loaded_mass"] == "nan"
+    assert v["phi_final_deg"] == "45.84" and "success" not in v and v["bag"] == "bags/attempt_0001"
+
+
+def test_restricted_zone_is_a_failure_known_without_weighing(kin):
+    r = Rig(kin, arm_delay=0.0).ready()
+    r.arm()
+    assert r.sv.state == "running"
+    r.base_x = -0.5
+    r.feed(r.t + 0.02)
+    r.sv.update(r.t)
+    assert r.sv.state == "failure"
+    row = r.sv.attempt.row()
+    assert row.success is False and row.reason == "bucket tip entered the restricted zone"
+    assert r.sv.status_values(r.t)["success"] == "False"
+
+
+def test_timeout_after_exactly_attempt_timeout(kin):
+    r = Rig(kin, arm_delay=0.0).ready()
+    r.arm()
+    t0 = r.t
+    assert r.step(9.98) == "running"
+    r.feed(t0 + 9.999)
+    r.sv.update(r.t)
+    assert r.sv.state == "running"
+    r.feed(t0 + 10.0)
+    r.sv.update(r.t)
+    assert r.sv.state == "timeout"
+    assert r.sv.attempt.row().elapsed_s == pytest.approx(10.0)
+    assert r.sv.attempt.reason == "attempt_timeout 10 s passed"
+
+
+def test_estop_topic_and_device_estop_end_the_attempt(kin):
+    r = Rig(kin, arm_delay=0.0).ready()
+    r.arm()
+    r.step(0.5)
+    r.sv.inputs.estop = True
+    r.sv.update(r.t)
+    assert r.sv.state == "estop" and r.sv.attempt.reason == "emergency stop engaged (/lhd/estop is true)"
+    assert r.sv.attempt.row().success is False
+    # released: the next attempt; the device's own button
+    r.sv.inputs.estop = False
+    r.arm()
+    assert r.sv.attempt.number == 2
+    r.hw = HwStatus(ERROR, True, "emergency stop pressed on the device")
+    r.step(0.02)
+    assert r.sv.state == "estop" and "pressed on the device" in r.sv.attempt.reason
+
+
+def test_estop_while_armed_ends_before_running(kin):
+    r = Rig(kin).ready()
+    r.arm()
+    r.sv.inputs.estop = True
+    r.step(0.02)
+    assert r.sv.state == "estop" and r.sv.attempt.running_at is None and r.sv.attempt.row().elapsed_s == 0.0
+
+
+@pytest.mark.parametrize("silent", ["joints", "odom", "drift", "hw"])
+def test_a_silent_input_is_lost_input_after_input_timeout(kin, silent):
+    r = Rig(kin, arm_delay=0.0).ready()
+    r.arm()
+    r.step(0.3)
+    t_last = r.t
+    kw = {silent: False}
+    r.step(0.48, **kw)                         # 0.48 s old: still running
+    assert r.sv.state == "running"
+    r.step(0.06, **kw)                         # lost at the first tick older than 0.5 s
+    assert r.sv.state == "lost_input"
+    assert 0.5 < r.sv.attempt.ended_at - t_last <= 0.52 + 1e-9
+    assert "s old (timeout 0.5 s;" in r.sv.attempt.reason
+
+
+def test_nan_while_running_is_lost_input_not_a_zone(kin):
+    r = Rig(kin, arm_delay=0.0).ready()
+    r.arm()
+    r.step(0.2)
+    r.bucket = math.nan
+    r.step(0.02)
+    assert r.sv.state == "lost_input" and "joint 'bucket' is not finite" in r.sv.attempt.reason
+    assert r.sv.attempt.row().phi_final_deg == pytest.approx(0.0)     # the last good tip
+
+
+def test_bridge_error_while_running_is_lost_input(kin):
+    r = Rig(kin, arm_delay=0.0).ready()
+    r.arm()
+    r.hw = HwStatus(STALE, False, "no sensor frame from the device for 0.6 s")
+    r.step(0.02)
+    assert r.sv.state == "lost_input" and "bridge reports STALE" in r.sv.attempt.reason
+
+
+def test_abort_and_refusals(kin):
+    r = Rig(kin).ready()
+    assert r.sv.abort(r.t) == (False, "nothing to abort: no attempt yet")
+    r.arm()
+    ok, msg = r.sv.abort(r.t)
+    assert ok and msg == "attempt 1 aborted" and r.sv.state == "aborted"
+    assert r.sv.attempt.reason == "aborted by the operator (/lhd/abort)"
+    assert r.sv.abort(r.t) == (False, "nothing to abort: attempt 1 already ended (aborted)")
+    r.arm()                                    # an ended state goes back only through arming
+    assert r.sv.state == "armed" and r.sv.attempt.number == 2
+
+
+def test_numbering_continues_a_record(kin):
+    sv = Supervisor(settings(), kin, "teleop", "nonhomogeneous", first_attempt=8)
+    r = Rig(kin)
+    r.sv = sv
+    r.ready()
+    r.arm()
+    assert sv.attempt.number == 8 and sv.attempt.row().bag == "bags/attempt_0008"
+    assert sv.attempt.row().controller == "teleop" and sv.attempt.row().material == "nonhomogeneous"
+
+
+def test_zones_and_slope_are_those_of_the_arming(kin):
+    r = Rig(kin, arm_delay=0.0).ready()
+    r.arm()
+    # a pile estimate republished mid-attempt (the end zone moved under the tip) is not the goal
+    r.sv.inputs.put("zones", Zones(-1.0, 0.1, 0.0, 1.5, -0.1, 1.1, 0.2, 0.4), r.t)
+    r.sv.inputs.put("slope", DEG(25.0), r.t)
+    assert r.step(0.5) == "running"
+    assert r.sv.attempt.row().slope_deg == pytest.approx(20.0)
+
+
+# ------------------------------------------------------------------ figures
+def test_drift_percent_over_10_hz_samples(kin):
+    """2 s attempt (timeout 2 s): samples at the end of each 0.1 s period, k = 1..20. Front
+    drifting until 0.55 s (samples 0.1-0.5: 5 of 20 = 25 %), rear always (100 %)."""
+    r = Rig(kin, arm_delay=0.0, attempt_timeout=2.0).ready()
+    r.arm()
+    r.front, r.rear = True, True
+    r.step(0.54)
+    r.front = False
+    r.step(1.46)
+    assert r.sv.state == "timeout"
+    row = r.sv.attempt.row()
+    assert len(r.sv.attempt.front) == 20
+    assert row.front_drift_pct == pytest.approx(25.0) and row.rear_drift_pct == pytest.approx(100.0)
+
+
+@pytest.mark.parametrize("outcome_pose, mass, sl, success", [
+    ("end", 23.4, 2, True),          # 23.4 kg >= 22, pitch 45.8 > 40 deg
+    ("end", 28.0, 5, True),
+    ("end", 19.9, 0, False),         # under 20 kg
+    ("end_flat", 30.0, 0, False),    # pitch 30 deg: not > 40
+    ("timeout", 24.5, 3, True),      # the paper: timeouts meeting both conditions are successes
+    ("failure", 30.0, 0, False),     # restricted zone: failure whatever the load (pitch 0 here)
+])
+def test_success_level_and_success_after_weighing(kin, outcome_pose, mass, sl, success):
+    r = Rig(kin, arm_delay=0.0, attempt_timeout=1.0).ready()
+    r.arm()
+    r.step(0.1)
+    if outcome_pose == "end":
+        r.base_x, (r.boom, r.bucket) = END_X, LIFT
+    elif outcome_pose == "end_flat":                   # boom -0.7, bucket -0.17: pitch 0.53 rad = 30 deg
+        r.boom, r.bucket = -0.7, -0.1764
+        r.base_x = 0.7 - tip_hand(0.0, r.boom, r.bucket)[0]
+    elif outcome_pose == "timeout":
+        r.boom, r.bucket = -0.2, 0.6                   # pitch 0.8 rad, tip still low in the permitted zone
+    else:
+        r.base_x = -0.5
+    r.step(1.0)
+    assert r.sv.state in ("success", "timeout", "failure")
+    with pytest.raises(ValueError, match="not a finite number"):
+        r.sv.set_mass(math.nan)
+    with pytest.raises(ValueError, match="negative"):
+        r.sv.set_mass(-1.0)
+    with pytest.raises(ValueError, match="not a plausible bucket load"):
+        r.sv.set_mass(250.0)
+    row = r.sv.set_mass(mass)
+    assert (row.mass_kg, row.success_level, row.success) == (mass, sl, success)
+    v = r.sv.status_values(r.t)
+    assert v["loaded_mass"] == f"{mass:.2f}" and v["success_level"] == str(sl) and v["success"] == str(success)
+
+
+def test_mass_refused_while_an_attempt_runs(kin):
+    r = Rig(kin, arm_delay=0.0).ready()
+    with pytest.raises(ValueError, match="no attempt to weigh yet"):
+        r.sv.set_mass(20.0)
+    r.arm()
+    with pytest.raises(ValueError, match="attempt 1 is running: weigh the bucket after it ends"):
+        r.sv.set_mass(20.0)
+
+
+def test_load_cell_median_after_the_machine_stopped(kin):
+    r = Rig(kin, arm_delay=0.0, mass_settle_s=1.0).ready()
+    r.arm()
+    r.base_x, (r.boom, r.bucket) = END_X, LIFT
+    r.vel = 0.2                                    # still moving after the end
+    r.step(0.02)
+    assert r.sv.state == "success"
+    for k in range(25):                            # 0.5 s of readings while moving: not used
+        r.sv.load_cell(40.0, r.t)
+        r.step(0.02)
+    assert r.sv.attempt.mass is None
+    r.vel = 0.0
+    readings = [24.1, 23.8, 99.0, 24.0, 23.9]      # a spike: the median ignores it
+    for k in range(60):                            # 1.2 s still
+        assert r.sv.load_cell(readings[k % 5], r.t) == ""
+        r.step(0.02)
+    # median of the readings of the last 1.0 s window: 10 x each of 24.1, 23.8, 99, 24.0, 23.9 -> 24.0
+    assert r.sv.attempt.mass == pytest.approx(24.0) and r.sv.attempt.mass_source == "load_cell"
+    assert r.sv.attempt.success_level == 3 and r.sv.attempt.success is True
+    assert "dropped" in r.sv.load_cell(math.nan, r.t)
+    # the operator's scale wins over the load cell, and the load cell never replaces it
+    r.sv.set_mass(25.0, "operator")
+    with pytest.raises(ValueError, match="weighed by the operator"):
+        r.sv.set_mass(24.0, "load_cell")
+
+
+def test_status_before_any_attempt(kin):
+    r = Rig(kin).ready()
+    r.sv.update(r.t)
+    v = r.sv.status_values(r.t)
+    assert v["state"] == "idle" and v["episode"] == "0" and v["loaded_mass"] == "nan"
+    assert v["slope_deg"] == "20.00" and v["x_shovel"] == "0.0000" and v["z_shovel"] == "0.0150"
+    assert v["reason"] == "no attempt yet: call /lhd/arm"
+
+
+def test_settings_are_checked():
+    with pytest.raises(ValueError, match="attempt_timeout"):
+        settings(attempt_timeout=0.0)
+    with pytest.raises(ValueError, match="slope range"):
+        settings(slope_range_deg=(30.0, 15.0))
+    with pytest.raises(ValueError, match="arm_delay"):
+        settings(arm_delay=-1.0)

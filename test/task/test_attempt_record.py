@@ -1,0 +1,183 @@
+"""The attempt record (task/attempt_record.py): the CSV (columns, round trip, atomic rewrite,
+a bad file named by line and column), weighing (SL, success), and the paper's table with
+hand-computed means and standard deviations."""
+import dataclasses
+import math
+import os
+
+import pytest
+
+from lhd_loading_ros.task.attempt_record import (COLUMNS, AttemptRow, check_mass, format_table, judge, read_rows,
+                                                 summarize, upsert_row, weigh_row, write_rows)
+
+PHI_T = math.radians(40.0)
+
+
+def mk(attempt, controller="rld", slope=20.0, material="homogeneous", outcome="success", mass=None, elapsed=4.0,
+       front=10.0, rear=50.0, phi=45.0):
+    sl, ok = judge(outcome, mass, math.radians(phi), PHI_T)
+    return AttemptRow(attempt=attempt, started_utc="2025-03-01T10:00:00Z", controller=controller, slope_deg=slope,
+                      material=material, outcome=outcome, reason="r, with a comma", mass_kg=mass, elapsed_s=elapsed,
+                      front_drift_pct=front, rear_drift_pct=rear, phi_final_deg=phi, success_level=sl, success=ok,
+                      bag=f"bags/attempt_{attempt:04d}")
+
+
+def test_columns_are_the_contracts_and_the_rows_fields():
+    assert COLUMNS == ("attempt", "started_utc", "controller", "slope_deg", "material", "outcome", "reason",
+                       "mass_kg", "elapsed_s", "front_drift_pct", "rear_drift_pct", "phi_final_deg",
+                       "success_level", "success", "bag")
+    assert tuple(f.name for f in dataclasses.fields(AttemptRow)) == COLUMNS
+
+
+def test_round_trip_upsert_and_atomic_rewrite(tmp_path):
+    p = tmp_path / "run" / "attempts.csv"
+    assert read_rows(p) == []
+    upsert_row(p, mk(2, outcome="failure"))
+    upsert_row(p, mk(1))
+    text = p.read_text().splitlines()
+    assert text[0] == ",".join(COLUMNS)
+    assert text[1] == ("1,2025-03-01T10:00:00Z,rld,20.00,homogeneous,success,\"r, with a comma\",,4.000,10.00,50.00,"
+                       "45.00,,,bags/attempt_0001")
+    assert text[2].split(",")[-3:] == ["", "false", "bags/attempt_0002"]     # failure: known without weighing
+    rows = read_rows(p)
+    assert [r.attempt for r in rows] == [1, 2] and rows[0] == mk(1)
+    new = weigh_row(p, None, 23.4, PHI_T)               # the latest: attempt 2 (a failure stays a failure)
+    assert (new.attempt, new.mass_kg, new.success_level, new.success) == (2, 23.4, 2, False)
+    new = weigh_row(p, 1, 23.4, PHI_T)
+    assert (new.mass_kg, new.success_level, new.success) == (23.4, 2, True)
+    assert read_rows(p)[0] == new and len(read_rows(p)) == 2
+    assert sorted(os.listdir(p.parent)) == ["attempts.csv"]         # no temporary file left
+    with pytest.raises(ValueError, match="no attempt 7 \\(attempts 1, 2\\)"):
+        weigh_row(p, 7, 20.0, PHI_T)
+
+
+def test_a_never_measured_pitch_is_written_empty_and_gives_sl_0(tmp_path):
+    p = tmp_path / "attempts.csv"
+    r = dataclasses.replace(mk(1, outcome="timeout"), phi_final_deg=math.nan)
+    write_rows(p, [r])
+    back = read_rows(p)[0]
+    assert math.isnan(back.phi_final_deg)
+    w = back.weighed(29.0, PHI_T)
+    assert (w.success_level, w.success) == (0, False)
+
+
+@pytest.mark.parametrize("line, message", [
+    ("x,t,rld,20,homogeneous,success,r,,4,0,0,45,,,b", "line 2: attempt = 'x' is not an integer"),
+    ("1,t,rld,abc,homogeneous,success,r,,4,0,0,45,,,b", "line 2: slope_deg = 'abc' is not a number"),
+    ("1,t,rld,20,gravel,success,r,,4,0,0,45,,,b", "material = 'gravel'; expected one of homogeneous, nonhomogeneous"),
+    ("1,t,rld,20,homogeneous,won,r,,4,0,0,45,,,b", "outcome = 'won'; expected one of success"),
+    ("1,t,rld,20,homogeneous,success,r,nan,4,0,0,45,,,b", "mass_kg = 'nan' is not finite"),
+    ("1,t,rld,20,homogeneous,success,r,,4,0,0,45,,maybe,b", "success = 'maybe'; expected true, false or empty"),
+])
+def test_a_bad_record_names_the_line_and_the_column(tmp_path, line, message):
+    p = tmp_path / "attempts.csv"
+    p.write_text(",".join(COLUMNS) + "\n" + line + "\n")
+    with pytest.raises(ValueError, match=message.replace("(", "\\(")) as e:
+        read_rows(p)
+    assert str(p) in str(e.value)
+
+
+def test_a_csv_without_the_columns_is_not_a_record(tmp_path):
+    p = tmp_path / "attempts.csv"
+    p.write_text("a,b\n1,2\n")
+    with pytest.raises(ValueError, match="not an attempts record"):
+        read_rows(p)
+
+
+@pytest.mark.parametrize("value, message", [(math.nan, "not a finite number"), (-0.5, "negative"),
+                                            (200.5, "not a plausible bucket load"), ("abc", "not a number")])
+def test_check_mass_refuses(value, message):
+    with pytest.raises(ValueError, match=message):
+        check_mass(value)
+    assert check_mass("23.4") == 23.4 and check_mass(0) == 0.0 and check_mass(200) == 200.0
+
+
+def test_judge():
+    assert judge("success", None, 0.8, PHI_T) == (None, None)          # waits for the scale
+    assert judge("timeout", 28.0, 0.8, PHI_T) == (5, True)             # paper: a timeout can succeed
+    assert judge("success", 21.0, 0.8, PHI_T) == (1, True)
+    assert judge("success", 28.0, math.radians(40.0), PHI_T) == (0, False)   # pitch must exceed 40 deg
+    for o in ("failure", "estop", "lost_input", "aborted"):
+        assert judge(o, None, 0.8, PHI_T) == (None, False)
+        assert judge(o, 28.0, 0.8, PHI_T) == (5, False)
+
+
+# ------------------------------------------------------------------ the table
+def rows_for_table():
+    return [
+        # rld, homogeneous, 15 deg: three successes
+        mk(1, slope=15.2, mass=22.0, elapsed=4.0, front=10.0, rear=50.0),
+        mk(2, slope=14.1, mass=24.0, elapsed=5.0, front=20.0, rear=60.0),
+        mk(3, slope=16.0, mass=26.0, elapsed=6.0, front=30.0, rear=70.0),
+        # 20 deg: a success, a restricted-zone failure, a timeout with 15 kg (not a success)
+        mk(4, slope=19.0, mass=28.0, elapsed=3.0, front=0.0, rear=40.0),
+        mk(5, slope=22.4, outcome="failure"),
+        mk(6, slope=20.0, outcome="timeout", mass=15.0, elapsed=10.0),
+        # 25 deg (22.5 rounds up)
+        mk(7, slope=22.5, mass=25.0, elapsed=3.5, front=5.0, rear=45.0),
+        mk(8, slope=25.0, outcome="aborted"),                  # not counted
+        mk(9, slope=25.0),                                     # not weighed: not counted
+        mk(10, controller="teleop", material="nonhomogeneous", slope=30.0, mass=25.0, elapsed=12.0, front=30.0,
+           rear=60.0),
+    ]
+
+
+def test_summary_hand_computed():
+    s = summarize(rows_for_table())
+    assert s["rows"] == 10 and s["counted"] == 8 and s["aborted"] == [8] and s["not_weighed"] == [9]
+    cells = {(c["controller"], c["material"], c["slope_deg"]): c for c in s["cells"]}
+    c15 = cells[("rld", "homogeneous", 15.0)]
+    assert (c15["attempts"], c15["successes"], c15["success_rate"]) == (3, 3, 1.0)
+    # 22, 24, 26: mean 24, population sd sqrt((4 + 0 + 4) / 3) = 1.63299
+    assert c15["mass_kg"]["mean"] == pytest.approx(24.0) and c15["mass_kg"]["std"] == pytest.approx(1.632993, abs=1e-6)
+    assert c15["elapsed_s"]["mean"] == pytest.approx(5.0) and c15["elapsed_s"]["std"] == pytest.approx(0.816497)
+    assert c15["front_drift_pct"]["mean"] == pytest.approx(20.0) and c15["rear_drift_pct"]["mean"] == pytest.approx(60.0)
+    assert c15["rear_drift_pct"]["std"] == pytest.approx(8.164966)
+    c20 = cells[("rld", "homogeneous", 20.0)]
+    assert (c20["attempts"], c20["successes"]) == (3, 1) and c20["success_rate"] == pytest.approx(1 / 3)
+    assert c20["mass_kg"] == {"mean": 28.0, "std": 0.0, "n": 1}           # over the successful attempt only
+    assert c20["attempt_numbers"] == [4, 5, 6]
+    c25 = cells[("rld", "homogeneous", 25.0)]
+    assert (c25["attempts"], c25["successes"], c25["attempt_numbers"]) == (1, 1, [7])
+    assert cells[("teleop", "nonhomogeneous", 30.0)]["elapsed_s"]["mean"] == 12.0
+    across = {(a["controller"], a["material"]): a for a in s["across_slopes"]}
+    # per-slope means 24, 28, 25: mean 25.6667, sd sqrt((1.6667^2 + 2.3333^2 + 0.6667^2) / 3) = 1.69967
+    a = across[("rld", "homogeneous")]
+    assert a["mass_kg"]["mean"] == pytest.approx(25.666667) and a["mass_kg"]["std"] == pytest.approx(1.699673, abs=1e-6)
+    assert a["slopes"] == [15.0, 20.0, 25.0]
+
+
+def test_across_slopes_reproduces_the_papers_footnote():
+    """The paper's RLC homogeneous 'material loaded': 22.40, 24.18, 26.08, 27.24 per slope and
+    x-bar 24.98 +- 1.84 (hand: mean 24.975; deviations -2.575, -0.795, 1.105, 2.265; squares
+    6.6306, 0.6320, 1.2210, 5.1302, sum 13.6139, / 4 = 3.4035, sqrt = 1.8448)."""
+    rows = [mk(i + 1, controller="rlc", slope=sl, mass=m) for i, (sl, m) in
+            enumerate([(15, 22.40), (20, 24.18), (25, 26.08), (30, 27.24)])]
+    a = summarize(rows)["across_slopes"][0]
+    assert a["mass_kg"]["mean"] == pytest.approx(24.975) and a["mass_kg"]["std"] == pytest.approx(1.8448, abs=1e-4)
+
+
+def test_table_layout():
+    out = format_table(summarize(rows_for_table()), title="Attempts in x")
+    lines = out.splitlines()
+    assert lines[0] == "Attempts in x"
+    assert "10 attempt(s) recorded, 8 counted" in out
+    assert "aborted by the operator, not counted: attempt(s) 8" in out
+    assert "not yet weighed, not counted (lhd attempt mass KG --attempt N): attempt(s) 9" in out
+    head = next(l for l in lines if "Homogeneous material" in l)
+    assert head.index("Homogeneous material") < head.index("Nonhomogeneous material")
+    labels = next(l for l in lines if l.lstrip().startswith("slope"))
+    assert labels.split() == ["slope", "RLD", "Teleop"]
+    assert any(l.startswith("Success rate") and l.split()[2:] == ["15", "1.00"] for l in lines)
+    row20 = next(l for i, l in enumerate(lines) if lines[i - 1].startswith("Success rate") and l.split()[0] == "20")
+    assert row20.split() == ["20", "0.33"]
+    mass15 = next(l for l in lines if l.startswith("Material loaded [kg]"))
+    assert mass15.split()[3:] == ["15", "24.00±1.63"]
+    mean_line = next(l for i, l in enumerate(lines) if l.split()[:1] == ["mean"] and "25.67±1.70" in l)
+    assert mean_line.split() == ["mean", "25.67±1.70", "25.00±0.00"]
+    assert "metrics over successful attempts only" in out
+
+
+def test_empty_table():
+    out = format_table(summarize([mk(1)]))
+    assert "not yet weighed" in out and "no counted attempts yet" in out
