@@ -1,0 +1,245 @@
+"""The attempt commands of `lhd` (docs/supervisor.md):
+
+  lhd attempts RUN_DIR [--json]               the paper's results table from RUN_DIR/attempts.csv
+  lhd attempt mass KG [--attempt N] [--run-dir DIR]
+                                              the weighed mass of the latest ended attempt (or of
+                                              attempt N), through the supervisor; --run-dir edits
+                                              the record directly when no supervisor runs
+  lhd arm                                     preflight + arm (the supervisor's Trigger service)
+  lhd abort                                   abort the live attempt
+
+Exit status: 0 done; 1 refused (with the reason), no supervisor answering, or no record;
+2 a bad argument (a mass that is NaN, negative or over 200 kg).
+Also `python -m lhd_loading_ros.cli.attempts attempts|mass|arm|abort ...`."""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+
+from lhd_loading_ros.task.attempt_record import (CSV_NAME, check_mass, csv_path, format_table, read_rows,
+                                                 summarize, weigh_row)
+
+WAIT_S = 5.0
+HISTORY_S = 0.3          # s to let a latched topic's history arrive after its first message
+ENDED = ("success", "failure", "timeout", "estop", "lost_input", "aborted")
+
+
+def _stamp(status: dict) -> int:
+    try:
+        return int(status.get("stamp_ns", "0"))
+    except ValueError:
+        return 0
+
+
+def _err(prog: str, msg: str, rc: int = 1) -> int:
+    print(f"{prog}: {msg}", file=sys.stderr)
+    return rc
+
+
+# ------------------------------------------------------------------ lhd attempts
+def main(argv=None) -> int:
+    """`lhd attempts RUN_DIR [--json]`."""
+    ap = argparse.ArgumentParser(prog="lhd attempts", description="the paper's results table from a run's "
+                                 f"{CSV_NAME} (per controller x material x slope rounded to 5 deg)")
+    ap.add_argument("run_dir", help=f"run folder (the supervisor's run_dir) or its {CSV_NAME}")
+    ap.add_argument("--json", action="store_true", help="the table as JSON")
+    args = ap.parse_args(argv)
+    path = csv_path(args.run_dir)
+    if not path.is_file():
+        return _err("lhd attempts", f"no {CSV_NAME} at {path}: is {args.run_dir} a supervisor's run_dir?")
+    try:
+        rows = read_rows(path)
+    except ValueError as exc:
+        return _err("lhd attempts", str(exc))
+    summary = summarize(rows)
+    if args.json:
+        print(json.dumps({"csv": str(path), **summary}, indent=2))
+    else:
+        print(format_table(summary, title=f"Attempts in {path}"))
+    return 0
+
+
+# ------------------------------------------------------------------ ROS helpers
+def _ros_args(ap: argparse.ArgumentParser) -> None:
+    ap.add_argument("--namespace", default="/lhd", help="the machine's topic prefix (default /lhd)")
+    ap.add_argument("--timeout", type=float, default=WAIT_S, help=f"seconds to wait for the supervisor "
+                    f"(default {WAIT_S:g})")
+
+
+class _Ros:
+    """rclpy for one short command: init without signal handlers (Ctrl-C: KeyboardInterrupt,
+    caught by the callers), one node, shutdown on exit."""
+
+    def __init__(self, name: str):
+        import rclpy
+        from rclpy.signals import SignalHandlerOptions
+
+        self.rclpy = rclpy
+        rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
+        self.node = rclpy.create_node(name)
+
+    def spin_until(self, pred, timeout: float) -> bool:
+        t_end = time.monotonic() + timeout
+        while time.monotonic() < t_end:
+            if pred():
+                return True
+            self.rclpy.spin_once(self.node, timeout_sec=0.02)
+        return pred()
+
+    def close(self) -> None:
+        self.node.destroy_node()
+        if self.rclpy.ok():
+            self.rclpy.shutdown()
+
+
+def _trigger(what: str, argv) -> int:
+    prog = f"lhd {what}"
+    ap = argparse.ArgumentParser(prog=prog, description={"arm": "preflight check, then arm the next attempt",
+                                                         "abort": "abort the attempt in progress"}[what])
+    _ros_args(ap)
+    args = ap.parse_args(argv)
+    service = f"{args.namespace.rstrip('/')}/{what}"
+    ros = None
+    try:
+        from std_srvs.srv import Trigger
+
+        ros = _Ros(f"lhd_{what}")
+        client = ros.node.create_client(Trigger, service)
+        if not client.wait_for_service(timeout_sec=args.timeout):
+            return _err(prog, f"no supervisor: service {service} not available after {args.timeout:g} s "
+                              "(is the supervisor node running, in this ROS_DOMAIN_ID?)")
+        fut = client.call_async(Trigger.Request())
+        if not ros.spin_until(fut.done, args.timeout):
+            return _err(prog, f"{service} did not answer within {args.timeout:g} s")
+        res = fut.result()
+        print(res.message)
+        return 0 if res.success else 1
+    except KeyboardInterrupt:
+        return 130
+    finally:
+        if ros is not None:
+            ros.close()
+
+
+def arm_main(argv=None) -> int:
+    """`lhd arm [--namespace NS] [--timeout S]`: prints the supervisor's answer; 1 when refused."""
+    return _trigger("arm", argv)
+
+
+def abort_main(argv=None) -> int:
+    """`lhd abort [--namespace NS] [--timeout S]`."""
+    return _trigger("abort", argv)
+
+
+# ------------------------------------------------------------------ lhd attempt mass
+def _print_row(row) -> None:
+    d = row.to_csv()
+    print("  ".join(f"{k}={v}" for k, v in d.items() if k in ("attempt", "controller", "slope_deg", "material",
+                                                                 "outcome", "mass_kg", "elapsed_s", "phi_final_deg",
+                                                                 "success_level", "success")))
+
+
+def _phi_thresh() -> float:
+    from lhd_loading_ros.task.config import load_config
+    from lhd_loading_ros.task.params import TaskParams
+
+    return TaskParams.from_config(load_config()).phi_thresh_pitch
+
+
+def attempt_mass_main(argv=None) -> int:
+    """`lhd attempt mass KG [--attempt N] [--run-dir DIR] [--namespace NS] [--timeout S]`."""
+    prog = "lhd attempt mass"
+    ap = argparse.ArgumentParser(prog=prog, description="the weighed mass (kg) of the latest ended attempt "
+                                 "(or of attempt N), recorded by the supervisor")
+    ap.add_argument("kg", help="the bucket's load on the scale, kg (0-200)")
+    ap.add_argument("--attempt", type=int, help="attempt number (default: the latest ended one)")
+    ap.add_argument("--run-dir", help="edit this run's record directly, without a supervisor")
+    _ros_args(ap)
+    args = ap.parse_args(argv)
+    try:
+        kg = check_mass(args.kg)
+    except ValueError as exc:
+        return _err(prog, f"refused: {exc}", 2)
+    if args.run_dir:
+        return _weigh_offline(prog, csv_path(args.run_dir), args.attempt, kg)
+    ros = None
+    try:
+        from diagnostic_msgs.msg import DiagnosticStatus
+        from std_msgs.msg import Float64
+
+        from lhd_loading_ros.ros.qos import STATUS_QOS
+        from lhd_loading_ros.nodes.supervisor_node import MASS_QOS
+
+        ns = args.namespace.rstrip("/")
+        ros = _Ros("lhd_attempt_mass")
+        latest: list[dict] = []
+        ros.node.create_subscription(DiagnosticStatus, f"{ns}/episode",
+                                     lambda m: latest.append({k.key: k.value for k in m.values}), STATUS_QOS)
+        if not ros.spin_until(lambda: latest, args.timeout):
+            return _err(prog, f"no supervisor: nothing on {ns}/episode after {args.timeout:g} s (or use --run-dir)")
+        ros.spin_until(lambda: False, HISTORY_S)      # the latched history comes in a burst: take the newest
+        st = max(latest, key=_stamp)
+        if "controller" not in st or "run_dir" not in st:
+            return _err(prog, f"{ns}/episode comes from the simulator, not a supervisor: nothing to weigh")
+        n = st.get("episode", "0")
+        if args.attempt is not None and str(args.attempt) != n:
+            # an earlier attempt: the supervisor weighs its latest only; the record is edited directly
+            return _weigh_offline(prog, csv_path(st["run_dir"]), args.attempt, kg)
+        if st.get("state") not in ENDED:
+            what = "no attempt has ended yet" if st.get("state") == "idle" else f"attempt {n} is {st.get('state')}"
+            return _err(prog, f"refused: {what}; weigh the bucket after the attempt ends")
+        pub = ros.node.create_publisher(Float64, f"{ns}/attempt/mass", MASS_QOS)
+        if not ros.spin_until(lambda: pub.get_subscription_count() > 0, args.timeout):
+            return _err(prog, f"no supervisor subscribes {ns}/attempt/mass")
+        pub.publish(Float64(data=kg))
+
+        def confirmed() -> bool:
+            s = max(latest, key=_stamp)
+            try:
+                return s.get("episode") == n and abs(float(s.get("loaded_mass", "nan")) - kg) < 0.006
+            except ValueError:
+                return False
+
+        if not ros.spin_until(confirmed, args.timeout):
+            return _err(prog, f"the supervisor did not confirm {kg:g} kg for attempt {n} within {args.timeout:g} s "
+                              "(see its log)")
+        s = max(latest, key=_stamp)
+        row = None
+        try:
+            row = next((r for r in read_rows(csv_path(s.get("run_dir", ""))) if str(r.attempt) == n), None)
+        except (OSError, ValueError):
+            pass
+        if row is not None:
+            _print_row(row)
+        else:   # the record is on another machine: what the supervisor says
+            print("  ".join(f"{k}={s.get(k, '')}" for k in ("episode", "controller", "slope_deg", "material", "state",
+                                                             "loaded_mass", "elapsed_s", "phi_final_deg",
+                                                             "success_level", "success")))
+        return 0
+    except KeyboardInterrupt:
+        return 130
+    finally:
+        if ros is not None:
+            ros.close()
+
+
+def _weigh_offline(prog: str, path, attempt, kg: float) -> int:
+    try:
+        row = weigh_row(path, attempt, kg, _phi_thresh())
+    except (OSError, ValueError) as exc:
+        return _err(prog, str(exc))
+    _print_row(row)
+    return 0
+
+
+COMMANDS = {"attempts": main, "mass": attempt_mass_main, "arm": arm_main, "abort": abort_main}
+
+
+if __name__ == "__main__":
+    if len(sys.argv) < 2 or sys.argv[1] not in COMMANDS:
+        print(__doc__)
+        raise SystemExit(2)
+    raise SystemExit(COMMANDS[sys.argv[1]](sys.argv[2:]))

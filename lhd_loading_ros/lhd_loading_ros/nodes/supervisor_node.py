@@ -1,0 +1,344 @@
+"""`ros2 run lhd_loading_ros supervisor_node`: the loading attempt's life cycle on the real
+machine (docs/supervisor.md), a thin shell over task/attempt.py (states, preflight, end
+conditions, figures) and task/attempt_record.py (the CSV).
+
+Topics under the prefix (/lhd, or the node's namespace):
+  in   joint_states, odom, wheel_drift/front, wheel_drift/rear   (sensor-data QoS: any publisher)
+       pile/slope, pile/zones          (latched and volatile, as the policy node takes the slope)
+       hw/status                       (diagnostic_msgs/DiagnosticStatus from the bridge)
+       estop                           (std_msgs/Bool, latched; true = engaged)
+       load_cell/mass                  (std_msgs/Float64 kg, optional hardware)
+       attempt/mass                    (std_msgs/Float64 kg, the operator's weighed mass of the
+                                        latest ended attempt: `lhd attempt mass 23.4`)
+  out  episode                         (diagnostic_msgs/DiagnosticStatus "lhd_supervisor/episode",
+                                        the sim node's keys; on every change and at 2 Hz)
+       /diagnostics
+  srv  arm, abort                      (std_srvs/Trigger)
+
+Only state `running` lets a controller move the machine: idle, armed and every ended state
+mean "stop" to every controller and to the command mux, which gates /lhd/cmd on this topic.
+The supervisor itself never publishes a command. The end conditions are checked on every
+joint_states / odom arrival and on a 50 Hz steady timer, so an end is published within
+about 20 ms of the input that shows it.
+
+Record: <run_dir>/attempts.csv, a row written when an attempt ends and rewritten when its mass
+arrives; the bag of attempt N is expected in <run_dir>/bags/attempt_NNNN (the recorder)."""
+from __future__ import annotations
+
+import datetime
+import math
+import re
+import time
+from pathlib import Path
+
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from nav_msgs.msg import Odometry
+from rclpy.duration import Duration
+from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Bool, Float64, Float64MultiArray
+from std_srvs.srv import Trigger
+
+from lhd_loading_ros.policy.actor_file import PolicyFileError, load_policy
+from lhd_loading_ros.ros.diagnostics import ERROR, OK, WARN, Diagnostics
+from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
+from lhd_loading_ros.ros.qos import LATCHED_QOS, MEASUREMENT_QOS, STATUS_QOS
+from lhd_loading_ros.ros.run import run_node
+from lhd_loading_ros.task.attempt import ENDED, LIVE, HwStatus, Settings, Supervisor
+from lhd_loading_ros.task.attempt_record import MATERIALS, csv_path, read_rows, upsert_row
+from lhd_loading_ros.task.config import load_config
+from lhd_loading_ros.task.kinematics import ArmKinematics
+from lhd_loading_ros.task.params import TaskParams
+from lhd_loading_ros.task.zones import Zones
+
+# QoS (lhd_loading_ros.ros.qos). Measurements in: sensor-data QoS (best effort), which matches
+# every publisher (the ArUco node's odometry is best effort); the bridge status MEASUREMENT_QOS
+# as the bridge publishes it. Slope and zones: a latched subscription (LATCHED_QOS) receives
+# what a latched publisher sent before this node started, a second, sensor-data one takes a
+# volatile publisher (as the policy node does). E-stop: LATCHED_QOS, so a supervisor started
+# after the button was pressed still sees it. The operator's mass: reliable and volatile, depth
+# 10 (MASS_QOS: an entry must not be lost, and an old one must not be replayed to a later
+# supervisor). Episode status out: STATUS_QOS (reliable + transient local), so a controller or
+# mux that starts later gets the current state at once.
+MASS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                      durability=DurabilityPolicy.VOLATILE)
+CHECK_HZ = 50.0          # end conditions on the steady clock (and on every joints / odom arrival)
+STATUS_HZ = 2.0          # <prefix>/episode at least this often
+OVERTAKEN_NS = 1_000_000_000
+LABEL = re.compile(r"^[A-Za-z0-9_.-]{1,32}$")
+
+
+def _utc_stamp() -> str:
+    return datetime.datetime.now(datetime.timezone.utc).strftime("%Y%m%d-%H%M%S")
+
+
+def _label_problem(v: str) -> str | None:
+    return None if LABEL.match(v) else "expected a label of 1-32 letters, digits, '_', '-' or '.', e.g. rld"
+
+
+class SupervisorNode(Node):
+    def __init__(self, **node_kwargs):
+        super().__init__("lhd_supervisor", **node_kwargs)
+        self.params = Params(self, [
+            Param("config", "", "lhd_params.yaml to use; empty: found automatically (LHD_CONFIG, then the package's)"),
+            Param("run_dir", f"runs/real/{_utc_stamp()}", "run folder: attempts.csv and bags/attempt_NNNN "
+                  "(give the recorder the same one)"),
+            Param("controller", "rld", "label of the controller written to the record (rld, rlc, tampier, teleop); "
+                  "a change applies from the next arming", check=_label_problem,
+                  on_change=lambda v: setattr(self.core, "controller", v)),
+            Param("policy_dir", "", "exported actor whose card gives the slope range "
+                  "(trained_ranges.slope_deg); empty: the config's alpha range"),
+            Param("material", "homogeneous", "pile material written to the record; a change applies from the next "
+                  "arming", choices=MATERIALS, on_change=lambda v: setattr(self.core, "material", v)),
+            Param("attempt_timeout", 10.0, "s from running to timeout (paper: a timeout of 10 s)", lo=0.1, hi=600.0),
+            Param("arm_delay", 1.0, "s between armed and running (0: at once)", lo=0.0, hi=60.0),
+            Param("input_timeout", 0.5, "s: joints, odometry or a drift flag older than this while armed or running "
+                  "ends the attempt (lost_input), and fails the preflight", lo=0.01, hi=60.0),
+            Param("hw_status_timeout", 0.5, "s: the same for the bridge's hw/status", lo=0.01, hi=60.0),
+            Param("mass_settle_s", 1.0, "s: after the machine stopped, the median of load_cell/mass over this "
+                  "window is the attempt's mass", lo=0.1, hi=60.0),
+            Param("namespace_prefix", "/lhd", "topic prefix in the root namespace (under a namespace, the "
+                  "namespace is the prefix)"),
+        ])
+        gp = self.params.__getitem__
+        cfg = load_config(gp("config") or None)
+        p = TaskParams.from_config(cfg)
+        self.prefix = ns = topic_prefix(self, gp("namespace_prefix"))
+        if gp("policy_dir"):
+            try:
+                lo, hi, source = load_policy(gp("policy_dir")).trained_slope_range_deg(cfg)
+            except PolicyFileError as exc:
+                raise ValueError(f"parameter 'policy_dir' = {gp('policy_dir')!r}: {exc}") from None
+            source = f"{gp('policy_dir')}: {source}"
+        else:
+            ep = cfg["paper"]["episode"]
+            lo, hi, source = float(ep["alpha_min_deg"]), float(ep["alpha_max_deg"]), \
+                "config alpha_min_deg/alpha_max_deg"
+        settings = Settings(slope_range_deg=(lo, hi), slope_source=source, phi_thresh=p.phi_thresh_pitch,
+                            control_dt=p.control_dt, attempt_timeout=gp("attempt_timeout"),
+                            arm_delay=gp("arm_delay"), input_timeout=gp("input_timeout"),
+                            hw_status_timeout=gp("hw_status_timeout"), mass_settle_s=gp("mass_settle_s"), prefix=ns)
+        self.run_dir = Path(gp("run_dir")).expanduser().resolve()
+        self.csv = csv_path(self.run_dir)
+        try:
+            self.run_dir.mkdir(parents=True, exist_ok=True)
+            rows = read_rows(self.csv)
+        except OSError as exc:
+            raise ValueError(f"parameter 'run_dir' = {gp('run_dir')!r}: cannot use it ({exc})") from None
+        except ValueError as exc:
+            raise ValueError(f"parameter 'run_dir' = {gp('run_dir')!r}: its record is unreadable ({exc}); "
+                             "move it away or pick another run_dir") from None
+        first = max((r.attempt for r in rows), default=0) + 1
+        self.core = Supervisor(settings, ArmKinematics.from_config(cfg), gp("controller"), gp("material"), first)
+        self.record_error = ""
+        self.rows_written = 0
+        self._slow_source_ns: dict[str, int] = {}
+        self._recorded = None            # (attempt, mass) of the latest row handed to the record
+
+        self.pub_status = self.create_publisher(DiagnosticStatus, f"{ns}/episode", STATUS_QOS)
+        sd = qos_profile_sensor_data
+        self.create_subscription(JointState, f"{ns}/joint_states", self._on_js, sd)
+        self.create_subscription(Odometry, f"{ns}/odom", self._on_odom, sd)
+        self.create_subscription(Bool, f"{ns}/wheel_drift/front", lambda m: self._put("drift_front", bool(m.data)), sd)
+        self.create_subscription(Bool, f"{ns}/wheel_drift/rear", lambda m: self._put("drift_rear", bool(m.data)), sd)
+        # a volatile publisher is incompatible with the latched subscription by design (the
+        # sensor-data one takes it): no warning for that
+        quiet = SubscriptionEventCallbacks(incompatible_qos=lambda _: None)
+        for qos, events in ((sd, None), (LATCHED_QOS, quiet)):
+            self.create_subscription(Float64, f"{ns}/pile/slope", self._on_slope, qos, event_callbacks=events)
+            self.create_subscription(Float64MultiArray, f"{ns}/pile/zones", self._on_zones, qos, event_callbacks=events)
+        self.create_subscription(DiagnosticStatus, f"{ns}/hw/status", self._on_hw, MEASUREMENT_QOS)
+        self.create_subscription(Bool, f"{ns}/estop", self._on_estop, LATCHED_QOS)
+        self.create_subscription(Float64, f"{ns}/load_cell/mass", self._on_load_cell, sd)
+        self.create_subscription(Float64, f"{ns}/attempt/mass", self._on_mass, MASS_QOS)
+        self.create_service(Trigger, f"{ns}/arm", self._on_arm)
+        self.create_service(Trigger, f"{ns}/abort", self._on_abort)
+        steady_timer(self, 1.0 / CHECK_HZ, self._check)
+        steady_timer(self, 1.0 / STATUS_HZ, self._publish_status)
+        self.diagnostics = Diagnostics(self, {"attempt": self._diag_attempt, "preflight": self._diag_preflight,
+                                              "record": self._diag_record}, hardware_id=str(self.run_dir))
+        self._publish_status()
+        self.get_logger().info(f"supervisor up: record {self.csv} (next attempt {first}), controller "
+                               f"{self.core.controller}, slope range [{lo:g}, {hi:g}] deg ({source}), timeout "
+                               f"{settings.attempt_timeout:g} s, arm delay {settings.arm_delay:g} s")
+
+    # ------------------------------------------------------------------ inputs
+    def _put(self, name: str, value) -> None:
+        self.core.inputs.put(name, value, time.monotonic())
+
+    def _on_js(self, msg: JointState) -> None:
+        joints = {}
+        for i, n in enumerate(msg.name):
+            pos = float(msg.position[i]) if i < len(msg.position) else math.nan
+            vel = float(msg.velocity[i]) if i < len(msg.velocity) else math.nan
+            joints[n] = (pos, vel)
+        self._put("joints", joints)      # a missing boom / bucket is a preflight problem and lost input
+        self._check()
+
+    def _on_odom(self, msg: Odometry) -> None:
+        pp, q = msg.pose.pose.position, msg.pose.pose.orientation
+        self._put("odom", ((pp.x, pp.y, pp.z), (q.w, q.x, q.y, q.z), msg.twist.twist.linear.x))
+        self._check()
+
+    def _fresh_slow(self, name: str, info) -> bool:
+        """A latched value arrives through both subscriptions when its publisher is reliable: the
+        second copy and a sample overtaken by a newer one are dropped (the policy node's rule)."""
+        src = info["source_timestamp"]
+        held = self._slow_source_ns.get(name)
+        if held is not None and 0 <= held - src < OVERTAKEN_NS:
+            return False
+        self._slow_source_ns[name] = src
+        return True
+
+    def _on_slope(self, msg: Float64, info) -> None:
+        if self._fresh_slow("slope", info):
+            self._put("slope", float(msg.data))
+
+    def _on_zones(self, msg: Float64MultiArray, info) -> None:
+        if not self._fresh_slow("zones", info):
+            return
+        try:
+            zones = Zones.from_list(msg.data)
+        except (ValueError, TypeError) as exc:
+            self.core.inputs.zones_error = str(exc)
+            self.get_logger().warn(f"{self.prefix}/pile/zones refused: {exc}", throttle_duration_sec=2.0)
+            return
+        self._put("zones", zones)
+
+    def _on_hw(self, msg: DiagnosticStatus) -> None:
+        kv = {k.key: k.value for k in msg.values}
+        estop = kv.get("estop", "False").strip().lower() == "true"
+        level = msg.level if isinstance(msg.level, int) else int.from_bytes(msg.level, "little")
+        self._put("hw", HwStatus(level=level, estop=estop, message=msg.message))
+        self._check()
+
+    def _on_estop(self, msg: Bool) -> None:
+        if bool(msg.data) != self.core.inputs.estop:
+            self.get_logger().warn(f"{self.prefix}/estop {'ENGAGED' if msg.data else 'released'}")
+        self.core.inputs.estop = bool(msg.data)
+        self._check()
+
+    def _on_load_cell(self, msg: Float64) -> None:
+        why = self.core.load_cell(float(msg.data), time.monotonic())
+        if why:
+            self.get_logger().warn(why, throttle_duration_sec=2.0)
+
+    def _on_mass(self, msg: Float64) -> None:
+        try:
+            row = self.core.set_mass(msg.data, "operator")
+        except ValueError as exc:
+            self.get_logger().warn(f"{self.prefix}/attempt/mass {msg.data!r} refused: {exc}")
+            return
+        self.get_logger().info(f"attempt {row.attempt}: weighed {row.mass_kg:.2f} kg, SL {row.success_level}, "
+                               f"success {row.success}")
+        self._write(row)              # record first: the status then confirms a recorded mass
+        self._publish_status()
+
+    # ------------------------------------------------------------------ services
+    def _on_arm(self, request, response):
+        ok, message = self.core.arm(time.monotonic(), datetime.datetime.now(datetime.timezone.utc)
+                                    .strftime("%Y-%m-%dT%H:%M:%SZ"))
+        response.success, response.message = ok, message
+        if ok:
+            self.get_logger().info(message)
+            self._publish_status()
+        else:
+            self.get_logger().warn(message)
+        return response
+
+    def _on_abort(self, request, response):
+        ok, message = self.core.abort(time.monotonic())
+        response.success, response.message = ok, message
+        if ok:
+            self._after_end()
+        return response
+
+    # ------------------------------------------------------------------ the loop
+    def _check(self) -> None:
+        c = self.core
+        if c.update(time.monotonic()):
+            if c.state in ENDED:
+                self._after_end()
+            else:
+                self.get_logger().info(f"attempt {c.attempt.number} {c.state}")
+                self._publish_status()
+        elif c.state in ENDED and (c.attempt.number, c.attempt.mass) != self._recorded:
+            row = c.attempt.row()         # the load cell gave the mass
+            self.get_logger().info(f"attempt {row.attempt}: load cell {row.mass_kg:.2f} kg, SL "
+                                   f"{row.success_level}, success {row.success}")
+            self._write(row)
+            self._publish_status()
+
+    def _after_end(self) -> None:
+        """The end: status first (controllers and the mux stop on it), then the record."""
+        a = self.core.attempt
+        self._publish_status()
+        row = a.row()
+        self.get_logger().info(f"attempt {a.number} {a.outcome}: {a.reason}; {row.elapsed_s:.2f} s, drift front "
+                               f"{row.front_drift_pct:.0f} % rear {row.rear_drift_pct:.0f} %, final pitch "
+                               f"{row.phi_final_deg:.1f} deg")
+        self._write(row)
+
+    def _write(self, row) -> None:
+        self._recorded = (row.attempt, row.mass_kg)     # a failed write is reported, not retried at 50 Hz
+        try:
+            upsert_row(self.csv, row)
+            self.rows_written += 1
+            self.record_error = ""
+        except (OSError, ValueError) as exc:
+            self.record_error = f"cannot write {self.csv}: {exc}"
+            self.get_logger().error(self.record_error)
+
+    def _publish_status(self) -> None:
+        now_ns = self.get_clock().now().nanoseconds
+        values = self.core.status_values(time.monotonic())
+        values["stamp_ns"] = str(now_ns)
+        values["run_dir"] = str(self.run_dir)
+        st = DiagnosticStatus()
+        st.name = "lhd_supervisor/episode"
+        st.hardware_id = str(self.run_dir)
+        st.message = values["state"]
+        st.level = DiagnosticStatus.OK if values["state"] in ("idle", "armed", "running", "success") \
+            else DiagnosticStatus.WARN
+        st.values = [KeyValue(key=k, value=v) for k, v in values.items()]
+        self.pub_status.publish(st)
+
+    def stop(self) -> None:
+        """On the way out: an attempt still live ends as aborted (published, so that every
+        controller stops, and recorded)."""
+        if self.core.state in LIVE and self.context.ok():
+            self.core.abort(time.monotonic(), "supervisor stopped during the attempt")
+            self._after_end()
+            # a reliable writer destroyed right after a write may drop it: wait for the acks
+            self.pub_status.wait_for_all_acked(Duration(seconds=0.5))
+
+    # ------------------------------------------------------------------ diagnostics
+    def _diag_attempt(self):
+        c = self.core
+        values = c.status_values(time.monotonic())
+        level = WARN if c.state in ("estop", "lost_input", "failure") else OK
+        return level, f"{c.state}: {values['reason']}", values
+
+    def _diag_preflight(self):
+        problems = self.core.preflight(time.monotonic())
+        if self.core.state in LIVE:
+            return OK, f"attempt {self.core.attempt.number} {self.core.state}", {}
+        if problems:
+            return WARN, "not ready to arm: " + "; ".join(problems), {"problems": len(problems)}
+        return OK, "ready to arm", {}
+
+    def _diag_record(self):
+        values = {"csv": str(self.csv), "writes": self.rows_written}
+        if self.record_error:
+            return ERROR, self.record_error, values
+        return OK, f"record {self.csv}", values
+
+
+def main(args=None) -> int:
+    return run_node(SupervisorNode, "lhd_supervisor", args, before_destroy=lambda n: n.stop())
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

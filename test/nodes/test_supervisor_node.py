@@ -1,0 +1,351 @@
+"""The supervisor node as a real process over DDS, fed by this test like the hardware stack
+would feed it (joint states, odometry, drift flags, bridge status at 50 Hz; latched slope and
+zones; the e-stop topic): arming refused with the reasons, arm -> running -> the tip moved
+into the end zone -> success within 100 ms, the mass from `lhd attempt mass` into the row,
+timeout after attempt_timeout, lost input, e-stop, abort, `lhd attempts` on the CSV the node
+wrote, and an attempt cut short by stopping the node."""
+import io
+import math
+import subprocess
+import sys
+import threading
+import time
+from contextlib import redirect_stdout
+
+import pytest
+import rclpy
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from nav_msgs.msg import Odometry
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Bool, Float64, Float64MultiArray
+from std_srvs.srv import Trigger
+
+from lhd_loading_ros.cli.attempts import main as attempts_main
+from lhd_loading_ros.task.attempt_record import read_rows
+
+from rosutil import RosProcess, init_ros, shutdown_ros
+
+SUPERVISOR = "lhd_loading_ros.nodes.supervisor_node"
+CLI = [sys.executable, "-m", "lhd_loading_ros.cli.attempts"]
+REL = QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+STATUS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                    durability=DurabilityPolicy.TRANSIENT_LOCAL)
+TIMEOUT_S = 2.0          # attempt_timeout of this test's supervisor
+ARM_DELAY = 0.3
+
+# Hand geometry (config/lhd_params.yaml, machine), as in test/task/test_attempt.py: in the
+# attack pose the tip is 0.80 + 0.15 + sqrt(0.55^2 - 0.30^2) + 0.30 = 1.710977 m ahead of the
+# rear axle, 0.015 m above the floor (axle at r = 0.137 m). Lifted (boom b, bucket k): about the
+# boom pivot (0.95 m ahead, 0.42 m high), hinge offset (reach, -0.30) rotated by b, tip offset
+# (0.30, -0.105) rotated by b - k; R_y: (x, z) -> (c x + s z, -s x + c z); pitch = k - b.
+R_WHEEL = 0.137
+REACH = math.sqrt(0.55 ** 2 - 0.30 ** 2)
+
+
+def rot(a, x, z):
+    c, s = math.cos(a), math.sin(a)
+    return c * x + s * z, -s * x + c * z
+
+
+def tip_hand(base_x, boom, bucket):
+    hx, hz = rot(boom, REACH, -0.30)
+    tx, tz = rot(boom - bucket, 0.30, -0.105)
+    return base_x + 0.95 + hx + tx, 0.42 + hz + tz
+
+
+ZONES = [0.5, 1.0, 0.35, 1.5, -0.1, 1.1, 0.2, 0.4]    # x_min, x_max, z_min, x_cutoff, x_obs_start, x_obs_end, y_half, z_top
+START = (-(0.80 + 0.15 + REACH + 0.30), 0.0, 0.0)     # base x, boom, bucket: tip at x = 0, on the floor
+LIFT = (-0.5, 0.3)                                    # pitch 0.8 rad = 45.84 deg
+END = (0.7 - tip_hand(0.0, *LIFT)[0], *LIFT)          # tip at x = 0.7, z = 0.52: in the end zone
+
+
+class Rig:
+    """This test's side of the machine: a 50 Hz feeder and the supervisor's outputs, spun in a
+    background thread."""
+
+    def __init__(self, node):
+        self.node = node
+        self.pose = START
+        self.feed = {"joints": True, "odom": True, "drift": True, "hw": True}
+        self.front, self.rear = True, False
+        self.pose_published_at = {}        # pose -> first publish time (monotonic)
+        self.last_joints_at = None
+        self.statuses = []                 # (arrival, {key: value})
+        self.pub_js = node.create_publisher(JointState, "/lhd/joint_states", REL)
+        self.pub_odom = node.create_publisher(Odometry, "/lhd/odom", REL)
+        self.pub_front = node.create_publisher(Bool, "/lhd/wheel_drift/front", REL)
+        self.pub_rear = node.create_publisher(Bool, "/lhd/wheel_drift/rear", REL)
+        self.pub_hw = node.create_publisher(DiagnosticStatus, "/lhd/hw/status", REL)
+        self.pub_slope = node.create_publisher(Float64, "/lhd/pile/slope", LATCHED)
+        self.pub_zones = node.create_publisher(Float64MultiArray, "/lhd/pile/zones", LATCHED)
+        self.pub_estop = node.create_publisher(Bool, "/lhd/estop", LATCHED)
+        node.create_subscription(DiagnosticStatus, "/lhd/episode", self._on_status, STATUS)
+        self.arm_client = node.create_client(Trigger, "/lhd/arm")
+        self.abort_client = node.create_client(Trigger, "/lhd/abort")
+        node.create_timer(0.02, self._tick)
+        self.executor = SingleThreadedExecutor(context=node.context)
+        self.executor.add_node(node)
+        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self.thread.start()
+
+    def _on_status(self, msg):
+        self.statuses.append((time.monotonic(), {k.key: k.value for k in msg.values}))
+
+    def _tick(self):
+        base_x, boom, bucket = self.pose
+        stamp = self.node.get_clock().now().to_msg()
+        if self.feed["odom"]:
+            o = Odometry()
+            o.header.stamp = stamp
+            o.pose.pose.position.x, o.pose.pose.position.z = base_x, R_WHEEL
+            o.pose.pose.orientation.w = 1.0
+            self.pub_odom.publish(o)
+        if self.feed["joints"]:
+            js = JointState()
+            js.header.stamp = stamp
+            js.name = ["boom", "bucket", "wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr"]
+            js.position = [boom, bucket, 0.0, 0.0, 0.0, 0.0]
+            js.velocity = [0.0] * 6
+            self.pub_js.publish(js)
+            self.last_joints_at = time.monotonic()
+            self.pose_published_at.setdefault(self.pose, self.last_joints_at)
+        if self.feed["drift"]:
+            self.pub_front.publish(Bool(data=self.front))
+            self.pub_rear.publish(Bool(data=self.rear))
+        if self.feed["hw"]:
+            st = DiagnosticStatus(level=DiagnosticStatus.OK, name="/lhd_bridge: device", message="drive enabled")
+            st.values = [KeyValue(key="estop", value="False")]
+            self.pub_hw.publish(st)
+
+    def set_pose(self, pose):
+        self.pose_published_at.pop(pose, None)
+        self.pose = pose
+
+    def call(self, client, timeout=20.0):
+        assert client.wait_for_service(timeout_sec=timeout), "no supervisor service"
+        fut = client.call_async(Trigger.Request())
+        assert wait_for(fut.done, timeout)
+        return fut.result()
+
+    def state(self):
+        return self.statuses[-1][1] if self.statuses else {}
+
+    def wait_state(self, state, episode=None, timeout=10.0, since=0):
+        """The first status from index `since` on with this state (and attempt number)."""
+        found = []
+
+        def pred():
+            for t, kv in self.statuses[since:]:
+                if kv.get("state") == state and (episode is None or kv.get("episode") == str(episode)):
+                    found.append((t, kv))
+                    return True
+            return False
+
+        assert wait_for(pred, timeout), f"no '{state}' status; last: {self.state()}"
+        return found[0]
+
+    def close(self):
+        self.executor.shutdown()
+        self.thread.join(5.0)
+
+
+def wait_for(pred, timeout, step=0.005):
+    t_end = time.monotonic() + timeout
+    while time.monotonic() < t_end:
+        if pred():
+            return True
+        time.sleep(step)
+    return pred()
+
+
+@pytest.fixture(scope="module")
+def rig(tmp_path_factory):
+    init_ros()
+    node = rclpy.create_node("test_supervisor")
+    r = Rig(node)
+    r.feed = dict.fromkeys(r.feed, False)         # nothing yet: the first test arms without inputs
+    r.run_dir = tmp_path_factory.mktemp("run")
+    r.proc = RosProcess(SUPERVISOR, {"run_dir": str(r.run_dir), "attempt_timeout": TIMEOUT_S,
+                                     "arm_delay": ARM_DELAY, "controller": "rld", "material": "homogeneous"},
+                        r.run_dir.parent / "supervisor.log")
+    yield r
+    r.proc.stop()
+    r.close()
+    node.destroy_node()
+    shutdown_ros()
+
+
+def cli(*args, timeout=60):
+    return subprocess.run(CLI + list(args), capture_output=True, text=True, timeout=timeout)
+
+
+def test_arm_refused_with_every_missing_input(rig):
+    _, kv = rig.wait_state("idle", 0, timeout=60)
+    assert kv["reason"] == "no attempt yet: call /lhd/arm" and kv["controller"] == "rld", rig.proc.log()
+    res = rig.call(rig.arm_client)
+    assert not res.success
+    for what in ("no joint states received", "no odometry v_x received", "no front drift flag received",
+                 "no rear drift flag received", "no bridge status received", "no pile slope received",
+                 "no pile zones received"):
+        assert what in res.message, res.message
+    assert rig.state()["state"] == "idle"
+
+
+def test_arm_refused_for_bad_zones_and_a_slope_out_of_range(rig):
+    rig.feed = dict.fromkeys(rig.feed, True)
+    rig.pub_slope.publish(Float64(data=math.radians(35.0)))
+    rig.pub_zones.publish(Float64MultiArray(data=[1.0, 0.5] + ZONES[2:]))        # x_min > x_max
+    time.sleep(0.5)
+    res = rig.call(rig.arm_client)
+    assert not res.success
+    assert "pile zones invalid (/lhd/pile/zones): zones: x_min 1 must be below x_max 0.5" in res.message, res.message
+    assert "pile slope 35.0 deg is outside the controller's range [15, 30] deg" in res.message, res.message
+    assert res.message.count(";") == 1, res.message          # those two problems only: every input is alive
+    rig.pub_zones.publish(Float64MultiArray(data=ZONES))
+    rig.pub_slope.publish(Float64(data=math.radians(20.0)))
+    time.sleep(0.3)
+
+
+def test_arm_running_success_within_100_ms(rig):
+    n0 = len(rig.statuses)
+    p = cli("arm")
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert p.stdout.startswith(f"attempt 1 armed, running in {ARM_DELAY:g} s: controller rld, slope 20.0 deg"), p.stdout
+    t_armed, _ = rig.wait_state("armed", 1, since=n0)
+    t_run, kv = rig.wait_state("running", 1, since=n0)
+    assert 0.2 <= t_run - t_armed <= 0.3 + 0.3, t_run - t_armed      # arm_delay 0.3 s, seen at 50 Hz
+    assert float(kv["x_shovel"]) == pytest.approx(0.0, abs=1e-3) and float(kv["z_shovel"]) == pytest.approx(0.015,
+                                                                                                           abs=1e-3)
+    time.sleep(0.5)
+    rig.set_pose(END)
+    t_end, kv = rig.wait_state("success", 1, since=n0)
+    latency = t_end - rig.pose_published_at[END]
+    print(f"end-zone latency (joints published -> success status received): {latency * 1000:.1f} ms")
+    assert latency < 0.1
+    x, z = tip_hand(END[0], *LIFT)
+    assert float(kv["x_shovel"]) == pytest.approx(x, abs=1e-3) and float(kv["z_shovel"]) == pytest.approx(z, abs=1e-3)
+    assert kv["phi_final_deg"] == "45.84" and kv["reason"] == "bucket tip reached the end zone"
+    assert kv["front_drift_pct"] == "100.00" and kv["rear_drift_pct"] == "0.00"
+    assert 0.45 <= float(kv["elapsed_s"]) <= 0.5 + 0.3 and kv["loaded_mass"] == "nan" and "success" not in kv
+    # written right after the end status (status first: controllers stop on it), before any mass
+    assert wait_for(lambda: read_rows(rig.run_dir / "attempts.csv"), 2.0)
+    rows = read_rows(rig.run_dir / "attempts.csv")
+    assert [(r.attempt, r.outcome, r.mass_kg, r.success) for r in rows] == [(1, "success", None, None)]
+    assert rows[0].bag == "bags/attempt_0001" and rows[0].slope_deg == pytest.approx(20.0)
+    rig.set_pose(START)
+
+
+def test_mass_from_the_cli_updates_the_row(rig):
+    p = cli("mass", "23.4")
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert "attempt=1" in p.stdout and "mass_kg=23.40" in p.stdout and "success_level=2" in p.stdout \
+        and "success=true" in p.stdout, p.stdout
+    kv = rig.state()
+    assert kv["loaded_mass"] == "23.40" and kv["success_level"] == "2" and kv["success"] == "True"
+    row = read_rows(rig.run_dir / "attempts.csv")[0]
+    assert (row.mass_kg, row.success_level, row.success) == (23.4, 2, True)
+
+
+def test_timeout_after_attempt_timeout(rig):
+    n0 = len(rig.statuses)
+    assert rig.call(rig.arm_client).success
+    t_run, _ = rig.wait_state("running", 2, since=n0)
+    t_end, kv = rig.wait_state("timeout", 2, since=n0, timeout=TIMEOUT_S + 5)
+    assert TIMEOUT_S - 0.05 <= t_end - t_run <= TIMEOUT_S + 0.25, t_end - t_run
+    assert float(kv["elapsed_s"]) == pytest.approx(TIMEOUT_S, abs=0.05)
+    assert kv["reason"] == f"attempt_timeout {TIMEOUT_S:g} s passed"
+    # mass refused while the next attempt is not ended is the CLI's check; here: nothing weighed yet
+    assert "success" not in kv
+
+
+def test_lost_input_when_the_joint_states_stop(rig):
+    n0 = len(rig.statuses)
+    assert rig.call(rig.arm_client).success
+    rig.wait_state("running", 3, since=n0)
+    rig.feed["joints"] = False
+    time.sleep(0.05)
+    t_last = rig.last_joints_at
+    t_end, kv = rig.wait_state("lost_input", 3, since=n0)
+    assert 0.5 <= t_end - t_last <= 0.5 + 0.15, t_end - t_last
+    assert "joint states" in kv["reason"] and "(timeout 0.5 s; /lhd/joint_states" in kv["reason"]
+    rig.feed["joints"] = True
+    time.sleep(0.1)
+
+
+def test_estop_ends_the_attempt_and_blocks_arming(rig):
+    n0 = len(rig.statuses)
+    assert rig.call(rig.arm_client).success
+    rig.wait_state("running", 4, since=n0)
+    t0 = time.monotonic()
+    rig.pub_estop.publish(Bool(data=True))
+    t_end, kv = rig.wait_state("estop", 4, since=n0)
+    assert t_end - t0 < 0.1
+    assert kv["reason"] == "emergency stop engaged (/lhd/estop is true)"
+    res = rig.call(rig.arm_client)
+    assert not res.success and "emergency stop engaged (/lhd/estop is true): release it first" in res.message
+    rig.pub_estop.publish(Bool(data=False))
+    time.sleep(0.2)
+
+
+def test_abort_from_the_cli(rig):
+    n0 = len(rig.statuses)
+    p = cli("arm")
+    assert p.returncode == 0, p.stderr
+    rig.wait_state("running", 5, since=n0)
+    p = cli("abort")
+    assert (p.returncode, p.stdout.strip()) == (0, "attempt 5 aborted"), p.stderr
+    _, kv = rig.wait_state("aborted", 5, since=n0)
+    assert kv["reason"] == "aborted by the operator (/lhd/abort)"
+    p = cli("abort")
+    assert (p.returncode, p.stdout.strip()) == (1, "nothing to abort: attempt 5 already ended (aborted)")
+    p = cli("mass", "250")
+    assert p.returncode == 2 and "not a plausible bucket load" in p.stderr
+
+
+def test_lhd_attempts_on_the_record_the_node_wrote(rig):
+    rows = read_rows(rig.run_dir / "attempts.csv")
+    assert [(r.attempt, r.outcome) for r in rows] == [(1, "success"), (2, "timeout"), (3, "lost_input"),
+                                                      (4, "estop"), (5, "aborted")]
+    buf = io.StringIO()
+    with redirect_stdout(buf):
+        assert attempts_main([str(rig.run_dir)]) == 0
+    out = buf.getvalue()
+    print(out)
+    # counted: 1 (success, 23.4 kg), 3 (lost input), 4 (e-stop); 2 waits for its mass; 5 aborted
+    assert "5 attempt(s) recorded, 3 counted" in out
+    assert "not yet weighed, not counted (lhd attempt mass KG --attempt N): attempt(s) 2" in out
+    assert "aborted by the operator, not counted: attempt(s) 5" in out
+    lines = out.splitlines()
+    assert lines[0] == f"Attempts in {rig.run_dir / 'attempts.csv'}"
+    assert next(l for l in lines[1:] if l.startswith("Attempts")).split() == ["Attempts", "20", "3"]
+    assert next(l for l in lines if l.startswith("Success rate")).split() == ["Success", "rate", "20", "0.33"]
+    assert next(l for l in lines if l.startswith("Material loaded")).split()[3:] == ["20", "23.40±0.00"]
+    # the earlier attempt 2 weighed through the CLI: the record is edited, attempt 2 counted
+    p = cli("mass", "24.5", "--attempt", "2")
+    assert p.returncode == 0 and "attempt=2" in p.stdout and "success=false" in p.stdout, p.stdout + p.stderr
+    assert read_rows(rig.run_dir / "attempts.csv")[1].mass_kg == 24.5     # pitch 0 at the timeout: SL 0
+
+
+def test_stopping_the_node_mid_attempt_records_it_aborted(rig):
+    n0 = len(rig.statuses)
+    assert rig.call(rig.arm_client).success
+    rig.wait_state("running", 6, since=n0)
+    assert rig.proc.stop() == 0, rig.proc.log()
+    _, kv = rig.wait_state("aborted", 6, since=n0)
+    assert kv["reason"] == "supervisor stopped during the attempt"
+    row = read_rows(rig.run_dir / "attempts.csv")[-1]
+    assert (row.attempt, row.outcome, row.reason) == (6, "aborted", "supervisor stopped during the attempt")
+
+
+def test_an_unreadable_record_stops_the_node_with_one_line(tmp_path):
+    (tmp_path / "attempts.csv").write_text("not,a,record\n1,2,3\n")
+    p = RosProcess(SUPERVISOR, {"run_dir": str(tmp_path)}, tmp_path / "sv.log")
+    assert p.proc.wait(60) == 2, p.log()
+    p.stop()
+    log = p.log().strip()
+    assert "parameter 'run_dir'" in log and "not an attempts record" in log and "Traceback" not in log
+    assert len(log.splitlines()) == 1, log
