@@ -7,6 +7,11 @@ with CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, no reflection, no final xor) 
 version..payload. All multi-byte fields little-endian (the Due's native order). Sequence
 numbers: one counter per sender and frame type (TxSequence); a receiver checks them per type
 (FrameParser), so a gap says which kind of frame was lost.
+
+Frame types: 0x01 sensor (device -> host), 0x02 command and 0x03 heartbeat (host -> device), and
+the optional 0x04 load cell (device -> host, 10 Hz, only from a device with the bucket's HX711
+amplifier). 0x04 came after the first devices, in version 1: a host that does not take it drops
+and counts it (unknown_types) and, sequence numbers being per type, sees no gap in the others.
 """
 from __future__ import annotations
 
@@ -17,6 +22,7 @@ VERSION = 1
 TYPE_SENSOR = 0x01
 TYPE_COMMAND = 0x02
 TYPE_HEARTBEAT = 0x03
+TYPE_LOAD_CELL = 0x04
 MAX_PAYLOAD = 64
 HEADER = struct.Struct("<BBBB")
 CRC = struct.Struct("<H")
@@ -24,7 +30,8 @@ MAX_PACKET = HEADER.size + MAX_PAYLOAD + CRC.size   # 70 bytes
 # the largest COBS-encoded packet, without its 0x00 delimiter (COBS adds one byte per 254
 # started): 71 bytes, the most a receiver keeps of a partial frame
 MAX_ENCODED = MAX_PACKET + 1 + MAX_PACKET // 255
-TYPE_NAMES = {TYPE_SENSOR: "sensor", TYPE_COMMAND: "command", TYPE_HEARTBEAT: "heartbeat"}
+TYPE_NAMES = {TYPE_SENSOR: "sensor", TYPE_COMMAND: "command", TYPE_HEARTBEAT: "heartbeat",
+              TYPE_LOAD_CELL: "load cell"}
 ALL_TYPES = frozenset(TYPE_NAMES)
 
 # scales: physical value = raw * scale
@@ -32,10 +39,18 @@ ANGLE_SCALE = 1e-4      # rad per count (int16: +-3.2767 rad)
 RATE_SCALE = 1e-4       # rad/s per count (int16: +-3.2767 rad/s)
 WHEEL_SCALE = 1e-3      # rad/s per count (int16: +-32.767 rad/s)
 CURRENT_SCALE = 1e-3    # A per count (uint16: 0..65.535 A)
+MASS_SCALE = 1e-3       # kg per count (int32, grams)
 
 FLAG_ENABLED = 0x01
 FLAG_WATCHDOG = 0x02
 FLAG_ESTOP = 0x04
+
+# load-cell frame: the HX711's conversions are 24-bit two's complement, sent sign-extended
+RAW_MIN, RAW_MAX = -(1 << 23), (1 << 23) - 1
+LC_CALIBRATED = 0x01    # the firmware has a scale (counts per kg): without it the mass field is 0
+LC_TARED = 0x02         # the zero (offset) is known: compiled, or taken at power-up
+LC_SATURATED = 0x04     # the conversion is at the amplifier's limit (input beyond its full scale)
+LC_STALE = 0x08         # no conversion from the amplifier recently (unplugged, unpowered, hung)
 
 
 def crc16_ccitt(data: bytes, crc: int = 0xFFFF) -> int:
@@ -160,6 +175,33 @@ class HeartbeatFrame:
     STRUCT = struct.Struct("<I")
 
 
+@dataclass(frozen=True)
+class LoadCellFrame:
+    """Device -> host, 10 Hz, optional: the bucket's load cell (docs/serial_protocol.md)."""
+    device_time_us: int    # device clock when the reported conversion was read from the amplifier
+    mass: float            # kg, (raw - offset) / scale, tared (signed: tare drift); 0 unless calibrated and tared
+    raw: int               # HX711 counts, 24-bit two's complement sign-extended
+    flags: int = 0         # LC_CALIBRATED | LC_TARED | LC_SATURATED | LC_STALE
+
+    STRUCT = struct.Struct("<IiiB")
+
+    @property
+    def calibrated(self) -> bool:
+        return bool(self.flags & LC_CALIBRATED)
+
+    @property
+    def tared(self) -> bool:
+        return bool(self.flags & LC_TARED)
+
+    @property
+    def saturated(self) -> bool:
+        return bool(self.flags & LC_SATURATED)
+
+    @property
+    def stale(self) -> bool:
+        return bool(self.flags & LC_STALE)
+
+
 class ProtocolError(ValueError):
     """A packet that must be dropped; the message names the fault."""
 
@@ -186,6 +228,19 @@ def _u16(v: float, scale: float, name: str) -> int:
     return raw
 
 
+def _i32(v: float, scale: float, name: str) -> int:
+    raw = int(round(v / scale))
+    if not -(1 << 31) <= raw < (1 << 31):
+        raise ProtocolError(f"{name} = {v} out of range (int32 at scale {scale})")
+    return raw
+
+
+def _raw24(v: int) -> int:
+    if not RAW_MIN <= v <= RAW_MAX:
+        raise ProtocolError(f"raw = {v} out of range: an HX711 conversion is 24-bit, {RAW_MIN} .. {RAW_MAX}")
+    return v
+
+
 def _tri(v: int, name: str) -> int:
     if v not in (-1, 0, 1):
         raise ProtocolError(f"{name} = {v} must be -1, 0 or +1")
@@ -209,6 +264,10 @@ def pack_payload(msg) -> tuple[int, bytes]:
             _tri(msg.valve_bucket, "valve_bucket"), 1 if msg.enable else 0)
     if isinstance(msg, HeartbeatFrame):
         return TYPE_HEARTBEAT, HeartbeatFrame.STRUCT.pack(msg.host_time_ms & 0xFFFFFFFF)
+    if isinstance(msg, LoadCellFrame):
+        return TYPE_LOAD_CELL, LoadCellFrame.STRUCT.pack(msg.device_time_us & 0xFFFFFFFF,
+                                                         _i32(msg.mass, MASS_SCALE, "mass"), _raw24(msg.raw),
+                                                         msg.flags & 0xFF)
     raise ProtocolError(f"cannot encode {type(msg).__name__}")
 
 
@@ -270,6 +329,11 @@ def decode_packet(packet: bytes, accept=ALL_TYPES):
             if f[1] not in (-1, 0, 1) or f[2] not in (-1, 0, 1) or f[3] not in (0, 1):
                 raise ProtocolError("command field out of range")
             msg = CommandFrame(f[0] * WHEEL_SCALE, f[1], f[2], bool(f[3]))
+        elif ftype == TYPE_LOAD_CELL:
+            t, mass, raw, flags = LoadCellFrame.STRUCT.unpack(payload)
+            if not RAW_MIN <= raw <= RAW_MAX:
+                raise ProtocolError(f"load-cell raw {raw} outside the 24-bit range {RAW_MIN} .. {RAW_MAX}")
+            msg = LoadCellFrame(t, mass / 1000.0, raw, flags)   # grams -> kg; 23400 g gives 23.4 exactly
         else:
             msg = HeartbeatFrame(HeartbeatFrame.STRUCT.unpack(payload)[0])
     except struct.error as exc:
@@ -281,8 +345,8 @@ class FrameParser:
     """Streaming parser: feed it any bytes, get whole frames back. Never raises on input;
     resynchronises on the next 0x00; keeps at most MAX_ENCODED bytes of a partial frame.
 
-    `accept`: the frame types this receiver takes (the host: sensor frames; the device:
-    command and heartbeat frames); any other well-formed frame counts as unknown_types.
+    `accept`: the frame types this receiver takes (the host: sensor and load-cell frames; the
+    device: command and heartbeat frames); any other well-formed frame counts as unknown_types.
     Counters (cumulative for the parser's life, reset_link() keeps them): frames, crc_errors,
     framing_errors (COBS, size, version, length, payload size, field range), overflows,
     unknown_types, seq_gaps (frames whose seq is not the last of their type + 1) and

@@ -9,7 +9,7 @@ import struct
 from pathlib import Path
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "serial_protocol.md"
-INT_FORMATS = {"u8": "B", "i8": "b", "u16": "H", "i16": "h", "u32": "I"}   # "Link": little-endian integers
+INT_FORMATS = {"u8": "B", "i8": "b", "u16": "H", "i16": "h", "u32": "I", "i32": "i"}   # "Link": little-endian integers
 MAX_FRAME = 71          # "Framing": an encoded frame is at most 71 bytes plus its 0x00
 VERSION = 1
 
@@ -65,20 +65,26 @@ class Layout:
         return self.struct.pack(*raw)
 
     def unpack(self, payload: bytes) -> dict:
-        """Physical values; ValueError when a field is outside its listed values."""
+        """Physical values; ValueError when a field is outside its listed values or its
+        interval ("Receiving", step 8)."""
         raw = self.struct.unpack(payload)
         out = {}
         for (name, _, scale, allowed), r in zip(self.fields, raw):
-            if allowed is not None and r not in allowed:
+            value = r * scale if scale != 1 else r
+            if isinstance(allowed, set) and r not in allowed:
                 raise ValueError(f"{name} = {r} not in {sorted(allowed)}")
-            out[name] = r * scale if scale != 1 else r
+            if isinstance(allowed, tuple) and not allowed[0] <= value <= allowed[1]:
+                raise ValueError(f"{name} = {value} not in {allowed[0]} .. {allowed[1]}")
+            out[name] = value
         return out
 
 
 def read_layouts(path: Path = DOC) -> dict[int, Layout]:
-    """{type code: Layout} from the sections '## <Name> frame (type 0xNN, ...), <n> bytes'."""
+    """{type code: Layout} from the sections '## <Name> frame (type 0xNN, ...), <n> bytes' (a
+    name of several words becomes one with underscores: 'Load cell' -> 'load_cell'). A range
+    written as listed values ('-1, 0, +1') or as an interval of integers ('-8 .. 7') is checked."""
     text = path.read_text()
-    heads = list(re.finditer(r"^## (\w+) frame \(type 0x([0-9a-fA-F]{2}),[^\n]*?(\d+) bytes$", text, re.M))
+    heads = list(re.finditer(r"^## ([\w ]+?) frame \(type 0x([0-9a-fA-F]{2}),[^\n]*?(\d+) bytes$", text, re.M))
     layouts = {}
     for k, h in enumerate(heads):
         body = text[h.end():heads[k + 1].start() if k + 1 < len(heads) else len(text)]
@@ -89,10 +95,13 @@ def read_layouts(path: Path = DOC) -> dict[int, Layout]:
             fmt = INT_FORMATS[typ]
             assert int(off) == offset, f"{name} at offset {off}, the fields before it end at {offset}"
             listed = re.fullmatch(r"[-+]?\d+(?:, [-+]?\d+)+", rng.strip())
-            allowed = {int(v) for v in rng.split(",")} if listed else None
+            interval = re.fullmatch(r"([-+]?\d+) \.\. ([-+]?\d+)", rng.strip())
+            allowed = ({int(v) for v in rng.split(",")} if listed
+                       else (int(interval.group(1)), int(interval.group(2))) if interval else None)
             fields.append((name, fmt, float(scale), allowed))
             offset += struct.calcsize("<" + fmt)
-        layouts[int(h.group(2), 16)] = Layout(int(h.group(2), 16), h.group(1).lower(), int(h.group(3)), fields)
+        name = h.group(1).lower().replace(" ", "_")
+        layouts[int(h.group(2), 16)] = Layout(int(h.group(2), 16), name, int(h.group(3)), fields)
     return layouts
 
 

@@ -17,14 +17,14 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray
+from std_msgs.msg import Float64, Float64MultiArray
 
 import doc_protocol as doc
 from lhd_hw_bridge import protocol
 from rosutil import RosProcess, init_ros, shutdown_ros, spin_until
 
 LAYOUTS = doc.read_layouts()
-SENSOR, COMMAND, HEARTBEAT = 0x01, 0x02, 0x03   # the document's type codes
+SENSOR, COMMAND, HEARTBEAT, LOAD_CELL = 0x01, 0x02, 0x03, 0x04   # the document's type codes
 FIRMWARE = Path(__file__).resolve().parents[2] / "lhd_hw_bridge/lhd_hw_bridge/firmware/lhd_due/lhd_due.ino"
 
 
@@ -39,7 +39,7 @@ def ros():
 def test_document_tables_and_check_value():
     assert doc.crc16_ccitt_false(b"123456789") == 0x29B1           # the check value the document gives
     assert {c: (lay.name, lay.size) for c, lay in LAYOUTS.items()} == {
-        SENSOR: ("sensor", 27), COMMAND: ("command", 5), HEARTBEAT: ("heartbeat", 4)}
+        SENSOR: ("sensor", 27), COMMAND: ("command", 5), HEARTBEAT: ("heartbeat", 4), LOAD_CELL: ("load_cell", 13)}
 
 
 i16 = st.integers(-32768, 32767)
@@ -75,6 +75,30 @@ def test_command_and_heartbeat_frames_are_the_same_bytes_both_ways(w, vb, vk, en
         doc.raw_frame(COMMAND, seq, LAYOUTS[COMMAND].pack(cmd))
     assert protocol.encode(protocol.HeartbeatFrame(host_ms), seq) == \
         doc.raw_frame(HEARTBEAT, seq, LAYOUTS[HEARTBEAT].pack({"host_time": host_ms}))
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(-2**31, 2**31 - 1), st.integers(-2**23, 2**23 - 1),
+       st.integers(0, 255), st.integers(0, 255))
+def test_load_cell_frames_are_the_same_bytes_both_ways(t, grams, raw, flags, seq):
+    values = {"device_time": t, "mass": grams * 1e-3, "raw": raw, "flags": flags}
+    ours = doc.raw_frame(LOAD_CELL, seq, LAYOUTS[LOAD_CELL].pack(values))
+    assert protocol.encode(protocol.LoadCellFrame(t, grams / 1000.0, raw, flags), seq) == ours
+    (got_seq, got), = protocol.FrameParser().feed(ours)
+    assert got_seq == seq and (got.device_time_us, round(got.mass * 1000), got.raw, got.flags) == (t, grams, raw, flags)
+    (_, _, back), = doc.Receiver(LAYOUTS, {"load_cell"}).feed(ours)
+    assert back == pytest.approx(values, abs=1e-9)
+
+
+def test_document_range_of_raw_counts_is_the_one_protocol_py_checks():
+    """A raw value one past 24 bits, either way: both receivers drop it as a framing error."""
+    rx = doc.Receiver(LAYOUTS, {"load_cell"})
+    p = protocol.FrameParser()
+    for k, raw in enumerate((2**23, -2**23 - 1, 2**23 - 1, -2**23)):
+        wire = doc.raw_frame(LOAD_CELL, k, doc.struct.pack("<IiiB", 0, 0, raw, 0))
+        rx.feed(wire)
+        p.feed(wire)
+    assert rx.counts["framing_errors"] == p.framing_errors == 2 and rx.counts["frames"] == p.frames == 2
 
 
 def test_protocol_py_counts_gaps_per_type_as_the_document_says():
@@ -159,6 +183,8 @@ def test_bridge_and_doc_implementation_interoperate_over_a_pty(ros, tmp_path):
     node.create_subscription(JointState, "/lhd/joint_states", js.append, 50)
     node.create_subscription(DiagnosticArray, "/diagnostics", diag.append, 10)
     node.create_subscription(DiagnosticStatus, "/lhd/hw/status", hw.append, 10)
+    masses = []
+    node.create_subscription(Float64, "/lhd/load_cell/mass", lambda m: masses.append(m.data), 50)
     pub = node.create_publisher(Float64MultiArray, "/lhd/cmd", 1)
     plan = {"i": 0}
 
@@ -221,6 +247,18 @@ def test_bridge_and_doc_implementation_interoperate_over_a_pty(ros, tmp_path):
         ok = spin_until(node, lambda: {k: values_of(diag, "serial link").get(k) for k in want} == want,
                         timeout=5.0)
         assert ok, (values_of(diag, "serial link"), bridge.log())
+        # load-cell frames written from the document: valid ones give their mass, one with the
+        # saturated bit (2) or without the tared bit (1) gives nothing; their numbering is their own
+        assert masses == []
+        for k in range(20):
+            flags = {5: 0x07, 6: 0x01}.get(k, 0x03)
+            dev.write(dev.tx.frame("load_cell", {"device_time": k * 100000, "mass": 21.5 + k * 0.001,
+                                                 "raw": 1_994_700 + k, "flags": flags}))
+            send_sensor_frames(1)
+        want_masses = [pytest.approx(21.5 + k * 0.001, abs=1e-9) for k in range(20) if k not in (5, 6)]
+        assert spin_until(node, lambda: len(masses) >= 18, timeout=5.0), masses
+        assert masses == want_masses
+        assert spin_until(node, lambda: values_of(diag, "serial link").get("sequence_gaps") == "3", timeout=3.0)
     finally:
         node.destroy_node()
         assert bridge.stop() == 0, bridge.log()
@@ -272,6 +310,8 @@ def test_firmware_speaks_the_document(firmware):
         seqs = [s for _, s, _ in got]
         assert seqs == [i % 256 for i in range(len(seqs))]               # its one counter, from 0
         assert rx.counts == dict(rx.counts, crc_errors=0, framing_errors=0, sequence_gaps=0, frames_lost=0)
+        # built without LHD_HAS_LOAD_CELL: no load-cell frame (it would count as a type not taken)
+        assert rx.counts["unknown_types"] == 0
     finally:
         fw.kill()
         fw.wait()
