@@ -1,11 +1,13 @@
 """ROS-free logic of the hardware bridge: /lhd/cmd -> safe device command, watchdog,
-wheel-drift detection, joint-state contents. The node (bridge_node.py) is thin over this."""
+wheel-drift detection, joint-state contents, the load cell's validity and report. The node
+(bridge_node.py) is thin over this."""
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 
-from .protocol import CommandFrame, SensorFrame
+from .protocol import RAW_MAX, RAW_MIN, CommandFrame, LoadCellFrame, SensorFrame
 
 JOINT_NAMES = ("boom", "bucket", "wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr")
 
@@ -173,3 +175,83 @@ def joint_state_arrays(f: SensorFrame) -> tuple[list, list]:
     pos = [f.boom_angle, f.bucket_angle, nan, nan, nan, nan]
     vel = [f.boom_rate, f.bucket_rate, f.wheel_fl, f.wheel_fr, f.wheel_rear, f.wheel_rear]
     return pos, vel
+
+
+# ------------------------------------------------------------------ load cell (optional hardware)
+LOAD_CELL_TIMEOUT = 0.5   # s without a load-cell frame (sent at 10 Hz) after one: the report is stale
+RAW_MEAN_FRAMES = 10      # raw counts averaged for the calibration figure (1 s at 10 Hz)
+
+# diagnostic levels by name (the node maps them onto diagnostic_msgs/DiagnosticStatus; no ROS here)
+_OK, _WARN, _ERROR, _STALE = "OK", "WARN", "ERROR", "STALE"
+
+
+def load_cell_problems(f: LoadCellFrame) -> list[str]:
+    """Why the frame's mass must not be published, one reason per flag ([] = a valid mass)."""
+    out = []
+    if f.stale:
+        out.append("stale: no conversion from the load-cell amplifier for 500 ms (HX711 unplugged, unpowered or "
+                   "hung; the device power-cycles it)")
+    if f.saturated:
+        out.append(f"saturated: raw {f.raw} counts is the amplifier's limit ({RAW_MIN} / {RAW_MAX}): the load "
+                   "cell's signal is beyond full scale (overload, a loose wire or a broken cell)")
+    if not f.calibrated:
+        out.append(f"not calibrated: the firmware has no LOAD_CELL_SCALE (raw {f.raw} counts); calibrate it "
+                   "(docs/hardware_bridge.md, 'Load cell')")
+    if not f.tared:
+        out.append("not tared: the device has no zero yet (it averages its first conversions after power-up, with "
+                   "the bucket empty, unless built with LOAD_CELL_OFFSET)")
+    return out
+
+
+class LoadCellMonitor:
+    """What the bridge does with load-cell frames: `accept(frame, now)` returns the mass (kg) to
+    publish, or None with the reasons kept for the report; `report(now)` is the `load_cell`
+    status: OK 'no load cell' while the device sends none (optional hardware), OK with the mass,
+    WARN (not calibrated / not tared: a setup step missing), ERROR (saturated / stale sensor),
+    STALE when the frames stop. Counts frames, published masses and refused frames."""
+
+    def __init__(self):
+        self.last: LoadCellFrame | None = None
+        self.last_time: float | None = None
+        self.last_mass: float | None = None     # kg, the last published (valid) mass
+        self.problems: list[str] = []
+        self.frames = 0
+        self.published = 0
+        self.refused = 0
+        self._raw = deque(maxlen=RAW_MEAN_FRAMES)
+
+    def accept(self, f: LoadCellFrame, now: float) -> float | None:
+        self.frames += 1
+        self.last, self.last_time = f, now
+        self.problems = load_cell_problems(f)
+        if not f.stale:
+            self._raw.append(f.raw)
+        if self.problems:
+            self.refused += 1
+            return None
+        mass = float(f.mass)
+        if not math.isfinite(mass):   # cannot come from an int32 field; never a NaN on a topic
+            self.refused += 1
+            return None
+        self.published += 1
+        self.last_mass = mass
+        return mass
+
+    def report(self, now: float):
+        """(level name, message, values)."""
+        f = self.last
+        if f is None:
+            return _OK, "no load cell (the device sends no load-cell frames; optional hardware)", {"frames": 0}
+        age = now - self.last_time
+        values = {"frames": self.frames, "published": self.published, "refused": self.refused,
+                  "raw_counts": f.raw,
+                  "raw_counts_mean": round(sum(self._raw) / len(self._raw), 1) if self._raw else "none",
+                  "flags": f.flags, "calibrated": f.calibrated, "tared": f.tared, "saturated": f.saturated,
+                  "stale_sensor": f.stale, "device_time_us": f.device_time_us, "age_s": round(age, 3),
+                  "mass_kg": round(self.last_mass, 3) if self.last_mass is not None else "none"}
+        if age > LOAD_CELL_TIMEOUT:
+            return _STALE, f"no load-cell frame for {age:.1f} s (sent at 10 Hz by the device)", values
+        if self.problems:
+            level = _ERROR if (f.stale or f.saturated) else _WARN
+            return level, "mass not published: " + "; ".join(self.problems), values
+        return _OK, f"{f.mass:.3f} kg", values

@@ -4,7 +4,9 @@ Topics live under the topic prefix (/lhd, or the node's namespace with `-r __ns:
 Publishes what the sim node publishes (same names, SI units): <prefix>/joint_states,
 <prefix>/wheel_drift, <prefix>/wheel_drift/front, <prefix>/wheel_drift/rear; the device's own
 report on <prefix>/hw/status (diagnostic_msgs/DiagnosticStatus: e-stop and watchdog flags, motor
-currents, valve states); and /diagnostics (serial link and device). Subscribes <prefix>/cmd
+currents, valve states); when the device has the bucket's load cell (optional: load-cell frames,
+type 0x04), <prefix>/load_cell/mass (std_msgs/Float64, kg) for valid frames only; and
+/diagnostics (serial link, device, load_cell). Subscribes <prefix>/cmd
 ([u_wheels, u_boom, u_bucket] rad/s) and <prefix>/odom (machine speed for drift detection; on
 hardware it comes from the ArUco node).
 
@@ -21,7 +23,9 @@ Fail-safe behaviour (docs/hardware_bridge.md):
   reconnection is a stop, and only commands received after it count; counters survive;
 * while the device reports its emergency stop, stop frames; after the release only commands
   received after it count;
-* on shutdown a stop frame is sent before the port closes.
+* on shutdown a stop frame is sent before the port closes;
+* a load-cell frame that is stale, saturated, not calibrated or not tared publishes no mass (the
+  reason goes to /diagnostics, `load_cell`); the load cell never influences the commands.
 """
 from __future__ import annotations
 
@@ -37,27 +41,31 @@ from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Bool, Float64MultiArray
+from std_msgs.msg import Bool, Float64, Float64MultiArray
 
-from lhd_loading_ros.ros.diagnostics import ERROR, OK, STALE, WARN, Diagnostics, status
+from lhd_loading_ros.ros.diagnostics import ERROR, LEVEL_NAMES, OK, STALE, WARN, Diagnostics, status
 from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
 from lhd_loading_ros.ros.qos import COMMAND_QOS, MEASUREMENT_QOS
 from lhd_loading_ros.ros.run import run_node
 from lhd_loading_ros.task.config import load_config
 
-from .bridge_core import (CMD_TIMEOUT_MAX, JOINT_NAMES, BridgeParams, CommandMapper, CommandRejected, Watchdog,
-                          command_rate_problem, deadband_problem, detect_drift, joint_state_arrays)
-from .protocol import (FLAG_ENABLED, FLAG_ESTOP, FLAG_WATCHDOG, TYPE_SENSOR, CommandFrame, FrameParser,
-                       HeartbeatFrame, SensorFrame, TxSequence)
+from .bridge_core import (CMD_TIMEOUT_MAX, JOINT_NAMES, BridgeParams, CommandMapper, CommandRejected,
+                          LoadCellMonitor, Watchdog, command_rate_problem, deadband_problem, detect_drift,
+                          joint_state_arrays)
+from .protocol import (FLAG_ENABLED, FLAG_ESTOP, FLAG_WATCHDOG, TYPE_LOAD_CELL, TYPE_SENSOR, CommandFrame,
+                       FrameParser, HeartbeatFrame, LoadCellFrame, SensorFrame, TxSequence)
 
 # QoS (lhd_loading_ros.ros.qos): measurements and the device status MEASUREMENT_QOS (reliable,
 # keep-last 5: matches reliable and best-effort subscribers; a short queue never delays fresh
 # data behind stale data), commands COMMAND_QOS (reliable, keep-last 1: only the newest command
 # matters, and losing it silently would let the watchdog stop the machine). Odometry in:
-# sensor-data QoS (best effort), which accepts any publisher.
+# sensor-data QoS (best effort), which accepts any publisher. The load cell's mass is a
+# measurement too: MEASUREMENT_QOS (a late-joining supervisor gets the next 10 Hz frame, and a
+# latched old mass would be wrong once the bucket is emptied).
 WATCHDOG_TICK = 0.005   # s
 STATUS_PERIOD = 0.1     # s, <prefix>/hw/status (and at once when the flags or valve states change)
 DEVICE_STALE = 0.5      # s without a sensor frame: the device's report is no longer current
+LEVELS = {name: level for level, name in LEVEL_NAMES.items()}
 
 
 def open_problem(port: str, exc: Exception) -> str:
@@ -104,7 +112,10 @@ class BridgeNode(Node):
         ns = topic_prefix(self, pv["namespace_prefix"])
         self.mapper = CommandMapper(self.p)
         self.watchdog = Watchdog(self.p.cmd_timeout)
-        self.parser = FrameParser(accept={TYPE_SENSOR})   # one for the node's life: counters survive reconnects
+        # one for the node's life: counters survive reconnects
+        self.parser = FrameParser(accept={TYPE_SENSOR, TYPE_LOAD_CELL})
+        self.load_cell = LoadCellMonitor()
+        self._load_cell_said = None      # the last load-cell problem logged (logged once per change)
         self._tx = TxSequence()
         self._ser: serial.Serial | None = None
         self._ser_lock = threading.Lock()
@@ -126,6 +137,7 @@ class BridgeNode(Node):
         self.pub_front = self.create_publisher(Bool, f"{ns}/wheel_drift/front", MEASUREMENT_QOS)
         self.pub_rear = self.create_publisher(Bool, f"{ns}/wheel_drift/rear", MEASUREMENT_QOS)
         self.pub_status = self.create_publisher(DiagnosticStatus, f"{ns}/hw/status", MEASUREMENT_QOS)
+        self.pub_mass = self.create_publisher(Float64, f"{ns}/load_cell/mass", MEASUREMENT_QOS)
         self.create_subscription(Float64MultiArray, f"{ns}/cmd", self._on_cmd, COMMAND_QOS)
         self.create_subscription(Odometry, f"{ns}/odom", self._on_odom, qos_profile_sensor_data)
         # every timer on the steady clock: with use_sim_time and no /clock they must still run.
@@ -136,8 +148,8 @@ class BridgeNode(Node):
         steady_timer(self, WATCHDOG_TICK, self._tick)
         steady_timer(self, 1.0, self._heartbeat)
         steady_timer(self, STATUS_PERIOD, self._publish_status)
-        self.diagnostics = Diagnostics(self, {"serial link": self._link_report, "device": self._device_report},
-                                       hardware_id=self.port)
+        self.diagnostics = Diagnostics(self, {"serial link": self._link_report, "device": self._device_report,
+                                              "load_cell": self._load_cell_report}, hardware_id=self.port)
         self._io = threading.Thread(target=self._io_loop, name="serial-io", daemon=True)
         self._io.start()
 
@@ -259,8 +271,11 @@ class BridgeNode(Node):
                         self._drop_port_locked()
                 continue
             if data:
-                for _, msg in self.parser.feed(data):   # sensor frames only (accept)
-                    self._publish(msg)
+                for _, msg in self.parser.feed(data):   # sensor and load-cell frames only (accept)
+                    if isinstance(msg, LoadCellFrame):
+                        self._on_load_cell(msg)
+                    else:
+                        self._publish(msg)
 
     def _publish(self, f: SensorFrame) -> None:
         now = time.monotonic()
@@ -288,7 +303,22 @@ class BridgeNode(Node):
         if prev is None or (prev.flags, prev.valve_boom, prev.valve_bucket) != (f.flags, f.valve_boom, f.valve_bucket):
             self._publish_status()
 
+    def _on_load_cell(self, f: LoadCellFrame) -> None:
+        mass = self.load_cell.accept(f, time.monotonic())
+        if mass is not None:
+            self.pub_mass.publish(Float64(data=mass))
+            self._load_cell_said = None
+            return
+        said = tuple(self.load_cell.problems)
+        if said != self._load_cell_said:     # once per change of reason, not at 10 Hz
+            self._load_cell_said = said
+            self.get_logger().warn("load cell: mass not published: " + "; ".join(said))
+
     # ------------------------------------------------------------------ status and diagnostics
+    def _load_cell_report(self):
+        level, message, values = self.load_cell.report(time.monotonic())
+        return LEVELS[level], message, values
+
     def _device_report(self):
         """(level, message, values) of the device: its flags, motor currents and valve states."""
         dev = self._device

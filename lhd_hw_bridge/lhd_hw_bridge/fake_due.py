@@ -12,6 +12,15 @@ sensor noise, dropped frames, corrupted bytes, front or rear drift (wheel spin a
 current), the emergency stop (`estop`), motor currents (`currents`), frames of an unknown type
 (`send_raw`). `unplug()` closes the pty (the host sees the port vanish); `plug()` opens a new
 one behind the same symlink.
+
+With `load_cell=True` (`--load-cell`) it is a device fitted with the bucket's load cell and sends
+load-cell frames (type 0x04) at 10 Hz, as the firmware built with LHD_HAS_LOAD_CELL: the
+amplifier's raw counts are LOAD_CELL_OFFSET + (bucket_mass + noise) x LOAD_CELL_SCALE, clipped to
+the 24-bit range (so a mass beyond about +-96 kg saturates it, as a real overload does), and the
+mass field is what the firmware computes from them. A test sets `bucket_mass` (kg),
+`load_cell_noise` (kg, standard deviation per conversion) and the faults `load_cell_calibrated`,
+`load_cell_tared` (False: the flag cleared and the mass sent as 0) and `load_cell_stale` (the
+amplifier stops converting: the last raw value is repeated with the stale flag).
 """
 from __future__ import annotations
 
@@ -26,8 +35,9 @@ import time
 import tty
 from dataclasses import dataclass, field
 
-from .protocol import (FLAG_ENABLED, FLAG_ESTOP, FLAG_WATCHDOG, TYPE_COMMAND, TYPE_HEARTBEAT, CommandFrame,
-                       FrameParser, SensorFrame, TxSequence)
+from .protocol import (FLAG_ENABLED, FLAG_ESTOP, FLAG_WATCHDOG, LC_CALIBRATED, LC_SATURATED, LC_STALE, LC_TARED,
+                       RAW_MAX, RAW_MIN, TYPE_COMMAND, TYPE_HEARTBEAT, CommandFrame, FrameParser, LoadCellFrame,
+                       SensorFrame, TxSequence)
 
 BOOM_SPEED = 0.191
 BUCKET_SPEED = 0.2
@@ -35,6 +45,12 @@ BOOM_RANGE = (-1.0, 0.05)
 BUCKET_RANGE = (-0.1, 1.4)
 WHEEL_TAU = 0.1
 WHEEL_MAX = 2.7
+# the emulated load cell's calibration (the firmware's LOAD_CELL_OFFSET / LOAD_CELL_SCALE): a
+# 50 kg, 2 mV/V cell at 3.3 V excitation into the HX711's +-12.9 mV full scale (gain 128) gives
+# 6.6 mV / 12.9 mV x 2^23 counts at 50 kg, about 85,800 counts per kg
+LOAD_CELL_OFFSET = 150_000     # counts with the bucket empty
+LOAD_CELL_SCALE = 85_800.0     # counts per kg
+LOAD_CELL_PERIOD = 0.1         # s, one load-cell frame every 100 ms (10 Hz)
 
 
 def _move(angle: float, rate: float, limits: tuple[float, float], dt: float) -> tuple[float, float]:
@@ -80,6 +96,12 @@ class FakeDue:
     drift_rear: bool = False
     estop: bool = False                       # the emergency-stop button, pressed
     currents: tuple[float, float, float] | None = None   # (fl, fr, rear) A reported instead of the model's
+    load_cell: bool = False                   # fitted with the bucket's load cell: sends load-cell frames
+    bucket_mass: float = 0.0                  # kg in the bucket, what the load cell weighs
+    load_cell_noise: float = 0.0              # kg, standard deviation of each conversion
+    load_cell_calibrated: bool = True         # False: a firmware without LOAD_CELL_SCALE
+    load_cell_tared: bool = True              # False: no zero yet (taring at power-up)
+    load_cell_stale: bool = False             # the amplifier stopped converting
     seed: int = 0
     plant: Plant = field(default_factory=Plant)
 
@@ -89,6 +111,9 @@ class FakeDue:
         self.received: list[tuple[float, object]] = []  # (monotonic time, frame) for tests
         self.watchdog_trips = 0
         self.sent = 0
+        self.load_cell_sent: list[LoadCellFrame] = []    # every load-cell frame handed to the link, for tests
+        self._lc_raw = LOAD_CELL_OFFSET
+        self._lc_time_us = 0
         self._tx = TxSequence()
         self._command: CommandFrame | None = None
         self._lock = threading.Lock()
@@ -148,6 +173,7 @@ class FakeDue:
         t_next = time.monotonic()
         t_prev = t_next
         t0 = getattr(self, "_run_t0", None) or t_next
+        t_next_lc = t_next
         while not self._stop.is_set():
             now = time.monotonic()
             with self._lock:
@@ -165,6 +191,11 @@ class FakeDue:
                 t_next += period
                 if t_next < now:
                     t_next = now + period
+            if fd is not None and self.load_cell and now >= t_next_lc:
+                self._send_load_cell(fd, now - t0)
+                t_next_lc += LOAD_CELL_PERIOD
+                if t_next_lc < now:
+                    t_next_lc = now + LOAD_CELL_PERIOD
             r = [fd] if fd is not None else []
             timeout = max(0.0, min(t_next - time.monotonic(), 0.005))
             try:
@@ -218,17 +249,43 @@ class FakeDue:
             valve_bucket=p.valve_bucket,
             flags=(FLAG_ENABLED if p.enabled else 0) | (FLAG_WATCHDOG if self._tripped else 0)
             | (FLAG_ESTOP if self.estop else 0))
-        wire = bytearray(self._tx.encode(frame))   # a dropped frame used its number: the host sees the gap
+        if self._put(fd, self._tx.encode(frame)):
+            self.sent += 1
+
+    def load_cell_frame(self, t: float) -> LoadCellFrame:
+        """The frame the firmware would send now: the amplifier's conversion of the bucket's mass
+        (unless it is stale), clipped to 24 bits like the HX711, and the firmware's mass from it."""
+        if not self.load_cell_stale:
+            noise = self.rng.gauss(0.0, self.load_cell_noise) if self.load_cell_noise else 0.0
+            raw = round(LOAD_CELL_OFFSET + (self.bucket_mass + noise) * LOAD_CELL_SCALE)
+            self._lc_raw = min(max(raw, RAW_MIN), RAW_MAX)
+            self._lc_time_us = int(t * 1e6) & 0xFFFFFFFF
+        raw = self._lc_raw
+        valid = self.load_cell_calibrated and self.load_cell_tared
+        mass = round((raw - LOAD_CELL_OFFSET) / LOAD_CELL_SCALE, 3) if valid else 0.0
+        flags = ((LC_CALIBRATED if self.load_cell_calibrated else 0) | (LC_TARED if self.load_cell_tared else 0)
+                 | (LC_SATURATED if raw in (RAW_MIN, RAW_MAX) else 0) | (LC_STALE if self.load_cell_stale else 0))
+        return LoadCellFrame(self._lc_time_us, mass, raw, flags)
+
+    def _send_load_cell(self, fd: int, t: float) -> None:
+        frame = self.load_cell_frame(t)
+        self.load_cell_sent.append(frame)
+        self._put(fd, self._tx.encode(frame))   # its own sequence counter (per type)
+
+    def _put(self, fd: int, encoded: bytes) -> bool:
+        """One frame onto the line, through the injected faults (a dropped frame used its number:
+        the host sees the gap). True when written."""
+        wire = bytearray(encoded)
         if self.drop and self.rng.random() < self.drop:
-            return
+            return False
         if self.corrupt and self.rng.random() < self.corrupt:
             i = self.rng.randrange(len(wire) - 1)
             wire[i] ^= 1 << self.rng.randrange(8)
         try:
             os.write(fd, bytes(wire))
-            self.sent += 1
+            return True
         except OSError:
-            pass
+            return False
 
     def send_raw(self, wire: bytes) -> None:
         """Put bytes on the line as they are (frames of an unknown type, garbage)."""
@@ -252,10 +309,16 @@ def main(argv=None) -> int:
     ap.add_argument("--drift-front", action="store_true", help="inject front wheel drift")
     ap.add_argument("--drift-rear", action="store_true", help="inject rear wheel drift")
     ap.add_argument("--estop", action="store_true", help="start with the emergency stop pressed")
+    ap.add_argument("--load-cell", action="store_true",
+                    help="fitted with the bucket's load cell: load-cell frames at 10 Hz")
+    ap.add_argument("--bucket-mass", type=float, default=0.0, help="kg in the bucket (with --load-cell)")
+    ap.add_argument("--load-cell-noise", type=float, default=0.0, help="kg, load-cell noise (standard deviation)")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
     dev = FakeDue(link=args.link, rate=args.rate, watchdog=args.watchdog, noise=args.noise, drop=args.drop,
-                  corrupt=args.corrupt, drift_front=args.drift_front, drift_rear=args.drift_rear, estop=args.estop, seed=args.seed)
+                  corrupt=args.corrupt, drift_front=args.drift_front, drift_rear=args.drift_rear, estop=args.estop,
+                  load_cell=args.load_cell, bucket_mass=args.bucket_mass, load_cell_noise=args.load_cell_noise,
+                  seed=args.seed)
     path = dev.plug()
     print(f"fake Due on {dev.path} (link {path})", flush=True)
     done = threading.Event()

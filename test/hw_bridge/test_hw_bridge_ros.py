@@ -9,7 +9,7 @@ import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Bool, Float64MultiArray
+from std_msgs.msg import Bool, Float64, Float64MultiArray
 
 from lhd_hw_bridge.fake_due import FakeDue
 from lhd_hw_bridge.protocol import CommandFrame
@@ -31,12 +31,13 @@ def rig(ros, tmp_path):
     dev.start()
     bridge = RosProcess("lhd_hw_bridge.bridge_node", {"port": link}, tmp_path / "bridge.log")
     node = rclpy.create_node("bridge_test")
-    got = {"js": [], "drift": [], "front": [], "rear": [], "diag": []}
+    got = {"js": [], "drift": [], "front": [], "rear": [], "diag": [], "mass": []}
     node.create_subscription(JointState, "/lhd/joint_states", lambda m: got["js"].append(m), 50)
     node.create_subscription(Bool, "/lhd/wheel_drift", lambda m: got["drift"].append(m.data), 50)
     node.create_subscription(Bool, "/lhd/wheel_drift/front", lambda m: got["front"].append(m.data), 50)
     node.create_subscription(Bool, "/lhd/wheel_drift/rear", lambda m: got["rear"].append(m.data), 50)
     node.create_subscription(DiagnosticArray, "/diagnostics", lambda m: got["diag"].append(m), 10)
+    node.create_subscription(Float64, "/lhd/load_cell/mass", lambda m: got["mass"].append(m.data), 10)
     pub = node.create_publisher(Float64MultiArray, "/lhd/cmd", 1)
     ok = spin_until(node, lambda: len(got["js"]) > 5, timeout=20.0)
     assert ok, "no joint states from the bridge:\n" + bridge.log()
@@ -70,6 +71,14 @@ def test_round_trip_commands_to_valves_and_sensors_to_joint_states(rig):
     assert all(math.isnan(p) for p in js.position[2:])
     assert got["drift"] and got["front"] and got["rear"]
     assert not any(got["front"][-5:])               # no injected drift, currents below presets
+    # a device without the load cell (the emulator's default, as an older firmware): no mass, and
+    # the load cell is reported as absent, not as a fault
+    def load_cell():
+        return [s for d in got["diag"] for s in d.status if s.name.endswith(": load_cell")]
+    assert spin_until(node, lambda: load_cell(), timeout=3.0)
+    st = load_cell()[-1]
+    assert st.level == DiagnosticStatus.OK and st.message.startswith("no load cell"), st.message
+    assert got["mass"] == []
 
 
 def test_unsafe_and_malformed_commands_never_move_the_machine(rig):
