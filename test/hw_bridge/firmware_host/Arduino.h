@@ -1,12 +1,15 @@
-// Arduino.h for running lhd_due.ino on a Linux host in the tests (test_firmware_host.py):
+// Arduino.h for running lhd_due.ino on a Linux host in the tests (test_hw_doc_interop.py):
 // SerialUSB reads stdin and writes stdout (the test connects both to a pseudo-terminal),
-// millis()/micros() come from the monotonic clock. Only what the firmware uses.
+// millis()/micros() come from the monotonic clock, and the pin functions drive a simulated HX711
+// load-cell amplifier wired where the test says (hx711_sim.h). Only what the firmware uses.
 #pragma once
 #include <math.h>
 #include <stdint.h>
 #include <sys/ioctl.h>
 #include <time.h>
 #include <unistd.h>
+
+#include "hx711_sim.h"
 
 inline uint32_t micros() {
   timespec t;
@@ -22,3 +25,30 @@ struct HostSerial {
   size_t write(const uint8_t *d, size_t n) { return ::write(1, d, n) == (ssize_t)n ? n : 0; }
 };
 static HostSerial SerialUSB;
+
+// ---------------------------------------------------------------- digital pins (as the Arduino core names them)
+#define LOW 0x0
+#define HIGH 0x1
+#define INPUT 0x0
+#define OUTPUT 0x1
+#define INPUT_PULLUP 0x2
+
+static bool host_interrupts_enabled = true;
+static uint8_t host_pin_mode[128];
+inline void noInterrupts() { host_interrupts_enabled = false; }
+inline void interrupts() { host_interrupts_enabled = true; }
+inline void pinMode(uint32_t pin, uint32_t mode) { if (pin < 128) host_pin_mode[pin] = (uint8_t)mode; }
+inline void digitalWrite(uint32_t pin, uint32_t val) {
+  if ((int)pin == hx711_sim.sck_pin && host_pin_mode[pin] == OUTPUT) hx711_sim.write_sck(val != LOW, host_interrupts_enabled);
+}
+// an unconnected input with its pull-up reads HIGH (without: LOW here; a real one floats)
+inline int digitalRead(uint32_t pin) {
+  if ((int)pin == hx711_sim.dout_pin) return hx711_sim.read_dout() ? HIGH : LOW;
+  return pin < 128 && host_pin_mode[pin] == INPUT_PULLUP ? HIGH : LOW;
+}
+// a busy wait, as on the Arduino (a sleep would take tens of microseconds for one)
+inline void delayMicroseconds(unsigned int us) {
+  hx711_sim.delay_us(us);
+  uint32_t t0 = micros();
+  while ((uint32_t)(micros() - t0) < us) {}
+}

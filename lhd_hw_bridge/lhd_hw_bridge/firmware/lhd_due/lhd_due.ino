@@ -3,7 +3,14 @@
 // lhd_hw_bridge/fake_due.py (the emulator the tests run against).
 //
 // It cannot be compiled in CI (no Arduino toolchain there). Pin numbers, encoder scaling and
-// the motor/valve drivers are placeholders marked HW: to be set for the machine.
+// the motor/valve drivers are placeholders marked HW: to be set for the machine. The tests
+// compile it on the host instead (test/hw_bridge/firmware_host/: the Arduino API, and an HX711
+// on two pins, simulated).
+//
+// Optional: the bucket's load cell through an HX711 amplifier. Define LHD_HAS_LOAD_CELL (here, or
+// -DLHD_HAS_LOAD_CELL) and the device also sends load-cell frames (type 0x04) at 10 Hz; wiring
+// and calibration (LOAD_CELL_OFFSET, LOAD_CELL_SCALE below) in docs/hardware_bridge.md.
+// #define LHD_HAS_LOAD_CELL
 
 #include <Arduino.h>
 #include <string.h>
@@ -30,8 +37,8 @@ static Command cmd = {0.0f, 0, 0, false};
 static uint32_t last_cmd_ms = 0;
 static bool have_cmd = false;
 static bool watchdog_tripped = false;
-// sequence numbers: one counter per frame type this device sends (docs/serial_protocol.md);
-// it sends only sensor frames, so one counter, and only sensor frames ever use it
+// sequence numbers: one counter per frame type this device sends (docs/serial_protocol.md):
+// this one for sensor frames, seq_load_cell for load-cell frames (LHD_HAS_LOAD_CELL)
 static uint8_t seq_sensor = 0;
 static uint8_t rx_buf[MAX_ENCODED];
 static uint16_t rx_len = 0;
@@ -162,6 +169,120 @@ static void poll_serial() {
   }
 }
 
+// ---------------------------------------------------------------- load cell (optional)
+#ifdef LHD_HAS_LOAD_CELL
+// Wiring (docs/hardware_bridge.md, "Load cell"): HX711 module powered from the Due's 3.3 V (its
+// DOUT then drives 3.3 V logic: the Due's pins are not 5 V tolerant), RATE low (10 samples/s).
+#ifndef LOAD_CELL_DOUT_PIN
+#define LOAD_CELL_DOUT_PIN 22      // HX711 DOUT (DT): input, with the Due's pull-up (unplugged reads "not ready")
+#endif
+#ifndef LOAD_CELL_SCK_PIN
+#define LOAD_CELL_SCK_PIN 23       // HX711 PD_SCK: output, kept low between reads
+#endif
+// Calibration (docs/hardware_bridge.md, "Load cell", "Calibration"):
+// LOAD_CELL_SCALE: counts per kg in the bucket, (raw with a known mass - raw empty) / known mass.
+//   Left at 0 the device is "not calibrated": its frames carry raw counts and a mass of 0.
+// LOAD_CELL_OFFSET: raw counts with the bucket empty. Left undefined, the device tares itself:
+//   the mean of its first LOAD_CELL_TARE_SAMPLES conversions after power-up (bucket empty then).
+#ifndef LOAD_CELL_SCALE
+#define LOAD_CELL_SCALE 0.0f
+#endif
+#ifndef LOAD_CELL_TARE_SAMPLES
+#define LOAD_CELL_TARE_SAMPLES 16  // 1.6 s at 10 samples/s
+#endif
+static const uint8_t TYPE_LOAD_CELL = 0x04;
+static const uint32_t LOAD_CELL_PERIOD_US = 100000;   // 10 Hz frames
+static const uint32_t LOAD_CELL_STALE_MS = 500;       // no conversion for this long: stale, power-cycle the HX711
+static const int32_t HX711_MAX = 8388607L, HX711_MIN = -8388608L;   // its output at and beyond full scale
+
+static int32_t lc_raw = 0;             // latest conversion, counts
+static uint32_t lc_time_us = 0;        // when it was read
+static uint32_t lc_last_ms = 0;
+static bool lc_have = false;           // a conversion since power-up
+static uint32_t lc_reset_ms = 0;       // last power cycle of the HX711
+static uint32_t lc_last_frame_us = 0;
+#ifdef LOAD_CELL_OFFSET
+static int32_t lc_offset = LOAD_CELL_OFFSET;
+static bool lc_tared = true;
+#else
+static int32_t lc_offset = 0;
+static bool lc_tared = false;
+#endif
+static int64_t lc_tare_sum = 0;
+static uint16_t lc_tare_n = 0;
+static uint8_t seq_load_cell = 0;      // load-cell frames have their own sequence counter
+
+// SCK high for more than 60 us powers the HX711 down; back low, it powers up reset (channel A,
+// gain 128) and settles (400 ms at 10 samples/s) before its first conversion.
+static void hx711_power_cycle(uint32_t now_ms) {
+  digitalWrite(LOAD_CELL_SCK_PIN, HIGH);
+  delayMicroseconds(100);
+  digitalWrite(LOAD_CELL_SCK_PIN, LOW);
+  lc_reset_ms = now_ms;
+}
+
+// Only when DOUT is low (a conversion is ready): 24 bits MSB first, each shifted out on a rising
+// edge of SCK, then a 25th pulse that selects channel A, gain 128 for the next conversion. About
+// 75 us on the Due. Interrupts are off while SCK is high: an interrupt there could stretch the
+// pulse past 60 us and power the HX711 down in the middle of a read.
+static int32_t hx711_read() {
+  uint32_t v = 0;
+  for (uint8_t i = 0; i < 25; i++) {
+    noInterrupts();
+    digitalWrite(LOAD_CELL_SCK_PIN, HIGH);
+    delayMicroseconds(1);              // DOUT is valid 0.1 us after the rising edge
+    if (i < 24) v = (v << 1) | (digitalRead(LOAD_CELL_DOUT_PIN) == HIGH ? 1u : 0u);
+    digitalWrite(LOAD_CELL_SCK_PIN, LOW);
+    interrupts();
+    delayMicroseconds(1);
+  }
+  if (v & 0x800000UL) v |= 0xFF000000UL;   // 24-bit two's complement -> 32 bits
+  return (int32_t)v;
+}
+
+static void load_cell_setup() {
+  pinMode(LOAD_CELL_DOUT_PIN, INPUT_PULLUP);
+  pinMode(LOAD_CELL_SCK_PIN, OUTPUT);
+  digitalWrite(LOAD_CELL_SCK_PIN, LOW);
+  hx711_power_cycle(millis());         // a known state, whatever it was doing when the Due reset
+}
+
+// Once per loop, never waits: reads a conversion only when DOUT says one is ready.
+static void load_cell_poll(uint32_t now_ms, uint32_t now_us) {
+  if (digitalRead(LOAD_CELL_DOUT_PIN) == LOW) {
+    lc_raw = hx711_read();
+    lc_time_us = now_us;
+    lc_last_ms = now_ms;
+    lc_have = true;
+    if (!lc_tared && lc_raw != HX711_MAX && lc_raw != HX711_MIN) {
+      lc_tare_sum += lc_raw;
+      if (++lc_tare_n >= LOAD_CELL_TARE_SAMPLES) {
+        lc_offset = (int32_t)(lc_tare_sum / lc_tare_n);
+        lc_tared = true;
+      }
+    }
+  } else if ((uint32_t)(now_ms - (lc_have ? lc_last_ms : lc_reset_ms)) > LOAD_CELL_STALE_MS &&
+             (uint32_t)(now_ms - lc_reset_ms) > LOAD_CELL_STALE_MS) {
+    hx711_power_cycle(now_ms);         // silent for 500 ms: reset it, at most every 500 ms
+  }
+}
+
+static void load_cell_send(uint32_t now_ms) {
+  const bool calibrated = LOAD_CELL_SCALE != 0.0f;
+  const bool stale = !lc_have || (uint32_t)(now_ms - lc_last_ms) > LOAD_CELL_STALE_MS;
+  const bool saturated = lc_raw == HX711_MAX || lc_raw == HX711_MIN;
+  float grams = 0.0f;
+  if (calibrated && lc_tared && lc_have) grams = (float)(lc_raw - lc_offset) / (LOAD_CELL_SCALE * 1e-3f);
+  int32_t mass = grams > 2147483520.0f ? 2147483647L : (grams < -2147483520.0f ? -2147483647L - 1 : (int32_t)lroundf(grams));
+  uint8_t p[13];
+  put_u32(p, lc_time_us);
+  put_u32(p + 4, (uint32_t)mass);
+  put_u32(p + 8, (uint32_t)lc_raw);
+  p[12] = (calibrated ? 0x01 : 0) | (lc_tared ? 0x02 : 0) | (saturated ? 0x04 : 0) | (stale ? 0x08 : 0);
+  send_packet(TYPE_LOAD_CELL, seq_load_cell++, p, sizeof p);
+}
+#endif
+
 // ---------------------------------------------------------------- main loop
 static uint32_t last_sensor_us = 0;
 static float prev_boom = 0.0f, prev_bucket = 0.0f;
@@ -169,6 +290,9 @@ static float prev_boom = 0.0f, prev_bucket = 0.0f;
 void setup() {
   SerialUSB.begin(115200);
   drive_wheels(0.0f); drive_valve(0, 0); drive_valve(1, 0);
+#ifdef LHD_HAS_LOAD_CELL
+  load_cell_setup();
+#endif
 }
 
 void loop() {
@@ -198,4 +322,12 @@ void loop() {
     p[26] = (out.run ? 0x01 : 0) | (watchdog_tripped ? 0x02 : 0) | (out.estop ? 0x04 : 0);
     send_packet(TYPE_SENSOR, seq_sensor++, p, sizeof p);
   }
+#ifdef LHD_HAS_LOAD_CELL
+  load_cell_poll(millis(), micros());
+  now_us = micros();
+  if ((uint32_t)(now_us - lc_last_frame_us) >= LOAD_CELL_PERIOD_US) {
+    lc_last_frame_us = now_us;
+    load_cell_send(millis());
+  }
+#endif
 }
