@@ -360,3 +360,21 @@ def test_message_definitions_agree_with_the_installed_interfaces():
         types.definition("lhd_msgs/msg/Nothing")
     with pytest.raises(ValueError, match="expected package/msg/Name"):
         types.definition("Float64")
+
+
+def test_the_parameter_file_is_what_the_node_takes(ros, tmp_path):
+    """config/recorder_node.yaml: every key a parameter of the node, accepted as written."""
+    from rclpy.parameter import Parameter
+
+    from lhd_loading_ros.nodes.recorder_node import RecorderNode
+
+    path = Path(__file__).resolve().parents[2] / "config" / "recorder_node.yaml"
+    values = yaml.safe_load(path.read_text())["lhd_recorder"]["ros__parameters"]
+    overrides = [Parameter(k, value=v) for k, v in values.items()] + [Parameter("run_dir", value=str(tmp_path / "r"))]
+    node = RecorderNode(context=ros.context, parameter_overrides=overrides)
+    try:
+        assert {k: node.p[k] for k in values} == values
+        assert node.extra == ("/joy", "/diagnostics") and node.prefix == "/lhd"
+        assert (tmp_path / "r" / "bags").is_dir() and not any((tmp_path / "r" / "bags").iterdir())
+    finally:
+        node.destroy_node()

@@ -58,7 +58,7 @@ from lhd_loading_ros.task.recording import (RecordingPlan, attempt_number, bag_f
 
 RECORD_DEPTH = 100      # queue of each recording subscription: a burst (a latched history, a slow
                         # disk) waits here rather than being dropped before the executor takes it
-PLAN_PERIOD_S = 0.02    # how often the open/close decisions are checked (steady clock)
+PLAN_PERIOD_S = 0.05    # how often the open/close decisions are checked (steady clock; a status acts at once)
 BAG_VERSION = 9         # rosbag2 metadata version of ROS 2 Jazzy (QoS profiles as a YAML list)
 STORAGES = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
 INFINITE_NS = 0x7FFFFFFFFFFFFFFF
