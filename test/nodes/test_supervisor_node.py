@@ -17,6 +17,8 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
 from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64, Float64MultiArray
@@ -217,26 +219,28 @@ def test_arm_running_success_within_100_ms(rig):
     assert p.stdout.startswith(f"attempt 1 armed, running in {ARM_DELAY:g} s: controller rld, slope 20.0 deg"), p.stdout
     t_armed, _ = rig.wait_state("armed", 1, since=n0)
     t_run, kv = rig.wait_state("running", 1, since=n0)
-    assert 0.2 <= t_run - t_armed <= 0.3 + 0.3, t_run - t_armed      # arm_delay 0.3 s, seen at 50 Hz
+    assert ARM_DELAY - 0.05 <= t_run - t_armed <= ARM_DELAY + 0.7, t_run - t_armed     # arm_delay, seen at 50 Hz
     assert float(kv["x_shovel"]) == pytest.approx(0.0, abs=1e-3) and float(kv["z_shovel"]) == pytest.approx(0.015,
                                                                                                            abs=1e-3)
     time.sleep(0.5)
     rig.set_pose(END)
     t_end, kv = rig.wait_state("success", 1, since=n0)
     latency = t_end - rig.pose_published_at[END]
+    rig.set_pose(START)          # back to the start pose for the next tests, whatever is asserted below
     print(f"end-zone latency (joints published -> success status received): {latency * 1000:.1f} ms")
     assert latency < 0.1
     x, z = tip_hand(END[0], *LIFT)
     assert float(kv["x_shovel"]) == pytest.approx(x, abs=1e-3) and float(kv["z_shovel"]) == pytest.approx(z, abs=1e-3)
     assert kv["phi_final_deg"] == "45.84" and kv["reason"] == "bucket tip reached the end zone"
     assert kv["front_drift_pct"] == "100.00" and kv["rear_drift_pct"] == "0.00"
-    assert 0.45 <= float(kv["elapsed_s"]) <= 0.5 + 0.3 and kv["loaded_mass"] == "nan" and "success" not in kv
+    # running to the end, as this test saw the two statuses arrive
+    assert float(kv["elapsed_s"]) == pytest.approx(t_end - t_run, abs=0.1) and float(kv["elapsed_s"]) >= 0.5
+    assert kv["loaded_mass"] == "nan" and "success" not in kv
     # written right after the end status (status first: controllers stop on it), before any mass
     assert wait_for(lambda: read_rows(rig.run_dir / "attempts.csv"), 2.0)
     rows = read_rows(rig.run_dir / "attempts.csv")
     assert [(r.attempt, r.outcome, r.mass_kg, r.success) for r in rows] == [(1, "success", None, None)]
     assert rows[0].bag == "bags/attempt_0001" and rows[0].slope_deg == pytest.approx(20.0)
-    rig.set_pose(START)
 
 
 def test_mass_from_the_cli_updates_the_row(rig):
@@ -255,8 +259,8 @@ def test_timeout_after_attempt_timeout(rig):
     assert rig.call(rig.arm_client).success
     t_run, _ = rig.wait_state("running", 2, since=n0)
     t_end, kv = rig.wait_state("timeout", 2, since=n0, timeout=TIMEOUT_S + 5)
-    assert TIMEOUT_S - 0.05 <= t_end - t_run <= TIMEOUT_S + 0.25, t_end - t_run
-    assert float(kv["elapsed_s"]) == pytest.approx(TIMEOUT_S, abs=0.05)
+    assert TIMEOUT_S - 0.1 <= t_end - t_run <= TIMEOUT_S + 0.4, t_end - t_run
+    assert TIMEOUT_S <= float(kv["elapsed_s"]) <= TIMEOUT_S + 0.1      # seen by the 50 Hz check
     assert kv["reason"] == f"attempt_timeout {TIMEOUT_S:g} s passed"
     # mass refused while the next attempt is not ended is the CLI's check; here: nothing weighed yet
     assert "success" not in kv
@@ -270,7 +274,7 @@ def test_lost_input_when_the_joint_states_stop(rig):
     time.sleep(0.05)
     t_last = rig.last_joints_at
     t_end, kv = rig.wait_state("lost_input", 3, since=n0)
-    assert 0.5 <= t_end - t_last <= 0.5 + 0.15, t_end - t_last
+    assert 0.5 <= t_end - t_last <= 0.5 + 0.3, t_end - t_last         # input_timeout, seen at 50 Hz
     assert "joint states" in kv["reason"] and "(timeout 0.5 s; /lhd/joint_states" in kv["reason"]
     rig.feed["joints"] = True
     time.sleep(0.1)
@@ -283,7 +287,7 @@ def test_estop_ends_the_attempt_and_blocks_arming(rig):
     t0 = time.monotonic()
     rig.pub_estop.publish(Bool(data=True))
     t_end, kv = rig.wait_state("estop", 4, since=n0)
-    assert t_end - t0 < 0.1
+    assert t_end - t0 < 0.2          # the issue: e-stop to stopped within 300 ms, the mux and bridge included
     assert kv["reason"] == "emergency stop engaged (/lhd/estop is true)"
     res = rig.call(rig.arm_client)
     assert not res.success and "emergency stop engaged (/lhd/estop is true): release it first" in res.message
@@ -292,6 +296,12 @@ def test_estop_ends_the_attempt_and_blocks_arming(rig):
 
 
 def test_abort_from_the_cli(rig):
+    # the CLI takes seconds to start on a loaded machine: a longer timeout for this attempt,
+    # set at run time (it applies from the next arming)
+    client = AsyncParameterClient(rig.node, "/lhd_supervisor")
+    assert client.wait_for_services(20.0)
+    fut = client.set_parameters([Parameter("attempt_timeout", Parameter.Type.DOUBLE, 60.0)])
+    assert wait_for(fut.done, 20.0) and fut.result().results[0].successful
     n0 = len(rig.statuses)
     p = cli("arm")
     assert p.returncode == 0, p.stderr

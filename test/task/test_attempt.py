@@ -458,3 +458,13 @@ def test_settings_are_checked():
         settings(slope_range_deg=(30.0, 15.0))
     with pytest.raises(ValueError, match="arm_delay"):
         settings(arm_delay=-1.0)
+
+
+def test_a_new_attempt_timeout_applies_from_the_next_arming(kin):
+    r = Rig(kin, arm_delay=0.0, attempt_timeout=2.0).ready()
+    r.arm()
+    r.sv.set_attempt_timeout(5.0)
+    assert r.step(2.0) == "timeout"            # the live attempt keeps 2 s
+    r.arm()
+    assert r.step(4.98) == "running"
+    assert r.step(0.02) == "timeout" and r.sv.attempt.reason == "attempt_timeout 5 s passed"

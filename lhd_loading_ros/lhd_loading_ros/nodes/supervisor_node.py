@@ -92,7 +92,8 @@ class SupervisorNode(Node):
                   "(trained_ranges.slope_deg); empty: the config's alpha range"),
             Param("material", "homogeneous", "pile material written to the record; a change applies from the next "
                   "arming", choices=MATERIALS, on_change=lambda v: setattr(self.core, "material", v)),
-            Param("attempt_timeout", 10.0, "s from running to timeout (paper: a timeout of 10 s)", lo=0.1, hi=600.0),
+            Param("attempt_timeout", 10.0, "s from running to timeout (paper: a timeout of 10 s); a change applies "
+                  "from the next arming", lo=0.1, hi=600.0, on_change=lambda v: self.core.set_attempt_timeout(v)),
             Param("arm_delay", 1.0, "s between armed and running (0: at once)", lo=0.0, hi=60.0),
             Param("input_timeout", 0.5, "s: joints, odometry or a drift flag older than this while armed or running "
                   "ends the attempt (lost_input), and fails the preflight", lo=0.01, hi=60.0),

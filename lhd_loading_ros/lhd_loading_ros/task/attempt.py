@@ -31,7 +31,7 @@ from __future__ import annotations
 import math
 import statistics
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from lhd_loading_ros.task.attempt_record import AttemptRow, bag_name, check_mass, judge
 from lhd_loading_ros.task.kinematics import ArmKinematics, state_from_measurements
@@ -122,6 +122,7 @@ class Attempt:
     slope_rad: float
     zones: Zones
     armed_at: float
+    timeout: float = 10.0                 # attempt_timeout at arming
     running_at: float | None = None
     ended_at: float | None = None
     outcome: str = ""
@@ -170,6 +171,10 @@ class Supervisor:
         self.tip: LhdState | None = None         # the latest tip computed from fresh, finite inputs
         self._cell: deque = deque()              # (time, kg) load-cell samples, the last few seconds
         self._stopped_since: float | None = None
+
+    def set_attempt_timeout(self, seconds: float) -> None:
+        """A new attempt_timeout, from the next arming on (a live attempt keeps its own)."""
+        self.s = replace(self.s, attempt_timeout=seconds)
 
     # ------------------------------------------------------------------ preflight
     def slope_problem(self, slope: float) -> str:
@@ -284,7 +289,8 @@ class Supervisor:
         n = self.next_number
         self.next_number += 1
         self.attempt = Attempt(number=n, started_utc=utc, controller=self.controller, material=self.material,
-                               slope_rad=float(inp.values["slope"]), zones=inp.values["zones"], armed_at=now)
+                               slope_rad=float(inp.values["slope"]), zones=inp.values["zones"], armed_at=now,
+                               timeout=self.s.attempt_timeout)
         self.attempt.last_state = self._compute_tip(now)
         self._cell.clear()
         self._stopped_since = None
@@ -359,8 +365,8 @@ class Supervisor:
             self._end(now, "success", REASONS["success"])
         elif where == "restricted":
             self._end(now, "failure", REASONS["failure"])
-        elif now - a.running_at >= s.attempt_timeout:
-            self._end(now, "timeout", f"attempt_timeout {s.attempt_timeout:g} s passed")
+        elif now - a.running_at >= a.timeout:
+            self._end(now, "timeout", f"attempt_timeout {a.timeout:g} s passed")
 
     # ------------------------------------------------------------------ the loaded mass
     def set_mass(self, kg, source: str = "operator") -> AttemptRow:
