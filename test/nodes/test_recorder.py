@@ -20,6 +20,8 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
 from rclpy.qos import qos_profile_sensor_data
 from rclpy.serialization import deserialize_message
+from rclpy.time import Time
+from rosgraph_msgs.msg import Clock
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_typestore
 from sensor_msgs.msg import JointState, Joy
@@ -39,6 +41,7 @@ ZONES = [0.55, 0.95, 0.32, 1.62, -0.1, 1.0, 0.2, 0.4]
 END_ZONE = ZONES[:3]
 THETA = 0.05                       # base pitch (rad) carried by the odometry's quaternion
 N = 20                             # control steps of the attempt
+S = 1_000_000_000                  # ns per s
 
 
 @pytest.fixture(scope="module")
@@ -277,14 +280,18 @@ def test_an_attempt_is_recorded_and_replayed(ros, tmp_path, capsys):
 def test_sqlite3_an_existing_folder_and_a_shutdown_during_the_attempt(ros, tmp_path, capsys):
     """storage sqlite3; attempt 3's folder exists already (a restarted supervisor reused the
     number): kept untouched, the bag goes to attempt_0003_2; the recorder stopped (SIGINT)
-    while the attempt runs closes a readable bag."""
+    while the attempt runs closes a readable bag; with use_sim_time the stamps are sim time."""
     rig = Rig(ros, "b")
     rig.latched()
     run_dir = tmp_path / "run"
     old = run_dir / "bags" / "attempt_0003"
     old.mkdir(parents=True)
     (old / "marker.txt").write_text("earlier attempt 3")
-    proc = start_recorder(tmp_path, run_dir, name="recorder_sqlite", storage="sqlite3")
+    sim0, wall0 = 5000 * S, time.monotonic()      # a sim clock at 5000 s, advancing with the wall clock
+    pub_clock = ros.create_publisher(Clock, "/clock", 10)
+    clock_timer = ros.create_timer(0.02, lambda: pub_clock.publish(
+        Clock(clock=Time(nanoseconds=sim0 + int((time.monotonic() - wall0) * S)).to_msg())))
+    proc = start_recorder(tmp_path, run_dir, name="recorder_sqlite", storage="sqlite3", use_sim_time="true")
     clock = ros.get_clock()
     try:
         assert spin_until(ros, lambda: rig.episode.get_subscription_count() >= 1, 30.0), proc.log()
@@ -301,6 +308,9 @@ def test_sqlite3_an_existing_folder_and_a_shutdown_during_the_attempt(ros, tmp_p
     finally:
         rc = proc.stop()
         rig.close()
+        ros.destroy_timer(clock_timer)
+        ros.destroy_publisher(pub_clock)
+    sim_end = sim0 + int((time.monotonic() - wall0) * S)
     assert rc == 0, proc.log()
     assert "attempt_0003 already exists" in proc.log()
     assert sorted(os.listdir(old)) == ["marker.txt"] and (old / "marker.txt").read_text() == "earlier attempt 3"
@@ -311,6 +321,8 @@ def test_sqlite3_an_existing_folder_and_a_shutdown_during_the_attempt(ros, tmp_p
     assert "attempt_0003_2" in meta["custom_data"]["lhd.note"]
     got = read_back(bag)
     assert [list(m.data) for _, m in got["/lhd/cmd"]] == [[1.0, 0.0, 0.1 * k] for k in range(8)]
+    stamps = [t for msgs in got.values() for t, _ in msgs]
+    assert sim0 < min(stamps) and max(stamps) <= sim_end, (min(stamps) - sim0, sim_end - max(stamps))
     # the sqlite3 file read without rosbags: rosbag2's schema version 4 (Jazzy), the CDR decoded by rclpy
     db = sqlite3.connect(next(bag.glob("*.db3")))
     try:

@@ -13,7 +13,7 @@ decisions are task/recording.py's RecordingPlan; this node is the ROS and file s
 Format: rosbag2 version 9 (ROS 2 Jazzy's), MCAP (default) or sqlite3 (`storage`), written
 with the rosbags library (Ternaris, Apache-2.0): the raw CDR bytes of each message as DDS
 delivered them (raw subscriptions, no deserialization), stamped with their receive time (the
-node's ROS clock: sim time with use_sim_time), message definitions (ros2msg) and type hashes
+node's ROS clock, as DDS received it: sim time with use_sim_time), message definitions (ros2msg) and type hashes
 (RIHS01) from rosbags' Jazzy typestore, checked against the installed interfaces. Playable
 with `ros2 bag play` on a full ROS install; `lhd replay BAG` prints the attempt's metrics.
 
@@ -391,6 +391,22 @@ class RecorderNode(Node):
             r.sub = self._subscribe(r)
             self.recorded[topic] = r
 
+    def receive_time(self, info: dict) -> int:
+        """When DDS received the message, in ns of the node's ROS clock. DDS stamps the arrival
+        on the system clock (`received_timestamp`), before the message waits for this node's
+        executor: so two topics keep their true order even when the node is busy (a drift flag
+        and the command after it). With use_sim_time the wait is taken off the sim clock's now."""
+        now = self.get_clock().now().nanoseconds
+        received = int(info.get("received_timestamp", 0) or 0) if isinstance(info, dict) else 0
+        if received <= 0:
+            return now
+        if not self._sim_time_active():
+            return received
+        return max(0, now - max(0, time.time_ns() - received))
+
+    def _sim_time_active(self) -> bool:
+        return bool(getattr(self.get_clock(), "ros_time_is_active", False))
+
     def _skip(self, topic: str, why: str) -> None:
         self.skipped[topic] = why
         self.get_logger().warn(f"{topic}: {why}")
@@ -400,12 +416,12 @@ class RecorderNode(Node):
                          reliability=ReliabilityPolicy.RELIABLE if r.reliable else ReliabilityPolicy.BEST_EFFORT,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL if r.latched else DurabilityPolicy.VOLATILE)
 
-        def on_message(data: bytes) -> None:
+        def on_message(data: bytes, info: dict) -> None:
             writer = self.writer
             if writer is None:
                 return
             try:
-                writer.write(r.connection, self.get_clock().now().nanoseconds, data)
+                writer.write(r.connection, self.receive_time(info), data)
                 r.count += 1
             except Exception as exc:  # noqa: BLE001 - count it, keep recording the other topics
                 self.failed_writes += 1
