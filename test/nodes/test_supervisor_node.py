@@ -3,7 +3,7 @@ would feed it (joint states, odometry, drift flags, bridge status at 50 Hz; latc
 zones; the e-stop topic): arming refused with the reasons, arm -> running -> the tip moved
 into the end zone -> success within 100 ms, the mass from `lhd attempt mass` into the row,
 timeout after attempt_timeout, lost input, e-stop, abort, `lhd attempts` on the CSV the node
-wrote, and an attempt cut short by stopping the node."""
+wrote, the load cell's mass, and an attempt cut short by stopping the node."""
 import io
 import math
 import subprocess
@@ -74,6 +74,7 @@ class Rig:
         self.pose = START
         self.feed = {"joints": True, "odom": True, "drift": True, "hw": True}
         self.front, self.rear = True, False
+        self.load_cell = None              # kg to publish on /lhd/load_cell/mass at 50 Hz, or None
         self.pose_published_at = {}        # pose -> first publish time (monotonic)
         self.last_joints_at = None
         self.statuses = []                 # (arrival, {key: value})
@@ -85,6 +86,7 @@ class Rig:
         self.pub_slope = node.create_publisher(Float64, "/lhd/pile/slope", LATCHED)
         self.pub_zones = node.create_publisher(Float64MultiArray, "/lhd/pile/zones", LATCHED)
         self.pub_estop = node.create_publisher(Bool, "/lhd/estop", LATCHED)
+        self.pub_cell = node.create_publisher(Float64, "/lhd/load_cell/mass", REL)
         node.create_subscription(DiagnosticStatus, "/lhd/episode", self._on_status, STATUS)
         self.arm_client = node.create_client(Trigger, "/lhd/arm")
         self.abort_client = node.create_client(Trigger, "/lhd/abort")
@@ -118,6 +120,8 @@ class Rig:
         if self.feed["drift"]:
             self.pub_front.publish(Bool(data=self.front))
             self.pub_rear.publish(Bool(data=self.rear))
+        if self.load_cell is not None:
+            self.pub_cell.publish(Float64(data=self.load_cell))
         if self.feed["hw"]:
             st = DiagnosticStatus(level=DiagnosticStatus.OK, name="/lhd_bridge: device", message="drive enabled")
             st.values = [KeyValue(key="estop", value="False")]
@@ -292,7 +296,16 @@ def test_estop_ends_the_attempt_and_blocks_arming(rig):
     res = rig.call(rig.arm_client)
     assert not res.success and "emergency stop engaged (/lhd/estop is true): release it first" in res.message
     rig.pub_estop.publish(Bool(data=False))
-    time.sleep(0.2)
+    # a load cell: once the machine stands still (joint velocities 0) for mass_settle_s (1 s),
+    # the median of its readings is the attempt's mass
+    rig.load_cell = 22.0
+    _, kv = rig.wait_state("estop", 4, since=n0, timeout=1.0)
+    assert wait_for(lambda: rig.state().get("mass_source") == "load_cell", 5.0), rig.state()
+    rig.load_cell = None
+    kv = rig.state()
+    assert kv["loaded_mass"] == "22.00" and kv["success"] == "False" and kv["success_level"] == "0"   # pitch 0
+    row = read_rows(rig.run_dir / "attempts.csv")[3]
+    assert (row.attempt, row.mass_kg, row.success) == (4, 22.0, False)
 
 
 def test_abort_from_the_cli(rig):

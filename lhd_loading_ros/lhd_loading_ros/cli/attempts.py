@@ -15,16 +15,15 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
 
+from lhd_loading_ros.task.attempt import ENDED
 from lhd_loading_ros.task.attempt_record import (CSV_NAME, check_mass, csv_path, format_table, read_rows,
                                                  summarize, weigh_row)
 
 WAIT_S = 5.0
 HISTORY_S = 0.3          # s to let a latched topic's history arrive after its first message
-ENDED = ("success", "failure", "timeout", "estop", "lost_input", "aborted")
 
 
 def _stamp(status: dict) -> int:
