@@ -9,6 +9,7 @@ attempt that was over before the recorder started is not recorded, an unwritable
 import json
 import math
 import os
+import re
 import sqlite3
 import time
 from pathlib import Path
@@ -342,6 +343,7 @@ def test_sqlite3_an_existing_folder_and_a_shutdown_during_the_attempt(ros, tmp_p
     text = capsys.readouterr().out
     assert "attempt 3: running" in text and "no end status of attempt 3" in text
     assert "commands during the attempt: 8" in text
+    assert re.search(r"rear drift \(%\) +50\.00 +-\n", text) and "drift sampled at 8 command(s)" in text
 
 
 def test_a_run_dir_that_cannot_be_written_ends_the_node_with_status_2(tmp_path):

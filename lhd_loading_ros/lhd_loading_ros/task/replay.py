@@ -116,12 +116,12 @@ def drift_at_commands(cmd_times: list, flags: Series) -> list[bool]:
 
 
 def attempt_drift(cmds: Series, front: Series, rear: Series, w: Window) -> dict:
-    """Front and rear drift % over the commands received while the attempt ran (None where
-    the bag has no commands or no flags in that period)."""
+    """Front and rear drift % over the commands received while the attempt ran, up to the end
+    of the bag when it holds no end (None where the bag has no commands or no flags then)."""
     out = {"steps": 0, "front_drift_pct": None, "rear_drift_pct": None, "front_samples": 0, "rear_samples": 0}
-    if w.t_start is None or w.t_end is None:
+    if w.t_start is None:
         return out
-    steps = cmds.between(w.t_start, w.t_end).t
+    steps = cmds.between(w.t_start, w.t_end if w.t_end is not None else 2**63 - 1).t
     out["steps"] = len(steps)
     for name, flags in (("front", front), ("rear", rear)):
         samples = drift_at_commands(steps, flags)
