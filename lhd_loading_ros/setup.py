@@ -14,6 +14,14 @@ data_files = [
 config_files = glob(os.path.join(os.path.relpath(os.path.join(here, "..", "config")), "*.yaml"))
 if config_files:
     data_files.append(("share/" + package_name + "/config", config_files))
+# Gamepad mappings of the teleop node: config/teleop/*.yaml -> share/lhd_loading_ros/config/teleop/
+teleop_files = glob(os.path.join(os.path.relpath(os.path.join(here, "..", "config", "teleop")), "*.yaml"))
+if teleop_files:
+    data_files.append(("share/" + package_name + "/config/teleop", teleop_files))
+# The real-machine launch file (what `lhd up real` starts)
+launch_files = glob(os.path.join("launch", "*.launch.py"))
+if launch_files:
+    data_files.append(("share/" + package_name + "/launch", launch_files))
 # The shipped actors (<repo>/policies/<variant>/) go to share/lhd_loading_ros/policies/<variant>/,
 # where the policy node looks for its default actor in an installed workspace.
 for variant in ("rld", "rlc"):
@@ -38,6 +46,11 @@ setup(
             "policy_node = lhd_loading_ros.nodes.policy_node:main",
             "aruco_pose_node = lhd_loading_ros.nodes.aruco_pose_node:main",
             "lidar_slope_node = lhd_loading_ros.nodes.lidar_slope_node:main",
+            "end_zone_node = lhd_loading_ros.nodes.end_zone_node:main",
+            "supervisor_node = lhd_loading_ros.nodes.supervisor_node:main",
+            "cmd_mux_node = lhd_loading_ros.nodes.cmd_mux_node:main",
+            "teleop_node = lhd_loading_ros.nodes.teleop_node:main",
+            "recorder_node = lhd_loading_ros.nodes.recorder_node:main",
         ],
     },
 )

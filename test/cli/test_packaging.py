@@ -193,6 +193,7 @@ ROS_IMPORTS = {"rclpy", "rcl_interfaces", "builtin_interfaces", "ament_index_pyt
 # where one exists; `-pip` keys where rosdep knows only the PyPI package.
 PYTHON_KEYS = {
     "numpy": "python3-numpy",
+    "rosbags": "python3-rosbags-pip",
     "yaml": "python3-yaml",
     "cv2": "python3-opencv",
     "serial": "python3-serial",          # pyserial

@@ -196,8 +196,16 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="lhd", description="LHD loading: simulator, training and ROS tools")
     sub = ap.add_subparsers(dest="cmd", required=True)
     for name, hlp in (("demo", "the main job: sim + policy nodes load piles of 15-30 deg, results table"),
-                      ("up", "up sim: start the sim node and the policy node over DDS"),
-                      ("echo", "print a topic's messages as YAML")):
+                      ("up", "up sim: the sim node and the policy node over DDS; up real --port DEV: the "
+                             "real-machine stack (bridge, perception, end zone, supervisor, mux, teleop, "
+                             "controller, recorder)"),
+                      ("echo", "print a topic's messages as YAML"),
+                      ("arm", "preflight, then arm an attempt (the supervisor's /lhd/arm)"),
+                      ("abort", "end the attempt now (the supervisor's /lhd/abort)"),
+                      ("attempt", "attempt mass KG [--attempt N]: record the weighed mass of an attempt"),
+                      ("attempts", "attempts RUN_DIR: the paper's results table from a run's attempts.csv"),
+                      ("replay", "replay BAG [--plot OUT.png]: an attempt's metrics and plots from its rosbag2"),
+                      ("estop", "estop on|off|status: the software emergency stop (/lhd/estop)")):
         sub.add_parser(name, help=hlp, add_help=False).add_argument("rest", nargs=argparse.REMAINDER)
     p_bench = sub.add_parser("bench", help="benchmarks that print their figures")
     p_bench.add_argument("what", help="sim | train | node | bridge | perception")
@@ -250,13 +258,35 @@ def main(argv=None) -> int:
         from lhd_loading_ros.cli.launcher import main as up_main
 
         return up_main(argv[2:])
+    if argv[:2] == ["up", "real"]:
+        from lhd_loading_ros.cli.up_real import main as real_main
+
+        return real_main(argv[2:])
     if argv[:1] == ["up"]:
-        print("lhd up: expected `lhd up sim [--policy DIR] [--slope DEG] [--episodes N]`", file=sys.stderr)
+        print("lhd up: expected `lhd up sim [--policy DIR] [--slope DEG] [--episodes N]` or "
+              "`lhd up real --port DEV [--controller rld|rlc|tampier|teleop]`", file=sys.stderr)
         return 2
     if argv[:1] == ["echo"]:
         from lhd_loading_ros.cli.echo import main as echo_main
 
         return echo_main(argv[1:])
+    if argv[:1] in (["arm"], ["abort"], ["attempts"]) or argv[:2] == ["attempt", "mass"]:
+        from lhd_loading_ros.cli import attempts
+
+        if argv[0] == "attempt":
+            return attempts.attempt_mass_main(argv[2:])
+        return {"arm": attempts.arm_main, "abort": attempts.abort_main, "attempts": attempts.main}[argv[0]](argv[1:])
+    if argv[:1] == ["attempt"]:
+        print("lhd attempt: expected `lhd attempt mass KG [--attempt N] [--run-dir DIR]`", file=sys.stderr)
+        return 2
+    if argv[:1] == ["replay"]:
+        from lhd_loading_ros.cli.replay import main as replay_main
+
+        return replay_main(argv[1:])
+    if argv[:1] == ["estop"]:
+        from lhd_loading_ros.cli.estop import main as estop_main
+
+        return estop_main(argv[1:])
     args = ap.parse_args(argv)
     if args.cmd == "bench":
         return _bench(args)
