@@ -86,7 +86,7 @@ def main(argv=None) -> int:
                   file=sys.stderr)
             return 1
         values = sorted(set(heard["estop"]))
-        est = "no publisher now (the mux keeps the last value it heard)" if not values else ("ENGAGED" if values == [True] else
+        est = "no latched publisher now (a running mux keeps the last value it heard)" if not values else ("ENGAGED" if values == [True] else
                                                  "released" if values == [False] else
                                                  "latched publishers disagree (true and false); the mux's state below is "
                                                  "what counts")
