@@ -3,7 +3,11 @@ arrival times, decide whether they can be trusted, build the paper's 12-vector w
 core code as the environment, run the exported actor, apply the variant's deployment filter
 and map to actuator units. Any doubt gives the zero command (wheels stopped, arm held),
 never a guess: a missing or stale input, a NaN, no actor, or a slope outside the range the
-actor was trained on (refused, not clipped into range: the actor has never seen such a pile)."""
+actor was trained on (refused, not clipped into range: the actor has never seen such a pile).
+
+DecisionCore is that one decision path (input checks, timeouts, slope refusal, bad input ->
+zero command); a controller supplies only `_act`, the command from trusted inputs:
+PolicyCore (the exported actor) here, TampierCore (the heuristic) in policy/tampier.py."""
 from __future__ import annotations
 
 import math
@@ -53,17 +57,29 @@ class Decision:
     command: tuple            # (u_wheels, u_boom, u_bucket) rad/s
     observation: np.ndarray | None
     action: np.ndarray | None  # raw actor output
-    reason: str               # "" when the actor decided
+    reason: str               # "" when the controller decided
     kind: str = "ok"          # ok | no_actor | inputs (missing/stale) | bad_input | out_of_range | actor_output
+    note: str = ""            # what the controller did, for /diagnostics (the heuristic's stage)
 
 
-class PolicyCore:
-    def __init__(self, actor, variant: str, p: TaskParams, kin: ArmKinematics,
-                 slope_range_deg: tuple[float, float] | None = None):
-        if variant not in ("rld", "rlc"):
-            raise ValueError(f"variant {variant!r}: expected 'rld' or 'rlc'")
-        self.actor, self.variant, self.p, self.kin = actor, variant, p, kin
-        self.slope_range_deg = slope_range_deg     # the slopes the actor was trained on; None: unchecked
+class DecisionCore:
+    """The decision path every controller of the policy node shares: `decide` checks the inputs
+    (missing, stale, slope outside `slope_range_deg`) and turns any doubt, or a ValueError of the
+    controller on a bad value, into the zero command with the reason; `_act` is the controller's
+    command from trusted inputs. `reset` is called before each attempt (stateful controllers)."""
+
+    name = "controller"
+
+    def __init__(self, p: TaskParams, kin: ArmKinematics, slope_range_deg: tuple[float, float] | None = None):
+        self.p, self.kin = p, kin
+        self.slope_range_deg = slope_range_deg     # the slopes the controller was made for; None: unchecked
+
+    def unavailable(self) -> str:
+        """Why this controller cannot decide at all ("" when it can)."""
+        return ""
+
+    def reset(self) -> None:
+        """A new attempt begins (the actor keeps no state)."""
 
     def slope_refusal(self, slope_rad: float) -> str:
         """Why this slope is refused ("" when it is inside the trained range, or not a number:
@@ -77,6 +93,39 @@ class PolicyCore:
         return (f"slope {deg:.1f} deg is outside the range the actor was trained on [{lo:g}, {hi:g}] deg: "
                 "refused, not clipped")
 
+    def decide(self, inp: Inputs, now: float, timeout: float, timeouts: dict | None = None) -> Decision:
+        """`timeout` for every input, `timeouts` per input where it differs (Inputs.problems)."""
+        why = self.unavailable()
+        if why:
+            return Decision(ZERO_COMMAND, None, None, why, "no_actor")
+        bad = inp.problems(now, timeout, timeouts)
+        if bad:
+            return Decision(ZERO_COMMAND, None, None, "; ".join(bad), "inputs")
+        refusal = self.slope_refusal(inp.values["slope"])
+        if refusal:
+            return Decision(ZERO_COMMAND, None, None, refusal, "out_of_range")
+        try:
+            return self._act(inp)
+        except ValueError as exc:           # NaN / inf in an input, broken quaternion, missing joint
+            return Decision(ZERO_COMMAND, None, None, f"bad input: {exc}", "bad_input")
+
+    def _act(self, inp: Inputs) -> Decision:
+        raise NotImplementedError
+
+
+class PolicyCore(DecisionCore):
+    name = "actor"
+
+    def __init__(self, actor, variant: str, p: TaskParams, kin: ArmKinematics,
+                 slope_range_deg: tuple[float, float] | None = None):
+        if variant not in ("rld", "rlc"):
+            raise ValueError(f"variant {variant!r}: expected 'rld' or 'rlc'")
+        super().__init__(p, kin, slope_range_deg)
+        self.actor, self.variant = actor, variant
+
+    def unavailable(self) -> str:
+        return "no actor loaded" if self.actor is None else ""
+
     def observation(self, inp: Inputs) -> np.ndarray:
         jpos_vel = inp.values["joints"]
         pos, quat, v_x = inp.values["odom"]
@@ -85,21 +134,12 @@ class PolicyCore:
         x_min, x_max, z_min = inp.values["end_zone"]
         return build_observation(s, inp.values["slope"], x_max, self.p)
 
-    def decide(self, inp: Inputs, now: float, timeout: float, timeouts: dict | None = None) -> Decision:
-        """`timeout` for every input, `timeouts` per input where it differs (Inputs.problems)."""
-        if self.actor is None:
-            return Decision(ZERO_COMMAND, None, None, "no actor loaded", "no_actor")
-        bad = inp.problems(now, timeout, timeouts)
-        if bad:
-            return Decision(ZERO_COMMAND, None, None, "; ".join(bad), "inputs")
-        refusal = self.slope_refusal(inp.values["slope"])
-        if refusal:
-            return Decision(ZERO_COMMAND, None, None, refusal, "out_of_range")
+    def _act(self, inp: Inputs) -> Decision:
+        obs = self.observation(inp)             # a ValueError here: bad input (decide)
         try:
-            obs = self.observation(inp)
-        except ValueError as exc:           # NaN / inf in an input, broken quaternion, missing joint
-            return Decision(ZERO_COMMAND, None, None, f"bad input: {exc}", "bad_input")
-        a = np.asarray(self.actor(obs), dtype=np.float64)
+            a = np.asarray(self.actor(obs), dtype=np.float64)
+        except Exception as exc:  # noqa: BLE001 - whatever the actor raises, the machine stops
+            return Decision(ZERO_COMMAND, obs, None, f"actor failed: {exc}", "actor_output")
         if a.shape != (3,) or not np.isfinite(a).all():
             return Decision(ZERO_COMMAND, obs, None, f"actor gave {a.tolist()}: expected 3 finite values",
                             "actor_output")
