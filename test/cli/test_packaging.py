@@ -39,6 +39,18 @@ def test_launch_file_describes_both_nodes():
     assert {"sim_node", "policy_node"} <= execs
 
 
+def test_real_machine_launch_file_describes_the_stack():
+    pytest.importorskip("launch")
+    pytest.importorskip("launch_ros")
+    spec = importlib.util.spec_from_file_location("real_machine", ROOT / "lhd_loading_ros/launch/real_machine.launch.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    ld = mod.generate_launch_description()
+    execs = {getattr(e, "node_executable", None) for e in ld.entities}
+    assert {"bridge_node", "aruco_pose_node", "lidar_slope_node", "end_zone_node", "supervisor_node", "cmd_mux_node",
+            "teleop_node", "policy_node", "recorder_node"} <= execs
+
+
 def test_colcon_install_has_ros2_run_entry_points():
     """Checks the tree `make test` built with colcon (install/ at the repository root)."""
     install = ROOT / "install"
@@ -46,11 +58,16 @@ def test_colcon_install_has_ros2_run_entry_points():
         pytest.skip("no colcon install tree (run `make colcon-build`, done by `make test`)")
     for pkg, exe in (("lhd_sim_node", "sim_node"), ("lhd_loading_ros", "policy_node"), ("lhd_loading_ros", "lhd"),
                      ("lhd_loading_ros", "aruco_pose_node"), ("lhd_loading_ros", "lidar_slope_node"),
-                     ("lhd_hw_bridge", "bridge_node")):
+                     ("lhd_hw_bridge", "bridge_node"), ("lhd_loading_ros", "end_zone_node"),
+                     ("lhd_loading_ros", "supervisor_node"), ("lhd_loading_ros", "cmd_mux_node"),
+                     ("lhd_loading_ros", "teleop_node"), ("lhd_loading_ros", "recorder_node")):
         path = install / pkg / "lib" / pkg / exe
         assert path.is_file() and os.access(path, os.X_OK), path
     assert (install / "lhd_sim_node/share/lhd_sim_node/launch/sim_loading.launch.py").is_file()
     assert (install / "lhd_loading_ros/share/lhd_loading_ros/config/lhd_params.yaml").is_file()
+    assert (install / "lhd_loading_ros/share/lhd_loading_ros/config/real_machine.yaml").is_file()
+    assert (install / "lhd_loading_ros/share/lhd_loading_ros/config/teleop/xbox.yaml").is_file()
+    assert (install / "lhd_loading_ros/share/lhd_loading_ros/launch/real_machine.launch.py").is_file()
     assert (install / "lhd_loading_ros/share/lhd_loading_ros/policies/rld/policy.json").is_file()
 
 
@@ -211,6 +228,8 @@ UNDECLARED = {
     ("lhd_loading_ros", "stable_baselines3"): "optional: lhd bench train --vs-sb3 only",
 }
 PACKAGES = ("lhd_loading_ros", "lhd_sim_node", "lhd_hw_bridge")
+# ROS packages a launch file starts (not imported): (package, key) -> the launch file that needs it
+LAUNCHED = {("lhd_loading_ros", "joy"): "launch/real_machine.launch.py starts joy_node"}
 
 
 def package_imports(pkg: str) -> dict[str, list[tuple[str, bool]]]:
@@ -258,6 +277,10 @@ def test_package_xml_declares_every_import(pkg):
         elif key not in declared:
             problems.append(f"{name} (at {where[0][0]}) needs <exec_depend>{key}</exec_depend> in {pkg}/package.xml")
         needed.add(key)
+    for (p, key), why in LAUNCHED.items():
+        if p == pkg:
+            assert key in declared, f"{pkg}/package.xml must declare {key}: {why}"
+            needed.add(key)
     unused = sorted(set(declared) - needed)
     assert not problems, "\n".join(problems)
     assert not unused, f"{pkg}/package.xml declares exec_depends nothing imports: {unused}"

@@ -1,0 +1,86 @@
+"""ros2 launch lhd_loading_ros real_machine.launch.py port:=/dev/ttyACM0 [controller:=rld|rlc|tampier|teleop]
+    [policy_dir:=DIR] [camera_topic:=/camera/image_raw] [camera_info_topic:=/camera/camera_info]
+    [scan_topic:=/scan] [end_zone:=lidar|FILE.yaml] [joy_mapping:=xbox] [material:=homogeneous]
+    [run_dir:=runs/real/NAME] [attempt_timeout:=10.0] [record:=true] [storage:=mcap]
+    [params_file:=<share>/config/real_machine.yaml] [joy:=true]
+
+The real-machine stack, as `lhd up real` starts it where `ros2 launch` is not installed: bridge,
+ArUco pose, LiDAR slope, end zone, supervisor, command mux, teleop (and the `joy` driver when
+joy:=true), the controller on /lhd/cmd/auto (none for controller:=teleop) and the recorder.
+The calibration comes from params_file (every node reads its own section). docs/real_machine.md."""
+import os
+from datetime import datetime, timezone
+
+from ament_index_python.packages import get_package_share_directory
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument
+from launch.conditions import IfCondition
+from launch.substitutions import LaunchConfiguration, PythonExpression
+from launch_ros.actions import Node
+from launch_ros.parameter_descriptions import ParameterValue
+
+
+def text(name):
+    """A string parameter (an empty or numeric-looking value stays a string)."""
+    return ParameterValue(LaunchConfiguration(name), value_type=str)
+
+
+def generate_launch_description():
+    share = get_package_share_directory("lhd_loading_ros")
+    stamp = datetime.now(timezone.utc).strftime("%Y%m%d-%H%M%S")
+    args = [
+        DeclareLaunchArgument("port", description="serial device of the Due, e.g. /dev/ttyACM0"),
+        DeclareLaunchArgument("controller", default_value="rld", description="rld | rlc | tampier | teleop"),
+        DeclareLaunchArgument("policy_dir", default_value="", description="exported actor (default: the shipped one)"),
+        DeclareLaunchArgument("camera_topic", default_value="/camera/image_raw"),
+        DeclareLaunchArgument("camera_info_topic", default_value="/camera/camera_info"),
+        DeclareLaunchArgument("scan_topic", default_value="/scan"),
+        DeclareLaunchArgument("end_zone", default_value="lidar", description="lidar | a surveyed YAML file"),
+        DeclareLaunchArgument("joy_mapping", default_value="xbox", description="xbox | ps4 | f710 | game_controller"),
+        DeclareLaunchArgument("joy", default_value="true", description="start the joy driver (package joy)"),
+        DeclareLaunchArgument("material", default_value="homogeneous", description="homogeneous | nonhomogeneous"),
+        DeclareLaunchArgument("run_dir", default_value=os.path.join("runs", "real", stamp)),
+        DeclareLaunchArgument("attempt_timeout", default_value="10.0", description="s (the paper: 10 s)"),
+        DeclareLaunchArgument("record", default_value="true", description="one rosbag2 per attempt"),
+        DeclareLaunchArgument("storage", default_value="mcap", description="mcap | sqlite3"),
+        DeclareLaunchArgument("params_file", default_value=os.path.join(share, "config", "real_machine.yaml")),
+    ]
+    pf = LaunchConfiguration("params_file")
+    controller = LaunchConfiguration("controller")
+    is_lidar = PythonExpression(["'", LaunchConfiguration("end_zone"), "' == 'lidar'"])
+    policy_dir = PythonExpression([
+        "'", LaunchConfiguration("policy_dir"), "' or ('", os.path.join(share, "policies"), "/' + '", controller,
+        "' if '", controller, "' in ('rld', 'rlc') else '')"])
+    nodes = [
+        Node(package="lhd_hw_bridge", executable="bridge_node", name="lhd_hw_bridge", output="screen",
+             parameters=[pf, {"port": text("port")}]),
+        Node(package="lhd_loading_ros", executable="aruco_pose_node", name="aruco_pose_node", output="screen",
+             parameters=[pf, {"image_topic": text("camera_topic"), "camera_info_topic": text("camera_info_topic")}]),
+        Node(package="lhd_loading_ros", executable="lidar_slope_node", name="lidar_slope_node", output="screen",
+             parameters=[pf, {"scan_topic": text("scan_topic")}]),
+        Node(package="lhd_loading_ros", executable="end_zone_node", name="end_zone_node", output="screen",
+             parameters=[pf, {"source": PythonExpression(["'lidar' if ", is_lidar, " else 'surveyed'"]),
+                              "surveyed_file": PythonExpression(["'' if ", is_lidar, " else '",
+                                                                 LaunchConfiguration("end_zone"), "'"])}]),
+        Node(package="lhd_loading_ros", executable="supervisor_node", name="lhd_supervisor", output="screen",
+             parameters=[pf, {"run_dir": text("run_dir"), "controller": text("controller"),
+                              "policy_dir": ParameterValue(policy_dir, value_type=str), "material": text("material"),
+                              "attempt_timeout": ParameterValue(LaunchConfiguration("attempt_timeout"),
+                                                                value_type=float)}]),
+        Node(package="lhd_loading_ros", executable="cmd_mux_node", name="lhd_cmd_mux", output="screen",
+             parameters=[pf]),
+        Node(package="lhd_loading_ros", executable="teleop_node", name="lhd_teleop", output="screen",
+             parameters=[pf, {"mapping": text("joy_mapping")}]),
+        Node(package="joy", executable="joy_node", name="joy_node", output="screen",
+             condition=IfCondition(LaunchConfiguration("joy"))),
+        Node(package="lhd_loading_ros", executable="policy_node", name="lhd_policy", output="screen",
+             remappings=[("/lhd/cmd", "/lhd/cmd/auto")],
+             parameters=[pf, {"policy_dir": ParameterValue(policy_dir, value_type=str),
+                              "controller": PythonExpression(["'tampier' if '", controller,
+                                                              "' == 'tampier' else 'actor'"])}],
+             condition=IfCondition(PythonExpression(["'", controller, "' != 'teleop'"]))),
+        Node(package="lhd_loading_ros", executable="recorder_node", name="lhd_recorder", output="screen",
+             parameters=[pf, {"run_dir": text("run_dir"), "storage": text("storage")}],
+             condition=IfCondition(LaunchConfiguration("record"))),
+    ]
+    return LaunchDescription([*args, *nodes])

@@ -1,0 +1,315 @@
+"""`lhd up real`: the real-machine stack in one command (what
+`ros2 launch lhd_loading_ros real_machine.launch.py` does on a full ROS install).
+
+Starts, as separate processes on real DDS, in this order:
+  bridge        lhd_hw_bridge.bridge_node      the Arduino Due on --port
+  aruco         nodes.aruco_pose_node          /lhd/odom (v_x) from --camera-topic
+  lidar         nodes.lidar_slope_node         /lhd/pile/slope + toe from --scan-topic
+  end_zone      nodes.end_zone_node            /lhd/pile/end_zone + zones (LiDAR, or a surveyed file)
+  supervisor    nodes.supervisor_node          /lhd/episode, /lhd/arm, the attempts CSV
+  mux           nodes.cmd_mux_node             the only writer of /lhd/cmd (gated on the attempt)
+  teleop        nodes.teleop_node              /joy -> /lhd/cmd/teleop (deadman, e-stop)
+  controller    nodes.policy_node              RLD / RLC actor or the Tampier heuristic, on
+                                               /lhd/cmd/auto (none for --controller teleop)
+  recorder      nodes.recorder_node            one rosbag2 per attempt under <run-dir>/bags
+Then it prints the supervisor's preflight checklist and every attempt's events. With a
+terminal on stdin: Enter arms an attempt, `a` aborts it, `m 23.4` records the weighed mass, `q`
+quits. Without one, use `lhd arm`, `lhd abort`, `lhd attempt mass KG` from another shell.
+
+Calibration (camera pose, LiDAR pose, marker, surveyed pile) comes from a ROS parameter file,
+`--params-file` (default config/real_machine.yaml), passed to every node; the options below
+override it. Ctrl-C or SIGTERM stop everything, the controller first and the bridge last (its
+last frame to the Due is a stop frame); children die with the launcher (PR_SET_PDEATHSIG).
+docs/real_machine.md is the guide.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import select
+import shutil
+import sys
+import threading
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+
+from lhd_loading_ros.cli.launcher import Child, _StopOnSignals
+
+CONTROLLERS = ("rld", "rlc", "tampier", "teleop")
+ENDED = ("success", "failure", "timeout", "estop", "lost_input", "aborted")
+
+
+def default_params_file() -> Path | None:
+    """config/real_machine.yaml of the source tree, else the installed share copy."""
+    here = Path(__file__).resolve()
+    for parent in here.parents:
+        cand = parent / "config" / "real_machine.yaml"
+        if cand.is_file():
+            return cand
+    try:
+        from ament_index_python.packages import get_package_share_directory
+
+        cand = Path(get_package_share_directory("lhd_loading_ros")) / "config" / "real_machine.yaml"
+        return cand if cand.is_file() else None
+    except Exception:  # noqa: BLE001 - no ament index here
+        return None
+
+
+def stack(args, run_dir: Path) -> list[tuple[str, str, dict, list[str]]]:
+    """(name, module, parameters, extra ros args) of every node, in start order."""
+    from lhd_loading_ros.nodes.policy_node import default_policy_dir
+
+    common = {"config": args.config} if args.config else {}
+    policy_dir = ""
+    if args.controller in ("rld", "rlc"):
+        policy_dir = str(Path(args.policy).resolve()) if args.policy else str(default_policy_dir(args.controller))
+    nodes = [
+        ("bridge", "lhd_hw_bridge.bridge_node", {**common, "port": args.port}, []),
+        ("aruco", "lhd_loading_ros.nodes.aruco_pose_node",
+         {"image_topic": args.camera_topic, "camera_info_topic": args.camera_info_topic,
+          "image_reliable": str(args.image_reliable).lower()}, []),
+        ("lidar", "lhd_loading_ros.nodes.lidar_slope_node", {"scan_topic": args.scan_topic}, []),
+        ("end_zone", "lhd_loading_ros.nodes.end_zone_node",
+         {**common, **({"source": "surveyed", "surveyed_file": str(Path(args.end_zone).resolve())}
+                       if args.end_zone != "lidar" else {"source": "lidar"})}, []),
+        ("supervisor", "lhd_loading_ros.nodes.supervisor_node",
+         {**common, "run_dir": str(run_dir), "controller": args.controller, "policy_dir": policy_dir,
+          "material": args.material, "attempt_timeout": args.attempt_timeout}, []),
+        ("mux", "lhd_loading_ros.nodes.cmd_mux_node", {}, []),
+        ("teleop", "lhd_loading_ros.nodes.teleop_node", {"mapping": args.joy_mapping}, []),
+    ]
+    if args.controller != "teleop":
+        params = {**common, "trigger": "timer"}
+        if args.controller == "tampier":
+            params["controller"] = "tampier"
+        else:
+            params["policy_dir"] = policy_dir
+        nodes.append(("controller", "lhd_loading_ros.nodes.policy_node", params, ["-r", "/lhd/cmd:=/lhd/cmd/auto"]))
+    if args.record:
+        nodes.append(("recorder", "lhd_loading_ros.nodes.recorder_node",
+                      {"run_dir": str(run_dir), "storage": args.storage}, []))
+    return nodes
+
+
+class Console:
+    """The operator's keys (a terminal on stdin): Enter arms, `a` aborts, `m KG` records the
+    weighed mass, `q` quits. Lines are read by a thread and handled in the main loop."""
+
+    def __init__(self, enabled: bool):
+        self.enabled = enabled
+        self.lines: list[str] = []
+        self._lock = threading.Lock()
+        if enabled:
+            threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self):
+        while True:
+            r, _, _ = select.select([sys.stdin], [], [], 0.5)
+            if r:
+                line = sys.stdin.readline()
+                if not line:
+                    return
+                with self._lock:
+                    self.lines.append(line.strip())
+
+    def take(self) -> list[str]:
+        with self._lock:
+            out, self.lines = self.lines, []
+        return out
+
+
+def up_real(args) -> int:
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+    from rclpy.signals import SignalHandlerOptions
+    from std_msgs.msg import Float64
+    from std_srvs.srv import Trigger
+
+    from lhd_loading_ros.ros.qos import STATUS_QOS
+
+    run_dir = Path(args.run_dir or Path("runs") / "real" / datetime.now(timezone.utc).strftime("%Y%m%d-%H%M%S"))
+    run_dir = run_dir.resolve()
+    try:
+        run_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        print(f"lhd up real: cannot create the run folder {run_dir}: {exc}", file=sys.stderr)
+        return 2
+    keep_logs = args.log_dir is not None
+    log_dir = Path(args.log_dir) if keep_logs else run_dir / "logs"
+    log_dir.mkdir(parents=True, exist_ok=True)
+    params_file = Path(args.params_file) if args.params_file else default_params_file()
+    ros_args = ["--params-file", str(params_file)] if params_file else []
+    quiet = not args.verbose
+    stop = threading.Event()
+    state = {"episode": None, "state": None, "ended": 0, "preflight": None, "printed_preflight": False}
+
+    def on_status(msg):
+        kv = {k.key: k.value for k in msg.values}
+        key = (kv.get("episode"), kv.get("state"))
+        if key == (state["episode"], state["state"]):
+            if kv.get("state") in ENDED and kv.get("loaded_mass") not in (None, "", "nan") and \
+                    state.get("mass_shown") != key:
+                state["mass_shown"] = key
+                print(f"attempt {kv.get('episode')}: weighed {float(kv['loaded_mass']):.2f} kg, SL "
+                      f"{kv.get('success_level', '?')}, success {kv.get('success', '?')}", flush=True)
+            return
+        state["episode"], state["state"] = key
+        s = kv.get("state")
+        if s in ENDED:
+            state["ended"] += 1
+            print(f"attempt {kv.get('episode')} {s}: {kv.get('reason', '')}; {kv.get('elapsed_s', '?')} s, drift front "
+                  f"{kv.get('front_drift_pct', '?')} % rear {kv.get('rear_drift_pct', '?')} %, final pitch "
+                  f"{kv.get('phi_final_deg', '?')} deg. Weigh the bucket: `m KG` here or `lhd attempt mass KG`",
+                  flush=True)
+        elif s in ("armed", "running"):
+            print(f"attempt {kv.get('episode')} {s} ({kv.get('controller', args.controller)}, slope "
+                  f"{kv.get('slope_deg', '?')} deg, {kv.get('material', args.material)})", flush=True)
+
+    def on_diag(msg):
+        for st in msg.status:
+            if st.name.endswith("supervisor: preflight"):
+                state["preflight"] = st
+
+    children: list[Child] = []
+    failed = True
+    console = Console(args.interactive if args.interactive is not None else sys.stdin.isatty())
+    with _StopOnSignals(stop):
+        rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+        node = rclpy.create_node("lhd_up_real")
+        try:
+            t_check = time.monotonic() + 3.0
+            busy = {}
+            while not busy and time.monotonic() < t_check and not stop.is_set():
+                rclpy.spin_once(node, timeout_sec=0.1)
+                busy = {t: n for t in ("/lhd/joint_states", "/lhd/cmd", "/lhd/episode") if (n := node.count_publishers(t))}
+            if busy:
+                raise RuntimeError(f"ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID', '0')} already has publishers on "
+                                   f"{busy}: another LHD bridge, simulator or controller is running there. Stop it, "
+                                   "or set ROS_DOMAIN_ID to a free domain")
+            node.create_subscription(DiagnosticStatus, "/lhd/episode", on_status, STATUS_QOS)
+            node.create_subscription(DiagnosticArray, "/diagnostics", on_diag, 50)
+            arm = node.create_client(Trigger, "/lhd/arm")
+            abort = node.create_client(Trigger, "/lhd/abort")
+            pub_mass = node.create_publisher(Float64, "/lhd/attempt/mass", 10)
+            for name, module, params, extra in stack(args, run_dir):
+                if stop.is_set():
+                    break
+                children.append(Child(name, module, params, log_dir, quiet, [*ros_args, *extra]))
+            print(f"lhd up real: {len(children)} nodes started ({args.controller} controller, port {args.port}); run "
+                  f"folder {run_dir}; logs in {log_dir}", flush=True)
+            t0 = time.monotonic()
+            pending = None
+            while not stop.is_set():
+                rclpy.spin_once(node, timeout_sec=0.05)
+                for c in children:
+                    if not c.alive():
+                        tail = c.log_path.read_text()[-2000:] if quiet else ""
+                        raise RuntimeError(f"{c.name} exited with status {c.proc.returncode}:\n{tail}")
+                pf = state["preflight"]
+                if pf is not None and time.monotonic() - t0 > args.settle and pf.message != state["printed_preflight"]:
+                    # the checklist once the nodes settled, and again whenever it changes
+                    first = not state["printed_preflight"]
+                    state["printed_preflight"] = pf.message
+                    print(format_preflight(pf), flush=True)
+                    if first and console.enabled:
+                        print("keys: Enter = arm | a = abort | m KG = weighed mass | q = quit", flush=True)
+                if pending is not None and pending[1].done():
+                    what, fut = pending
+                    res = fut.result()
+                    print(f"{what}: {'ok' if res.success else 'refused'}: {res.message}", flush=True)
+                    pending = None
+                for line in console.take():
+                    if line in ("q", "quit"):
+                        stop.set()
+                    elif line == "" and pending is None:
+                        pending = ("arm", arm.call_async(Trigger.Request()))
+                    elif line == "a" and pending is None:
+                        pending = ("abort", abort.call_async(Trigger.Request()))
+                    elif line.startswith("m "):
+                        try:
+                            kg = float(line[2:])
+                        except ValueError:
+                            print(f"`{line}`: expected `m KG`, e.g. `m 23.4`", flush=True)
+                            continue
+                        pub_mass.publish(Float64(data=kg))
+                    else:
+                        print(f"`{line}`: keys are Enter (arm), a (abort), m KG (mass), q (quit)", flush=True)
+                if args.attempts and state["ended"] >= args.attempts and \
+                        time.monotonic() - state.setdefault("t_end", time.monotonic()) > args.linger:
+                    break
+            failed = False
+        except RuntimeError as exc:
+            print(f"lhd up real: {exc}\n(node logs in {log_dir})", file=sys.stderr)
+            return 1
+        finally:
+            # controller and teleop first, the bridge last: its shutdown sends a stop frame
+            for c in reversed(children):
+                c.stop()
+            node.destroy_node()
+            if rclpy.ok():
+                rclpy.shutdown()
+            if not keep_logs and not failed and args.remove_logs:
+                shutil.rmtree(log_dir, ignore_errors=True)
+    print(f"lhd up real: stopped; attempts in {run_dir / 'attempts.csv'} (`lhd attempts {run_dir}`)", flush=True)
+    return 0
+
+
+def format_preflight(st) -> str:
+    """The supervisor's preflight status (its `preflight` diagnostics: "ready to arm", or "not
+    ready to arm: <problem>; <problem>") as a checklist, one problem per line."""
+    msg = st.message
+    head, _, rest = msg.partition(": ")
+    if not rest or not head.startswith("not ready"):
+        return f"preflight: {msg}"
+    return "\n".join([f"preflight: {head}"] + [f"  [--] {p}" for p in rest.split("; ")])
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="lhd up real", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--port", required=True, help="serial device of the Due, e.g. /dev/ttyACM0")
+    ap.add_argument("--controller", choices=CONTROLLERS, default="rld")
+    ap.add_argument("--policy", help="exported actor for rld/rlc (default: the shipped policies/<controller>)")
+    ap.add_argument("--camera-topic", default="/camera/image_raw")
+    ap.add_argument("--camera-info-topic", default="/camera/camera_info")
+    ap.add_argument("--image-reliable", action="store_true", help="subscribe to images reliably (recordings)")
+    ap.add_argument("--scan-topic", default="/scan")
+    ap.add_argument("--end-zone", default="lidar", help="lidar (from the measured pile) or a surveyed YAML file")
+    ap.add_argument("--joy-mapping", default="xbox", help="xbox | ps4 | f710 | a mapping YAML")
+    ap.add_argument("--material", choices=["homogeneous", "nonhomogeneous"], default="homogeneous")
+    ap.add_argument("--attempt-timeout", type=float, default=10.0, help="s (the paper: 10 s)")
+    ap.add_argument("--run-dir", help="attempts.csv and bags go here (default runs/real/<UTC time>)")
+    ap.add_argument("--no-record", dest="record", action="store_false", help="no rosbag2 per attempt")
+    ap.add_argument("--storage", choices=["mcap", "sqlite3"], default="mcap")
+    ap.add_argument("--params-file", help="ROS parameter file for every node (default config/real_machine.yaml)")
+    ap.add_argument("--config", help="lhd_params.yaml (default: the package's)")
+    ap.add_argument("--attempts", type=int, default=0, help="stop after N attempts ended (0: until Ctrl-C)")
+    ap.add_argument("--linger", type=float, default=2.0, help=argparse.SUPPRESS)
+    ap.add_argument("--settle", type=float, default=3.0, help="s before the preflight checklist is printed")
+    ap.add_argument("--interactive", dest="interactive", action="store_true", default=None,
+                    help="read keys from stdin even if it is not a terminal")
+    ap.add_argument("--log-dir", type=Path, help="node logs (default <run-dir>/logs)")
+    ap.add_argument("--remove-logs", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--verbose", action="store_true", help="node logs on this terminal")
+    args = ap.parse_args(argv)
+    if args.attempt_timeout <= 0:
+        ap.error(f"--attempt-timeout must be positive, got {args.attempt_timeout}")
+    if args.attempts < 0:
+        ap.error(f"--attempts must be >= 0, got {args.attempts}")
+    if args.end_zone != "lidar" and not Path(args.end_zone).is_file():
+        ap.error(f"--end-zone {args.end_zone!r}: expected `lidar` or a surveyed YAML file that exists")
+    if args.params_file and not Path(args.params_file).is_file():
+        ap.error(f"--params-file {args.params_file!r} does not exist")
+    if args.policy:
+        from lhd_loading_ros.policy.actor_file import PolicyFileError, load_policy
+
+        try:
+            load_policy(args.policy)
+        except PolicyFileError as exc:
+            ap.error(str(exc))
+    return up_real(args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
