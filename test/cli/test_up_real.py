@@ -67,9 +67,12 @@ class World:
     """The machine's x in the pile frame, integrated from the emulator's rear wheel speed, and
     the synthetic camera and LiDAR that see it (threads publishing through `node`)."""
 
-    def __init__(self, node, dev: FakeDue, base_x0: float, wheel_radius: float):
+    def __init__(self, node, dev: FakeDue, base_x0: float, wheel_radius: float, slope_deg: float = 20.0):
         self.node, self.dev, self.r = node, dev, wheel_radius
         self.base_x = base_x0
+        self.slope_deg = slope_deg
+        self.camera_on = threading.Event()
+        self.camera_on.set()
         self.stop = threading.Event()
         self.K = intrinsics(640, 480)
         self.T_pc = transform(CAMERA_XYZ, CAMERA_RPY)
@@ -102,6 +105,9 @@ class World:
         period = 1.0 / 15.0
         while not self.stop.is_set():
             t0 = time.monotonic()
+            if not self.camera_on.is_set():
+                time.sleep(period)
+                continue
             T = transform((self.base_x - MARKER_TO_BASE_X, 0.0, MARKER_Z), (0.0, 0.0, 0.0))
             img = render(self.K, 640, 480, np.linalg.inv(self.T_pc) @ T, self.tex, 0.12, self.rng)
             stamp = self.node.get_clock().now().nanoseconds * 1e-9
@@ -111,7 +117,7 @@ class World:
 
     def _lidar(self):
         while not self.stop.is_set():
-            ranges, amin, inc, _ = synthetic_scan(math.radians(20.0), self.rng)
+            ranges, amin, inc, _ = synthetic_scan(math.radians(self.slope_deg), self.rng)
             m = LaserScan()
             m.header.frame_id = "lidar"
             m.header.stamp = self.node.get_clock().now().to_msg()
@@ -134,7 +140,8 @@ def ros():
     shutdown_ros()
 
 
-def test_up_real_arms_runs_stops_records_and_replays(ros, tmp_path):
+def start_stack(tmp_path, slope_deg=20.0, bucket_mass=BUCKET_MASS, attempt_timeout=6.0):
+    """Emulator, test node, synthetic world and `lhd up real` as a process."""
     cfg = load_config()
     kin = ArmKinematics.from_config(cfg)
     r = cfg["machine"]["wheel_radius"]
@@ -147,7 +154,7 @@ def test_up_real_arms_runs_stops_records_and_replays(ros, tmp_path):
     machine["aruco_pose_node"]["ros__parameters"].update(camera_xyz=list(CAMERA_XYZ), image_reliable=True)
     params.write_text(yaml.safe_dump(machine))
     link = str(tmp_path / "due")
-    dev = FakeDue(link=link, rate=100.0, watchdog=0.25, load_cell=True, bucket_mass=BUCKET_MASS,
+    dev = FakeDue(link=link, rate=100.0, watchdog=0.25, load_cell=True, bucket_mass=bucket_mass,
                   load_cell_noise=0.02).start()
     node = rclpy.create_node("up_real_test")
     statuses = []
@@ -155,18 +162,40 @@ def test_up_real_arms_runs_stops_records_and_replays(ros, tmp_path):
                              lambda m: statuses.append(({k.key: k.value for k in m.values}, time.monotonic())),
                              STATUS_QOS)
     arm = node.create_client(Trigger, "/lhd/arm")
-    world = World(node, dev, base_x0, r).start()
+    world = World(node, dev, base_x0, r, slope_deg).start()
     run_dir = tmp_path / "run"
     log = open(tmp_path / "up_real.log", "w")
     proc = subprocess.Popen([sys.executable, "-m", "lhd_loading_ros.cli.main", "up", "real", "--port", link,
                              "--controller", "rld", "--run-dir", str(run_dir), "--params-file", str(params),
-                             "--attempt-timeout", "6", "--scan-topic", "/scan"],
+                             "--attempt-timeout", str(attempt_timeout), "--scan-topic", "/scan"],
                             stdout=log, stderr=subprocess.STDOUT, env=dict(os.environ, PYTHONUNBUFFERED="1"),
                             start_new_session=True)
 
     def out():
         return (tmp_path / "up_real.log").read_text()[-4000:] + "".join(
             f"\n--- {p.name}\n" + p.read_text()[-1500:] for p in sorted((run_dir / "logs").glob("*.log")))
+
+    def stop():
+        world.stop.set()
+        for t in world.threads:
+            t.join(5.0)
+        node.destroy_node()
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGTERM)
+        try:
+            rc = proc.wait(60)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            rc = proc.wait()
+        log.close()
+        dev.stop()
+        return rc
+
+    return dev, node, statuses, arm, world, run_dir, out, stop
+
+
+def test_up_real_arms_runs_stops_records_and_replays(ros, tmp_path):
+    dev, node, statuses, arm, world, run_dir, out, stop = start_stack(tmp_path)
 
     def state():
         return statuses[-1][0].get("state") if statuses else None
@@ -218,19 +247,7 @@ def test_up_real_arms_runs_stops_records_and_replays(ros, tmp_path):
         assert abs(float(rw["mass_kg"]) - BUCKET_MASS) < 0.1
         assert abs(float(rw["slope_deg"]) - 20.0) < 1.0
     finally:
-        world.stop.set()
-        for t in world.threads:
-            t.join(5.0)
-        node.destroy_node()
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGTERM)
-        try:
-            rc = proc.wait(60)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            rc = proc.wait()
-        log.close()
-        dev.stop()
+        rc = stop()
     assert rc == 0, out()
     # the bag of the attempt, read back by `lhd replay`; the run's table by `lhd attempts`
     bag = run_dir / "bags" / "attempt_0001"
@@ -242,3 +259,43 @@ def test_up_real_arms_runs_stops_records_and_replays(ros, tmp_path):
     tab = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "attempts", str(run_dir)],
                          capture_output=True, text=True, timeout=60)
     assert tab.returncode == 0 and "rld" in tab.stdout.lower(), tab.stdout + tab.stderr
+
+
+def test_up_real_never_moves_the_machine_unarmed_or_with_a_bad_input(ros, tmp_path):
+    """A 40 deg pile (outside the RLD actor's 15-30 deg) and then no camera: arming is refused with
+    the reason each time, and although a rogue controller publishes full speed on /lhd/cmd/auto
+    the whole time, no command frame asking for motion ever reaches the serial line."""
+    from std_msgs.msg import Float64MultiArray
+
+    dev, node, statuses, arm, world, run_dir, out, stop = start_stack(tmp_path, slope_deg=40.0)
+    rogue = node.create_publisher(Float64MultiArray, "/lhd/cmd/auto", 10)
+    timer = node.create_timer(0.05, lambda: rogue.publish(Float64MultiArray(data=[2.7, -0.191, 0.2])))
+
+    def try_arm():
+        fut = arm.call_async(Trigger.Request())
+        assert spin_until(node, fut.done, 10.0), out()
+        return fut.result()
+
+    try:
+        assert spin_until(node, lambda: arm.service_is_ready() and statuses and statuses[-1][0].get("state") == "idle",
+                          90.0), out()
+        # the LiDAR's slope reaches the supervisor: refused for the range
+        t_end = time.monotonic() + 30.0
+        res = try_arm()
+        while "outside the controller's range" not in res.message and time.monotonic() < t_end:
+            spin_until(node, lambda: False, 1.0)
+            res = try_arm()
+        assert not res.success and "outside the controller's range" in res.message, res.message
+        # the camera goes dark: refused for the odometry as well
+        world.camera_on.clear()
+        spin_until(node, lambda: False, 1.5)
+        res = try_arm()
+        assert not res.success and "odometry" in res.message, res.message
+        spin_until(node, lambda: False, 2.0)
+        assert all(kv.get("state") == "idle" for kv, _ in statuses), statuses[-1]
+    finally:
+        node.destroy_timer(timer)
+        rc = stop()
+    frames = [f for _, f in dev.last_commands()]
+    assert len(frames) > 100 and not any(moving(f) for f in frames)
+    assert rc == 0, out()
