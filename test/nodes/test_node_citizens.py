@@ -8,7 +8,7 @@ import time
 import numpy as np
 import pytest
 import rclpy
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
@@ -73,6 +73,15 @@ class DiagWatch:
     def has(self, name, level, text=""):
         st = self.last.get(name)
         return st is not None and st.level == level and text in st.message
+
+
+def running_status(ros, episode="1"):
+    """/lhd/episode saying an attempt runs (what the sim node or the supervisor publishes): the
+    policy node commands only then. Latched like theirs; returns the publisher."""
+    pub = ros.create_publisher(DiagnosticStatus, "/lhd/episode", STATUS)
+    pub.publish(DiagnosticStatus(name="test/episode", message="running",
+                                 values=[KeyValue(key="state", value="running"), KeyValue(key="episode", value=episode)]))
+    return pub
 
 
 def set_params(ros, target, params):
@@ -203,6 +212,7 @@ def test_policy_node_latched_and_slow_inputs_slope_range_runtime_parameters_diag
             lidar["pub"].publish(Float64(data=lidar["rad"]))
 
     timer = ros.create_timer(DT, tick)
+    pub_status = running_status(ros)
 
     def commanding():
         return len(cmds) >= 3 and all(c != ZERO for c in cmds[-3:])
@@ -254,7 +264,7 @@ def test_policy_node_latched_and_slow_inputs_slope_range_runtime_parameters_diag
     finally:
         assert pol.stop() == 0, pol.log()
         ros.destroy_timer(timer)
-        for p in fast + [pub_slope, pub_zone]:
+        for p in fast + [pub_slope, pub_zone, pub_status]:
             ros.destroy_publisher(p)
         ros.destroy_subscription(sub)
         ros.destroy_subscription(diag.sub)
@@ -262,6 +272,7 @@ def test_policy_node_latched_and_slow_inputs_slope_range_runtime_parameters_diag
 
 def test_policy_node_without_actor_reports_error(ros, tmp_path):
     diag = DiagWatch(ros)
+    pub_status = running_status(ros)
     pol = RosProcess(POLICY, {"policy_dir": str(tmp_path / "missing")}, tmp_path / "pol.log")
     try:
         assert spin_until(ros, lambda: diag.has("/lhd_policy: actor", ERROR, "no actor loaded")
@@ -269,6 +280,7 @@ def test_policy_node_without_actor_reports_error(ros, tmp_path):
     finally:
         assert pol.stop() == 0
         ros.destroy_subscription(diag.sub)
+        ros.destroy_publisher(pub_status)
 
 
 # ------------------------------------------------------------------ whole episodes: use_sim_time, namespaces, start

@@ -1,6 +1,11 @@
 """`lhd bench node`: the policy node's cycle at 10 Hz against the sim node (realtime, a
 separate process on real DDS). Measured inside the node: latency = observation build to
-command publish; jitter = |timer period - 100 ms|. At least 1,000 cycles (100 s)."""
+command publish; jitter = |timer period - 100 ms|. At least 1,000 cycles (100 s).
+
+The policy node commands only while /lhd/episode says an attempt is running; here the sim node
+is that publisher (state running from the moment it is up, new episodes at once: reset_delay 0),
+so the bench publishes no status of its own: a second publisher of /lhd/episode would contradict
+the sim node's end-of-episode states."""
 from __future__ import annotations
 
 import os

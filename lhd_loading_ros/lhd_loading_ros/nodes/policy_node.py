@@ -1,15 +1,27 @@
-"""`ros2 run lhd_loading_ros policy_node`: the exported actor at 10 Hz.
+"""`ros2 run lhd_loading_ros policy_node`: a loading controller at 10 Hz, the exported actor
+(controller:=actor, the default) or the Tampier-style heuristic (controller:=tampier).
 
-Every cycle it rebuilds the task state from the latest topics (forward kinematics from
-/lhd/odom and /lhd/joint_states, drift flags, slope, end zone), builds the 12-vector with
-the environment's own code (lhd_loading_ros.task.observation), runs the actor (numpy, no torch),
-applies the variant's deployment filter, maps to rad/s and publishes /lhd/cmd and
-/lhd/observation. The zero command (wheels stopped, arm held) and a throttled warning, with
-the reason on /diagnostics, when: an input is missing or older than its timeout (input_timeout
-for the 10 Hz inputs; slope_timeout / end_zone_timeout for the slow ones, none by default: a
-latched constant never goes stale), a value is NaN, no actor is loaded, or the slope is outside
-the range the actor was trained on (the policy card's trained_ranges). When /lhd/episode
-reports the end of an episode it sends one zero command and stops commanding until the next one.
+It moves the machine only while an attempt is running: /lhd/episode (published by the sim node in
+simulation, by the episode supervisor on hardware) must say state = running. Before any status has
+arrived (no sim node, no supervisor), in any other state (idle, armed, success, failure, timeout,
+estop, lost_input, aborted), or once the publisher of /lhd/episode is gone, it publishes nothing,
+except ONE zero command on each transition out of running (sent when the status arrives, so the
+machine stops within one message, not one control period); /diagnostics `decision` says why
+("no attempt running (no /lhd/episode publisher: ...)", "attempt <state>: waiting to be armed").
+Each new running attempt (a new `episode` key, or running after another state) resets the
+controller (the heuristic's state machine starts again at its approach).
+
+While running, every cycle it rebuilds the task state from the latest topics (forward kinematics
+from /lhd/odom and /lhd/joint_states, drift flags, slope, end zone) and decides through one path
+(policy.core.DecisionCore): the actor builds the 12-vector with the environment's own code
+(lhd_loading_ros.task.observation), runs (numpy, no torch), and its variant's deployment filter
+applies; the heuristic steps its state machine (policy/tampier.py, thresholds in
+config/tampier.yaml). Both publish /lhd/cmd in rad/s (the actor also /lhd/observation). The zero
+command (wheels stopped, arm held) and a throttled warning, with the reason on /diagnostics, when:
+an input is missing or older than its timeout (input_timeout for the 10 Hz inputs; slope_timeout /
+end_zone_timeout for the slow ones, none by default: a latched constant never goes stale), a value
+is NaN, no actor is loaded, or the slope is outside the range the actor was trained on (the policy
+card's trained_ranges; the heuristic has no trained range).
 
 trigger = timer     10 Hz on the steady clock (the real machine; sim node in realtime mode),
                     with use_sim_time too: the loop must not stall on a /clock that holds still
@@ -38,6 +50,7 @@ from lhd_loading_ros.task.kinematics import ArmKinematics
 from lhd_loading_ros.task.params import TaskParams
 from lhd_loading_ros.policy.core import INPUTS, SLOW_INPUTS, Inputs, PolicyCore, ZERO_COMMAND
 from lhd_loading_ros.policy.actor_file import PolicyFileError, load_policy
+from lhd_loading_ros.policy.tampier import TampierCore, default_tampier_path, load_tampier_config
 from lhd_loading_ros.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
 from lhd_loading_ros.ros.qos import COMMAND_QOS, MEASUREMENT_QOS, STATUS_QOS
@@ -49,8 +62,12 @@ from lhd_loading_ros.ros.run import run_node
 # inputs (slope, end zone) have a second subscription, reliable + transient local (STATUS_QOS),
 # which alone receives what a latched publisher sent before this node started; it does not
 # match a volatile publisher (DDS), which the first one does. Commands out: COMMAND_QOS.
-# Observation out: MEASUREMENT_QOS. Episode status in: STATUS_QOS.
+# Observation out: MEASUREMENT_QOS. Episode status in: STATUS_QOS (transient local: a node started
+# during an attempt learns at once whether it may command).
 TRIGGERS = ("timer", "lockstep")
+CONTROLLERS = ("actor", "tampier")
+RUNNING = "running"              # the only /lhd/episode state in which a controller may move the machine
+NO_PUBLISHER = "no attempt running (no /lhd/episode publisher: start the sim node or the supervisor)"
 OVERTAKEN_NS = 1_000_000_000    # a slow-input sample this much older than the one in use came late
 # zero-command reasons on /diagnostics: these need a person (wrong pile, wrong actor), the rest
 # (inputs not there yet or stale, a NaN) may clear by themselves
@@ -84,7 +101,11 @@ class PolicyNode(Node):
                                                 "(LHD_CONFIG, then the package's)")])["config"] or None)
         p = TaskParams.from_config(cfg)
         self.params = Params(self, [
+            Param("controller", "actor", "actor: the exported actor (policy_dir); tampier: the Tampier-style "
+                  "heuristic (tampier_config)", choices=CONTROLLERS),
             Param("policy_dir", "", "exported actor (actor.npz + policy.json); empty: the shipped policies/rld"),
+            Param("tampier_config", "", "controller tampier: its thresholds (tampier.yaml); empty: found "
+                  "automatically (LHD_TAMPIER_CONFIG, then the package's config/tampier.yaml)"),
             Param("rate_hz", float(cfg["paper"]["control"]["frequency_hz"]), "decisions per second (trigger timer)",
                   lo=0.1, hi=1000.0),
             Param("input_timeout", 0.5, "s: a 10 Hz input (joints, odometry, drift) older than this gives the "
@@ -111,27 +132,37 @@ class PolicyNode(Node):
         qin = qos_profile_sensor_data if gp("input_qos") == "sensor_data" else MEASUREMENT_QOS
         ns = topic_prefix(self, gp("namespace_prefix"))
 
-        path = gp("policy_dir") or str(default_policy_dir("rld"))
-        actor, variant, slope_range = None, "rld", None
-        try:
-            pol = load_policy(path)
-            lo, hi, source = pol.trained_slope_range_deg(cfg)
-            actor, variant, slope_range = pol.actor, pol.variant, (lo, hi)
-            if pol.meta.get("config_hash") not in (None, "") and pol.meta["config_hash"] != config_hash(cfg):
-                self.get_logger().warn(f"policy {path} was trained with another parameter file "
-                                       f"(config hash {pol.meta['config_hash']}); check the filters and ranges")
-            self.get_logger().info(f"loaded {variant.upper()} actor from {path} (sizes {pol.actor.sizes}); trained "
-                                   f"on slopes {lo:g}-{hi:g} deg ({source})")
-        except PolicyFileError as exc:
-            self.get_logger().error(f"no actor: {exc}. Publishing zero commands.")
-        self.core = PolicyCore(actor, variant, p, ArmKinematics.from_config(cfg), slope_range)
+        self.controller = gp("controller")
+        if self.controller == "tampier":
+            # a bad or missing tampier.yaml is a ConfigError (a ValueError): one line, exit status 2
+            path = gp("tampier_config") or str(default_tampier_path())
+            tp = load_tampier_config(path)
+            dt = p.control_dt if self.trigger == "lockstep" else 1.0 / self.rate_hz
+            self.core = TampierCore(tp, p, ArmKinematics.from_config(cfg), dt)
+            self.get_logger().info(f"Tampier-style heuristic from {path} (control period {dt:g} s)")
+        else:
+            path = gp("policy_dir") or str(default_policy_dir("rld"))
+            actor, variant, slope_range = None, "rld", None
+            try:
+                pol = load_policy(path)
+                lo, hi, source = pol.trained_slope_range_deg(cfg)
+                actor, variant, slope_range = pol.actor, pol.variant, (lo, hi)
+                if pol.meta.get("config_hash") not in (None, "") and pol.meta["config_hash"] != config_hash(cfg):
+                    self.get_logger().warn(f"policy {path} was trained with another parameter file "
+                                           f"(config hash {pol.meta['config_hash']}); check the filters and ranges")
+                self.get_logger().info(f"loaded {variant.upper()} actor from {path} (sizes {pol.actor.sizes}); "
+                                       f"trained on slopes {lo:g}-{hi:g} deg ({source})")
+            except PolicyFileError as exc:
+                self.get_logger().error(f"no actor: {exc}. Publishing zero commands.")
+            self.core = PolicyCore(actor, variant, p, ArmKinematics.from_config(cfg), slope_range)
         self.policy_path = path
         self.inputs = Inputs()
         self._slow_source_ns = {}        # source timestamp of the slow-input sample in use
-        self.episode_state = None        # None: no /lhd/episode publisher (hardware): always running
+        self.episode_state = None        # None: no /lhd/episode status (or its publisher is gone): no motion
         self.episode_key = None
+        self._status_publisher_seen = False
+        self.attempts = 0                # running attempts begun (controller resets)
         self._status_stamp = None
-        self._stopped_key = None
         self._stamps = {"joints": None, "odom": None}
         self._decided_stamp = None
         self.cycles = 0
@@ -154,10 +185,12 @@ class PolicyNode(Node):
             self.create_subscription(Float64, f"{ns}/pile/slope", self._on_slope, qos, event_callbacks=events)
             self.create_subscription(Float64MultiArray, f"{ns}/pile/end_zone", self._on_zone, qos,
                                      event_callbacks=events)
-        self.create_subscription(DiagnosticStatus, f"{ns}/episode", self._on_status, STATUS_QOS)
+        self.episode_topic = f"{ns}/episode"
+        self.create_subscription(DiagnosticStatus, self.episode_topic, self._on_status, STATUS_QOS)
         if self.trigger == "timer":
             steady_timer(self, 1.0 / self.rate_hz, self._on_timer)
-        self.diagnostics = Diagnostics(self, {"actor": self._diag_actor, "inputs": self._diag_inputs,
+        what = "actor" if self.controller == "actor" else "heuristic"
+        self.diagnostics = Diagnostics(self, {what: self._diag_controller, "inputs": self._diag_inputs,
                                               "decision": self._diag_decision}, hardware_id=path)
 
     def _set_slow_timeout(self, name: str, value: float) -> None:
@@ -207,10 +240,29 @@ class PolicyNode(Node):
             return
         self._put_slow("end_zone", tuple(float(v) for v in msg.data), info)
 
+    def running(self) -> bool:
+        return self.episode_state == RUNNING
+
+    def _set_episode(self, state, key) -> None:
+        """The attempt's state changes: a new running attempt resets the controller; leaving
+        running sends the one zero command (now, not at the next control period)."""
+        was = self.running()
+        new_attempt = state == RUNNING and (not was or key != self.episode_key)
+        self.episode_state, self.episode_key = state, key
+        if new_attempt:
+            self.core.reset()
+            self.attempts += 1
+            self.last_decision = None
+            self.get_logger().info(f"attempt {key} running: the {self.controller} commands")
+        elif was and not self.running():
+            self.pub_cmd.publish(Float64MultiArray(data=list(ZERO_COMMAND)))
+            self.get_logger().info(f"attempt {key} {state or 'status lost'}: zero command sent, no motion until "
+                                   "the next attempt runs")
+
     def _on_status(self, msg) -> None:
         kv = {k.key: k.value for k in msg.values}
-        self.episode_state = kv.get("state", msg.message)
-        self.episode_key = kv.get("episode")
+        self._status_publisher_seen = True
+        self._set_episode(kv.get("state", msg.message), kv.get("episode"))
         try:
             self._status_stamp = int(kv["stamp_ns"])
             if self.trigger == "lockstep":   # the unstamped inputs of exactly this state
@@ -221,6 +273,20 @@ class PolicyNode(Node):
         except (KeyError, ValueError):
             self._status_stamp = None
         self._maybe_lockstep()
+
+    def _check_status_publisher(self) -> None:
+        """The sim node or supervisor gone (crashed, stopped) while its last status said running:
+        nobody says an attempt runs any more. Judged only once the publisher has been seen in
+        the graph (a status that arrived before discovery caught up is no loss)."""
+        if self.episode_state is None:
+            return
+        n = self.count_publishers(self.episode_topic)
+        if n > 0:
+            self._status_publisher_seen = True
+        elif self._status_publisher_seen:
+            self.get_logger().warn(f"no publisher of {self.episode_topic} any more: no attempt running")
+            self._status_publisher_seen = False
+            self._set_episode(None, None)
 
     # ------------------------------------------------------------------ decisions
     def _maybe_lockstep(self) -> None:
@@ -237,17 +303,14 @@ class PolicyNode(Node):
         if self._last_tick is not None:
             self.periods_ms.append((now - self._last_tick) * 1000.0)
         self._last_tick = now
+        self._check_status_publisher()
         self._cycle()
 
     def _cycle(self, lockstep: bool = False) -> bool:
         """Decide and publish; returns False when a lockstep state was left undecided (inputs
         not all received yet: the sim node repeats its state, and a zero command would step it)."""
         t0 = time.perf_counter()
-        if self.episode_state is not None and self.episode_state != "running":
-            key = (self.episode_key, self.episode_state)
-            if self._stopped_key != key:     # episode over: one zero command, then silence
-                self._stopped_key = key
-                self.pub_cmd.publish(Float64MultiArray(data=list(ZERO_COMMAND)))
+        if not self.running():    # no attempt running: silence (the zero went out on the transition)
             return True
         # Lockstep: the decision waits for joints, odometry and the status (drift, slope, end
         # zone) of one stamp, so every input is of exactly this state however long ago one of
@@ -258,7 +321,7 @@ class PolicyNode(Node):
             d = self.core.decide(self.inputs, time.monotonic(), math.inf)
         else:
             d = self.core.decide(self.inputs, time.monotonic(), self.input_timeout, self.slow_timeouts)
-        if lockstep and d.reason and self.core.actor is not None and self.inputs.missing():
+        if lockstep and d.reason and d.kind != "no_actor" and self.inputs.missing():
             self.get_logger().info(f"waiting for inputs: {d.reason}", throttle_duration_sec=2.0)
             return False
         self.pub_cmd.publish(Float64MultiArray(data=list(d.command)))
@@ -295,7 +358,11 @@ class PolicyNode(Node):
                 "latency_p50_ms": float(np.percentile(lat, 50)), "latency_p99_ms": float(np.percentile(lat, 99)),
                 "jitter_p99_ms": float(np.percentile(jit, 99))}
 
-    def _diag_actor(self):
+    def _diag_controller(self):
+        if self.controller == "tampier":
+            c = self.core.controller
+            return OK, f"Tampier-style heuristic, stage {c.stage}", {"path": self.policy_path, "stage": c.stage,
+                                                                      "attempts": self.attempts}
         if self.core.actor is None:
             return ERROR, f"no actor loaded from {self.policy_path}: zero commands only", {}
         lo, hi = self.core.slope_range_deg
@@ -321,13 +388,17 @@ class PolicyNode(Node):
         return OK, "all inputs fresh", values
 
     def _diag_decision(self):
-        values = self.stats()
+        values = {**self.stats(), "episode_state": str(self.episode_state), "episode": str(self.episode_key)}
+        if self.episode_state is None:
+            return WARN, NO_PUBLISHER, values
+        if not self.running():
+            return OK, f"attempt {self.episode_state}: waiting to be armed", values
         d = self.last_decision
         if d is None:
             return WARN, "no decision yet", values
         if d.reason:
             return (ERROR if d.kind in ERROR_KINDS else WARN), f"zero command: {d.reason}", values
-        return OK, "actor commanding", values
+        return OK, f"{self.controller} commanding" + (f" ({d.note})" if d.note else ""), values
 
 
 def main(args=None) -> int:

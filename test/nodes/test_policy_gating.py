@@ -1,0 +1,193 @@
+"""The policy node moves the machine only while /lhd/episode says an attempt is running (issue 15):
+real node processes over DDS, every input fresh, and the status published by this test the way the
+sim node or the supervisor publish it (DiagnosticStatus, reliable + transient local)."""
+import math
+import time
+
+import pytest
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from nav_msgs.msg import Odometry
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Bool, Float64, Float64MultiArray
+
+from rosutil import RosProcess, init_ros, shutdown_ros, spin_until
+
+POLICY = "lhd_loading_ros.nodes.policy_node"
+REL = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+STATUS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                    durability=DurabilityPolicy.TRANSIENT_LOCAL)
+ZERO = [0.0, 0.0, 0.0]
+DT = 0.1                 # s, the inputs' rate (10 Hz)
+STOP_WITHIN = 0.3        # s: the zero command after an attempt ends (issue 15)
+QUIET = 2.0              # s watched for commands where none may move the machine
+WHEELS, LIFT, CURL = 2.7, -0.191, 0.2
+NO_PUB = "no attempt running (no /lhd/episode publisher: start the sim node or the supervisor)"
+
+
+@pytest.fixture(scope="module")
+def ros():
+    init_ros()
+    node = rclpy.create_node("test_policy_gating")
+    yield node
+    node.destroy_node()
+    shutdown_ros()
+
+
+def status(state, episode="1"):
+    return DiagnosticStatus(name="test/episode", message=state,
+                            values=[KeyValue(key="state", value=state), KeyValue(key="episode", value=episode)])
+
+
+class Rig:
+    """Fresh inputs at 10 Hz (joints, odometry with a settable v_x, drift flags), latched slope and
+    end zone, the commands heard with their arrival times, and the policy node's /diagnostics."""
+
+    def __init__(self, ros, slope_deg=20.0):
+        self.ros = ros
+        self.v_x, self.drift = 0.35, False
+        self.js = JointState(name=["boom", "bucket"], position=[0.0, 0.0], velocity=[0.0, 0.0])
+        self.od = Odometry()
+        # attack pose, the rear axle centre 1.61 m behind the bucket tip (0.8 + 0.15 + 0.461 + 0.30 m,
+        # task.kinematics), which is 0.10 m from the toe (the paper's d_init): the start of an attempt
+        self.od.pose.pose.position.x = 0.10 - 1.711
+        self.od.pose.pose.position.z = 0.137          # wheel radius
+        self.od.pose.pose.orientation.w = 1.0
+        self.pubs = [ros.create_publisher(JointState, "/lhd/joint_states", qos_profile_sensor_data),
+                     ros.create_publisher(Odometry, "/lhd/odom", qos_profile_sensor_data),
+                     ros.create_publisher(Bool, "/lhd/wheel_drift/front", qos_profile_sensor_data),
+                     ros.create_publisher(Bool, "/lhd/wheel_drift/rear", qos_profile_sensor_data)]
+        self.latched = [ros.create_publisher(Float64, "/lhd/pile/slope", LATCHED),
+                        ros.create_publisher(Float64MultiArray, "/lhd/pile/end_zone", LATCHED)]
+        self.latched[0].publish(Float64(data=math.radians(slope_deg)))
+        self.latched[1].publish(Float64MultiArray(data=[0.52, 0.85, 0.35]))
+        self.cmds = []                                 # (arrival time, [u_wheels, u_boom, u_bucket])
+        self.sub = ros.create_subscription(Float64MultiArray, "/lhd/cmd",
+                                           lambda m: self.cmds.append((time.monotonic(), list(m.data))), REL)
+        self.diag = {}
+        self.dsub = ros.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 50)
+        self.timer = ros.create_timer(DT, self.tick)
+        self.status_pub = None
+
+    def _on_diag(self, msg):
+        for st in msg.status:
+            self.diag[st.name] = st
+
+    def has(self, what, level, text):
+        st = self.diag.get(f"/lhd_policy: {what}")
+        return st is not None and st.level == level and text in st.message
+
+    def tick(self):
+        self.od.twist.twist.linear.x = self.v_x
+        self.pubs[0].publish(self.js)
+        self.pubs[1].publish(self.od)
+        self.pubs[2].publish(Bool(data=self.drift))
+        self.pubs[3].publish(Bool(data=False))
+
+    def publish_status(self, state, episode="1"):
+        if self.status_pub is None:
+            self.status_pub = self.ros.create_publisher(DiagnosticStatus, "/lhd/episode", STATUS)
+        t = time.monotonic()
+        self.status_pub.publish(status(state, episode))
+        return t
+
+    def watch(self, seconds):
+        t0 = time.monotonic()
+        spin_until(self.ros, lambda: False, seconds)
+        return [c for t, c in self.cmds if t >= t0]
+
+    def wait_commanding(self, timeout=30.0, pred=lambda c: c != ZERO):
+        n = len(self.cmds)
+        return spin_until(self.ros, lambda: sum(1 for _, c in self.cmds[n:] if pred(c)) >= 3, timeout)
+
+    def close(self):
+        self.ros.destroy_timer(self.timer)
+        for p in self.pubs + self.latched + ([self.status_pub] if self.status_pub else []):
+            self.ros.destroy_publisher(p)
+        self.ros.destroy_subscription(self.sub)
+        self.ros.destroy_subscription(self.dsub)
+
+
+def assert_stops(rig, t_end, what):
+    """After the attempt ended at t_end: one zero command within STOP_WITHIN, then silence.
+    Commands the node sent before it heard the end may still be in flight; they arrive before
+    the zero, also within STOP_WITHIN."""
+    spin_until(rig.ros, lambda: False, STOP_WITHIN + 1.5)
+    after = [(t - t_end, c) for t, c in rig.cmds if t >= t_end]
+    zeros = [i for i, (_, c) in enumerate(after) if c == ZERO]
+    assert len(zeros) == 1, (what, after)
+    dt, _ = after[zeros[0]]
+    assert dt <= STOP_WITHIN, (what, dt, after)
+    assert zeros[0] == len(after) - 1, (what, "commands after the zero", after)
+    assert all(t <= STOP_WITHIN for t, _ in after), (what, after)
+
+
+def test_no_motion_unless_an_attempt_is_running(ros, tmp_path):
+    rig = Rig(ros)
+    pol = RosProcess(POLICY, {}, tmp_path / "pol.log")
+    try:
+        # every input fresh, no /lhd/episode publisher: not one command (the node says why)
+        assert spin_until(ros, lambda: rig.has("decision", DiagnosticStatus.WARN, NO_PUB)
+                          and rig.has("inputs", DiagnosticStatus.OK, "all inputs fresh"), 60), pol.log()
+        assert rig.watch(QUIET) == [], pol.log()[-2000:]
+        # a supervisor that is idle, then armed: still nothing
+        for state in ("idle", "armed"):
+            rig.publish_status(state)
+            assert spin_until(ros, lambda: rig.has("decision", DiagnosticStatus.OK,
+                                                   f"attempt {state}: waiting to be armed"), 10), pol.log()[-2000:]
+            assert [c for c in rig.watch(QUIET) if c != ZERO] == [], state
+        assert rig.cmds == [], rig.cmds                 # not even a zero: the node never ran an attempt
+        # running: the actor commands
+        rig.publish_status("running")
+        assert rig.wait_commanding(), pol.log()[-2000:]
+        assert spin_until(ros, lambda: rig.has("decision", DiagnosticStatus.OK, "actor commanding"), 10)
+        # the attempt times out: one zero within 300 ms, silence after
+        t_end = rig.publish_status("timeout")
+        assert_stops(rig, t_end, "timeout")
+        assert rig.has("decision", DiagnosticStatus.OK, "attempt timeout: waiting to be armed")
+        # the next attempt runs; then its publisher disappears (a supervisor that crashed): stop
+        rig.publish_status("running", "2")
+        assert rig.wait_commanding(), pol.log()[-2000:]
+        ros.destroy_publisher(rig.status_pub)
+        rig.status_pub = None
+        t_gone = time.monotonic()
+        assert spin_until(ros, lambda: any(c == ZERO for t, c in rig.cmds if t >= t_gone), 10), pol.log()[-2000:]
+        t_zero = next(t for t, c in rig.cmds if t >= t_gone and c == ZERO)
+        assert [c for t, c in rig.cmds if t > t_zero] == [] and rig.watch(1.0) == []
+        assert spin_until(ros, lambda: rig.has("decision", DiagnosticStatus.WARN, NO_PUB), 10)
+        assert "no publisher of /lhd/episode any more" in pol.log()
+    finally:
+        assert pol.stop() == 0, pol.log()
+        rig.close()
+
+
+def test_tampier_controller_over_dds(ros, tmp_path):
+    """controller:=tampier: the same gating, the heuristic's ternary commands, its collision and
+    lift from the topics, and a fresh state machine for each attempt."""
+    rig = Rig(ros)
+    rig.publish_status("running")
+    pol = RosProcess(POLICY, {"controller": "tampier"}, tmp_path / "pol.log")
+    try:
+        # approach at 0.35 m/s: wheels at full speed, arm still
+        assert rig.wait_commanding(60, lambda c: c == [WHEELS, 0.0, 0.0]), pol.log()[-2000:]
+        assert spin_until(ros, lambda: rig.has("decision", DiagnosticStatus.OK, "tampier commanding (stage approach)")
+                          and rig.has("heuristic", DiagnosticStatus.OK, "Tampier-style heuristic"), 10)
+        # the pile: speed drops below half the approach speed, a wheel drifts -> collision, bury, lift
+        rig.v_x, rig.drift = 0.1, True
+        assert rig.wait_commanding(10, lambda c: c == [WHEELS, LIFT, 0.0]), rig.cmds[-20:]
+        assert rig.wait_commanding(10, lambda c: c == [WHEELS, 0.0, CURL]), rig.cmds[-20:]
+        assert all(c[0] in (0.0, WHEELS) and c[1] in (0.0, LIFT) and c[2] in (0.0, CURL) for _, c in rig.cmds)
+        t_end = rig.publish_status("failure")
+        assert_stops(rig, t_end, "failure")
+        # attempt 2 starts slow with drifting wheels (from rest): the new state machine approaches,
+        # no collision below 0.15 m/s, so no lift
+        rig.publish_status("running", "2")
+        assert rig.wait_commanding(10, lambda c: c == [WHEELS, 0.0, 0.0]), rig.cmds[-20:]
+        assert all(c == [WHEELS, 0.0, 0.0] for c in rig.watch(1.0))
+        assert "attempt 2 running: the tampier commands" in pol.log()
+    finally:
+        assert pol.stop() == 0, pol.log()
+        rig.close()
