@@ -196,6 +196,22 @@ class LhdSimulator:
         if self.use_kernel:
             self._sync_from_kernel()
 
+    def advance(self, u: np.ndarray) -> None:
+        """One FEE period (``fee_every`` physics steps: 20 ms at the shipped config) with command
+        u (rad/s): the real-time chunk of the digital twin (lhd_sim_node/sim_due.py), whose device
+        loop changes the command at this grain. The same anti-windup, FEE update, kinematics
+        refresh and kernel sync as ``step`` (and as the attack loop of ``reset``), so the state
+        read after it (``state()``, ``loaded_mass``, ``last_fee``) is current. ``step`` is
+        unchanged: five ``advance`` calls are not bit-identical to one ``step`` (step refreshes
+        the kinematics and pulls the servo set-points back once per control period, advance
+        once per chunk), but both integrate the same model."""
+        self.set_command(u)
+        self._anti_windup()
+        self._physics(self.fee_every)
+        mujoco.mj_kinematics(self.model, self.data)
+        if self.use_kernel:
+            self._sync_from_kernel()
+
     def _physics(self, n: int) -> None:
         if self.fee_enabled:
             if self.use_kernel:

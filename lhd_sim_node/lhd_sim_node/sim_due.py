@@ -1,0 +1,395 @@
+"""The simulator as the LHD's Arduino Due: the device side of docs/serial_protocol.md on a
+pseudo-terminal, with the MuJoCo machine (LhdSimulator) as the plant, stepped in real time.
+
+ROS-free. The twin node (twin_node.py) runs one SimDue; a test can run one in-process.
+
+What the device does, as the reference firmware (lhd_hw_bridge/firmware/lhd_due/lhd_due.ino,
+`apply_outputs` and `loop`) and its emulator (lhd_hw_bridge/fake_due.py) do it:
+* takes command (0x02) and heartbeat (0x03) frames; any other or broken frame is dropped and never
+  changes the outputs (lhd_hw_bridge.protocol.FrameParser, the device's `accept`);
+* watchdog: no valid command frame for 250 ms after a first one -> wheels to 0, valves closed,
+  enable cleared, flag bit 1 set, until the next valid command frame;
+* the wheel set-point is clamped to [0, 2.7] rad/s; boom lowering (-1) and bucket forward tilt
+  (-1) are refused (not a maintenance build); a valve is closed at its joint limit
+  (boom <= -1.0 rad raising, bucket >= 1.4 rad curling);
+* while the emergency stop is pressed (`estop`): wheels 0, valves closed, flag bit 2; the last
+  command applies again on release;
+* sensor frames (0x01) at 100 Hz, load-cell frames (0x04) at 10 Hz (`load_cell`, default on).
+
+The plant is the simulator, driven with the actuator command of the outputs (`actuator_command`):
+wheels = the clamped set-point (rad/s; the simulator's four wheel servos), boom / bucket = the valve
+state x the full hydraulic speed (TaskParams.boom_min: -0.191 rad/s, a lift; TaskParams.bucket_max:
++0.2 rad/s, a curl): the valves are ternary, the machine has no proportional arm speed; zero when
+the drive is disabled, the watchdog holds or the e-stop is pressed. The machine is stepped in
+chunks of one FEE period (LhdSimulator.advance, 20 ms), the command latched at the start of each
+chunk, so a command frame reaches the machine within 20 ms of arrival.
+
+Sensor frames are built from the simulator's state (`sensor_frame`). The conventions of
+docs/serial_protocol.md and of the simulator's joints agree (mjcf.py: the boom hinge about +y,
+negative lifts; the bucket hinge about -y, positive curls back; both 0 in the attack pose), so
+boom_angle = phi_boom, bucket_angle = phi_bucket, their rates the joint velocities (the encoders'
+derivative, which the firmware computes by differencing), unchanged in sign.
+* wheel_fl / wheel_fr: the front wheels' joint speeds (rad/s, positive forward);
+  wheel_rear: the mean of the two rear wheels: one motor drives them through a differential, whose
+  carrier (the motor's shaft after the gearbox) turns at the mean of its two output shafts;
+* motor currents from the actuator forces (the wheel servos' torques at the wheel, N m):
+  I = I_IDLE + |tau| / K with K the motor's torque constant times its gear ratio, referred to
+  the wheel: K_FRONT = 4.0 N m/A per front motor, K_REAR = 5.0 N m/A for the rear motor, which
+  carries the torque of both rear wheels; I_IDLE = 1.5 A (the emulator's no-load current).
+  Why these K: the bridge's drift presets (config hardware.drift_current_front 8 A, _rear 12 A)
+  are "no-drift" limits, and a wheel drifts in the simulator when its servo saturates at the
+  motor's torque limit (machine.wheel_torque_limit 30 N m) and the tyre slips. With these K the
+  presets sit at 87.5 % of the saturated torque on both axles: front (8 - 1.5) x 4.0 = 26 N m of 30,
+  rear (12 - 1.5) x 5.0 = 52.5 N m of 2 x 30, so a motor at its limit reads 9.0 A / 13.5 A (over
+  the preset) and one pushing the pile below 87.5 % of it reads under the preset. The motor
+  data sheet of the scaled machine is not public; these constants are the assumption, stated once;
+* valve states: what the valves do (the latched outputs: closed on a limit, the e-stop, the
+  watchdog), not an echo of the command; flags as the firmware's.
+The load cell weighs the simulator's loaded mass (LhdSimulator.loaded_mass) through the emulated
+amplifier (fake_due.LOAD_CELL_OFFSET / LOAD_CELL_SCALE: the same 24-bit counts and mass in grams
+the firmware sends; calibrated and tared).
+"""
+from __future__ import annotations
+
+import os
+import select
+import threading
+import time
+import tty
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from lhd_hw_bridge.fake_due import LOAD_CELL_OFFSET, LOAD_CELL_SCALE
+from lhd_hw_bridge.protocol import (ANGLE_SCALE, CURRENT_SCALE, FLAG_ENABLED, FLAG_ESTOP, FLAG_WATCHDOG,
+                                    LC_CALIBRATED, LC_SATURATED, LC_TARED, RATE_SCALE, RAW_MAX, RAW_MIN, TYPE_COMMAND,
+                                    TYPE_HEARTBEAT, WHEEL_SCALE, CommandFrame, FrameParser, LoadCellFrame,
+                                    SensorFrame, TxSequence)
+
+# the firmware's constants (lhd_due.ino; test/sim/test_sim_due.py reads them from the file)
+WATCHDOG_S = 0.250              # WATCHDOG_MS
+WHEEL_MAX = 2.7                 # rad/s
+BOOM_MIN, BOOM_MAX = -1.0, 0.05       # rad, joint limits
+BUCKET_MIN, BUCKET_MAX = -0.1, 1.4    # rad
+SENSOR_PERIOD = 0.010           # s, SENSOR_PERIOD_US (100 Hz)
+LOAD_CELL_PERIOD = 0.100        # s (10 Hz)
+# the motors (module docstring: why these values)
+K_FRONT = 4.0                   # N m per A, each front wheel motor, referred to the wheel
+K_REAR = 5.0                    # N m per A, the rear motor (both rear wheels through the differential)
+I_IDLE = 1.5                    # A, no-load current of a motor
+CATCH_UP = 5                    # chunks the loop runs back to back when late; later than that it resynchronises
+
+
+@dataclass(frozen=True)
+class Outputs:
+    """What the firmware drives (apply_outputs): the drive enabled, the wheel set-point, the
+    valves' real states and the e-stop, with the watchdog flag of the moment."""
+    run: bool
+    wheel: float
+    valve_boom: int
+    valve_bucket: int
+    estop: bool
+    watchdog: bool
+
+    @property
+    def flags(self) -> int:
+        return (FLAG_ENABLED if self.run else 0) | (FLAG_WATCHDOG if self.watchdog else 0) | \
+            (FLAG_ESTOP if self.estop else 0)
+
+
+STOPPED = Outputs(False, 0.0, 0, 0, False, False)
+
+
+class Firmware:
+    """The device's command handling (lhd_due.ino: handle_packet, the watchdog in loop(),
+    apply_outputs), ROS-free and clock-agnostic: `now` is the caller's monotonic time in s."""
+
+    def __init__(self, watchdog: float = WATCHDOG_S):
+        self.watchdog = watchdog
+        self.command: CommandFrame | None = None   # the last valid command frame
+        self.last_cmd: float | None = None
+        self.tripped = False
+        self.trips = 0
+        self.estop = False                         # the emergency-stop button, pressed
+        self.commands = 0
+        self.heartbeats = 0
+
+    def receive(self, msg, now: float) -> None:
+        """A valid frame from the host (the parser dropped the bad ones)."""
+        if isinstance(msg, CommandFrame):
+            self.command = msg
+            self.last_cmd = now
+            self.tripped = False          # a fresh valid command re-arms the machine
+            self.commands += 1
+        else:
+            self.heartbeats += 1          # host clock only: the command stream feeds the watchdog
+
+    def check_watchdog(self, now: float) -> None:
+        if self.command is not None and not self.tripped and now - self.last_cmd > self.watchdog:
+            self.tripped = True
+            self.trips += 1
+            self.command = CommandFrame.stop()    # the firmware clears the command when it trips
+
+    def outputs(self, boom_angle: float, bucket_angle: float) -> Outputs:
+        c = self.command
+        run = c is not None and c.enable and not self.tripped and not self.estop
+        if not run:
+            return Outputs(False, 0.0, 0, 0, self.estop, self.tripped)
+        wheel = min(max(c.wheel_setpoint, 0.0), WHEEL_MAX)
+        boom = max(c.valve_boom, 0)        # lowering refused (not a maintenance build)
+        bucket = max(c.valve_bucket, 0)    # forward tilt refused
+        if boom > 0 and boom_angle <= BOOM_MIN:          # +1 raises: the angle decreases to its limit
+            boom = 0
+        if bucket > 0 and bucket_angle >= BUCKET_MAX:
+            bucket = 0
+        return Outputs(True, wheel, boom, bucket, False, False)
+
+
+def actuator_command(out: Outputs, boom_speed: float, bucket_speed: float) -> np.ndarray:
+    """The simulator's command (u_wheels, u_boom, u_bucket) rad/s for the outputs: a raising boom
+    valve moves the boom at -boom_speed (negative lifts), a curling bucket valve at +bucket_speed."""
+    return np.array([out.wheel, -boom_speed * out.valve_boom, bucket_speed * out.valve_bucket])
+
+
+def _sat(v: float, scale: float, lo: int, hi: int) -> float:
+    """The firmware's sat16 / satu16: a value beyond the field's range is sent at its limit."""
+    return min(max(round(v / scale), lo), hi) * scale
+
+
+def motor_currents(wheel_torques) -> tuple[float, float, float]:
+    """(front left, front right, rear) A from the wheel torques (fl, fr, rl, rr) N m."""
+    fl, fr, rl, rr = (abs(float(t)) for t in wheel_torques)
+    return I_IDLE + fl / K_FRONT, I_IDLE + fr / K_FRONT, I_IDLE + (rl + rr) / K_REAR
+
+
+@dataclass(frozen=True)
+class Reading:
+    """The simulator's quantities a sensor frame carries (SI units, the simulator's signs)."""
+    boom: float
+    bucket: float
+    boom_rate: float
+    bucket_rate: float
+    wheels: tuple[float, float, float, float]        # fl, fr, rl, rr rad/s
+    torques: tuple[float, float, float, float]       # fl, fr, rl, rr N m (the wheel servos' forces)
+
+
+def sensor_frame(r: Reading, out: Outputs, device_time_us: int) -> SensorFrame:
+    fl, fr, rl, rr = r.wheels
+    cur = motor_currents(r.torques)
+    a = lambda v: _sat(v, ANGLE_SCALE, -32768, 32767)     # noqa: E731
+    w = lambda v: _sat(v, WHEEL_SCALE, -32768, 32767)     # noqa: E731
+    i = lambda v: _sat(v, CURRENT_SCALE, 0, 65535)        # noqa: E731
+    return SensorFrame(
+        device_time_us=device_time_us & 0xFFFFFFFF, boom_angle=a(r.boom), bucket_angle=a(r.bucket),
+        boom_rate=_sat(r.boom_rate, RATE_SCALE, -32768, 32767), bucket_rate=_sat(r.bucket_rate, RATE_SCALE, -32768, 32767),
+        wheel_fl=w(fl), wheel_fr=w(fr), wheel_rear=w(0.5 * (rl + rr)),
+        current_fl=i(cur[0]), current_fr=i(cur[1]), current_rear=i(cur[2]),
+        valve_boom=out.valve_boom, valve_bucket=out.valve_bucket, flags=out.flags)
+
+
+def load_cell_frame(mass: float, device_time_us: int) -> LoadCellFrame:
+    """The firmware's frame for `mass` kg in the bucket: the amplifier's counts (offset + mass x
+    scale, 24-bit), the calibrated, tared mass computed from them, in grams."""
+    raw = min(max(round(LOAD_CELL_OFFSET + mass * LOAD_CELL_SCALE), RAW_MIN), RAW_MAX)
+    flags = LC_CALIBRATED | LC_TARED | (LC_SATURATED if raw in (RAW_MIN, RAW_MAX) else 0)
+    return LoadCellFrame(device_time_us & 0xFFFFFFFF, round((raw - LOAD_CELL_OFFSET) / LOAD_CELL_SCALE, 3), raw, flags)
+
+
+def read_simulator(sim) -> Reading:
+    """The sensor quantities of an LhdSimulator now (its `state()` and wheel servos)."""
+    s = sim.state()
+    d = sim.data
+    # WHEELS order in the simulator: fl, fr, rl, rr for the dofs and the actuators
+    wheels = tuple(float(v) for v in d.qvel[sim.wheel_dof])
+    torques = tuple(float(d.actuator_force[a]) for a in sim.act_wheels)
+    return Reading(s.phi_boom, s.phi_bucket, s.dphi_boom, s.dphi_bucket, wheels, torques)
+
+
+@dataclass
+class LoopStats:
+    chunks: int = 0                 # 20 ms chunks simulated
+    overruns: int = 0               # chunks run more than one chunk period after they were due
+    resyncs: int = 0                # times the loop fell CATCH_UP chunks behind and dropped the backlog
+    dropped_s: float = 0.0          # simulated time given up by the resyncs
+    busy_s: float = 0.0             # wall time spent stepping the simulator
+    max_chunk_s: float = 0.0        # the longest chunk's stepping time
+    sensor_frames: int = 0
+    load_cell_frames: int = 0
+    write_errors: int = 0
+
+
+@dataclass
+class SimDue:
+    """The device: a pty (behind the symlink `link`), the firmware, and the simulator `sim` as the
+    plant, in a real-time thread (`start` / `stop`). `lock` guards the simulator: whoever reads
+    or resets it from another thread takes it (`with due.lock:`). `on_chunk(due)` (optional) is
+    called after each chunk with the lock held (the twin's truth samples)."""
+    sim: object
+    link: str | None = None
+    watchdog: float = WATCHDOG_S
+    rate: float = 1.0 / SENSOR_PERIOD
+    load_cell: bool = True
+    on_chunk: object = None
+    firmware: Firmware = field(init=False)
+
+    def __post_init__(self):
+        self.firmware = Firmware(self.watchdog)
+        self.parser = FrameParser(accept={TYPE_COMMAND, TYPE_HEARTBEAT})
+        self.lock = threading.RLock()
+        self.stats = LoopStats()
+        self.chunk = float(self.sim.fee_dt)
+        p = self.sim.p
+        self.boom_speed, self.bucket_speed = abs(p.boom_min), p.bucket_max
+        self.applied = STOPPED          # the outputs latched for the running chunk
+        self.u = np.zeros(3)            # the simulator command of the running chunk
+        self.sim_time = 0.0             # s simulated by this device (all episodes)
+        self._tx = TxSequence()
+        self._master = self._slave = None
+        self.path = None
+        self._stop = threading.Event()
+        self._thread = None
+        self.t0 = time.monotonic()      # the device clock's zero (micros() since power-up)
+
+    # ------------------------------------------------------------------ pty
+    def plug(self) -> str:
+        master, slave = os.openpty()
+        tty.setraw(master)
+        tty.setraw(slave)
+        os.set_blocking(master, False)
+        self._master, self._slave = master, slave
+        self.path = os.ttyname(slave)
+        self.parser.reset_link()
+        if self.link:
+            tmp = self.link + ".tmp"
+            if os.path.lexists(tmp):
+                os.unlink(tmp)
+            os.symlink(self.path, tmp)
+            os.replace(tmp, self.link)
+        return self.link or self.path
+
+    def unplug(self) -> None:
+        for fd in (self._master, self._slave):
+            if fd is not None:
+                try:
+                    os.close(fd)
+                except OSError:
+                    pass
+        self._master = self._slave = None
+        if self.link and os.path.islink(self.link) and os.readlink(self.link) == self.path:
+            os.unlink(self.link)
+
+    # ------------------------------------------------------------------ e-stop (the machine's button)
+    @property
+    def estop(self) -> bool:
+        return self.firmware.estop
+
+    @estop.setter
+    def estop(self, pressed: bool) -> None:
+        self.firmware.estop = bool(pressed)
+
+    # ------------------------------------------------------------------ loop
+    def start(self) -> "SimDue":
+        if self._master is None:
+            self.plug()
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._run, name="sim-due", daemon=True)
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+        self.unplug()
+
+    def device_us(self, now: float) -> int:
+        return int((now - self.t0) * 1e6)
+
+    def step_chunk(self, now: float) -> None:
+        """One chunk: latch the firmware's outputs for the joints' angles now, advance the
+        simulator 20 ms with their actuator command."""
+        with self.lock:
+            s = self.sim
+            boom, bucket = float(s.data.qpos[s.boom_q]), float(s.data.qpos[s.bucket_q])
+            self.firmware.check_watchdog(now)
+            self.applied = self.firmware.outputs(boom, bucket)
+            self.u = actuator_command(self.applied, self.boom_speed, self.bucket_speed)
+            t = time.perf_counter()
+            s.advance(self.u)
+            dt = time.perf_counter() - t
+            self.sim_time += self.chunk
+            st = self.stats
+            st.chunks += 1
+            st.busy_s += dt
+            st.max_chunk_s = max(st.max_chunk_s, dt)
+            if self.on_chunk is not None:
+                self.on_chunk(self)
+
+    def sensor_frame_now(self, now: float) -> SensorFrame:
+        """The frame of the state now, with the outputs the running chunk applies."""
+        with self.lock:
+            r = read_simulator(self.sim)
+            out = self.applied
+        return sensor_frame(r, out, self.device_us(now))
+
+    def _run(self) -> None:
+        now = time.monotonic()
+        next_chunk = next_sensor = next_lc = now
+        period = 1.0 / self.rate
+        st = self.stats
+        while not self._stop.is_set():
+            now = time.monotonic()
+            fd = self._master
+            if fd is not None:
+                self._read(fd, now)
+            self.firmware.check_watchdog(now)
+            n = 0
+            while now >= next_chunk and n < CATCH_UP:
+                if now - next_chunk > self.chunk:
+                    st.overruns += 1
+                self.step_chunk(now)
+                next_chunk += self.chunk
+                n += 1
+                now = time.monotonic()
+            if now >= next_chunk + self.chunk:        # still behind after CATCH_UP chunks: give the backlog up
+                st.resyncs += 1
+                st.dropped_s += now - next_chunk
+                next_chunk = now + self.chunk
+            if fd is not None and now >= next_sensor:
+                if self._put(fd, self._tx.encode(self.sensor_frame_now(now))):
+                    st.sensor_frames += 1
+                next_sensor += period
+                if next_sensor < now:
+                    next_sensor = now + period
+            if fd is not None and self.load_cell and now >= next_lc:
+                with self.lock:
+                    mass = float(self.sim.loaded_mass) if self.sim.pile is not None else 0.0
+                if self._put(fd, self._tx.encode(load_cell_frame(mass, self.device_us(now)))):
+                    st.load_cell_frames += 1
+                next_lc += LOAD_CELL_PERIOD
+                if next_lc < now:
+                    next_lc = now + LOAD_CELL_PERIOD
+            wait = max(0.0, min(next_chunk, next_sensor, next_lc if self.load_cell else next_sensor) - time.monotonic())
+            try:
+                if fd is not None:
+                    select.select([fd], [], [], wait)
+                else:
+                    time.sleep(wait)
+            except (OSError, ValueError):
+                time.sleep(0.001)
+
+    def _read(self, fd: int, now: float) -> None:
+        try:
+            data = os.read(fd, 4096)
+        except (BlockingIOError, OSError):
+            return
+        for _, msg in self.parser.feed(data):
+            self.firmware.receive(msg, now)
+
+    def _put(self, fd: int, wire: bytes) -> bool:
+        try:
+            os.write(fd, wire)
+            return True
+        except OSError:        # no reader yet / buffer full: the frame used its number (a gap)
+            self.stats.write_errors += 1
+            return False
