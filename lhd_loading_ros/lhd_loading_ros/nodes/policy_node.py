@@ -261,7 +261,6 @@ class PolicyNode(Node):
 
     def _on_status(self, msg) -> None:
         kv = {k.key: k.value for k in msg.values}
-        self._status_publisher_seen = True
         self._set_episode(kv.get("state", msg.message), kv.get("episode"))
         try:
             self._status_stamp = int(kv["stamp_ns"])
