@@ -97,8 +97,16 @@ def _eval(args) -> int:
     from lhd_loading_ros.learning.evaluate import evaluate
     from lhd_loading_ros.policy.actor_file import PolicyFileError, load_policy
 
+    if args.controller == "tampier":
+        from lhd_loading_ros.learning.baselines import run_cli
+
+        return run_cli(args.episodes, args.seed, args.slopes, args.material, args.time_limit, args.config,
+                       args.tampier_config, args.json)
     if args.episodes < 1:
         print(f"lhd eval: --episodes must be >= 1, got {args.episodes}", file=sys.stderr)
+        return 2
+    if not args.policy:
+        print("lhd eval: --policy DIR is required for --controller actor", file=sys.stderr)
         return 2
     try:
         pol = load_policy(args.policy)
@@ -228,7 +236,15 @@ def main(argv=None) -> int:
     p_train.add_argument("--no-resume", dest="resume", action="store_false", help="start over even if a checkpoint exists")
     p_train.add_argument("--no-progress", dest="progress", action="store_false")
     p_eval = sub.add_parser("eval", help="evaluate an exported policy on the simulator")
-    p_eval.add_argument("--policy", required=True, help="policy directory (actor.npz + policy.json)")
+    p_eval.add_argument("--controller", choices=["actor", "tampier"], default="actor",
+                        help="actor: an exported policy (--policy); tampier: the Tampier-style heuristic baseline")
+    p_eval.add_argument("--policy", help="policy directory (actor.npz + policy.json)")
+    p_eval.add_argument("--slopes", default="15,20,25,30", help="tampier: pile slopes, degrees")
+    p_eval.add_argument("--material", choices=["both", "homogeneous", "nonhomogeneous"], default="both",
+                        help="tampier: pile material")
+    p_eval.add_argument("--time-limit", type=float, default=10.0,
+                        help="tampier: s per attempt (the paper's real-world timeout; 0: the environment's)")
+    p_eval.add_argument("--tampier-config", help="tampier: thresholds file (default config/tampier.yaml)")
     p_eval.add_argument("--episodes", type=int, default=120)
     p_eval.add_argument("--seed", type=int, default=2_000_000, help="evaluation seed (training evaluates on 1,000,000)")
     p_eval.add_argument("--deploy-filter", action="store_true", help="RLC: apply the deployment filter, as on the machine")
