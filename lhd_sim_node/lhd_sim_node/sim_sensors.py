@@ -363,7 +363,7 @@ class TipTrail:
         self.points: deque = deque(maxlen=int(max_points))
 
     def add(self, xyz) -> bool:
-        p = np.asarray(xyz, dtype=float).reshape(3)
+        p = np.array(xyz, dtype=float).reshape(3)      # a copy: callers pass views into MjData
         if not np.isfinite(p).all():
             return False
         if self.points and np.linalg.norm(p - self.points[-1]) < self.spacing:

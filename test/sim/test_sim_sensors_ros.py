@@ -1,0 +1,251 @@
+"""The twin's simulated sensors through the REAL perception nodes, each a separate process over
+DDS, with the poses of config/real_machine.yaml (the file the twin and `lhd up real` read):
+
+* camera images of the simulated machine (LhdSimulator's base_link at rest in the attack pose,
+  then moving at a known v_x = 0.30 m/s) through the ArUco node: v_x RMS <= 0.02 m/s against the
+  truth, base_link's x within 1 cm;
+* LiDAR scans of 15/20/25/30 deg simulated piles (right after the simulator's attack: the bucket
+  0.1 m inside, the machine in view, the draw point's ceiling and drawbell around) through the
+  LiDAR slope node and the end-zone node: alpha within 1.5 deg of the pile's, x_max within 5 cm of
+  the simulator's truth zones (LhdSimulator.zones);
+* the twin's MarkerArray (twin_markers.marker_array) from the simulator's state, sent and received
+  over DDS, well formed.
+The measured figures are printed (pytest -s)."""
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rclpy
+import yaml
+from geometry_msgs.msg import Vector3Stamped
+from nav_msgs.msg import Odometry
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from sensor_msgs.msg import CameraInfo, Image, LaserScan
+from std_msgs.msg import Float64MultiArray
+from visualization_msgs.msg import Marker, MarkerArray
+
+from lhd_loading_ros.perception.synthetic import DrawPoint
+from lhd_loading_ros.task.end_zone import nominal_density
+from lhd_loading_ros.task.zones import Zones
+from lhd_sim_node.sim_sensors import (CameraModel, LidarModel, TipTrail, camera_image, fee_arrow, lidar_scan,
+                                      machine_segments, pile_surfaces, zone_boxes)
+from lhd_sim_node.simulator import LhdSimulator
+from lhd_sim_node.twin_markers import marker_array
+
+from rosutil import RosProcess, init_ros, shutdown_ros, spin_until
+
+ROOT = Path(__file__).resolve().parents[2]
+MACHINE = yaml.safe_load((ROOT / "config" / "real_machine.yaml").read_text())
+REL = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+FPS = 30.0
+V_KNOWN = 0.30              # m/s, the machine's speed in the moving phase (top speed 0.37 m/s)
+
+
+def ros_params(section: str, **extra) -> dict:
+    """A node's section of real_machine.yaml as `-p` values (lists and bools in YAML form)."""
+    out = {}
+    for k, v in {**MACHINE[section]["ros__parameters"], **extra}.items():
+        out[k] = "true" if v is True else "false" if v is False else (
+            "[" + ", ".join(repr(float(x)) for x in v) + "]" if isinstance(v, list) else v)
+    return out
+
+
+def stamp(msg, t: float) -> None:
+    msg.header.stamp.sec, msg.header.stamp.nanosec = int(t), int(round((t % 1.0) * 1e9))
+
+
+@pytest.fixture(scope="module")
+def ros():
+    init_ros()
+    node = rclpy.create_node("test_sim_sensors")
+    yield node
+    node.destroy_node()
+    shutdown_ros()
+
+
+@pytest.fixture(scope="module")
+def sim(cfg_session):
+    return LhdSimulator(cfg_session)
+
+
+def test_aruco_node_measures_the_simulated_machine(ros, sim, tmp_path):
+    node = RosProcess("lhd_loading_ros.nodes.aruco_pose_node", ros_params("aruco_pose_node", image_reliable=True),
+                      tmp_path / "aruco.log")
+    # the twin's camera: same section; sensor noise, blur and 5 % dropped frames
+    cam = CameraModel.from_params(MACHINE["aruco_pose_node"], noise=2.0, blur=1.0, dropout=0.05)
+    sim.reset(np.random.default_rng(5), alpha=math.radians(20.0), material="homogeneous")
+    pos0, quat = sim.data.qpos[:3].copy(), sim.data.qpos[3:7].copy()
+    odoms = []
+    ros.create_subscription(Odometry, "/lhd/odom", odoms.append, REL)
+    pub_img = ros.create_publisher(Image, "/camera/image_raw", REL)
+    pub_info = ros.create_publisher(CameraInfo, "/camera/camera_info", qos_profile_sensor_data)
+    info = CameraInfo()
+    for k, v in cam.camera_info().items():
+        setattr(info, k, v)
+    rng = np.random.default_rng(0)
+    truth = {}                   # image stamp (ns) -> (true v_x, true base x)
+    try:
+        assert spin_until(ros, lambda: ros.count_subscribers("/camera/image_raw") > 0, 30.0), node.log()
+        for _ in range(5):       # the CameraInfo first (best effort: a few)
+            pub_info.publish(info)
+            spin_until(ros, lambda: False, 0.1)
+        # at rest for 1 s (stamps 100.0 ..), then 1 s with no frames, then 2 s at V_KNOWN: the speed
+        # window (0.3 s) never holds frames of both phases
+        phases = [(100.0, 1.0, 0.0), (102.0, 2.0, V_KNOWN)]
+        x_moving0 = pos0[0]
+        for t0, dur, v in phases:
+            for k in range(int(dur * FPS)):
+                t_next = time.monotonic() + 1.0 / FPS
+                t = t0 + k / FPS
+                pos = pos0 + np.array([v * (k / FPS), 0.0, 0.0]) if v else pos0
+                img = camera_image(cam, pos, quat, rng)
+                pub_info.publish(info)
+                if img is not None:
+                    m = Image()
+                    stamp(m, t)
+                    m.header.frame_id = "camera"
+                    m.height, m.width, m.encoding, m.step = img.shape[0], img.shape[1], "mono8", img.shape[1]
+                    m.data = img.tobytes()
+                    truth[m.header.stamp.sec * 10**9 + m.header.stamp.nanosec] = (v, float(pos[0]))
+                    pub_img.publish(m)
+                spin_until(ros, lambda: False, max(0.0, t_next - time.monotonic()), step=0.005)
+        last = max(truth)
+        spin_until(ros, lambda: odoms and odoms[-1].header.stamp.sec * 10**9 + odoms[-1].header.stamp.nanosec == last,
+                   10.0)
+    finally:
+        rc = node.stop()
+    assert rc == 0, node.log()
+    err_v, err_x, n_moving = [], [], 0
+    for o in odoms:
+        v_true, x_true = truth[o.header.stamp.sec * 10**9 + o.header.stamp.nanosec]
+        err_v.append(o.twist.twist.linear.x - v_true)
+        err_x.append(o.pose.pose.position.x - x_true)
+        n_moving += v_true > 0
+    frames = len(truth)
+    rms = math.sqrt(np.mean(np.square(err_v)))
+    print(f"\nArUco node on the simulated camera: {len(odoms)} odometry messages from {frames} frames "
+          f"({n_moving} moving at {V_KNOWN} m/s); v_x RMS error {rms:.4f} m/s, max {np.max(np.abs(err_v)):.4f}; "
+          f"base_link x error RMS {1000 * math.sqrt(np.mean(np.square(err_x))):.1f} mm, "
+          f"max {1000 * np.max(np.abs(err_x)):.1f} mm (base x {x_moving0:.3f} m at rest)")
+    # a speed from every frame after the first 3 of each phase, but for the dropped ones and their
+    # neighbours: at least 3/4 of the frames give odometry, both phases
+    assert len(odoms) >= 0.75 * frames and n_moving >= 0.75 * 2.0 * FPS * 0.9, (len(odoms), frames, n_moving)
+    assert rms <= 0.02
+    assert np.max(np.abs(err_x)) <= 0.01
+
+
+def test_lidar_and_end_zone_nodes_measure_the_simulated_piles(ros, sim, cfg_session, tmp_path):
+    lidar = RosProcess("lhd_loading_ros.nodes.lidar_slope_node", ros_params("lidar_slope_node", scan_topic="/scan"),
+                       tmp_path / "lidar.log")
+    ez = RosProcess("lhd_loading_ros.nodes.end_zone_node", ros_params("end_zone_node"), tmp_path / "end_zone.log")
+    model = LidarModel.from_params(MACHINE["lidar_slope_node"])           # the twin's defaults: 0.01 m, 2 % outliers
+    fits, zones = [], []
+    ros.create_subscription(Vector3Stamped, "/lhd/pile/slope_stamped", fits.append, REL)
+    # latched, as the node publishes it: a subscription matched after a publication still gets it
+    ros.create_subscription(Float64MultiArray, "/lhd/pile/zones", lambda m: zones.append(list(m.data)), LATCHED)
+    pub = ros.create_publisher(LaserScan, "/scan", qos_profile_sensor_data)
+    rng = np.random.default_rng(1)
+    rho = nominal_density(cfg_session)        # what the end-zone node assumes (density: 0 in the file)
+    rows, t = [], 200.0
+    try:
+        assert spin_until(ros, lambda: ros.count_subscribers("/scan") > 0 and
+                          ros.count_publishers("/lhd/pile/zones") > 0 and
+                          ros.count_publishers("/lhd/pile/slope_stamped") > 0, 30.0), (lidar.log(), ez.log())
+        for deg, material in ((15, "homogeneous"), (20, "nonhomogeneous"), (25, "homogeneous"), (30, "nonhomogeneous")):
+            sim.reset(rng, alpha=math.radians(deg), material=material)   # the twin's new pile and attack
+            occ = machine_segments(sim.model, sim.data)
+            n_zones, t_first, mine = len(zones), t + 0.2, []
+            t_end = time.monotonic() + 15.0
+            while len(mine) < 3:                  # scans at the twin's 5 Hz until three fits of this pile
+                assert time.monotonic() < t_end, (deg, material, lidar.log())
+                r, a0, inc = lidar_scan(model, sim.pile, rng, DrawPoint(), occ)
+                m = LaserScan()
+                t += 0.2
+                stamp(m, t)
+                m.header.frame_id = "lidar"
+                for k, v in model.laser_scan_fields().items():
+                    setattr(m, k, float(v))
+                m.ranges = [float(v) for v in r]
+                pub.publish(m)
+                spin_until(ros, lambda: False, 0.2)
+                mine = [f.vector for f in fits
+                        if f.header.stamp.sec + f.header.stamp.nanosec * 1e-9 >= t_first - 1e-6]
+            # the end zone of this pile: a publication that is the node's formula at one of this pile's fits
+            def of_this_pile(z):
+                return any(Zones.for_measured_pile(f.x, f.y, rho, sim.p).as_list() == pytest.approx(z, abs=1e-9)
+                           for f in mine)
+            assert spin_until(ros, lambda: any(of_this_pile(z) for z in zones[n_zones:]), 10.0), (zones[-1:], ez.log())
+            z = [z for z in zones[n_zones:] if of_this_pile(z)][-1]
+            truth = sim.zones
+            d_alpha = max(abs(math.degrees(f.x - sim.pile.alpha)) for f in mine)
+            rows.append((deg, material, d_alpha, z[1] - truth.x_max, z[0] - truth.x_min))
+    finally:
+        rcs = (lidar.stop(), ez.stop())
+    assert rcs == (0, 0), (lidar.log(), ez.log())
+    print("\nLiDAR + end-zone nodes on simulated piles (scan of the pile right after the attack):")
+    for deg, material, d_alpha, d_xmax, d_xmin in rows:
+        print(f"  {deg} deg {material:15s} |alpha err| max {d_alpha:.2f} deg, x_max err {100 * d_xmax:+.1f} cm, "
+              f"x_min err {100 * d_xmin:+.1f} cm")
+    for deg, material, d_alpha, d_xmax, _ in rows:
+        assert d_alpha <= 1.5, (deg, material, d_alpha)
+        assert abs(d_xmax) <= 0.05, (deg, material, d_xmax)
+
+
+def test_twin_markers_are_well_formed_over_dds(ros, sim):
+    sim.reset(np.random.default_rng(2), alpha=math.radians(25.0), material="homogeneous")
+    trail = TipTrail()
+    trail.add(sim.data.site_xpos[sim.sid_tip])
+    for _ in range(8):                    # drive on, lift and curl: the tip cuts, the FEE pushes back
+        sim.step(np.array([2.7, -0.191, 0.2]))
+        trail.add(sim.data.site_xpos[sim.sid_tip])
+    fee = sim.last_fee
+    print(f"\ntip trail {len(trail.array())} points, FEE force {fee.force.round(1).tolist()} N")
+    arrow = fee_arrow(sim.data.site_xpos[sim.sid_tip], fee.force)
+    assert arrow is not None, fee
+    got = []
+    qos = QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+    pub = ros.create_publisher(MarkerArray, "/lhd/twin/markers", qos)
+    ros.create_subscription(MarkerArray, "/lhd/twin/markers", got.append, qos)
+    now = ros.get_clock().now().to_msg()
+    sent = [marker_array(now, "pile", pile_surfaces(sim.pile), zone_boxes(sim.zones), trail.array(), arrow),
+            marker_array(now, "pile", pile_surfaces(sim.pile), zone_boxes(sim.zones), trail.array(), None)]
+    spin_until(ros, lambda: pub.get_subscription_count() > 0, 5.0)
+    for msg in sent:
+        pub.publish(msg)
+    assert spin_until(ros, lambda: len(got) == 2, 10.0)
+    for msg in got:
+        keys = [(m.ns, m.id) for m in msg.markers]
+        assert len(keys) == len(set(keys)), keys
+        for m in msg.markers:
+            assert m.header.frame_id == "pile" and m.action in (Marker.ADD, Marker.DELETE)
+            q = m.pose.orientation
+            assert math.isclose(q.x ** 2 + q.y ** 2 + q.z ** 2 + q.w ** 2, 1.0, abs_tol=1e-9)
+            if m.action == Marker.DELETE:
+                continue
+            assert m.scale.x > 0 and m.color.a > 0
+            assert all(math.isfinite(c) for p in m.points for c in (p.x, p.y, p.z))
+            if m.type == Marker.LINE_STRIP:
+                assert len(m.points) >= 2
+            elif m.type == Marker.ARROW:
+                assert len(m.points) == 2 and m.scale.y > 0
+            elif m.type == Marker.CUBE:
+                assert m.scale.y > 0 and m.scale.z > 0
+    first = {(m.ns, m.id): m for m in got[0].markers}
+    # the pile's centre strip is the simulator's current surface (cut by the bucket)
+    j = sim.pile.n_y // 2
+    strip = first[("pile", j)]
+    assert [p.z for p in strip.points][1:-2] == pytest.approx(sim.pile.top[j].tolist())
+    assert strip.points[0].y == pytest.approx(sim.pile.y_centers[j])
+    end = first[("zones", 0)]
+    assert end.pose.position.x == pytest.approx((sim.zones.x_min + sim.zones.x_max) / 2)
+    assert end.scale.x == pytest.approx(sim.zones.x_max - sim.zones.x_min)
+    assert len(trail.array()) >= 3
+    assert [p.x for p in first[("tip", 0)].points] == pytest.approx(trail.array()[:, 0].tolist())
+    a = first[("fee", 0)]
+    assert (a.action, a.points[1].x - a.points[0].x) == (Marker.ADD, pytest.approx(arrow[1, 0] - arrow[0, 0]))
+    second = {(m.ns, m.id): m for m in got[1].markers}
+    assert second[("fee", 0)].action == Marker.DELETE        # no force: the arrow goes
