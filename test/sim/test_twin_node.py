@@ -1,0 +1,250 @@
+"""The twin node (lhd_sim_node/twin_node.py) and the real bridge node, both as separate processes
+over real DDS, the bridge on the twin's pseudo-terminal as on the machine's serial port:
+truth, sensors and markers flow; a wheel command on /lhd/cmd drives the simulated machine at
+set-point x wheel radius on the flat before the pile; the bridge's command timeout stops it; the
+bridge's joint states and load-cell mass are the simulator's; an ended attempt on /lhd/episode
+and ~/reset make new piles; the device's own watchdog stops the machine when the bridge dies."""
+import math
+import os
+import signal
+import time
+
+import numpy as np
+import pytest
+
+rclpy = pytest.importorskip("rclpy")
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue  # noqa: E402
+from geometry_msgs.msg import PointStamped  # noqa: E402
+from nav_msgs.msg import Odometry  # noqa: E402
+from sensor_msgs.msg import CameraInfo, Image, JointState, LaserScan  # noqa: E402
+from std_msgs.msg import Float64, Float64MultiArray  # noqa: E402
+from std_srvs.srv import Trigger  # noqa: E402
+from visualization_msgs.msg import MarkerArray  # noqa: E402
+
+from lhd_loading_ros.ros.qos import LATCHED_QOS, MEASUREMENT_QOS, STATUS_QOS  # noqa: E402
+from lhd_loading_ros.task.zones import Zones  # noqa: E402
+from rosutil import RosProcess, init_ros, shutdown_ros, spin_until  # noqa: E402
+
+WHEEL_RADIUS = 0.137        # m, config machine.wheel_radius
+SLOPES = (20.0, 25.0)
+
+
+@pytest.fixture(scope="module")
+def ros():
+    init_ros()
+    yield
+    shutdown_ros()
+
+
+class Rig:
+    def __init__(self, tmp_path):
+        self.link = str(tmp_path / "twin_due")
+        self.twin = RosProcess("lhd_sim_node.twin_node", {
+            "link": self.link, "start_pose": "approach", "d_attack": 0.8, "seed": 3,
+            "slopes_deg": ",".join(f"{s:g}" for s in SLOPES), "material": "homogeneous", "reset_delay": 0.5,
+            "camera_fps": 10.0, "lidar_hz": 4.0, "markers_hz": 4.0}, tmp_path / "twin.log")
+        self.node = rclpy.create_node("twin_test")
+        self.got = {k: [] for k in ("odom", "mass", "tip", "truth_js", "slope", "zones", "drift", "js", "lc",
+                                    "img", "info", "scan", "markers", "diag")}
+        n, g = self.node, self.got
+
+        def rec(key, f=lambda m: m):
+            return lambda m: g[key].append((time.monotonic(), f(m)))
+
+        n.create_subscription(Odometry, "/lhd/twin/truth/odom", rec("odom"), MEASUREMENT_QOS)
+        n.create_subscription(Float64, "/lhd/twin/truth/loaded_mass", rec("mass", lambda m: m.data), MEASUREMENT_QOS)
+        n.create_subscription(PointStamped, "/lhd/twin/truth/tip", rec("tip"), MEASUREMENT_QOS)
+        n.create_subscription(JointState, "/lhd/twin/truth/joint_states", rec("truth_js"), MEASUREMENT_QOS)
+        n.create_subscription(Float64MultiArray, "/lhd/twin/truth/drift", rec("drift", lambda m: list(m.data)),
+                              MEASUREMENT_QOS)
+        n.create_subscription(Float64, "/lhd/twin/truth/slope", rec("slope", lambda m: m.data), LATCHED_QOS)
+        n.create_subscription(Float64MultiArray, "/lhd/twin/truth/zones", rec("zones", lambda m: list(m.data)),
+                              LATCHED_QOS)
+        n.create_subscription(JointState, "/lhd/joint_states", rec("js"), MEASUREMENT_QOS)
+        n.create_subscription(Float64, "/lhd/load_cell/mass", rec("lc", lambda m: m.data), MEASUREMENT_QOS)
+        n.create_subscription(Image, "/camera/image_raw", rec("img"), MEASUREMENT_QOS)
+        n.create_subscription(CameraInfo, "/camera/camera_info", rec("info"), MEASUREMENT_QOS)
+        n.create_subscription(LaserScan, "/scan", rec("scan"), MEASUREMENT_QOS)
+        n.create_subscription(MarkerArray, "/lhd/twin/markers", rec("markers"), MEASUREMENT_QOS)
+        n.create_subscription(DiagnosticArray, "/diagnostics", rec("diag"), 20)
+        self.pub_cmd = n.create_publisher(Float64MultiArray, "/lhd/cmd", 1)
+        self.pub_episode = n.create_publisher(DiagnosticStatus, "/lhd/episode", STATUS_QOS)
+        self.reset_client = n.create_client(Trigger, "/lhd_twin/reset")
+        assert spin_until(n, lambda: os.path.exists(self.link) and g["odom"], timeout=30.0), \
+            "the twin did not come up:\n" + self.twin.log()
+        self.bridge = RosProcess("lhd_hw_bridge.bridge_node", {"port": self.link}, tmp_path / "bridge.log")
+        assert spin_until(n, lambda: len(g["js"]) > 5, timeout=20.0), "no joint states from the bridge:\n" + \
+            self.bridge.log() + self.twin.log()
+
+    def spin(self, seconds):
+        spin_until(self.node, lambda: False, timeout=seconds)
+
+    def drive(self, data, seconds):
+        t_end = time.monotonic() + seconds
+        while time.monotonic() < t_end:
+            self.pub_cmd.publish(Float64MultiArray(data=list(data)))
+            self.spin(0.05)
+
+    def last(self, key):
+        return self.got[key][-1][1]
+
+    def twin_status(self, what):
+        """The latest /diagnostics status of the twin named `what`, as a dict (with 'message')."""
+        for _, arr in reversed(self.got["diag"]):
+            for st in arr.status:
+                if st.name == f"/lhd_twin: {what}":
+                    return {"message": st.message, "level": st.level, **{kv.key: kv.value for kv in st.values}}
+        return None
+
+    def close(self):
+        self.node.destroy_node()
+        rc_b = self.bridge.stop()
+        rc_t = self.twin.stop()
+        return rc_b, rc_t
+
+
+@pytest.fixture(scope="module")
+def rig(ros, tmp_path_factory):
+    r = Rig(tmp_path_factory.mktemp("twin"))
+    yield r
+    rc_b, rc_t = r.close()
+    assert rc_t == 0, r.twin.log()
+
+
+def test_truth_sensors_and_markers_flow(rig):
+    g = rig.got
+    assert spin_until(rig.node, lambda: g["slope"] and g["zones"] and g["img"] and g["info"] and g["scan"]
+                      and g["markers"] and g["tip"] and g["drift"] and g["mass"] and g["truth_js"], timeout=10.0), \
+        {k: len(v) for k, v in g.items()}
+    assert rig.last("slope") == pytest.approx(math.radians(SLOPES[0]), abs=1e-12)   # pile 0: the first slope
+    z = Zones.from_list(rig.last("zones"))                     # 8 valid fields, as the end-zone node's
+    assert 0.0 < z.x_min < z.x_max
+    # approach pose: at rest, the tip d_attack = 0.8 m before the toe, nothing loaded
+    tip = rig.last("tip").point
+    assert tip.x == pytest.approx(-0.8, abs=0.01) and rig.last("mass") == 0.0 and rig.last("drift") == [0.0, 0.0]
+    img, info = rig.last("img"), rig.last("info")
+    assert (img.encoding, img.width, img.height, len(img.data)) == ("mono8", 640, 480, 640 * 480)
+    assert info.k[0] == pytest.approx(0.94 * 640) and info.k[2] == 320.0 and info.width == 640
+    scan = rig.last("scan")
+    r = np.array(scan.ranges)
+    assert len(r) == 720 and not np.isnan(r).any() and np.isfinite(r).sum() > 300
+    ma = rig.last("markers")
+    assert {m.ns for m in ma.markers} >= {"pile", "zones", "tip", "fee"}
+    # the truth's timing: 50 Hz odometry
+    t = [tt for tt, _ in g["odom"][-30:]]
+    assert 30.0 < (len(t) - 1) / (t[-1] - t[0]) < 70.0
+
+
+def _speed(samples):
+    """Least-squares slope of x over the message stamps."""
+    ts = np.array([m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for _, m in samples])
+    xs = np.array([m.pose.pose.position.x for _, m in samples])
+    return float(np.polyfit(ts - ts[0], xs, 1)[0])
+
+
+def test_wheel_command_drives_the_machine_and_the_command_timeout_stops_it(rig):
+    g = rig.got
+    x0 = rig.last("odom").pose.pose.position.x
+    t0 = time.monotonic()
+    rig.drive([1.0, 0.0, 0.0], 2.0)                 # 1 rad/s at the wheels, arm held
+    t_last = time.monotonic()
+    steady = [s for s in g["odom"] if t0 + 0.8 <= s[0] <= t_last]
+    v = _speed(steady)
+    # on the flat before the pile the machine rolls at set-point x wheel radius: 1.0 x 0.137 m/s
+    assert v == pytest.approx(1.0 * WHEEL_RADIUS, rel=0.1), v
+    assert rig.last("odom").twist.twist.linear.x == pytest.approx(1.0 * WHEEL_RADIUS, rel=0.1)
+    assert rig.last("tip").point.x < -0.4                    # still on the flat
+    # the bridge's joint states carry the wheels: front wheels and the rear differential at the set-point
+    js = rig.last("js")
+    assert js.velocity[2] == pytest.approx(1.0, abs=0.05) and js.velocity[4] == pytest.approx(1.0, abs=0.05)
+    # /lhd/cmd falls silent: the bridge sends stop frames after its 0.3 s timeout, the wheels brake
+    rig.spin(1.5)
+    stopped = [s for s in g["odom"] if s[0] > t_last + 0.3 + 0.5]
+    assert stopped and all(abs(m.twist.twist.linear.x) < 0.01 for _, m in stopped)
+    moving_after = [s for s in g["odom"] if t_last + 0.15 < s[0] < t_last + 0.25]
+    assert moving_after and moving_after[-1][1].twist.twist.linear.x > 0.08      # not before the timeout
+    x1 = rig.last("odom").pose.pose.position.x
+    # travelled: about 2 s x 0.137 m/s, plus the 0.3 s timeout's, less the start
+    assert 0.2 < x1 - x0 < 0.4
+
+
+def test_joint_states_and_load_cell_are_the_simulators(rig):
+    g = rig.got
+    # into the pile at full speed, then dig: lift and curl at full speed
+    rig.drive([2.7, 0.0, 0.0], 1.8)
+    rig.drive([2.0, -0.191, 0.2], 1.5)
+    rig.spin(1.0)                                       # timeout: everything stops and holds
+    assert rig.last("tip").point.x > 0.0, "the bucket never reached the pile"
+    n = len(g["js"]), len(g["truth_js"]), len(g["lc"]), len(g["mass"])
+    rig.spin(0.5)
+    js, truth = rig.last("js"), rig.last("truth_js")
+    assert len(g["js"]) > n[0] and len(g["truth_js"]) > n[1]
+    # the arm moved: the boom lifted (negative), the bucket curled (positive), in both
+    assert truth.position[0] < -0.1 and truth.position[1] > 0.1
+    # the bridge's joint states (through the serial frames) are the simulator's, at 1e-4 rad
+    assert js.position[0] == pytest.approx(truth.position[0], abs=2e-4)
+    assert js.position[1] == pytest.approx(truth.position[1], abs=2e-4)
+    assert js.velocity[0] == pytest.approx(truth.velocity[0], abs=2e-3)
+    assert js.velocity[1] == pytest.approx(truth.velocity[1], abs=2e-3)
+    rear = 0.5 * (truth.velocity[4] + truth.velocity[5])
+    assert js.velocity[4] == js.velocity[5] == pytest.approx(rear, abs=5e-3)
+    # the load cell weighs the simulator's loaded mass (to the gram), something was loaded
+    assert len(g["lc"]) > n[2] and len(g["mass"]) > n[3]
+    m_truth, m_cell = rig.last("mass"), rig.last("lc")
+    assert m_truth > 0.5
+    assert m_cell == pytest.approx(m_truth, abs=1e-3)
+
+
+def _status(state, episode):
+    st = DiagnosticStatus(name="supervisor", level=DiagnosticStatus.OK, message=state)
+    st.values = [KeyValue(key="state", value=state), KeyValue(key="episode", value=str(episode))]
+    return st
+
+
+def test_ended_attempt_and_reset_service_make_new_piles(rig):
+    g = rig.got
+    n_slope = len(g["slope"])
+    rig.pub_episode.publish(_status("running", 1))
+    rig.spin(0.3)
+    assert len(g["slope"]) == n_slope                   # a running attempt changes nothing
+    t_end = time.monotonic()
+    rig.pub_episode.publish(_status("success", 1))
+    assert spin_until(rig.node, lambda: len(g["slope"]) > n_slope, timeout=5.0), rig.twin.log()
+    t_new = g["slope"][-1][0]
+    assert t_new - t_end >= 0.5                        # reset_delay
+    assert rig.last("slope") == pytest.approx(math.radians(SLOPES[1]), abs=1e-12)   # pile 1: the next slope
+    rig.spin(0.5)
+    assert rig.last("mass") == 0.0 and rig.last("tip").point.x == pytest.approx(-0.8, abs=0.01)
+    assert spin_until(rig.node, lambda: g["lc"] and g["lc"][-1][1] == 0.0, timeout=2.0)
+    rig.pub_episode.publish(_status("success", 1))      # the same status again (latched): no second reset
+    rig.spin(1.0)
+    assert len(g["slope"]) == n_slope + 1
+    assert rig.reset_client.wait_for_service(timeout_sec=5.0)
+    fut = rig.reset_client.call_async(Trigger.Request())
+    assert spin_until(rig.node, fut.done, timeout=10.0)
+    assert fut.result().success and "pile 2" in fut.result().message
+    assert spin_until(rig.node, lambda: len(g["slope"]) > n_slope + 1, timeout=3.0)
+    assert rig.last("slope") == pytest.approx(math.radians(SLOPES[0]), abs=1e-12)   # cycles back
+
+
+def test_device_watchdog_stops_the_machine_when_the_bridge_dies(rig):
+    """The bridge is killed (SIGKILL: no stop frame on the way out) while the machine drives: the
+    device's own watchdog stops it 250 ms after the last command frame."""
+    g = rig.got
+    rig.drive([1.0, 0.0, 0.0], 1.0)
+    assert rig.last("odom").twist.twist.linear.x > 0.1
+    os.killpg(rig.bridge.proc.pid, signal.SIGKILL)
+    t_kill = time.monotonic()
+    for _ in range(20):                                 # the commands go nowhere now
+        rig.pub_cmd.publish(Float64MultiArray(data=[1.0, 0.0, 0.0]))
+        rig.spin(0.05)
+    rig.spin(1.5)
+    stopped = [s for s in g["odom"] if s[0] > t_kill + 0.25 + 0.6]
+    assert stopped and all(abs(m.twist.twist.linear.x) < 0.01 for _, m in stopped)
+    assert spin_until(rig.node, lambda: (rig.twin_status("device") or {}).get("watchdog_trips") == "1", timeout=3.0), \
+        rig.twin_status("device")
+    dev = rig.twin_status("device")
+    assert dev["watchdog_holds"] == "True" and "watchdog" in dev["message"]
+    rt = rig.twin_status("real time")
+    assert 0.9 < float(rt["real_time_factor"]) < 1.1, rt
