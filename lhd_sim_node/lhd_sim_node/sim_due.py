@@ -244,6 +244,8 @@ class SimDue:
         self.u = np.zeros(3)            # the simulator command of the running chunk
         self.sim_time = 0.0             # s simulated by this device (all episodes)
         self._tx = TxSequence()
+        self._skip = False
+        self.loop_t0 = None
         self._master = self._slave = None
         self.path = None
         self._stop = threading.Event()
@@ -305,10 +307,20 @@ class SimDue:
     def device_us(self, now: float) -> int:
         return int((now - self.t0) * 1e6)
 
-    def step_chunk(self, now: float) -> None:
+    def skip_backlog(self) -> None:
+        """The simulator was replaced under the loop (a new pile: the caller held `lock` for
+        it): the chunks due meanwhile are not simulated, and not counted as overruns; the loop
+        goes on from now."""
+        self._skip = True
+
+    def step_chunk(self, now: float) -> bool:
         """One chunk: latch the firmware's outputs for the joints' angles now, advance the
-        simulator 20 ms with their actuator command."""
+        simulator 20 ms with their actuator command. False (nothing stepped) right after
+        skip_backlog."""
         with self.lock:
+            if self._skip:
+                self._skip = False
+                return False
             s = self.sim
             boom, bucket = float(s.data.qpos[s.boom_q]), float(s.data.qpos[s.bucket_q])
             self.firmware.check_watchdog(now)
@@ -324,6 +336,7 @@ class SimDue:
             st.max_chunk_s = max(st.max_chunk_s, dt)
             if self.on_chunk is not None:
                 self.on_chunk(self)
+        return True
 
     def sensor_frame_now(self, now: float) -> SensorFrame:
         """The frame of the state now, with the outputs the running chunk applies."""
@@ -332,8 +345,13 @@ class SimDue:
             out = self.applied
         return sensor_frame(r, out, self.device_us(now))
 
+    def lag(self, now: float) -> float:
+        """s of wall time since the loop started not simulated (late chunks and given-up backlogs)."""
+        return (now - self.loop_t0) - self.sim_time if self.loop_t0 is not None else 0.0
+
     def _run(self) -> None:
         now = time.monotonic()
+        self.loop_t0 = now - self.sim_time
         next_chunk = next_sensor = next_lc = now
         period = 1.0 / self.rate
         st = self.stats
@@ -345,9 +363,12 @@ class SimDue:
             self.firmware.check_watchdog(now)
             n = 0
             while now >= next_chunk and n < CATCH_UP:
-                if now - next_chunk > self.chunk:
-                    st.overruns += 1
-                self.step_chunk(now)
+                late = now - next_chunk > self.chunk
+                if not self.step_chunk(now):            # a new pile: start the schedule afresh
+                    now = time.monotonic()
+                    next_chunk = now
+                    continue
+                st.overruns += late
                 next_chunk += self.chunk
                 n += 1
                 now = time.monotonic()
