@@ -136,13 +136,6 @@ def test_truth_sensors_and_markers_flow(rig):
     assert 30.0 < (len(t) - 1) / (t[-1] - t[0]) < 70.0
 
 
-def _speed(samples):
-    """Least-squares slope of x over the message stamps."""
-    ts = np.array([m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for _, m in samples])
-    xs = np.array([m.pose.pose.position.x for _, m in samples])
-    return float(np.polyfit(ts - ts[0], xs, 1)[0])
-
-
 def test_wheel_command_drives_the_machine_and_the_command_timeout_stops_it(rig):
     g = rig.got
     x0 = rig.last("odom").pose.pose.position.x
@@ -150,10 +143,16 @@ def test_wheel_command_drives_the_machine_and_the_command_timeout_stops_it(rig):
     rig.drive([1.0, 0.0, 0.0], 2.0)                 # 1 rad/s at the wheels, arm held
     t_last = time.monotonic()
     steady = [s for s in g["odom"] if t0 + 0.8 <= s[0] <= t_last]
-    v = _speed(steady)
+    vx = [m.twist.twist.linear.x for _, m in steady]
     # on the flat before the pile the machine rolls at set-point x wheel radius: 1.0 x 0.137 m/s
-    assert v == pytest.approx(1.0 * WHEEL_RADIUS, rel=0.1), v
-    assert rig.last("odom").twist.twist.linear.x == pytest.approx(1.0 * WHEEL_RADIUS, rel=0.1)
+    # (the median: a test process starved for 0.3 s on a loaded machine lets the bridge's timeout
+    # brake the wheels for a moment, which is the bridge doing its job)
+    assert float(np.median(vx)) == pytest.approx(1.0 * WHEEL_RADIUS, rel=0.1), (vx, rig.bridge.log()[-2000:])
+    # the truth's pose and speed agree: the distance over the window is the integral of v_x
+    ts = np.array([m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for _, m in steady])
+    xs = np.array([m.pose.pose.position.x for _, m in steady])
+    integral = float(np.sum(0.5 * (np.array(vx[1:]) + np.array(vx[:-1])) * np.diff(ts)))
+    assert xs[-1] - xs[0] == pytest.approx(integral, rel=0.05)
     assert rig.last("tip").point.x < -0.4                    # still on the flat
     # the bridge's joint states carry the wheels: front wheels and the rear differential at the set-point
     js = rig.last("js")
@@ -228,12 +227,70 @@ def test_ended_attempt_and_reset_service_make_new_piles(rig):
     assert rig.last("slope") == pytest.approx(math.radians(SLOPES[0]), abs=1e-12)   # cycles back
 
 
+def test_estop_button_holds_the_machine_and_release_needs_a_fresh_command(rig):
+    """`estop:=true` at run time presses the simulated machine's button: the machine stops while
+    /lhd/cmd still asks to drive, the device reports it (flag bit 2: the bridge's hw/status);
+    on release the bridge only obeys commands received after it, and the machine drives again."""
+    from rclpy.parameter import Parameter
+    from rclpy.parameter_client import AsyncParameterClient
+
+    g = rig.got
+    status = []
+    rig.node.create_subscription(DiagnosticStatus, "/lhd/hw/status", lambda m: status.append(
+        {kv.key: kv.value for kv in m.values}), MEASUREMENT_QOS)
+    client = AsyncParameterClient(rig.node, "lhd_twin")
+    assert client.wait_for_services(timeout_sec=5.0)
+
+    def set_estop(value):
+        fut = client.set_parameters([Parameter("estop", value=value)])
+        assert spin_until(rig.node, fut.done, timeout=5.0)
+        assert fut.result().results[0].successful, fut.result().results[0].reason
+
+    rig.drive([1.0, 0.0, 0.0], 0.8)
+    assert rig.last("odom").twist.twist.linear.x > 0.1
+    set_estop(True)
+    t_press = time.monotonic()
+    rig.drive([1.0, 0.0, 0.0], 1.2)                     # still asked to drive
+    held = [s for s in g["odom"] if s[0] > t_press + 0.6]
+    assert held and all(abs(m.twist.twist.linear.x) < 0.01 for _, m in held)
+    assert status and status[-1]["estop"] == "True" and status[-1]["drive_enabled"] == "False"
+    set_estop(False)
+    t_release = time.monotonic()
+    rig.drive([1.0, 0.0, 0.0], 1.2)
+    assert status[-1]["estop"] == "False"
+    after = [s for s in g["odom"] if s[0] > t_release + 0.8]
+    assert after and after[-1][1].twist.twist.linear.x == pytest.approx(1.0 * WHEEL_RADIUS, rel=0.15)
+    rig.spin(0.6)                                        # the bridge's timeout: stopped again
+
+
+def test_bad_parameters_end_the_twin_with_one_line(ros, tmp_path):
+    """A slope outside the config's range, an unreadable machine parameter file: exit 2, one
+    line naming the parameter and what is expected."""
+    procs = {
+        "slopes": RosProcess("lhd_sim_node.twin_node", {"link": str(tmp_path / "a"), "slopes_deg": "20,40"},
+                             tmp_path / "slopes.log"),
+        "machine": RosProcess("lhd_sim_node.twin_node", {"link": str(tmp_path / "b"),
+                                                         "machine_params": str(tmp_path / "missing.yaml")},
+                              tmp_path / "machine.log"),
+    }
+    for p in procs.values():
+        p.proc.wait(timeout=30.0)
+    logs = {k: p.log() for k, p in procs.items()}
+    assert [p.stop() for p in procs.values()] == [2, 2], logs
+    assert "parameter 'slopes_deg'" in logs["slopes"] and "[40.0] outside the config's range [15, 30]" in logs["slopes"]
+    assert "parameter 'machine_params'" in logs["machine"] and "expected a file like config/real_machine.yaml" \
+        in logs["machine"]
+    assert "Traceback" not in logs["slopes"] + logs["machine"]
+    assert not os.path.exists(tmp_path / "a") and not os.path.exists(tmp_path / "b")
+
+
 def test_device_watchdog_stops_the_machine_when_the_bridge_dies(rig):
     """The bridge is killed (SIGKILL: no stop frame on the way out) while the machine drives: the
     device's own watchdog stops it 250 ms after the last command frame."""
     g = rig.got
     rig.drive([1.0, 0.0, 0.0], 1.0)
     assert rig.last("odom").twist.twist.linear.x > 0.1
+    trips = int(rig.twin_status("device")["watchdog_trips"])    # a starved bridge may have tripped it before
     os.killpg(rig.bridge.proc.pid, signal.SIGKILL)
     t_kill = time.monotonic()
     for _ in range(20):                                 # the commands go nowhere now
@@ -242,7 +299,7 @@ def test_device_watchdog_stops_the_machine_when_the_bridge_dies(rig):
     rig.spin(1.5)
     stopped = [s for s in g["odom"] if s[0] > t_kill + 0.25 + 0.6]
     assert stopped and all(abs(m.twist.twist.linear.x) < 0.01 for _, m in stopped)
-    assert spin_until(rig.node, lambda: (rig.twin_status("device") or {}).get("watchdog_trips") == "1", timeout=3.0), \
+    assert spin_until(rig.node, lambda: int(rig.twin_status("device")["watchdog_trips"]) == trips + 1, timeout=3.0), \
         rig.twin_status("device")
     dev = rig.twin_status("device")
     assert dev["watchdog_holds"] == "True" and "watchdog" in dev["message"]
