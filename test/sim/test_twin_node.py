@@ -173,7 +173,7 @@ def test_joint_states_and_load_cell_are_the_simulators(rig):
     # into the pile at full speed, then dig: lift and curl at full speed
     rig.drive([2.7, 0.0, 0.0], 1.8)
     rig.drive([2.0, -0.191, 0.2], 1.5)
-    rig.spin(1.0)                                       # timeout: everything stops and holds
+    rig.spin(0.8)                                       # timeout: everything stops and holds
     assert rig.last("tip").point.x > 0.0, "the bucket never reached the pile"
     n = len(g["js"]), len(g["truth_js"]), len(g["lc"]), len(g["mass"])
     rig.spin(0.5)
@@ -256,7 +256,7 @@ def test_estop_button_holds_the_machine_and_release_needs_a_fresh_command(rig):
     assert status and status[-1]["estop"] == "True" and status[-1]["drive_enabled"] == "False"
     set_estop(False)
     t_release = time.monotonic()
-    rig.drive([1.0, 0.0, 0.0], 1.2)
+    rig.drive([1.0, 0.0, 0.0], 1.0)
     assert status[-1]["estop"] == "False"
     after = [s for s in g["odom"] if s[0] > t_release + 0.8]
     assert after and after[-1][1].twist.twist.linear.x == pytest.approx(1.0 * WHEEL_RADIUS, rel=0.15)
@@ -296,7 +296,7 @@ def test_device_watchdog_stops_the_machine_when_the_bridge_dies(rig):
     for _ in range(20):                                 # the commands go nowhere now
         rig.pub_cmd.publish(Float64MultiArray(data=[1.0, 0.0, 0.0]))
         rig.spin(0.05)
-    rig.spin(1.5)
+    rig.spin(1.0)
     stopped = [s for s in g["odom"] if s[0] > t_kill + 0.25 + 0.6]
     assert stopped and all(abs(m.twist.twist.linear.x) < 0.01 for _, m in stopped)
     assert spin_until(rig.node, lambda: int(rig.twin_status("device")["watchdog_trips"]) == trips + 1, timeout=3.0), \
