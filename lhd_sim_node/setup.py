@@ -21,6 +21,7 @@ setup(
         "console_scripts": [
             "scripted_demo = lhd_sim_node.demo:main",
             "sim_node = lhd_sim_node.sim_node:main",
+            "twin_node = lhd_sim_node.twin_node:main",
         ],
     },
 )

@@ -204,6 +204,7 @@ def test_installed_bridge_node_runs_against_the_installed_device_emulator(ros_no
 # --- package.xml declares every import ---------------------------------------------------------
 # ROS packages: the import name is the package name and the rosdep key.
 ROS_IMPORTS = {"rclpy", "rcl_interfaces", "builtin_interfaces", "ament_index_python", "launch", "launch_ros",
+               "visualization_msgs",
                "std_msgs", "std_srvs", "sensor_msgs", "nav_msgs", "geometry_msgs", "diagnostic_msgs",
                "rosgraph_msgs", "lhd_loading_ros", "lhd_sim_node", "lhd_hw_bridge"}
 # Python libraries: import name -> rosdep key (rosdistro's rosdep/python.yaml). A system package
