@@ -229,6 +229,9 @@ def test_up_real_arms_runs_stops_records_and_replays(ros, tmp_path):
         assert any(moving(f) for _, f in run), "no command moved the machine during the attempt"
         last_moving = max(t for t, f in run if moving(f))
         assert last_moving <= t_end + 0.3, (end_kv, last_moving - t_end)
+        first_stop = min((t for t, f in run if t > last_moving), default=math.nan)
+        print(f"\nattempt {end_kv['state']} after {end_kv.get('elapsed_s')} s; last moving frame "
+              f"{(last_moving - t_end) * 1000:.0f} ms after the end, first stop frame {(first_stop - t_end) * 1000:.0f} ms")
         after = [f for t, f in frames if t > t_end + 0.3]
         assert len(after) >= 10 and not any(moving(f) for f in after)
         assert end_kv["state"] in ENDED and end_kv["reason"], end_kv
