@@ -265,7 +265,9 @@ def format_preflight(st) -> str:
     return "\n".join([f"preflight: {head}"] + [f"  [--] {p}" for p in rest.split("; ")])
 
 
-def main(argv=None) -> int:
+def parser() -> argparse.ArgumentParser:
+    """The options of `lhd up real`; `lhd up twin` parses its stack's options with it too, so the
+    twin gets exactly the real stack's defaults."""
     ap = argparse.ArgumentParser(prog="lhd up real", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--port", required=True, help="serial device of the Due, e.g. /dev/ttyACM0")
@@ -292,7 +294,11 @@ def main(argv=None) -> int:
     ap.add_argument("--log-dir", type=Path, help="node logs (default <run-dir>/logs)")
     ap.add_argument("--remove-logs", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--verbose", action="store_true", help="node logs on this terminal")
-    args = ap.parse_args(argv)
+    return ap
+
+
+def check_args(ap: argparse.ArgumentParser, args) -> None:
+    """The checks argparse cannot make (ap.error, exit 2, on a bad value)."""
     if args.attempt_timeout <= 0:
         ap.error(f"--attempt-timeout must be positive, got {args.attempt_timeout}")
     if args.attempts < 0:
@@ -308,6 +314,12 @@ def main(argv=None) -> int:
             load_policy(args.policy)
         except PolicyFileError as exc:
             ap.error(str(exc))
+
+
+def main(argv=None) -> int:
+    ap = parser()
+    args = ap.parse_args(argv)
+    check_args(ap, args)
     return up_real(args)
 
 

@@ -1,0 +1,527 @@
+"""`lhd up twin`: the unchanged real-machine stack of `lhd up real` against the digital twin.
+
+Starts, as separate processes on real DDS:
+  twin          lhd_sim_node.twin_node         the MuJoCo machine as the Arduino Due on a pty (in a
+                                               temporary folder), the overhead camera (/camera/...),
+                                               the LiDAR (/scan), ground truth under /lhd/twin/truth
+and then EXACTLY the nodes and parameters of `lhd up real --port <the twin's pty>` (up_real.stack:
+bridge, ArUco, LiDAR, end zone, supervisor, mux, teleop, controller on /lhd/cmd/auto, recorder),
+every one with the same --params-file (default config/real_machine.yaml); the twin reads its
+camera, marker and LiDAR poses from that same file (`machine_params`), so the twin and the nodes
+cannot disagree on a pose.
+
+Then, for each attempt, as an operator would: wait for the LiDAR to see the current pile, call
+/lhd/arm until the supervisor's preflight passes (the last refusal is shown if it never does),
+wait for the attempt's end, for the mass the supervisor takes from the twin's load cell, and for
+the twin's new pile (its reset_delay after the end; slopes cycle through --slopes). The pile
+sequence is the twin's: pile k has slope slopes[k mod len] and seed seed + k.
+
+Logged per attempt, the simulator's ground truth beside what the stack estimated:
+  v_x         /lhd/odom (ArUco node) vs /lhd/twin/truth/odom over the running phase, the truth
+              interpolated at each estimate's stamp (both stamped with the image's instant): RMS
+  alpha       /lhd/pile/slope at arming (the slope the supervisor and the policy took) vs the truth
+  x_max       /lhd/pile/zones (end-zone node) at arming vs /lhd/twin/truth/zones
+  drift       the bridge's /lhd/wheel_drift/front|rear vs the truth drift, sampled at each truth
+              message during the running phase: agreement (fraction of samples)
+  mass        attempts.csv (the supervisor's load-cell median) vs the simulator's loaded mass
+Ends with the attempts table (task/attempt_record's, as `lhd attempts`) and the estimation-error
+table; with --json the LAST line is one JSON object: success_rate, attempts (per-attempt records
+with their errors), errors (the summary), table (the attempts summary), run_dir.
+
+Ctrl-C or SIGTERM stop everything (controller first, bridge then twin last); children die with
+the launcher (PR_SET_PDEATHSIG). A node that exits is reported with its log's tail.
+Exit status: 0 done (whatever the success rate), 1 a node died or a wait timed out, 2 a bad
+argument, 130 interrupted. docs/twin.md is the guide.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import shutil
+import sys
+import tempfile
+import threading
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+
+from lhd_loading_ros.cli.launcher import Child, _StopOnSignals
+from lhd_loading_ros.cli.up_real import ENDED, default_params_file, format_preflight
+from lhd_loading_ros.cli.up_real import parser as real_parser
+from lhd_loading_ros.cli.up_real import check_args as real_check_args
+from lhd_loading_ros.cli.up_real import stack
+
+DEFAULT_SLOPES = (15.0, 20.0, 25.0, 30.0)
+ARM_RETRY_S = 1.0          # s between /lhd/arm calls while the preflight refuses
+
+
+class Interrupted(Exception):
+    pass
+
+
+def rms(xs) -> float:
+    xs = np.asarray(xs, float)
+    return float(np.sqrt(np.mean(xs ** 2))) if xs.size else float("nan")
+
+
+def vx_errors(est: list[tuple[float, float]], truth: list[tuple[float, float]], t0: float, t1: float
+              ) -> np.ndarray:
+    """v_x estimate minus truth for each estimate stamped in [t0, t1], the truth (stamp, v_x)
+    interpolated linearly at the estimate's stamp (estimates outside the truth's span dropped)."""
+    if not est or len(truth) < 2:
+        return np.zeros(0)
+    tt = np.array([t for t, _ in truth])
+    order = np.argsort(tt)
+    tt, tv = tt[order], np.array([v for _, v in truth])[order]
+    e = np.array([(t, v) for t, v in est if t0 <= t <= t1 and tt[0] <= t <= tt[-1]]).reshape(-1, 2)
+    return e[:, 1] - np.interp(e[:, 0], tt, tv)
+
+
+def agreement(flags: list[tuple[float, bool]], truth: list[tuple[float, bool]]) -> float:
+    """Fraction of truth samples (arrival time, flag) where the latest flag (arrival time, flag)
+    received at or before it says the same; NaN without samples."""
+    if not flags or not truth:
+        return float("nan")
+    ft = np.array([t for t, _ in flags])
+    fv = [f for _, f in flags]
+    agree = n = 0
+    for t, v in truth:
+        i = int(np.searchsorted(ft, t, side="right")) - 1
+        if i < 0:
+            continue
+        n += 1
+        agree += fv[i] == v
+    return agree / n if n else float("nan")
+
+
+def _fmt(v, spec=".3f") -> str:
+    return "-" if v is None or (isinstance(v, float) and not math.isfinite(v)) else format(v, spec)
+
+
+def error_summary(records: list[dict]) -> dict:
+    """Worst case and mean of each error over the attempts that measured it, and whether the
+    issue's bounds hold (v_x RMS <= 0.02 m/s, |alpha| <= 1.5 deg, |x_max| <= 5 cm)."""
+    def col(key, absval=True):
+        xs = [r[key] for r in records if r.get(key) is not None and math.isfinite(r[key])]
+        return [abs(x) for x in xs] if absval else xs
+
+    out = {}
+    for key, bound in (("vx_rms", 0.02), ("alpha_err_deg", 1.5), ("x_max_err_m", 0.05), ("mass_err_kg", None)):
+        xs = col(key)
+        out[key] = {"max_abs": max(xs) if xs else None, "mean_abs": sum(xs) / len(xs) if xs else None,
+                    "n": len(xs), "bound": bound,
+                    "within": (bool(xs) and len(xs) == len(records) and max(xs) <= bound) if bound else None}
+    for key in ("drift_agree_front", "drift_agree_rear"):
+        xs = col(key, absval=False)
+        out[key] = {"mean": sum(xs) / len(xs) if xs else None, "min": min(xs) if xs else None, "n": len(xs)}
+    return out
+
+
+def format_errors(records: list[dict], summary: dict) -> str:
+    head = (f"{'att':>3} {'slope':>5} {'outcome':<10} {'vx RMS':>7} {'n':>4} {'alpha est':>9} {'err':>6} "
+            f"{'x_max est':>9} {'truth':>6} {'err':>6} {'drift agree F/R':>15} {'mass csv':>8} {'truth':>6} "
+            f"{'err':>6}")
+    lines = ["Estimation errors (stack minus the twin's ground truth)", head, "-" * len(head)]
+    for r in records:
+        lines.append(
+            f"{r['attempt']:>3} {_fmt(r['slope_truth_deg'], '.1f'):>5} {r['outcome']:<10} {_fmt(r['vx_rms']):>7} "
+            f"{r['vx_n']:>4} {_fmt(r['alpha_est_deg'], '.2f'):>9} {_fmt(r['alpha_err_deg'], '+.2f'):>6} "
+            f"{_fmt(r['x_max_est_m']):>9} {_fmt(r['x_max_truth_m']):>6} {_fmt(r['x_max_err_m'], '+.3f'):>6} "
+            f"{_fmt(r['drift_agree_front'], '.2f'):>7}/{_fmt(r['drift_agree_rear'], '.2f'):<7} "
+            f"{_fmt(r['mass_csv_kg'], '.2f'):>8} {_fmt(r['mass_truth_kg'], '.2f'):>6} {_fmt(r['mass_err_kg'], '+.2f'):>6}")
+    lines.append("-" * len(head))
+    s = summary
+
+    def bound(key, unit, scale=1.0):
+        d = s[key]
+        if d["max_abs"] is None:
+            return f"{key}: not measured"
+        ok = "within" if d["within"] else "NOT within"
+        return (f"{key}: worst {d['max_abs'] * scale:.3f} {unit}, mean {d['mean_abs'] * scale:.3f} {unit} over "
+                f"{d['n']} attempt(s): {ok} the bound {d['bound'] * scale:g} {unit}")
+
+    lines.append(bound("vx_rms", "m/s"))
+    lines.append(bound("alpha_err_deg", "deg"))
+    lines.append(bound("x_max_err_m", "m"))
+    m = s["mass_err_kg"]
+    if m["max_abs"] is not None:
+        lines.append(f"mass_err_kg: worst {m['max_abs']:.2f} kg, mean {m['mean_abs']:.2f} kg")
+    for side in ("front", "rear"):
+        d = s[f"drift_agree_{side}"]
+        if d["mean"] is not None:
+            lines.append(f"drift flag agreement {side}: mean {d['mean']:.3f}, worst {d['min']:.3f}")
+    return "\n".join(lines)
+
+
+class Watch:
+    """Everything the launcher listens to (one node, callbacks on the main thread's spin)."""
+
+    def __init__(self, node):
+        from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+        from geometry_msgs.msg import Vector3Stamped
+        from nav_msgs.msg import Odometry
+        from rclpy.qos import qos_profile_sensor_data
+        from std_msgs.msg import Bool, Float64, Float64MultiArray
+
+        from lhd_loading_ros.ros.qos import LATCHED_QOS, STATUS_QOS
+
+        self.node = node
+        self.status: dict = {}              # the latest /lhd/episode key-values
+        self.status_log: list[tuple[float, dict]] = []
+        self.preflight = None
+        self.slope = self.zones = None      # the stack's latest estimates
+        self.slope_scan_t = -1.0            # ROS time (s) of the scan behind the latest slope
+        self.truth_slope = self.truth_zones = None
+        self.piles = 0                      # truth slope messages: one per new pile
+        self.pile_t = 0.0                   # ROS time when the latest pile's truth arrived
+        self.truth_mass = float("nan")
+        self.mass_before_pile = float("nan")
+        self.recording = False
+        self.odom: list[tuple[float, float]] = []
+        self.truth_odom: list[tuple[float, float]] = []
+        self.flags = {"front": [], "rear": []}
+        self.truth_drift: list[tuple[float, tuple[bool, bool]]] = []
+
+        def now():
+            return node.get_clock().now().nanoseconds * 1e-9
+
+        def stamp(h):
+            return h.stamp.sec + h.stamp.nanosec * 1e-9
+
+        def on_status(m):
+            kv = {k.key: k.value for k in m.values}
+            self.status = kv
+            self.status_log.append((now(), kv))
+
+        def on_diag(m):
+            for st in m.status:
+                if st.name.endswith("supervisor: preflight"):
+                    self.preflight = st
+
+        def on_odom(m):
+            if self.recording:
+                self.odom.append((stamp(m.header), float(m.twist.twist.linear.x)))
+
+        def on_truth_odom(m):
+            if self.recording:
+                self.truth_odom.append((stamp(m.header), float(m.twist.twist.linear.x)))
+
+        def on_flag(side):
+            def cb(m):
+                if self.recording:
+                    self.flags[side].append((now(), bool(m.data)))
+            return cb
+
+        def on_truth_drift(m):
+            if self.recording and len(m.data) == 2:
+                self.truth_drift.append((now(), (m.data[0] > 0.5, m.data[1] > 0.5)))
+
+        def on_slope_stamped(m):
+            self.slope_scan_t = stamp(m.header)
+
+        def on_truth_slope(m):
+            self.mass_before_pile = self.truth_mass
+            self.truth_slope = float(m.data)
+            self.piles += 1
+            self.pile_t = now()
+
+        def on_truth_mass(m):
+            self.truth_mass = float(m.data)
+
+        sd = qos_profile_sensor_data
+        node.create_subscription(DiagnosticStatus, "/lhd/episode", on_status, STATUS_QOS)
+        node.create_subscription(DiagnosticArray, "/diagnostics", on_diag, 50)
+        node.create_subscription(Odometry, "/lhd/odom", on_odom, sd)
+        node.create_subscription(Odometry, "/lhd/twin/truth/odom", on_truth_odom, sd)
+        node.create_subscription(Bool, "/lhd/wheel_drift/front", on_flag("front"), sd)
+        node.create_subscription(Bool, "/lhd/wheel_drift/rear", on_flag("rear"), sd)
+        node.create_subscription(Float64MultiArray, "/lhd/twin/truth/drift", on_truth_drift, sd)
+        node.create_subscription(Float64, "/lhd/twin/truth/loaded_mass", on_truth_mass, sd)
+        # slope, zones and their truth are latched (LATCHED_QOS): a late subscriber gets the current pile's
+        node.create_subscription(Float64, "/lhd/pile/slope", lambda m: setattr(self, "slope", float(m.data)),
+                                 LATCHED_QOS)
+        node.create_subscription(Vector3Stamped, "/lhd/pile/slope_stamped", on_slope_stamped, LATCHED_QOS)
+        node.create_subscription(Float64MultiArray, "/lhd/pile/zones",
+                                 lambda m: setattr(self, "zones", list(m.data)), LATCHED_QOS)
+        node.create_subscription(Float64, "/lhd/twin/truth/slope", on_truth_slope, LATCHED_QOS)
+        node.create_subscription(Float64MultiArray, "/lhd/twin/truth/zones",
+                                 lambda m: setattr(self, "truth_zones", list(m.data)), LATCHED_QOS)
+
+    def start_recording(self):
+        self.odom, self.truth_odom, self.truth_drift = [], [], []
+        self.flags = {"front": [], "rear": []}
+        self.recording = True
+
+    def first_status(self, t_after: float, pred):
+        for t, kv in self.status_log:
+            if t >= t_after and pred(kv):
+                return t, kv
+        return None
+
+
+def run_twin(args, real_args, slopes: list[float]) -> int:
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+    from std_srvs.srv import Trigger
+
+    from lhd_loading_ros.task.attempt_record import csv_path, format_table, read_rows, summarize
+
+    out = sys.stderr if args.json else sys.stdout
+
+    def say(msg):
+        print(msg, file=out, flush=True)
+
+    run_dir = Path(args.run_dir or Path("runs") / "twin" / datetime.now(timezone.utc).strftime("%Y%m%d-%H%M%S"))
+    run_dir = run_dir.resolve()
+    try:
+        run_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        print(f"lhd up twin: cannot create the run folder {run_dir}: {exc}", file=sys.stderr)
+        return 2
+    log_dir = Path(args.log_dir) if args.log_dir else run_dir / "logs"
+    log_dir.mkdir(parents=True, exist_ok=True)
+    params_file = Path(real_args.params_file) if real_args.params_file else default_params_file()
+    ros_args = ["--params-file", str(params_file)] if params_file else []
+    link_dir = Path(tempfile.mkdtemp(prefix="lhd_twin_"))
+    link = link_dir / "due"
+    real_args.port = str(link)
+    real_args.run_dir = str(run_dir)
+    total = args.episodes * len(slopes)
+    twin_params = {"link": str(link), "machine_params": str(params_file) if params_file else "",
+                   "slopes_deg": ",".join(f"{s:g}" for s in slopes), "material": real_args.material,
+                   "seed": args.seed, "reset_delay": args.reset_delay}
+    if real_args.config:
+        twin_params["config"] = real_args.config
+    quiet = not args.verbose
+    stop = threading.Event()
+    records: list[dict] = []
+    children: list[Child] = []
+    rc = 0
+    t_start = time.monotonic()
+
+    with _StopOnSignals(stop):
+        rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+        node = rclpy.create_node("lhd_up_twin")
+        w = Watch(node)
+        arm = node.create_client(Trigger, "/lhd/arm")
+
+        def now():
+            return node.get_clock().now().nanoseconds * 1e-9
+
+        def spin(timeout_s: float, until, what: str):
+            """Spin until `until()` is truthy; RuntimeError naming `what` after timeout_s or when a
+            node died; Interrupted on Ctrl-C/SIGTERM."""
+            t_end = time.monotonic() + timeout_s
+            while True:
+                v = until()
+                if v:
+                    return v
+                if stop.is_set():
+                    raise Interrupted()
+                for c in children:
+                    if not c.alive():
+                        tail = c.log_path.read_text()[-2000:] if quiet else ""
+                        raise RuntimeError(f"node `{c.name}` exited with status {c.proc.returncode} while waiting "
+                                           f"for {what}:\n{tail}")
+                if time.monotonic() > t_end:
+                    raise RuntimeError(f"timed out after {timeout_s:.0f} s waiting for {what}")
+                rclpy.spin_once(node, timeout_sec=0.05)
+
+        try:
+            t_check = time.monotonic() + 3.0
+            busy = {}
+            while not busy and time.monotonic() < t_check and not stop.is_set():
+                rclpy.spin_once(node, timeout_sec=0.1)
+                busy = {t: n for t in ("/lhd/joint_states", "/lhd/cmd", "/lhd/episode", "/lhd/twin/truth/odom")
+                        if (n := node.count_publishers(t))}
+            if busy:
+                raise RuntimeError(f"ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID', '0')} already has publishers on "
+                                   f"{busy}: another LHD stack, simulator or twin is running there. Stop it, or set "
+                                   "ROS_DOMAIN_ID to a free domain")
+            children.append(Child("twin", "lhd_sim_node.twin_node", twin_params, log_dir, quiet, []))
+            spin(120.0, lambda: link.exists() and w.piles >= 1, "the twin's device link and first pile")
+            for name, module, params, extra in stack(real_args, run_dir):
+                if stop.is_set():
+                    raise Interrupted()
+                children.append(Child(name, module, params, log_dir, quiet, [*ros_args, *extra]))
+            say(f"lhd up twin: twin + {len(children) - 1} nodes of `lhd up real` ({real_args.controller} controller) "
+                f"on {link}; {total} attempt(s) on slopes {', '.join(f'{s:g}' for s in slopes)} deg; run folder "
+                f"{run_dir}; logs in {log_dir}")
+
+            for k in range(total):
+                pile = w.piles
+                # the LiDAR has scanned the current pile (a scan stamped after the pile was made)
+                spin(60.0, lambda: w.slope_scan_t > w.pile_t and w.zones is not None,
+                     f"the LiDAR slope of pile {pile} (a scan after the pile was made)")
+                # arm as soon as the supervisor's preflight passes
+                t_arm = time.monotonic()
+                last = {"msg": "no answer"}
+                armed = False
+                while not armed:
+                    spin(30.0, lambda: arm.service_is_ready(), "the supervisor's /lhd/arm service")
+                    fut = arm.call_async(Trigger.Request())
+                    res = spin(10.0, lambda: fut.done() and fut.result(), "the answer of /lhd/arm")
+                    armed = res.success
+                    last["msg"] = res.message
+                    if armed:
+                        break
+                    if time.monotonic() - t_arm > args.arm_timeout:
+                        pf = format_preflight(w.preflight) if w.preflight is not None else ""
+                        raise RuntimeError(f"attempt {k + 1}: the supervisor refused to arm for {args.arm_timeout:g} s; "
+                                           f"last answer: {last['msg']}\n{pf}")
+                    t_retry = time.monotonic() + ARM_RETRY_S
+                    spin(ARM_RETRY_S + 1, lambda: time.monotonic() >= t_retry, "the next arming try")
+                t_armed = now()
+                slope_est, zones_est = w.slope, list(w.zones)
+                slope_truth, zones_truth = w.truth_slope, list(w.truth_zones) if w.truth_zones else None
+                say(f"attempt {k + 1}/{total}: {res.message}")
+                w.start_recording()
+                run = spin(10.0, lambda: w.first_status(t_armed - 0.5, lambda kv: kv.get("state") in
+                                                        ("running", *ENDED)), "the attempt to run")
+                t_run = run[0]
+                end = spin(real_args.attempt_timeout + 30.0,
+                           lambda: w.first_status(t_run, lambda kv: kv.get("state") in ENDED), "the attempt's end")
+                t_end, kv_end = end
+                w.recording = False
+                number = kv_end.get("episode")
+                say(f"attempt {number} {kv_end.get('state')}: {kv_end.get('reason', '')}; {kv_end.get('elapsed_s', '?')} "
+                    f"s, drift front {kv_end.get('front_drift_pct', '?')} % rear {kv_end.get('rear_drift_pct', '?')} %")
+                weighed = spin(args.reset_delay + 20.0, lambda: w.first_status(
+                    t_end, lambda kv: kv.get("episode") == number and kv.get("loaded_mass") not in (None, "", "nan")),
+                    f"the supervisor's load-cell mass of attempt {number}")[1]
+                truth_mass = w.truth_mass if w.piles == pile else w.mass_before_pile
+                say(f"attempt {number}: weighed {float(weighed['loaded_mass']):.2f} kg (twin {truth_mass:.2f} kg), "
+                    f"SL {weighed.get('success_level', '?')}, success {weighed.get('success', '?')}")
+                errs = vx_errors(w.odom, w.truth_odom, t_run, t_end)
+                truth_flags = w.truth_drift
+                rec = {"attempt": int(number), "outcome": kv_end.get("state"), "reason": kv_end.get("reason", ""),
+                       "elapsed_s": float(kv_end.get("elapsed_s", "nan")),
+                       "slope_truth_deg": math.degrees(slope_truth) if slope_truth is not None else None,
+                       "alpha_est_deg": math.degrees(slope_est) if slope_est is not None else None,
+                       "vx_rms": rms(errs) if errs.size else None, "vx_bias": float(np.mean(errs)) if errs.size else None,
+                       "vx_n": int(errs.size),
+                       "x_max_est_m": zones_est[1], "x_max_truth_m": zones_truth[1] if zones_truth else None,
+                       "drift_agree_front": agreement(w.flags["front"], [(t, f[0]) for t, f in truth_flags]),
+                       "drift_agree_rear": agreement(w.flags["rear"], [(t, f[1]) for t, f in truth_flags]),
+                       "drift_truth_front_pct": 100.0 * float(np.mean([f[0] for _, f in truth_flags]))
+                       if truth_flags else None,
+                       "drift_truth_rear_pct": 100.0 * float(np.mean([f[1] for _, f in truth_flags]))
+                       if truth_flags else None,
+                       "drift_stack_front_pct": float(kv_end.get("front_drift_pct", "nan")),
+                       "drift_stack_rear_pct": float(kv_end.get("rear_drift_pct", "nan")),
+                       "mass_csv_kg": None, "mass_truth_kg": truth_mass,
+                       "mass_status_kg": float(weighed["loaded_mass"]),
+                       "success_level": weighed.get("success_level"), "success": weighed.get("success") == "True"}
+                rec["alpha_err_deg"] = (rec["alpha_est_deg"] - rec["slope_truth_deg"]
+                                        if rec["alpha_est_deg"] is not None and rec["slope_truth_deg"] is not None
+                                        else None)
+                rec["x_max_err_m"] = (rec["x_max_est_m"] - rec["x_max_truth_m"]
+                                      if rec["x_max_truth_m"] is not None else None)
+                for key in ("drift_agree_front", "drift_agree_rear"):
+                    if not math.isfinite(rec[key]):
+                        rec[key] = None
+                records.append(rec)
+                if k + 1 < total:
+                    spin(args.reset_delay + 30.0, lambda: w.piles > pile, "the twin's new pile")
+        except Interrupted:
+            say("\nlhd up twin: interrupted, stopping the nodes")
+            rc = 130
+        except RuntimeError as exc:
+            print(f"lhd up twin: {exc}\n(node logs in {log_dir})", file=sys.stderr)
+            rc = 1
+        finally:
+            # the recorder and controller first, the bridge then the twin last
+            for c in reversed(children):
+                c.stop()
+            node.destroy_node()
+            if rclpy.ok():
+                rclpy.shutdown()
+            shutil.rmtree(link_dir, ignore_errors=True)
+
+    # the record as written by the supervisor
+    rows = []
+    path = csv_path(run_dir)
+    if path.is_file():
+        try:
+            rows = read_rows(path)
+        except ValueError as exc:
+            print(f"lhd up twin: {exc}", file=sys.stderr)
+    by_number = {r.attempt: r for r in rows}
+    for rec in records:
+        row = by_number.get(rec["attempt"])
+        if row is not None:
+            rec["mass_csv_kg"] = row.mass_kg
+            rec["bag"] = str(run_dir / row.bag) if row.bag else None
+        rec["mass_err_kg"] = (rec["mass_csv_kg"] - rec["mass_truth_kg"]
+                              if rec["mass_csv_kg"] is not None and math.isfinite(rec["mass_truth_kg"]) else None)
+    summary = summarize(rows)
+    err = error_summary(records)
+    counted = summary["counted"]
+    success_rate = (sum(c["successes"] for c in summary["cells"]) / counted) if counted else None
+    wall = time.monotonic() - t_start
+    print(format_table(summary, title=f"Twin attempts in {path} ({real_args.controller}, {real_args.material}, "
+                                       f"{wall:.0f} s)"), file=out)
+    print(file=out)
+    print(format_errors(records, err), file=out)
+    print(f"success rate {_fmt(success_rate, '.2f')} over {counted} counted attempt(s); run folder {run_dir}",
+          file=out, flush=True)
+    if args.json:
+        print(json.dumps({"success_rate": success_rate, "attempts": records, "errors": err, "table": summary,
+                          "run_dir": str(run_dir), "controller": real_args.controller, "slopes": slopes,
+                          "episodes_per_slope": args.episodes, "wall_s": wall, "exit": rc}), flush=True)
+    return rc
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="lhd up twin", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--controller", choices=("rld", "rlc", "tampier"), default="rld")
+    ap.add_argument("--policy", help="exported actor for rld/rlc (default: the shipped policies/<controller>)")
+    ap.add_argument("--slopes", type=float, nargs="+", default=list(DEFAULT_SLOPES),
+                    help="pile slopes, degrees, cycled (default 15 20 25 30)")
+    ap.add_argument("--episodes", type=int, default=3, help="attempts PER SLOPE (default 3: 12 attempts on the "
+                                                            "four default slopes)")
+    ap.add_argument("--material", choices=["homogeneous", "nonhomogeneous"], default="homogeneous")
+    ap.add_argument("--seed", type=int, default=0, help="pile k uses seed + k")
+    ap.add_argument("--attempt-timeout", type=float, default=10.0, help="s (the paper: 10 s)")
+    ap.add_argument("--reset-delay", type=float, default=2.5, help="s from an attempt's end to the twin's new pile "
+                                                                   "(the supervisor weighs over 1 s once still)")
+    ap.add_argument("--arm-timeout", type=float, default=60.0, help="s of preflight refusals before giving up")
+    ap.add_argument("--params-file", help="ROS parameter file of the nodes and the twin's poses "
+                                          "(default config/real_machine.yaml)")
+    ap.add_argument("--config", help="lhd_params.yaml (default: the package's)")
+    ap.add_argument("--no-record", dest="record", action="store_false", help="no rosbag2 per attempt")
+    ap.add_argument("--run-dir", help="attempts.csv, bags and logs (default runs/twin/<UTC time>)")
+    ap.add_argument("--log-dir", type=Path, help="node logs (default <run-dir>/logs)")
+    ap.add_argument("--json", action="store_true", help="progress and tables on stderr; the last stdout line is "
+                                                        "one JSON object")
+    ap.add_argument("--verbose", action="store_true", help="node logs on this terminal")
+    args = ap.parse_args(argv)
+    if args.episodes < 1:
+        ap.error(f"--episodes must be >= 1 (attempts per slope), got {args.episodes}")
+    if args.reset_delay < 1.5:
+        ap.error(f"--reset-delay must be >= 1.5 s (the supervisor weighs over 1 s once the machine is still), "
+                 f"got {args.reset_delay}")
+    if args.arm_timeout <= 0:
+        ap.error(f"--arm-timeout must be positive, got {args.arm_timeout}")
+    # the real stack's options, parsed by `lhd up real`'s own parser: its defaults are the twin's
+    rargv = ["--port", "(twin)", "--controller", args.controller, "--material", args.material,
+             "--attempt-timeout", str(args.attempt_timeout)]
+    for flag, val in (("--policy", args.policy), ("--params-file", args.params_file), ("--config", args.config)):
+        if val:
+            rargv += [flag, val]
+    if not args.record:
+        rargv.append("--no-record")
+    rap = real_parser()
+    rap.prog = ap.prog
+    real_args = rap.parse_args(rargv)
+    real_check_args(rap, real_args)
+    return run_twin(args, real_args, list(args.slopes))
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
