@@ -56,6 +56,7 @@ import select
 import threading
 import time
 import tty
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -77,6 +78,7 @@ LOAD_CELL_PERIOD = 0.100        # s (10 Hz)
 K_FRONT = 4.0                   # N m per A, each front wheel motor, referred to the wheel
 K_REAR = 5.0                    # N m per A, the rear motor (both rear wheels through the differential)
 I_IDLE = 1.5                    # A, no-load current of a motor
+COMMAND_LOG = 10_000            # command frames kept in SimDue.command_log (200 s at 50 Hz)
 CATCH_UP = 5                    # chunks the loop runs back to back when late; later than that it resynchronises
 
 
@@ -223,7 +225,10 @@ class SimDue:
     """The device: a pty (behind the symlink `link`), the firmware, and the simulator `sim` as the
     plant, in a real-time thread (`start` / `stop`). `lock` guards the simulator: whoever reads
     or resets it from another thread takes it (`with due.lock:`). `on_chunk(due)` (optional) is
-    called after each chunk with the lock held (the twin's truth samples)."""
+    called after each chunk with the lock held (the twin's truth samples). `command_log`: the
+    latest COMMAND_LOG valid command frames as the device read them off the line, (wall time s,
+    monotonic time s, CommandFrame), appended by the loop thread (deque appends are atomic);
+    the twin publishes them for `lhd bench twin`'s latency."""
     sim: object
     link: str | None = None
     watchdog: float = WATCHDOG_S
@@ -250,6 +255,7 @@ class SimDue:
         self.path = None
         self._stop = threading.Event()
         self._thread = None
+        self.command_log: deque = deque(maxlen=COMMAND_LOG)
         self.t0 = time.monotonic()      # the device clock's zero (micros() since power-up)
 
     # ------------------------------------------------------------------ pty
@@ -404,8 +410,11 @@ class SimDue:
             data = os.read(fd, 4096)
         except (BlockingIOError, OSError):
             return
+        wall, mono = time.time(), time.monotonic()     # when the device read these bytes off the line
         for _, msg in self.parser.feed(data):
             self.firmware.receive(msg, now)
+            if isinstance(msg, CommandFrame):
+                self.command_log.append((wall, mono, msg))
 
     def _put(self, fd: int, wire: bytes) -> bool:
         try:

@@ -20,6 +20,11 @@ period) by the device loop of sim_due.SimDue (a thread on the steady clock), and
   loaded_mass (Float64 kg), tip (geometry_msgs/PointStamped, the bucket tip), joint_states
   (sensor_msgs/JointState: boom, bucket and the four wheels as the simulator has them); once per
   pile (latched): slope (Float64 rad) and zones (Float64MultiArray, task.zones.Zones.as_list());
+* <prefix>/twin/device/commands (std_msgs/Float64MultiArray at `command_trace_hz`): every valid
+  command frame the device read off the serial line since the last message, one row each
+  [wall time s, monotonic time s, wheel_setpoint rad/s, valve_boom, valve_bucket, enable 0/1]
+  (layout: dim[0] rows, dim[1] the 6 columns), the times taken when the device read the bytes;
+  `lhd bench twin` measures the camera-to-serial latency with it;
 * <prefix>/twin/markers (visualization_msgs/MarkerArray at `markers_hz`): the pile's surface, the
   zones, the bucket tip's trajectory, the FEE force (twin_markers.py);
 * attempts: the real stack's supervisor arms and ends them. The twin watches <prefix>/episode;
@@ -48,7 +53,7 @@ from geometry_msgs.msg import PointStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image, JointState, LaserScan
-from std_msgs.msg import Float64, Float64MultiArray
+from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
@@ -129,6 +134,8 @@ class TwinNode(Node):
             Param("load_cell", True, "the device has the bucket's load cell (load-cell frames at 10 Hz)"),
             Param("truth_hz", 50.0, "Hz, ground-truth topics", lo=1.0, hi=100.0),
             Param("markers_hz", 5.0, "Hz, the MarkerArray (0: none)", lo=0.0, hi=30.0),
+            Param("command_trace_hz", 10.0, "Hz, <prefix>/twin/device/commands: the command frames read off the "
+                  "line (0: none)", lo=0.0, hi=100.0),
             Param("camera_fps", 30.0, "Hz, camera frames (0: no camera)", lo=0.0, hi=60.0),
             Param("image_topic", "/camera/image_raw", "camera images (mono8)"),
             Param("camera_info_topic", "/camera/camera_info", "camera intrinsics"),
@@ -211,6 +218,8 @@ class TwinNode(Node):
         self.pub_slope = self.create_publisher(Float64, f"{ns}/twin/truth/slope", LATCHED_QOS)
         self.pub_zones = self.create_publisher(Float64MultiArray, f"{ns}/twin/truth/zones", LATCHED_QOS)
         self.pub_markers = self.create_publisher(MarkerArray, f"{ns}/twin/markers", MEASUREMENT_QOS)
+        # reliable keep-last 5 (MEASUREMENT_QOS): each message holds the frames since the last one
+        self.pub_device_cmds = self.create_publisher(Float64MultiArray, f"{ns}/twin/device/commands", MEASUREMENT_QOS)
         self.pub_img = self.create_publisher(Image, gp("image_topic"), MEASUREMENT_QOS)
         self.pub_info = self.create_publisher(CameraInfo, gp("camera_info_topic"), MEASUREMENT_QOS)
         self.pub_scan = self.create_publisher(LaserScan, gp("scan_topic"), MEASUREMENT_QOS)
@@ -224,6 +233,9 @@ class TwinNode(Node):
         steady_timer(self, RESET_TICK, self._check_reset)
         if gp("markers_hz") > 0:
             steady_timer(self, 1.0 / gp("markers_hz"), self._publish_markers)
+        self.command_trace = gp("command_trace_hz") > 0
+        if self.command_trace:
+            steady_timer(self, 1.0 / gp("command_trace_hz"), self._publish_device_commands)
         if self.camera is not None:
             self._info = self._camera_info()
             steady_timer(self, 1.0 / gp("camera_fps"), self._publish_image)
@@ -375,6 +387,21 @@ class TwinNode(Node):
             fee = ss.fee_arrow(sim._site_xpos[sim.sid_tip].copy(), sim.last_fee.force)
         self.pub_markers.publish(marker_array(self.get_clock().now().to_msg(), self.frame_id, surfaces, boxes, trail,
                                               fee))
+
+    def _publish_device_commands(self) -> None:
+        log = self.due.command_log
+        rows = []
+        while log:
+            wall, mono, f = log.popleft()      # atomic against the device thread's append
+            rows += [wall, mono, float(f.wheel_setpoint), float(f.valve_boom), float(f.valve_bucket),
+                     1.0 if f.enable else 0.0]
+        if not rows:
+            return
+        m = Float64MultiArray(data=rows)
+        m.layout.dim = [MultiArrayDimension(label="frames", size=len(rows) // 6, stride=len(rows)),
+                        MultiArrayDimension(label="wall_s,mono_s,wheel_setpoint,valve_boom,valve_bucket,enable",
+                                            size=6, stride=6)]
+        self.pub_device_cmds.publish(m)
 
     # ------------------------------------------------------------------ sensors
     def _camera_info(self) -> CameraInfo:

@@ -27,6 +27,25 @@ trigger = timer     10 Hz on the steady clock (the real machine; sim node in rea
                     with use_sim_time too: the loop must not stall on a /clock that holds still
 trigger = lockstep  one decision per state of the sim node in lockstep mode: when
                     /lhd/joint_states, /lhd/odom and /lhd/episode carry the same stamp
+trigger = odom      a decision as each fresh /lhd/odom arrives (on hardware the ArUco node's, one
+                    per camera frame), at most rate_hz a second: an odometry message sooner than
+                    1/rate_hz - odom_margin after the last decision is taken as input but decides
+                    nothing. The paper's 10 Hz loop, aligned to the camera: the command leaves
+                    as soon as the image it depends on is measured, instead of waiting up to a
+                    whole period for the next timer tick (docs/twin_latency.md). A steady timer
+                    stays as the fallback (checked at 4 x rate_hz): when no decision came for
+                    1.5 periods after an odometry-triggered one (odometry late or stopped), or
+                    for one period after a fallback one, it decides from the latest inputs, so
+                    commands keep coming at rate_hz and turn into the zero command once the
+                    odometry is older than input_timeout; a late odometry message never has
+                    its decision taken by a timer tick that happened to come first.
+
+Each decision while running is also published on <prefix>/policy/decision (DiagnosticStatus,
+after the command): message = what triggered it (timer | odom | fallback | lockstep), keys
+odom_stamp_ns (header stamp of the odometry it used: on hardware the camera frame's capture
+time), mono_ns (CLOCK_MONOTONIC when the command was published), command ("u_w,u_boom,u_bucket"),
+reason (empty, or why the command is the zero one). `lhd bench twin` matches these with the
+command frames on the serial line.
 """
 from __future__ import annotations
 
@@ -36,7 +55,7 @@ from collections import deque
 from pathlib import Path
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
 from rclpy.duration import Duration
 from rclpy.event_handler import SubscriptionEventCallbacks
@@ -62,12 +81,14 @@ from lhd_loading_ros.ros.run import run_node
 # inputs (slope, end zone) have a second subscription, reliable + transient local (STATUS_QOS),
 # which alone receives what a latched publisher sent before this node started; it does not
 # match a volatile publisher (DDS), which the first one does. Commands out: COMMAND_QOS.
-# Observation out: MEASUREMENT_QOS. Episode status in: STATUS_QOS (transient local: a node started
+# Observation and decision trace out: MEASUREMENT_QOS. Episode status in: STATUS_QOS (transient local: a node started
 # during an attempt learns at once whether it may command).
-TRIGGERS = ("timer", "lockstep")
+TRIGGERS = ("timer", "lockstep", "odom")
 CONTROLLERS = ("actor", "tampier")
 RUNNING = "running"              # the only /lhd/episode state in which a controller may move the machine
 NO_PUBLISHER = "no attempt running (no /lhd/episode publisher: start the sim node or the supervisor)"
+FALLBACK_CHECKS = 4             # trigger odom: fallback checks per control period
+FALLBACK_AFTER_ODOM = 1.5       # periods without a decision after an odometry-triggered one
 OVERTAKEN_NS = 1_000_000_000    # a slow-input sample this much older than the one in use came late
 # zero-command reasons on /diagnostics: these need a person (wrong pile, wrong actor), the rest
 # (inputs not there yet or stale, a NaN) may clear by themselves
@@ -116,7 +137,11 @@ class PolicyNode(Node):
             Param("end_zone_timeout", 0.0, "s: an end zone older than this gives the zero command; 0: no timeout",
                   lo=0.0, hi=3600.0, on_change=lambda v: self._set_slow_timeout("end_zone", v)),
             Param("trigger", "timer", "timer: rate_hz on the steady clock; lockstep: one decision per sim-node "
-                  "state", choices=TRIGGERS),
+                  "state; odom: one per fresh /lhd/odom, at most rate_hz, the rate_hz timer as fallback",
+                  choices=TRIGGERS),
+            Param("odom_margin", 0.01, "s, trigger odom: odometry sooner than 1/rate_hz minus this after the last "
+                  "decision decides nothing (absorbs the camera's jitter)", lo=0.0, hi=1.0,
+                  on_change=lambda v: setattr(self, "odom_margin", v)),
             Param("input_qos", "sensor_data", "sensor_data: best effort, matches any publisher; reliable: for "
                   "lockstep", choices=("sensor_data", "reliable")),
             Param("namespace_prefix", "/lhd", "topic prefix in the root namespace (under a namespace, the "
@@ -129,6 +154,7 @@ class PolicyNode(Node):
         for name in SLOW_INPUTS:
             self._set_slow_timeout(name, gp(f"{name}_timeout"))
         self.trigger = gp("trigger")
+        self.odom_margin = gp("odom_margin")
         qin = qos_profile_sensor_data if gp("input_qos") == "sensor_data" else MEASUREMENT_QOS
         ns = topic_prefix(self, gp("namespace_prefix"))
 
@@ -171,9 +197,13 @@ class PolicyNode(Node):
         self.latencies_ms: deque = deque(maxlen=100_000)
         self.periods_ms: deque = deque(maxlen=100_000)
         self._last_tick = None
+        self._last_decision_t = None     # monotonic time of the latest decision (trigger odom)
+        self._last_why = None            # what triggered it
+        self.odom_decisions = self.fallback_decisions = self.odom_skipped = 0
 
         self.pub_cmd = self.create_publisher(Float64MultiArray, f"{ns}/cmd", COMMAND_QOS)
         self.pub_obs = self.create_publisher(Float32MultiArray, f"{ns}/observation", MEASUREMENT_QOS)
+        self.pub_decision = self.create_publisher(DiagnosticStatus, f"{ns}/policy/decision", MEASUREMENT_QOS)
         self.create_subscription(JointState, f"{ns}/joint_states", self._on_js, qin)
         self.create_subscription(Odometry, f"{ns}/odom", self._on_odom, qin)
         self.create_subscription(Bool, f"{ns}/wheel_drift/front", lambda m: self._put("drift_front", bool(m.data)), qin)
@@ -189,6 +219,8 @@ class PolicyNode(Node):
         self.create_subscription(DiagnosticStatus, self.episode_topic, self._on_status, STATUS_QOS)
         if self.trigger == "timer":
             steady_timer(self, 1.0 / self.rate_hz, self._on_timer)
+        elif self.trigger == "odom":
+            steady_timer(self, 1.0 / (FALLBACK_CHECKS * self.rate_hz), self._on_fallback_check)
         what = "actor" if self.controller == "actor" else "heuristic"
         self.diagnostics = Diagnostics(self, {what: self._diag_controller, "inputs": self._diag_inputs,
                                               "decision": self._diag_decision}, hardware_id=path)
@@ -218,6 +250,8 @@ class PolicyNode(Node):
         self._put("odom", ((pp.x, pp.y, pp.z), (q.w, q.x, q.y, q.z), msg.twist.twist.linear.x))
         self._stamps["odom"] = stamp_ns(msg.header.stamp)
         self._maybe_lockstep()
+        if self.trigger == "odom":
+            self._on_fresh_odom()
 
     def _put_slow(self, name: str, value, info) -> None:
         """A slow input arrives through both of its subscriptions when its publisher is reliable:
@@ -294,18 +328,57 @@ class PolicyNode(Node):
         t = self._stamps["joints"]
         if t is None or self._stamps["odom"] != t or self._status_stamp != t or t == self._decided_stamp:
             return
-        if self._cycle(lockstep=True):
+        if self._cycle(lockstep=True, why="lockstep"):
             self._decided_stamp = t          # one decision per state (the sim node may repeat one)
+
+    def _on_fresh_odom(self) -> None:
+        """Trigger odom: decide now, unless the last decision is less than 1/rate_hz -
+        odom_margin old (at most rate_hz decisions a second)."""
+        now = time.monotonic()
+        if not self.running():
+            return
+        if self._last_decision_t is not None and now - self._last_decision_t < 1.0 / self.rate_hz - self.odom_margin:
+            self.odom_skipped += 1
+            return
+        self._decide_at(now, "odom")
+
+    def _decide_at(self, now: float, why: str) -> None:
+        if self._last_decision_t is not None and self._last_why != "start":
+            self.periods_ms.append((now - self._last_decision_t) * 1000.0)
+        self._last_decision_t = now
+        self._last_why = why
+        if why == "odom":
+            self.odom_decisions += 1
+        elif why == "fallback":
+            self.fallback_decisions += 1
+        self._cycle(why=why)
+
+    def _on_fallback_check(self) -> None:
+        """Trigger odom: the fallback (module docstring). Half a check period of tolerance keeps
+        the fallback's own decisions at rate_hz. An attempt that begins counts as an
+        odometry-triggered decision then (the odometry gets its 1.5 periods first)."""
+        now = time.monotonic()
+        self._check_status_publisher()
+        if not self.running():
+            self._last_decision_t = self._last_why = None
+            return
+        if self._last_decision_t is None:
+            self._last_decision_t, self._last_why = now, "start"
+            return
+        period = 1.0 / self.rate_hz
+        limit = period * (1.0 if self._last_why == "fallback" else FALLBACK_AFTER_ODOM) - 0.5 * period / FALLBACK_CHECKS
+        if now - self._last_decision_t >= limit:
+            self._decide_at(now, "fallback")
 
     def _on_timer(self) -> None:
         now = time.monotonic()
+        self._check_status_publisher()
         if self._last_tick is not None:
             self.periods_ms.append((now - self._last_tick) * 1000.0)
         self._last_tick = now
-        self._check_status_publisher()
         self._cycle()
 
-    def _cycle(self, lockstep: bool = False) -> bool:
+    def _cycle(self, lockstep: bool = False, why: str = "timer") -> bool:
         """Decide and publish; returns False when a lockstep state was left undecided (inputs
         not all received yet: the sim node repeats its state, and a zero command would step it)."""
         t0 = time.perf_counter()
@@ -324,11 +397,13 @@ class PolicyNode(Node):
             self.get_logger().info(f"waiting for inputs: {d.reason}", throttle_duration_sec=2.0)
             return False
         self.pub_cmd.publish(Float64MultiArray(data=list(d.command)))
+        sent_ns = time.monotonic_ns()
         self.last_decision = d
         if not d.reason:   # latency: inputs -> observation -> actor -> command published
             self.latencies_ms.append((time.perf_counter() - t0) * 1000.0)
         if d.observation is not None:   # for debugging, after the command
             self.pub_obs.publish(Float32MultiArray(data=d.observation.tolist()))
+        self._publish_decision(d, why, sent_ns)
         self.cycles += 1
         if d.reason:
             self.zero_cycles += 1
@@ -338,11 +413,20 @@ class PolicyNode(Node):
                 self.get_logger().warn(f"zero command: {d.reason}", throttle_duration_sec=2.0)
         return True
 
+    def _publish_decision(self, d, why: str, sent_ns: int) -> None:
+        """The decision trace (module docstring), after the command."""
+        st = DiagnosticStatus(name="lhd_policy: decision", message=why, hardware_id=self.policy_path)
+        odom = self._stamps["odom"]
+        values = {"odom_stamp_ns": str(odom if odom is not None else 0), "mono_ns": str(sent_ns),
+                  "command": ",".join(repr(float(v)) for v in d.command), "reason": d.reason or ""}
+        st.values = [KeyValue(key=k, value=v) for k, v in values.items()]
+        self.pub_decision.publish(st)
+
     def stop_commanding(self) -> None:
-        """On the way out (Ctrl-C, SIGTERM): in timer mode one last zero command, so that a
+        """On the way out (Ctrl-C, SIGTERM): in timer (and odom) mode one last zero command, so that a
         machine holding its last command (sample-and-hold) stops now rather than at its command
         timeout. Not in lockstep mode, where every command steps the simulator."""
-        if self.trigger == "timer" and self.context.ok():
+        if self.trigger in ("timer", "odom") and self.context.ok():
             self.pub_cmd.publish(Float64MultiArray(data=list(ZERO_COMMAND)))
             # a reliable writer destroyed right after a write may drop it: wait for the acks
             acked = self.pub_cmd.wait_for_all_acked(Duration(seconds=0.5))
@@ -353,9 +437,13 @@ class PolicyNode(Node):
         lat = np.array(self.latencies_ms) if self.latencies_ms else np.array([math.nan])
         per = np.array(self.periods_ms) if self.periods_ms else np.array([math.nan])
         jit = np.abs(per - 1000.0 / self.rate_hz)
-        return {"cycles": self.cycles, "zero_cycles": self.zero_cycles,
+        out = {"cycles": self.cycles, "zero_cycles": self.zero_cycles,
                 "latency_p50_ms": float(np.percentile(lat, 50)), "latency_p99_ms": float(np.percentile(lat, 99)),
                 "jitter_p99_ms": float(np.percentile(jit, 99))}
+        if self.trigger == "odom":
+            out.update(odom_decisions=self.odom_decisions, fallback_decisions=self.fallback_decisions,
+                       odom_skipped=self.odom_skipped)
+        return out
 
     def _diag_controller(self):
         if self.controller == "tampier":
