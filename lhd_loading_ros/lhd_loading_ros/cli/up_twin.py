@@ -57,6 +57,10 @@ from lhd_loading_ros.cli.up_real import stack
 
 DEFAULT_SLOPES = (15.0, 20.0, 25.0, 30.0)
 ARM_RETRY_S = 1.0          # s between /lhd/arm calls while the preflight refuses
+# before arming: odometry steady (the supervisor's input timeout is 0.5 s: a chain still starting
+# up, or starved, would end the attempt as lost_input at once)
+STEADY_S, STEADY_N, STEADY_GAP_S = 1.0, 5, 0.25
+EPISODE_SUBSCRIBERS = 5
 
 
 class Interrupted(Exception):
@@ -68,17 +72,28 @@ def rms(xs) -> float:
     return float(np.sqrt(np.mean(xs ** 2))) if xs.size else float("nan")
 
 
-def vx_errors(est: list[tuple[float, float]], truth: list[tuple[float, float]], t0: float, t1: float
-              ) -> np.ndarray:
+def vx_errors(est: list[tuple[float, float]], truth: list[tuple[float, float]], t0: float, t1: float,
+              lag: float = 0.0) -> np.ndarray:
     """v_x estimate minus truth for each estimate stamped in [t0, t1], the truth (stamp, v_x)
-    interpolated linearly at the estimate's stamp (estimates outside the truth's span dropped)."""
+    interpolated linearly at the estimate's stamp minus `lag` (estimates outside the truth's span
+    dropped). lag 0 is the error as the controller and the supervisor live with it."""
     if not est or len(truth) < 2:
         return np.zeros(0)
     tt = np.array([t for t, _ in truth])
     order = np.argsort(tt)
     tt, tv = tt[order], np.array([v for _, v in truth])[order]
-    e = np.array([(t, v) for t, v in est if t0 <= t <= t1 and tt[0] <= t <= tt[-1]]).reshape(-1, 2)
-    return e[:, 1] - np.interp(e[:, 0], tt, tv)
+    e = np.array([(t, v) for t, v in est if t0 <= t <= t1 and tt[0] <= t - lag <= tt[-1]]).reshape(-1, 2)
+    return e[:, 1] - np.interp(e[:, 0] - lag, tt, tv)
+
+
+def best_lag(est, truth, t0, t1, lags=np.arange(0.0, 0.41, 0.01)) -> tuple[float, float]:
+    """(lag s, RMS m/s) of the truth delay that fits the estimate best: the estimator's lag."""
+    best = (float("nan"), float("nan"))
+    for lag in lags:
+        e = vx_errors(est, truth, t0, t1, float(lag))
+        if e.size and not rms(e) >= best[1]:
+            best = (float(lag), rms(e))
+    return best
 
 
 def agreement(flags: list[tuple[float, bool]], truth: list[tuple[float, bool]]) -> float:
@@ -145,6 +160,11 @@ def format_errors(records: list[dict], summary: dict) -> str:
                 f"{d['n']} attempt(s): {ok} the bound {d['bound'] * scale:g} {unit}")
 
     lines.append(bound("vx_rms", "m/s"))
+    lags = [(r["vx_best_lag_s"], r["vx_rms_at_best_lag"]) for r in records
+            if r.get("vx_best_lag_s") is not None and math.isfinite(r["vx_best_lag_s"])]
+    if lags:
+        lines.append(f"  (the ArUco v_x lags the truth: best-fitting delay {np.mean([a for a, _ in lags]):.2f} s "
+                     f"mean; RMS at that delay worst {max(b for _, b in lags):.3f} m/s)")
     lines.append(bound("alpha_err_deg", "deg"))
     lines.append(bound("x_max_err_m", "m"))
     m = s["mass_err_kg"]
@@ -182,6 +202,7 @@ class Watch:
         self.mass_before_pile = float("nan")
         self.recording = False
         self.odom: list[tuple[float, float]] = []
+        self.odom_arrivals: list[float] = []
         self.truth_odom: list[tuple[float, float]] = []
         self.flags = {"front": [], "rear": []}
         self.truth_drift: list[tuple[float, tuple[bool, bool]]] = []
@@ -203,6 +224,8 @@ class Watch:
                     self.preflight = st
 
         def on_odom(m):
+            self.odom_arrivals.append(now())
+            del self.odom_arrivals[:-50]
             if self.recording:
                 self.odom.append((stamp(m.header), float(m.twist.twist.linear.x)))
 
@@ -251,6 +274,10 @@ class Watch:
         node.create_subscription(Float64MultiArray, "/lhd/twin/truth/zones",
                                  lambda m: setattr(self, "truth_zones", list(m.data)), LATCHED_QOS)
 
+    def odom_steady(self, t: float) -> bool:
+        recent = [a for a in self.odom_arrivals if a >= t - STEADY_S]
+        return len(recent) >= STEADY_N and t - recent[-1] <= STEADY_GAP_S
+
     def start_recording(self):
         self.odom, self.truth_odom, self.truth_drift = [], [], []
         self.flags = {"front": [], "rear": []}
@@ -293,9 +320,13 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
     total = args.episodes * len(slopes)
     twin_params = {"link": str(link), "machine_params": str(params_file) if params_file else "",
                    "slopes_deg": ",".join(f"{s:g}" for s in slopes), "material": real_args.material,
-                   "seed": args.seed, "reset_delay": args.reset_delay}
+                   "seed": args.seed, "reset_delay": args.reset_delay, "camera_fps": args.camera_fps,
+                   "markers_hz": args.markers_hz}
     if real_args.config:
         twin_params["config"] = real_args.config
+    for kv in args.twin_param:
+        k, _, v = kv.partition("=")
+        twin_params[k.strip()] = v.strip()
     quiet = not args.verbose
     stop = threading.Event()
     records: list[dict] = []
@@ -357,6 +388,12 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                 # the LiDAR has scanned the current pile (a scan stamped after the pile was made)
                 spin(60.0, lambda: w.slope_scan_t > w.pile_t and w.zones is not None,
                      f"the LiDAR slope of pile {pile} (a scan after the pile was made)")
+                # the camera -> ArUco chain delivers odometry steadily, and every node that acts on
+                # the attempt status (mux, controller, recorder, twin) has joined the graph
+                spin(60.0, lambda: w.odom_steady(now()), "steady odometry from the ArUco node (/lhd/odom: "
+                     f"{STEADY_N} messages in the last {STEADY_S:g} s, none older than {STEADY_GAP_S:g} s)")
+                spin(60.0, lambda: node.count_subscribers("/lhd/episode") >= EPISODE_SUBSCRIBERS,
+                     f"{EPISODE_SUBSCRIBERS} subscribers of /lhd/episode (mux, controller, recorder, twin, this one)")
                 # arm as soon as the supervisor's preflight passes
                 t_arm = time.monotonic()
                 last = {"msg": "no answer"}
@@ -404,6 +441,8 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                        "alpha_est_deg": math.degrees(slope_est) if slope_est is not None else None,
                        "vx_rms": rms(errs) if errs.size else None, "vx_bias": float(np.mean(errs)) if errs.size else None,
                        "vx_n": int(errs.size),
+                       "vx_best_lag_s": best_lag(w.odom, w.truth_odom, t_run, t_end)[0],
+                       "vx_rms_at_best_lag": best_lag(w.odom, w.truth_odom, t_run, t_end)[1],
                        "x_max_est_m": zones_est[1], "x_max_truth_m": zones_truth[1] if zones_truth else None,
                        "drift_agree_front": agreement(w.flags["front"], [(t, f[0]) for t, f in truth_flags]),
                        "drift_agree_rear": agreement(w.flags["rear"], [(t, f[1]) for t, f in truth_flags]),
@@ -425,8 +464,8 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                     if not math.isfinite(rec[key]):
                         rec[key] = None
                 records.append(rec)
-                if k + 1 < total:
-                    spin(args.reset_delay + 30.0, lambda: w.piles > pile, "the twin's new pile")
+                # the twin's new pile (also the recorder's post-roll: the bag is closed by then)
+                spin(args.reset_delay + 30.0, lambda: w.piles > pile, "the twin's new pile")
         except Interrupted:
             say("\nlhd up twin: interrupted, stopping the nodes")
             rc = 130
@@ -490,6 +529,13 @@ def main(argv=None) -> int:
     ap.add_argument("--attempt-timeout", type=float, default=10.0, help="s (the paper: 10 s)")
     ap.add_argument("--reset-delay", type=float, default=2.5, help="s from an attempt's end to the twin's new pile "
                                                                    "(the supervisor weighs over 1 s once still)")
+    ap.add_argument("--camera-fps", type=float, default=15.0,
+                    help="the simulated camera's frame rate (default 15: a 640x480 frame costs the twin about 28 ms of "
+                         "CPU; 30 fps does not fit beside the stack on 2 cores, docs/twin.md)")
+    ap.add_argument("--markers-hz", type=float, default=2.0, help="the twin's MarkerArray rate (0: none)")
+    ap.add_argument("--twin-param", action="append", default=[], metavar="NAME=VALUE",
+                    help="a parameter of the twin node (lhd_sim_node/twin_node.py), e.g. camera_dropout=0.05; "
+                         "repeatable")
     ap.add_argument("--arm-timeout", type=float, default=60.0, help="s of preflight refusals before giving up")
     ap.add_argument("--params-file", help="ROS parameter file of the nodes and the twin's poses "
                                           "(default config/real_machine.yaml)")
@@ -506,6 +552,9 @@ def main(argv=None) -> int:
     if args.reset_delay < 1.5:
         ap.error(f"--reset-delay must be >= 1.5 s (the supervisor weighs over 1 s once the machine is still), "
                  f"got {args.reset_delay}")
+    for kv in args.twin_param:
+        if "=" not in kv or not kv.partition("=")[0].strip():
+            ap.error(f"--twin-param {kv!r}: expected NAME=VALUE, e.g. camera_dropout=0.05")
     if args.arm_timeout <= 0:
         ap.error(f"--arm-timeout must be positive, got {args.arm_timeout}")
     # the real stack's options, parsed by `lhd up real`'s own parser: its defaults are the twin's
