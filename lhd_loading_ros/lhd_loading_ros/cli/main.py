@@ -206,7 +206,8 @@ def main(argv=None) -> int:
     for name, hlp in (("demo", "the main job: sim + policy nodes load piles of 15-30 deg, results table"),
                       ("up", "up sim: the sim node and the policy node over DDS; up real --port DEV: the "
                              "real-machine stack (bridge, perception, end zone, supervisor, mux, teleop, "
-                             "controller, recorder)"),
+                             "controller, recorder); up twin: that stack against the simulator as the Due, "
+                             "with simulated camera and LiDAR"),
                       ("echo", "print a topic's messages as YAML"),
                       ("arm", "preflight, then arm an attempt (the supervisor's /lhd/arm)"),
                       ("abort", "end the attempt now (the supervisor's /lhd/abort)"),
@@ -216,7 +217,7 @@ def main(argv=None) -> int:
                       ("estop", "estop on|off|status: the software emergency stop (/lhd/estop)")):
         sub.add_parser(name, help=hlp, add_help=False).add_argument("rest", nargs=argparse.REMAINDER)
     p_bench = sub.add_parser("bench", help="benchmarks that print their figures")
-    p_bench.add_argument("what", help="sim | train | node | bridge | perception")
+    p_bench.add_argument("what", help="sim | train | node | bridge | perception | twin (lhd bench twin --help)")
     p_bench.add_argument("--cycles", type=int, default=1000, help="node: policy cycles measured (10 Hz)")
     p_bench.add_argument("--vs-sb3", action="store_true", help="train: also time Stable-Baselines3's DDPG")
     p_bench.add_argument("--seconds", type=float, default=4.0, help="bridge: latency measurement time")
@@ -274,13 +275,22 @@ def main(argv=None) -> int:
         from lhd_loading_ros.cli.launcher import main as up_main
 
         return up_main(argv[2:])
+    if argv[:2] == ["up", "twin"]:
+        from lhd_loading_ros.cli.up_twin import main as twin_main
+
+        return twin_main(argv[2:])
+    if argv[:2] == ["bench", "twin"]:
+        from lhd_loading_ros.cli.bench_twin import main as bench_twin_main
+
+        return bench_twin_main(argv[2:])
     if argv[:2] == ["up", "real"]:
         from lhd_loading_ros.cli.up_real import main as real_main
 
         return real_main(argv[2:])
     if argv[:1] == ["up"]:
-        print("lhd up: expected `lhd up sim [--policy DIR] [--slope DEG] [--episodes N]` or "
-              "`lhd up real --port DEV [--controller rld|rlc|tampier|teleop]`", file=sys.stderr)
+        print("lhd up: expected `lhd up sim [--policy DIR] [--slope DEG] [--episodes N]`, "
+              "`lhd up real --port DEV [--controller rld|rlc|tampier|teleop]` or `lhd up twin [--slopes ...]`",
+              file=sys.stderr)
         return 2
     if argv[:1] == ["echo"]:
         from lhd_loading_ros.cli.echo import main as echo_main
