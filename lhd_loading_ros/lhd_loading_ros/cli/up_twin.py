@@ -400,6 +400,7 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                 armed = False
                 while not armed:
                     spin(30.0, lambda: arm.service_is_ready(), "the supervisor's /lhd/arm service")
+                    t_call = now()
                     fut = arm.call_async(Trigger.Request())
                     res = spin(10.0, lambda: fut.done() and fut.result(), "the answer of /lhd/arm")
                     armed = res.success
@@ -417,14 +418,18 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                 slope_truth, zones_truth = w.truth_slope, list(w.truth_zones) if w.truth_zones else None
                 say(f"attempt {k + 1}/{total}: {res.message}")
                 w.start_recording()
-                run = spin(10.0, lambda: w.first_status(t_armed - 0.5, lambda kv: kv.get("state") in
-                                                        ("running", *ENDED)), "the attempt to run")
+                # this attempt's number: the first armed (or running) status since the call; the
+                # previous attempt's ended status keeps coming at 2 Hz until then
+                number = spin(10.0, lambda: w.first_status(t_call, lambda kv: kv.get("state") in ("armed", "running")),
+                              "the armed attempt's status")[1].get("episode")
+                run = spin(10.0, lambda: w.first_status(t_call, lambda kv: kv.get("episode") == number and
+                                                        kv.get("state") in ("running", *ENDED)), "the attempt to run")
                 t_run = run[0]
                 end = spin(real_args.attempt_timeout + 30.0,
-                           lambda: w.first_status(t_run, lambda kv: kv.get("state") in ENDED), "the attempt's end")
+                           lambda: w.first_status(t_call, lambda kv: kv.get("episode") == number and
+                                                  kv.get("state") in ENDED), "the attempt's end")
                 t_end, kv_end = end
                 w.recording = False
-                number = kv_end.get("episode")
                 say(f"attempt {number} {kv_end.get('state')}: {kv_end.get('reason', '')}; {kv_end.get('elapsed_s', '?')} "
                     f"s, drift front {kv_end.get('front_drift_pct', '?')} % rear {kv_end.get('rear_drift_pct', '?')} %")
                 weighed = spin(args.reset_delay + 20.0, lambda: w.first_status(
