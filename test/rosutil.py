@@ -13,8 +13,13 @@ from rclpy.executors import SingleThreadedExecutor
 
 def unique_domain_id() -> int:
     """A ROS_DOMAIN_ID for this test process (1..100, the range safe on Linux), so parallel
-    test runs and a user's other ROS work do not hear each other."""
-    return 1 + os.getpid() % 100
+    test runs and a user's other ROS work do not hear each other. Under pytest-xdist the workers
+    of one run take neighbouring domains from their common parent's pid (gw0 even, gw1 odd), so
+    they can never share one."""
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "")
+    if worker.startswith("gw") and worker[2:].isdigit():
+        return 1 + 2 * (os.getppid() % 50) + int(worker[2:]) % 2
+    return 1 + 2 * (os.getpid() % 50)
 
 
 _STARTED: list = []      # every RosProcess of this test session, for the leftover check in conftest.py

@@ -83,8 +83,10 @@ def test_decides_on_fresh_odometry_at_most_rate_hz_then_falls_back_to_zero(ros, 
             assert d[2] in sent                                   # the stamp of an odometry this test sent
         mono = [d[3] * 1e-9 for d in window]
         gaps = [b - a for a, b in zip(mono, mono[1:])]
-        # at most rate_hz: never two decisions closer than 1/rate_hz - margin (the node's own clock)
-        assert min(gaps) >= 1.0 / RATE_HZ - MARGIN - 1e-6, gaps
+        # at most rate_hz: never two decisions closer than 1/rate_hz - margin (the node's own clock).
+        # The node spaces the decisions' starts; mono_ns is when each command was published, a
+        # decision's own processing later, which varies by a few ms on a loaded machine
+        assert min(gaps) >= 1.0 / RATE_HZ - MARGIN - 0.005, gaps
         # 30 Hz odometry, 10 Hz decisions: most odometry messages decide nothing
         assert len(window) <= 3.0 * RATE_HZ + 2
         # the odometry stops: the fallback decides from the latest inputs, then zero commands

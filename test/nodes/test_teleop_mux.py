@@ -360,7 +360,9 @@ def test_estop_from_a_volatile_publisher_is_obeyed_and_mirrored_by_the_teleop_no
         assert rig.wait(lambda: rig.active["/lhd"] == "estop", 2.0)
         late = []
         sub = rig.node.create_subscription(Bool, "/lhd/estop", lambda m: late.append(m.data), LATCHED_QOS)
-        assert rig.wait(lambda: late == [True], 5.0), (late, rig.got["estop"])   # the teleop node's copy
+        # the teleop node's latched copy says engaged (a released value may come too, from a
+        # latched writer of an earlier test whose removal this new subscription has not yet seen)
+        assert rig.wait(lambda: True in late, 5.0), (late, rig.got["estop"])
         rig.node.destroy_subscription(sub)
         assert rig.after("estop", t0)[0][1] is True
         pub.publish(Bool(data=False))
