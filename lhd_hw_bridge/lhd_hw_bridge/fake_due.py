@@ -32,9 +32,9 @@ import signal
 import sys
 import threading
 import time
-import tty
 from dataclasses import dataclass, field
 
+from .pty_link import close_pty, open_pty
 from .protocol import (FLAG_ENABLED, FLAG_ESTOP, FLAG_WATCHDOG, LC_CALIBRATED, LC_SATURATED, LC_STALE, LC_TARED,
                        RAW_MAX, RAW_MIN, TYPE_COMMAND, TYPE_HEARTBEAT, CommandFrame, FrameParser, LoadCellFrame,
                        SensorFrame, TxSequence)
@@ -127,29 +127,13 @@ class FakeDue:
     # ------------------------------------------------------------------ pty
     def plug(self) -> str:
         with self._lock:
-            master, slave = os.openpty()
-            tty.setraw(master)
-            tty.setraw(slave)
-            os.set_blocking(master, False)
-            self._master, self._slave = master, slave
-            self.path = os.ttyname(slave)
+            self._master, self._slave, self.path = open_pty(self.link)
             self.parser.reset_link()
-            if self.link:
-                tmp = self.link + ".tmp"
-                if os.path.lexists(tmp):
-                    os.unlink(tmp)
-                os.symlink(self.path, tmp)
-                os.replace(tmp, self.link)
             return self.link or self.path
 
     def unplug(self) -> None:
         with self._lock:
-            for fd in (self._master, self._slave):
-                if fd is not None:
-                    try:
-                        os.close(fd)
-                    except OSError:
-                        pass
+            close_pty(self._master, self._slave)
             self._master = self._slave = None
             if self.link and os.path.lexists(self.link):
                 os.unlink(self.link)

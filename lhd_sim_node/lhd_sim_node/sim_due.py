@@ -55,13 +55,13 @@ import os
 import select
 import threading
 import time
-import tty
 from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from lhd_hw_bridge.fake_due import LOAD_CELL_OFFSET, LOAD_CELL_SCALE
+from lhd_hw_bridge.pty_link import close_pty, open_pty
 from lhd_hw_bridge.protocol import (ANGLE_SCALE, CURRENT_SCALE, FLAG_ENABLED, FLAG_ESTOP, FLAG_WATCHDOG,
                                     LC_CALIBRATED, LC_SATURATED, LC_TARED, RATE_SCALE, RAW_MAX, RAW_MIN, TYPE_COMMAND,
                                     TYPE_HEARTBEAT, WHEEL_SCALE, CommandFrame, FrameParser, LoadCellFrame,
@@ -260,28 +260,12 @@ class SimDue:
 
     # ------------------------------------------------------------------ pty
     def plug(self) -> str:
-        master, slave = os.openpty()
-        tty.setraw(master)
-        tty.setraw(slave)
-        os.set_blocking(master, False)
-        self._master, self._slave = master, slave
-        self.path = os.ttyname(slave)
+        self._master, self._slave, self.path = open_pty(self.link)
         self.parser.reset_link()
-        if self.link:
-            tmp = self.link + ".tmp"
-            if os.path.lexists(tmp):
-                os.unlink(tmp)
-            os.symlink(self.path, tmp)
-            os.replace(tmp, self.link)
         return self.link or self.path
 
     def unplug(self) -> None:
-        for fd in (self._master, self._slave):
-            if fd is not None:
-                try:
-                    os.close(fd)
-                except OSError:
-                    pass
+        close_pty(self._master, self._slave)
         self._master = self._slave = None
         if self.link and os.path.islink(self.link) and os.readlink(self.link) == self.path:
             os.unlink(self.link)
