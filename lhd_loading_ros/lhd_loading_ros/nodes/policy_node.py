@@ -43,7 +43,8 @@ trigger = odom      a decision as each fresh /lhd/odom arrives (on hardware the 
 Each decision while running is also published on <prefix>/policy/decision (DiagnosticStatus,
 after the command): message = what triggered it (timer | odom | fallback | lockstep), keys
 odom_stamp_ns (header stamp of the odometry it used: on hardware the camera frame's capture
-time), mono_ns (CLOCK_MONOTONIC when the command was published), command ("u_w,u_boom,u_bucket"),
+time), mono_ns (CLOCK_MONOTONIC when the command was published), decided_mono_ns (trigger odom:
+when the decision was taken, the clock of its rate limit; otherwise mono_ns), command ("u_w,u_boom,u_bucket"),
 reason (empty, or why the command is the zero one). `lhd bench twin` matches these with the
 command frames on the serial line.
 """
@@ -199,6 +200,7 @@ class PolicyNode(Node):
         self._last_tick = None
         self._last_decision_t = None     # monotonic time of the latest decision (trigger odom)
         self._last_why = None            # what triggered it
+        self._decided_mono_ns = None     # its monotonic time in ns, for the decision trace
         self.odom_decisions = self.fallback_decisions = self.odom_skipped = 0
 
         self.pub_cmd = self.create_publisher(Float64MultiArray, f"{ns}/cmd", COMMAND_QOS)
@@ -346,6 +348,7 @@ class PolicyNode(Node):
         if self._last_decision_t is not None and self._last_why != "start":
             self.periods_ms.append((now - self._last_decision_t) * 1000.0)
         self._last_decision_t = now
+        self._decided_mono_ns = int(now * 1e9)     # the decision's own time, for the trace
         self._last_why = why
         if why == "odom":
             self.odom_decisions += 1
@@ -418,6 +421,10 @@ class PolicyNode(Node):
         st = DiagnosticStatus(name="lhd_policy: decision", message=why, hardware_id=self.policy_path)
         odom = self._stamps["odom"]
         values = {"odom_stamp_ns": str(odom if odom is not None else 0), "mono_ns": str(sent_ns),
+                  # trigger odom: when the decision was taken (the clock its rate limit and
+                  # fallback run on); mono_ns is when its command left, later by the cycle's work
+                  "decided_mono_ns": str(self._decided_mono_ns if self.trigger == "odom" and self._decided_mono_ns
+                                         is not None else sent_ns),
                   "command": ",".join(repr(float(v)) for v in d.command), "reason": d.reason or ""}
         st.values = [KeyValue(key=k, value=v) for k, v in values.items()]
         self.pub_decision.publish(st)
