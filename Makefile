@@ -35,10 +35,8 @@ colcon-build: $(COLCON_STAMP)
 	$(COLCON_VENV)/bin/colcon --log-base log build --base-paths lhd_loading_ros lhd_sim_node lhd_hw_bridge \
 		--build-base build --install-base install --event-handlers console_cohesion- summary+
 
-# two workers, each test file whole in one (module fixtures, node processes); every worker in its
-# own ROS_DOMAIN_ID (test/rosutil.py). `$(PY) -m pytest -q test` runs it serially.
 test: $(STAMP) colcon-build
-	$(PY) -m pytest -q -n 2 --dist loadfile test
+	$(PY) -m pytest -q test
 
 bench: $(STAMP)
 	$(VENV)/bin/lhd bench sim --json
