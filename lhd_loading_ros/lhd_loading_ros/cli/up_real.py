@@ -119,6 +119,18 @@ class Console:
         return out
 
 
+def make_run_dir(path: str | None, kind: str, prog: str) -> Path | None:
+    """The run folder (default runs/<kind>/<UTC time>), created; None (the reason printed) when
+    it cannot be."""
+    run_dir = Path(path or Path("runs") / kind / datetime.now(timezone.utc).strftime("%Y%m%d-%H%M%S")).resolve()
+    try:
+        run_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        print(f"{prog}: cannot create the run folder {run_dir}: {exc}", file=sys.stderr)
+        return None
+    return run_dir
+
+
 def up_real(args) -> int:
     import rclpy
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -128,12 +140,8 @@ def up_real(args) -> int:
 
     from lhd_loading_ros.ros.qos import STATUS_QOS
 
-    run_dir = Path(args.run_dir or Path("runs") / "real" / datetime.now(timezone.utc).strftime("%Y%m%d-%H%M%S"))
-    run_dir = run_dir.resolve()
-    try:
-        run_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        print(f"lhd up real: cannot create the run folder {run_dir}: {exc}", file=sys.stderr)
+    run_dir = make_run_dir(args.run_dir, "real", "lhd up real")
+    if run_dir is None:
         return 2
     keep_logs = args.log_dir is not None
     log_dir = Path(args.log_dir) if keep_logs else run_dir / "logs"

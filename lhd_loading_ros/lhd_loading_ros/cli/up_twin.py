@@ -44,13 +44,12 @@ import sys
 import tempfile
 import threading
 import time
-from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
 
 from lhd_loading_ros.cli.launcher import Child, _StopOnSignals
-from lhd_loading_ros.cli.up_real import ENDED, default_params_file, format_preflight
+from lhd_loading_ros.cli.up_real import ENDED, default_params_file, format_preflight, make_run_dir
 from lhd_loading_ros.cli.up_real import parser as real_parser
 from lhd_loading_ros.cli.up_real import check_args as real_check_args
 from lhd_loading_ros.cli.up_real import stack
@@ -302,12 +301,8 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
     def say(msg):
         print(msg, file=out, flush=True)
 
-    run_dir = Path(args.run_dir or Path("runs") / "twin" / datetime.now(timezone.utc).strftime("%Y%m%d-%H%M%S"))
-    run_dir = run_dir.resolve()
-    try:
-        run_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        print(f"lhd up twin: cannot create the run folder {run_dir}: {exc}", file=sys.stderr)
+    run_dir = make_run_dir(args.run_dir, "twin", "lhd up twin")
+    if run_dir is None:
         return 2
     log_dir = Path(args.log_dir) if args.log_dir else run_dir / "logs"
     log_dir.mkdir(parents=True, exist_ok=True)
