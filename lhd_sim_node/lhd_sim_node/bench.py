@@ -23,6 +23,7 @@ import time
 import mujoco
 import numpy as np
 
+from .bucket_body import bucket_body_update
 from .env import LhdLoadingEnv
 
 
@@ -51,8 +52,10 @@ def _record(env: LhdLoadingEnv, actions: np.ndarray, seed: int) -> list:
     def rec_physics(n):
         if sim.fee_enabled:
             sim._update_fee()
-        chunks.append(("step", n, d.ctrl.copy(), d.act.copy(), float(m.tendon_frictionloss[sim.tid_fee]),
-                       d.xfrc_applied[sim.bid_bucket].copy(), float(m.body_mass[sim.bid_bucket])))
+        bucket_body_update(*sim._body_args)
+        chunks.append(("step", n, d.ctrl.copy(), d.act.copy(), m.tendon_frictionloss.copy(),
+                       d.xfrc_applied[sim.bid_bucket].copy(), float(m.body_mass[sim.bid_bucket]),
+                       float(m.dof_frictionloss[sim.body.dof])))
         mujoco.mj_step(m, d, nstep=n)
 
     sim._physics, sim.place_machine = rec_physics, rec_place
@@ -67,7 +70,7 @@ def _replay(env: LhdLoadingEnv, chunks: list) -> float:
     sim = env.sim
     m, d = sim.model, sim.data
     tfl, bmass, xfrc = m.tendon_frictionloss, m.body_mass, d.xfrc_applied
-    tid, bid = sim.tid_fee, sim.bid_bucket
+    bid, dfl, dof = sim.bid_bucket, m.dof_frictionloss, sim.body.dof
     t0 = time.perf_counter()
     for ch in chunks:
         if ch[0] == "place":
@@ -75,10 +78,11 @@ def _replay(env: LhdLoadingEnv, chunks: list) -> float:
             d.qpos[:] = ch[1]
             mujoco.mj_forward(m, d)
             continue
-        _, n, ctrl, act, fl, xf, mass = ch
+        _, n, ctrl, act, fl, xf, mass, curl = ch
         d.ctrl[:] = ctrl
         d.act[:] = act
-        tfl[tid] = fl
+        tfl[:] = fl
+        dfl[dof] = curl
         xfrc[bid] = xf
         bmass[bid] = mass
         mujoco.mj_step(m, d, nstep=n)

@@ -114,6 +114,7 @@ class LhdLoadingEnv(gym.Env):
     def _info(self, s, outcome: str, terms: dict, u=None) -> dict[str, Any]:
         return {
             "outcome": outcome, "terms": terms, "loaded_mass": self.sim.loaded_mass,
+            "spilled_mass": self.sim.spilled_mass,  # kg loaded beyond the bucket's capacity and spilled
             "alpha_deg": math.degrees(self.sim.pile.alpha), "material": self.sim.material,
             "x_min": self.sim.zones.x_min, "x_max": self.sim.zones.x_max,
             "drift_front": s.drift_front, "drift_rear": s.drift_rear,

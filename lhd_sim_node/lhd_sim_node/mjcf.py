@@ -17,6 +17,7 @@ from __future__ import annotations
 from lhd_loading_ros.task.kinematics import FLOOR_GAP, PLATE_T, attack_geometry  # noqa: F401  (one geometry: MJCF and FK)
 
 FEE_ANCHOR_X = -200.0  # m, anchor of the horizontal resistance tendon (far: the tendon stays horizontal)
+BODY_ANCHOR_Z = 500.0  # m, anchor of the bucket body's vertical resistance tendon (far: it stays vertical)
 
 
 def build_mjcf(cfg: dict) -> str:
@@ -41,12 +42,37 @@ def build_mjcf(cfg: dict) -> str:
     wm, mu = mc["wheel_mass"], mc["wheel_friction"]
 
     def wheel(name: str, x: float, y: float, indent: int) -> str:
+        """The wheel (tyre in contact with the floor) and its drive motor's rotor beside it on the
+        same frame (drive_tendons couples the two; docs/modeling.md, "Drive and drift")."""
         pad = " " * indent
+        motor = name.replace("wheel", "motor")
         return (f'{pad}<body name="{name}" pos="{x} {y} 0">\n'
-                f'{pad}  <joint name="{name}" type="hinge" axis="0 1 0" armature="0.005"/>\n'
+                f'{pad}  <joint name="{name}" type="hinge" axis="0 1 0"/>\n'
                 f'{pad}  <geom name="{name}" type="sphere" size="{r}" mass="{wm}" contype="0" '
                 f'conaffinity="1" friction="{mu} 0.005 0.0001" rgba="0.1 0.1 0.1 1"/>\n'
+                f'{pad}</body>\n'
+                f'{pad}<body name="{motor}" pos="{x} {y} 0">\n'
+                f'{pad}  <joint name="{motor}" type="hinge" axis="0 1 0" armature="{mc["motor_armature"]}"/>\n'
+                f'{pad}  <inertial pos="0 0 0" mass="1e-6" diaginertia="1e-9 1e-9 1e-9"/>\n'
                 f'{pad}</body>\n')
+
+    # Drive (docs/modeling.md, "Drive and drift"): each wheel's motor is a speed servo on its own
+    # rotor (velocity actuator, not force-limited: MuJoCo 3.3's implicitfast integrator folds a
+    # velocity actuator's kv into the implicit step even while its force is clamped, which made a
+    # torque-limited wheel servo lag its rolling wheel by a timestep-dependent slip); the rotor turns
+    # the wheel through a fixed tendon whose frictionloss is the motor's torque limit (current
+    # limit): the wheel gets up to that torque and the rotor slips past it beyond. solreffriction's
+    # time constant (8 ms = 2 x the largest timestep used) is fixed so that MuJoCo never rescales it
+    # with the timestep.
+    tq = mc["wheel_torque_limit"]
+    drive_tendons = "".join(
+        f'    <fixed name="drive_{w}" frictionloss="{tq}" solreffriction="0.008 1" solimpfriction="0.99 0.99 0.001">'
+        f'<joint joint="motor_{w}" coef="1"/><joint joint="wheel_{w}" coef="-1"/></fixed>\n'
+        for w in ("rl", "rr", "fl", "fr"))
+    drive_actuators = "".join(
+        f'    <velocity name="wheel_{w}" joint="motor_{w}" kv="{mc["wheel_kv"]}" '
+        f'ctrlrange="{ctl["wheels_min"]} {ctl["wheels_max"]}"/>\n'
+        for w in ("rl", "rr", "fl", "fr"))
 
     return f"""
 <mujoco model="lhd_scaled_5to1">
@@ -61,6 +87,7 @@ def build_mjcf(cfg: dict) -> str:
     <light pos="0 0 3" dir="0 0 -1"/>
     <geom name="floor" type="plane" size="0 0 0.05" contype="1" conaffinity="0" rgba="0.5 0.5 0.5 1"/>
     <site name="fee_anchor" pos="{FEE_ANCHOR_X} 0 0.1"/>
+    <site name="body_anchor" pos="0.5 0 {BODY_ANCHOR_Z}"/>
     <body name="rear_frame" pos="0 0 {r}">
       <freejoint name="base"/>
       <inertial pos="{-mc['rear_com_behind_axle']} 0 0.12" mass="{rear_m:.4f}" diaginertia="{rear_m*0.03:.4f} {rear_m*0.04:.4f} {rear_m*0.05:.4f}"/>
@@ -74,7 +101,7 @@ def build_mjcf(cfg: dict) -> str:
           <joint name="boom" type="hinge" axis="0 1 0" range="{task['boom_angle_min']} {task['boom_angle_max']}" armature="0.05"/>
           <geom name="boom" type="capsule" fromto="0 0 0 {hinge_dx:.5f} 0 {hinge_dz:.5f}" size="0.03" mass="{mc['boom_mass']}"/>
           <body name="bucket" pos="{hinge_dx:.5f} 0 {hinge_dz:.5f}">
-            <joint name="bucket" type="hinge" axis="0 -1 0" range="{task['bucket_angle_min']} {task['bucket_angle_max']}" armature="0.05"/>
+            <joint name="bucket" type="hinge" axis="0 -1 0" range="{task['bucket_angle_min']} {task['bucket_angle_max']}" armature="0.05" solreffriction="0.01 1" solimpfriction="0.99 0.999 0.001"/>
             <inertial pos="{tip_ahead*0.4:.4f} 0 {plate_z + back_h*0.3:.4f}" mass="{mc['bucket_mass']}" diaginertia="0.25 0.3 0.3"/>
             <geom name="bucket_plate" type="box" pos="{tip_ahead/2:.5f} 0 {plate_z:.5f}" size="{tip_ahead/2:.5f} {bw/2:.4f} {PLATE_T/2}" mass="0" contype="0" conaffinity="1" friction="{mc['bucket_floor_friction']} 0.005 0.0001"/>
             <geom name="bucket_back" type="box" pos="0 0 {top_z + back_h/2:.5f}" size="{PLATE_T/2} {bw/2:.4f} {back_h/2:.4f}" mass="0"/>
@@ -82,6 +109,7 @@ def build_mjcf(cfg: dict) -> str:
             <geom name="bucket_side_r" type="box" pos="{tip_ahead/2:.5f} {-bw/2:.4f} {top_z + back_h/4:.5f}" size="{tip_ahead/2:.5f} {PLATE_T/2} {back_h/4:.4f}" mass="0"/>
             <site name="tip" pos="{tip_ahead:.5f} 0 {top_z:.5f}"/>
             <site name="bottom" pos="0 0 {plate_z - PLATE_T/2:.5f}"/>
+            <site name="body_lift" pos="0 0 0"/>
           </body>
         </body>
       </body>
@@ -95,16 +123,26 @@ def build_mjcf(cfg: dict) -> str:
       <site site="fee_anchor"/>
       <site site="tip"/>
     </spatial>
-  </tendon>
+    <!-- The whole bucket in the pile (bucket_body.py): breakout of the material over the opening
+         resists lifting (body_z, vertical from a far anchor above to the bucket joint) and the
+         heel ploughing below the lip's cut resists driving on (body_x, horizontal to the heel);
+         both frictionloss limits are set every FEE update, as for fee_x. -->
+    <spatial name="body_z" frictionloss="0" solreffriction="0.01 1" solimpfriction="0.99 0.999 0.001">
+      <site site="body_anchor"/>
+      <site site="body_lift"/>
+    </spatial>
+    <spatial name="body_x" frictionloss="0" solreffriction="0.01 1" solimpfriction="0.99 0.999 0.001">
+      <site site="fee_anchor"/>
+      <site site="bottom"/>
+    </spatial>
+    <!-- Drive: rotor -> wheel, slipping beyond the motor's torque limit (see build_mjcf). -->
+{drive_tendons}  </tendon>
   <equality>
     <joint name="articulation_lock" joint1="articulation" polycoef="0 0 0 0 0"/>
   </equality>
   <actuator>
-    <velocity name="wheel_rl" joint="wheel_rl" kv="{mc['wheel_kv']}" forcerange="{-mc['wheel_torque_limit']} {mc['wheel_torque_limit']}" ctrlrange="{ctl['wheels_min']} {ctl['wheels_max']}"/>
-    <velocity name="wheel_rr" joint="wheel_rr" kv="{mc['wheel_kv']}" forcerange="{-mc['wheel_torque_limit']} {mc['wheel_torque_limit']}" ctrlrange="{ctl['wheels_min']} {ctl['wheels_max']}"/>
-    <velocity name="wheel_fl" joint="wheel_fl" kv="{mc['wheel_kv']}" forcerange="{-mc['wheel_torque_limit']} {mc['wheel_torque_limit']}" ctrlrange="{ctl['wheels_min']} {ctl['wheels_max']}"/>
-    <velocity name="wheel_fr" joint="wheel_fr" kv="{mc['wheel_kv']}" forcerange="{-mc['wheel_torque_limit']} {mc['wheel_torque_limit']}" ctrlrange="{ctl['wheels_min']} {ctl['wheels_max']}"/>
-    <!-- Hydraulic joints: the valve command is a speed; the oil column holds the joint where it is
+    <!-- Wheel motors: speed servos on the rotors; the torque limit is the drive tendons' frictionloss. -->
+{drive_actuators}    <!-- Hydraulic joints: the valve command is a speed; the oil column holds the joint where it is
          (integrated-velocity position servo), up to the relief force. -->
     <intvelocity name="boom" joint="boom" kp="{mc['boom_kp']}" kv="{mc['boom_kv']}" forcerange="{-mc['boom_force_limit']} {mc['boom_force_limit']}" ctrlrange="{ctl['boom_min']} {ctl['boom_max']}" actrange="{task['boom_angle_min']} {task['boom_angle_max']}"/>
     <intvelocity name="bucket" joint="bucket" kp="{mc['bucket_kp']}" kv="{mc['bucket_kv']}" forcerange="{-mc['bucket_force_limit']} {mc['bucket_force_limit']}" ctrlrange="{ctl['bucket_min']} {ctl['bucket_max']}" actrange="{task['bucket_angle_min']} {task['bucket_angle_max']}"/>

@@ -10,6 +10,7 @@ the bucket body's mass.
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 
 import mujoco
@@ -20,12 +21,15 @@ from lhd_loading_ros.task.pile import SoilRanges, VoxelPile
 from lhd_loading_ros.task.state import LhdState
 from lhd_loading_ros.task.zones import Zones
 
-from .fee import BETA_GRID, FeeTable
-from .fee_kernel import (OUT_SIZE, P_ALPHA, P_BID_BUCKET, P_BUCKET_MASS0, P_CA, P_DX, P_DZ, P_FEE_DT,
-                         P_FEE_MIN_SPEED, P_H, P_L, P_LOADED_FRACTION, P_Q, P_RAKE_ATTACK, P_RAKE_HI, P_RAKE_LO,
-                         P_MAX_LOAD, P_RAKE_STEP, P_SID_TIP, P_SIZE, P_TID_FEE, P_W, ST_CUT_X, ST_CUT_Z, ST_FH, ST_FZ, ST_NEXT_CENTER, ST_RAKE, ST_SIZE, ST_TIP_PREV_X,
-                         ST_ENGAGED, ST_W_IDEAL, fee_update, make_grids)
+from lhd_loading_ros.task.bucket_capacity import capacity_table
+
+from .fee import BETA_GRID, slice_force
+from .fee_kernel import (OUT_SIZE, P_BID_BUCKET, P_BUCKET_MASS0, P_CA, P_DX, P_DZ, P_FEE_DT, P_FEE_MIN_SPEED, P_H, P_L,
+                         P_LOADED_FRACTION, P_Q, P_RAKE_ATTACK, P_RAKE_HI, P_RAKE_LO, P_SID_TIP, P_SIZE, P_TID_FEE, P_W,
+                         ST_ALPHA_S, ST_CUT_X, ST_CUT_Z, ST_ENGAGED, ST_FH, ST_FZ, ST_M_BUCKET, ST_NEXT_CENTER, ST_RAKE,
+                         ST_SIZE, ST_SPILLED, ST_TIP_PREV_X, ST_V_BUCKET, ST_V_CUT, ST_W_IDEAL, beta_tables, fee_update)
 from .mjcf import attack_geometry, build_mjcf
+from .bucket_body import BucketBody, bucket_body_update
 
 WHEELS = ("wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr")
 MATERIALS = ("homogeneous", "nonhomogeneous")
@@ -41,9 +45,10 @@ class FeeReport:
     """The last FEE evaluation (for tests, debugging and the sim node)."""
     force: np.ndarray      # world force on the bucket, N
     torque: np.ndarray     # world torque about the bucket CoM, N m
-    depth: np.ndarray      # per engaged slice, m
+    depth: np.ndarray      # per engaged slice, m, normal to the local surface ahead of the lip
     magnitude: float       # sum of F over slices before the speed ramp, N
-    rake: float            # rad
+    rake: float            # rad, world rake of the bucket (rake_attack - pitch, clipped)
+    alpha_s: float = 0.0   # rad, mean slope of the local surface ahead of the lip over the engaged slices
 
 
 class LhdSimulator:
@@ -76,8 +81,14 @@ class LhdSimulator:
         self.sid_tip = m.site("tip").id
         self.sid_bottom = m.site("bottom").id
         self.tid_fee = m.tendon("fee_x").id
+        self.body = BucketBody(cfg, m)  # breakout and ploughing of the whole bucket (bucket_body.py)
         self.wheel_dof = np.array([m.jnt_dofadr[m.joint(w).id] for w in WHEELS])
         self._wheel_dofs = [int(i) for i in self.wheel_dof]
+        # drift over a window of one control period (wheel_drift): the marks (time, x, wheel angles)
+        # at the start of the last chunks; advance() and the attack drive keep the last n of them
+        self._wheel_qs = [int(m.jnt_qposadr[m.joint(w).id]) for w in WHEELS]
+        self._drift_marks: deque = deque(maxlen=max(1, self.n_phys // self.fee_every))
+        self._drift_from: tuple = ()
         self.boom_q = m.jnt_qposadr[m.joint("boom").id]
         self.boom_v = m.jnt_dofadr[m.joint("boom").id]
         self.bucket_q = m.jnt_qposadr[m.joint("bucket").id]
@@ -101,9 +112,12 @@ class LhdSimulator:
         self._fee_rake = self.rake_attack
         self._fee_depth = ()
         self.use_kernel = True
-        self.rake_step = math.radians(0.25)
         vx = cfg["paper"]["voxels"]
-        self._grids, self._filled = make_grids(2, self.rake_lo, self.rake_hi, self.rake_step, len(BETA_GRID))
+        # the bucket's geometric capacity (m^3, struck + heap at repose) over the tip pitch (H4's table)
+        cap_pitch, cap_vol = capacity_table(cfg)
+        self._cap_pitch = np.ascontiguousarray(cap_pitch, dtype=float)
+        self._cap_vol = np.ascontiguousarray(cap_vol, dtype=float)
+        self._alpha_s = 0.0
         self._kout = np.zeros(OUT_SIZE)
         self._kdepth = np.zeros(vx["n_y"])
         self._slices = np.zeros(0, dtype=int)
@@ -125,11 +139,9 @@ class LhdSimulator:
         s = self.soil
         gravel_phi = float(self.pile.phi[self.pile.klass == 0].flat[0]) if (self.pile.klass == 0).any() else s.rock_phi
         gravel_delta = float(self.pile.delta[self.pile.klass == 0].flat[0]) if (self.pile.klass == 0).any() else s.rock_delta
-        self.fee_table = FeeTable(self.pile.alpha, (gravel_phi, s.rock_phi), (gravel_delta, s.rock_delta),
-                                  rake_step=self.rake_step)
         self._phis = np.array([gravel_phi, s.rock_phi])
         self._deltas = np.array([gravel_delta, s.rock_delta])
-        self._filled[:] = False
+        self._tabs = beta_tables(self._phis, BETA_GRID)  # the FEE kernel's beta-only terms per class
 
     def place_machine(self, d_attack: float) -> None:
         """Attack pose, at rest, bucket tip d_attack before the toe of the pile."""
@@ -142,6 +154,12 @@ class LhdSimulator:
         mujoco.mj_forward(m, d)
         self.W_ideal = 0.0
         self.pile.removed_mass = 0.0
+        # payload: loaded_fraction of the cut volume and mass, up to the bucket's geometric capacity
+        self.V_cut = 0.0        # m^3 cut from the pile
+        self._v_bucket = 0.0    # m^3 in the bucket
+        self._m_bucket = 0.0    # kg in the bucket (= loaded_mass)
+        self._spilled = 0.0     # kg loaded beyond the capacity and spilled
+        self._alpha_s = 0.0
         self._slices = self.pile.slices_in(-self.bucket_width / 2, self.bucket_width / 2)
         self._tip_prev_x = float(d.site_xpos[self.sid_tip][0])
         self._cut_prev_x = self._tip_prev_x
@@ -150,7 +168,10 @@ class LhdSimulator:
         self._n_slices = len(self._slices)
         self._fee_h = self._fee_v = 0.0
         d.xfrc_applied[:] = 0.0
+        self._drift_marks.clear()
+        self._drift_from = self._drift_mark()  # drift window: none yet (wheel_drift)
         self._bind_kernel()
+        self._body_args = self.body.bind(m, d, self.pile, self._slices, self.bucket_mass0)
 
     def reset(self, rng: np.random.Generator, alpha: float | None = None, material: str | None = None,
               d_attack: float | None = None, attack_speed: float | None = None) -> None:
@@ -166,7 +187,10 @@ class LhdSimulator:
         self.place_machine(self.d_attack)
         t = 0.0
         self.set_command(np.array([self.attack_speed, 0.0, 0.0]))
+        self._drift_marks.clear()
         while self.data.site_xpos[self.sid_tip][0] < p.d_init:
+            self._drift_marks.append(self._drift_mark())
+            self._drift_from = self._drift_marks[0]
             self._physics(self.fee_every)
             mujoco.mj_kinematics(self.model, self.data)
             t += self.fee_dt
@@ -190,6 +214,8 @@ class LhdSimulator:
         """One control period with command u (rad/s)."""
         self.set_command(u)
         self._anti_windup()
+        self._drift_marks.clear()
+        self._drift_from = self._drift_mark()
         for _ in range(self.n_phys // self.fee_every):
             self._physics(self.fee_every)
         mujoco.mj_kinematics(self.model, self.data)
@@ -207,6 +233,8 @@ class LhdSimulator:
         once per chunk), but both integrate the same model."""
         self.set_command(u)
         self._anti_windup()
+        self._drift_marks.append(self._drift_mark())
+        self._drift_from = self._drift_marks[0]
         self._physics(self.fee_every)
         mujoco.mj_kinematics(self.model, self.data)
         if self.use_kernel:
@@ -218,6 +246,7 @@ class LhdSimulator:
                 self._update_fee()
             else:
                 self._update_fee_numpy()
+        bucket_body_update(*self._body_args)  # after the FEE update: reads the cut pile and the payload mass
         mujoco.mj_step(self.model, self.data, nstep=n)
 
     def _anti_windup(self) -> None:
@@ -229,72 +258,78 @@ class LhdSimulator:
             act[a] = min(max(act[a], qpos[q] - WINDUP), qpos[q] + WINDUP)
 
     def _update_fee_numpy(self) -> None:
-        """Reference implementation of one FEE update in numpy (the kernel must match it)."""
+        """Reference implementation of one FEE update in numpy/python (the kernel must match it)."""
         d, pile = self.data, self.pile
         tip = d.site_xpos[self.sid_tip]
         x, z = float(tip[0]), float(tip[2])
+        xmat = d.site_xmat[self.sid_tip]
+        pitch = math.atan2(xmat[6], xmat[0])  # x-axis of the tip frame: (xmat[0], xmat[3], xmat[6])
         # cutting: the columns whose centre the tip passed lose the material above the tip
+        add_v = add_m = 0.0
         if x >= self._next_center:
+            old = pile.top[self._slices].copy()
             m = pile.cut(self._cut_prev_x, self._cut_prev_z, x, z, self._slices)
             self._next_center = (math.floor(x / pile.dx - 0.5) + 1.5) * pile.dx
             if m > 0.0:
+                vol = float(np.sum(np.minimum(old, pile.h) - pile.top[self._slices])) * pile.dx * pile.dy
                 self.W_ideal += m
-                self.model.body_mass[self.bid_bucket] = self.bucket_mass0 + self.loaded_mass
+                self.V_cut += vol
+                add_v, add_m = self.p.loaded_fraction * vol, self.p.loaded_fraction * m
         elif x < self._cut_prev_x:  # moved back: the next centre ahead may be an earlier one
             self._next_center = (math.floor(x / pile.dx - 0.5) + 1.5) * pile.dx
         self._cut_prev_x, self._cut_prev_z = x, z
+        # payload: what exceeds the capacity at this pitch spills, at the content's mean density
+        if add_v > 0.0 or self._v_bucket > 0.0:
+            cap = float(np.interp(pitch, self._cap_pitch, self._cap_vol))
+            v, m = self._v_bucket + add_v, self._m_bucket + add_m
+            if v > cap:
+                spill = m * (v - cap) / v
+                self._spilled += spill
+                v, m = max(cap, 0.0), m - spill
+                add_v = 1.0  # mass changed
+            if add_v > 0.0:
+                self._v_bucket, self._m_bucket = v, m
+                self.model.body_mass[self.bid_bucket] = self.bucket_mass0 + m
         v_tip = (x - self._tip_prev_x) / self.fee_dt
         self._tip_prev_x = x
-        # the material ahead of the tip: the first column whose centre the tip has not passed
-        xa = x + 0.5 * pile.dx
         xfrc = d.xfrc_applied[self.bid_bucket]
+        xa = x + 0.5 * pile.dx
         if x < 0.0 or xa >= pile.L or self._n_slices == 0:
             self._no_fee(xfrc)
             return
-        i = int(xa / pile.dx)
-        depth = pile.top[self._slices, i] - z
-        if depth.max() <= 0.0:
+        rake = min(max(self.rake_attack - pitch, self.rake_lo), self.rake_hi)
+        # per slice, the FEE in the frame of the surface ahead of its lip column (fee.py)
+        fh, fv, depth, ys, alphas = [], [], [], [], []
+        for j in self._slices:
+            h_, v_, dn, alpha_s, _ = slice_force(x, z, rake, pile.top[j], pile.x_centers, pile.dx, pile.dz, pile.h,
+                                                 pile.n_x, pile.dy, pile.surcharge, pile.adhesion, self.rake_lo,
+                                                 pile.density[j], pile.cohesion[j], pile.klass[j], self._phis,
+                                                 self._deltas)
+            if dn <= 0.0:
+                continue
+            fh.append(h_)
+            fv.append(v_)
+            depth.append(dn)
+            ys.append(pile.y_centers[j])
+            alphas.append(alpha_s)
+        if not fh:
             self._no_fee(xfrc)
             return
-        j = self._slices
-        if depth.min() <= 0.0:
-            keep = depth > 0.0
-            j, depth = j[keep], depth[keep]
-        xmat = d.site_xmat[self.sid_tip]
-        pitch = math.atan2(xmat[6], xmat[0])  # x-axis of the tip frame: (xmat[0], xmat[3], xmat[6])
-        rake = min(max(self.rake_attack - pitch, self.rake_lo), self.rake_hi)
-        # soil of each slice: the voxel at mid-depth of the layer above the tip
-        k = ((z + 0.5 * depth) * pile.inv_dz).astype(np.intp)
-        np.clip(k, 0, pile.n_z - 1, out=k)
-        gamma = pile.density[j, i, k]
-        coh = pile.cohesion[j, i, k]
-        klass = pile.klass[j, i, k]
-        if not klass.any():
-            F, s_, c_ = self.fee_table.force(0, depth, pile.dy, gamma, coh, pile.surcharge, pile.adhesion, rake)
-            fh = F * s_
-            fv = F * c_
-        else:
-            fh = np.empty(len(j))
-            fv = np.empty(len(j))
-            for kl in (0, 1):
-                sel = klass == kl
-                if sel.any():
-                    F, s_, c_ = self.fee_table.force(kl, depth[sel], pile.dy, gamma[sel], coh[sel], pile.surcharge,
-                                                     pile.adhesion, rake)
-                    fh[sel] = F * s_
-                    fv[sel] = F * c_
-        # Horizontal: dry friction on the x-tendon (resists motion up to F sin(rake+delta), no creep).
-        fh_sum = float(fh.sum())
+        fv = np.array(fv)
+        # Horizontal: dry friction on the x-tendon (resists motion up to sum F sin(rho_w+delta), no creep).
+        fh_sum = float(np.sum(fh))
         self.model.tendon_frictionloss[self.tid_fee] = fh_sum
-        # Vertical: F cos(rake+delta) downward, mobilised while the tip advances into the pile.
+        # Vertical: F cos(rho_w+delta) downward, mobilised while the tip advances into the pile.
         ramp = min(max(v_tip / self.fee_min_speed, 0.0), 1.0)
         fz_sum = -ramp * float(fv.sum())
         com = d.xipos[self.bid_bucket]
         # torque about the CoM of the vertical slice forces applied at the tip: r x (0, 0, fz)
+        xfrc[:] = 0.0
         xfrc[2] = fz_sum
-        xfrc[3] = -ramp * float(np.dot(pile.y_centers[j] - com[1], fv))
+        xfrc[3] = -ramp * float(np.dot(np.array(ys) - com[1], fv))
         xfrc[4] = -(x - float(com[0])) * fz_sum
-        self._fee_h, self._fee_v, self._fee_rake, self._fee_depth = fh_sum, fz_sum, rake, depth
+        self._fee_h, self._fee_v, self._fee_rake, self._fee_depth = fh_sum, fz_sum, rake, np.array(depth)
+        self._alpha_s = float(np.mean(alphas))
 
     def _update_fee(self) -> None:
         """One FEE update (compiled kernel): cut the pile, set the horizontal resistance on the
@@ -313,14 +348,13 @@ class LhdSimulator:
         par[[P_SID_TIP, P_BID_BUCKET, P_TID_FEE]] = self.sid_tip, self.bid_bucket, self.tid_fee
         par[[P_BUCKET_MASS0, P_LOADED_FRACTION, P_FEE_DT, P_FEE_MIN_SPEED]] = (
             self.bucket_mass0, self.p.loaded_fraction, self.fee_dt, self.fee_min_speed)
-        par[[P_DX, P_DZ, P_L, P_H, P_W, P_Q, P_CA, P_ALPHA]] = (
-            pile.dx, pile.dz, pile.L, pile.h, pile.dy, pile.surcharge, pile.adhesion, pile.alpha)
-        par[[P_RAKE_ATTACK, P_RAKE_LO, P_RAKE_HI, P_RAKE_STEP]] = self.rake_attack, self.rake_lo, self.rake_hi, self.rake_step
-        par[P_MAX_LOAD] = self.p.bucket_max_load
+        par[[P_DX, P_DZ, P_L, P_H, P_W, P_Q, P_CA]] = (
+            pile.dx, pile.dz, pile.L, pile.h, pile.dy, pile.surcharge, pile.adhesion)
+        par[[P_RAKE_ATTACK, P_RAKE_LO, P_RAKE_HI]] = self.rake_attack, self.rake_lo, self.rake_hi
         self._kargs = (d.site_xpos, d.site_xmat, d.xipos, d.xfrc_applied, m.tendon_frictionloss, m.body_mass, st, par,
                        self._slices, pile.top, pile._cum, pile._voxel_mass, pile.density, pile.cohesion, pile.klass,
-                       pile.x_centers, pile.y_centers, self._grids, self._filled, self._phis, self._deltas, BETA_GRID,
-                       self._kdepth, self._kout)
+                       pile.x_centers, pile.y_centers, self._tabs, self._phis, self._deltas, self._cap_pitch,
+                       self._cap_vol, self._kdepth, self._kout)
 
     def _sync_from_kernel(self) -> None:
         st = self._kst
@@ -330,12 +364,14 @@ class LhdSimulator:
         self._next_center, self._tip_prev_x = st[ST_NEXT_CENTER], st[ST_TIP_PREV_X]
         self._fee_h, self._fee_v, self._fee_rake = st[ST_FH], st[ST_FZ], st[ST_RAKE]
         self._fee_depth = self._kdepth[self._kdepth > 0.0].copy() if st[ST_ENGAGED] else ()
+        self.V_cut, self._v_bucket, self._m_bucket = st[ST_V_CUT], st[ST_V_BUCKET], st[ST_M_BUCKET]
+        self._spilled, self._alpha_s = st[ST_SPILLED], st[ST_ALPHA_S]
 
     @property
     def last_fee(self) -> FeeReport:
         xf = self.data.xfrc_applied[self.bid_bucket]
         return FeeReport(np.array([-self._fee_h, 0.0, self._fee_v]), xf[3:].copy(), np.asarray(self._fee_depth),
-                         math.hypot(self._fee_h, self._fee_v), self._fee_rake)
+                         math.hypot(self._fee_h, self._fee_v), self._fee_rake, float(self._alpha_s))
 
     def _no_fee(self, xfrc) -> None:
         if self._fee_h != 0.0 or self._fee_v != 0.0:
@@ -346,20 +382,45 @@ class LhdSimulator:
     # ------------------------------------------------------------------ readings
     @property
     def loaded_mass(self) -> float:
-        """Payload W: 2/3 of the mass cut from the pile (paper), up to the bucket's heaped
-        capacity; the rest spills."""
-        return min(self.p.loaded_fraction * self.W_ideal, self.p.bucket_max_load)
+        """Payload W, the mass in the bucket: loaded_fraction (2/3, paper) of the volume cut from
+        the pile, with its per-voxel densities, limited by the bucket's geometric capacity at
+        each moment's tip pitch (struck + heap at repose); what exceeds it spilled."""
+        return float(self._m_bucket)
+
+    @property
+    def spilled_mass(self) -> float:
+        """Mass loaded beyond the bucket's capacity and spilled this attempt, kg."""
+        return float(self._spilled)
+
+    @property
+    def loaded_volume(self) -> float:
+        """Volume in the bucket, m^3."""
+        return float(self._v_bucket)
+
+    def _drift_mark(self) -> tuple:
+        q = self._qpos
+        return (self.data.time, float(q[0]), *[float(q[i]) for i in self._wheel_qs])
 
     def wheel_drift(self) -> tuple[bool, bool]:
-        """(front, rear): a wheel drifts when its rim speed and the chassis speed differ by
-        more than max(drift_min_speed, drift_slip_ratio * the larger of the two)."""
-        p = self.p
-        qv = self._qvel
-        v = float(qv[0])
+        """(front, rear): over the last control period (the window since the mark taken at the
+        start of `step`, or at the start of the last n_phys / fee_every chunks of `advance` and of
+        the attack drive), a wheel drifts when its rim travel r * dtheta and the machine's travel
+        dx differ by more than max(drift_min_speed * T, drift_slip_ratio * the larger of the two):
+        the paper compares "the wheel speeds and the total movement of the machine". Travels, not
+        the instantaneous joint speeds: a wheel's speed inside a period oscillates with the tyre
+        contact (the rear axle's hop when the bucket loads the front), and a sample of it at the
+        period's end depends on the integrator's timestep (docs/modeling.md, "Drive and drift")."""
+        mark = self._drift_from
+        if not mark:
+            return False, False
+        p, q, r = self.p, self._qpos, self.wheel_radius
+        T = self.data.time - mark[0]
+        dx = float(q[0]) - mark[1]
+        tol_min = p.drift_min_speed * T
         slip = []
-        for dof in self._wheel_dofs:
-            rim = qv[dof] * self.wheel_radius
-            slip.append(abs(rim - v) > max(p.drift_min_speed, p.drift_slip_ratio * max(abs(rim), abs(v))))
+        for k, i in enumerate(self._wheel_qs):
+            rim = (float(q[i]) - mark[2 + k]) * r
+            slip.append(abs(rim - dx) > max(tol_min, p.drift_slip_ratio * max(abs(rim), abs(dx))))
         return slip[0] or slip[1], slip[2] or slip[3]
 
     def state(self) -> LhdState:

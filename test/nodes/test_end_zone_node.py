@@ -30,8 +30,12 @@ LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=Hi
 REL = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 # the paper's pile and end zone (config/lhd_params.yaml), written out for the closed form
 H, W, M_MIN, M_MAX, Z_MIN, D_CUTOFF = 0.68, 0.4, 65.0, 170.0, 0.35, 0.1
-X_INIT_OBS, X_OBS, Y_OBS, Z_OBS = 0.1, 1.1, 0.4, 0.4
-RHO = (3100.0 + 3400.0) / 2          # pile.density_min/max midpoint
+RHO_MIN, RHO_MAX = 1760.0, 2000.0    # pile.density_min/max (gravel)
+RHO = (RHO_MIN + RHO_MAX) / 2        # midpoint: the node's default density
+# the observation zone's far edge, derived from the pile (task.normalisers_from_pile, docs/modeling.md):
+# the end zone's far edge on the shallowest (15 deg), lightest pile, plus the paper's 0.03 m of room
+X_INIT_OBS, Y_OBS, Z_OBS = 0.1, 0.4, 0.4
+X_OBS = X_INIT_OBS + math.sqrt(2 * M_MAX / (RHO_MIN * W * math.tan(math.radians(15.0)))) + 0.03
 FIT_DEG, FIT_TOE = 1.0, 0.03         # the LiDAR node's fit error on these scans (test_lidar_ros.py)
 THRESHOLD = 0.02                     # the node's default republish_threshold, m
 
@@ -163,7 +167,7 @@ def test_lidar_pile_to_latched_zones_threshold_stale_and_bad_input(ros, tmp_path
         got = late_zones("late_policy")
         assert got["zones"] == first and got["end"] == first[:3], got
         ok, seen = diag.wait(ros, OK, "end zone x")
-        assert ok and f"slope {math.degrees(v.x):.1f} deg, toe {v.y:.3f} m, 3250 kg/m^3" in seen[-1][1], seen
+        assert ok and f"slope {math.degrees(v.x):.1f} deg, toe {v.y:.3f} m, {RHO:.0f} kg/m^3" in seen[-1][1], seen
 
         # below the threshold: the same pile scanned again (range noise), the toe moved 8 mm
         for alpha, toe, seed in ((20.0, 0.05, 2), (20.0, 0.058, 3)):
@@ -215,14 +219,14 @@ def test_lidar_pile_to_latched_zones_threshold_stale_and_bad_input(ros, tmp_path
         spin_until(ros, lambda: False, 1.2)
         assert (int(diag.values()["rejected"]), int(diag.values()["received"])) == (20, len(fits)), diag.values()
 
-        # runtime density: the zones of the last good pile with 2600 kg/m^3, published at once;
+        # runtime density: the zones of the last good pile with 1600 kg/m^3 (lighter: further out), published at once;
         # a density in t/m^3 is refused with the reason
         res = set_param(ros, "/end_zone_node", "density", 3.2)
         assert not res.successful and "outside [500, 6000] kg/m^3" in res.reason, res.reason
         n = len(published)
-        assert set_param(ros, "/end_zone_node", "density", 2600.0).successful
+        assert set_param(ros, "/end_zone_node", "density", 1600.0).successful
         assert spin_until(ros, lambda: len(published) > n, 10.0)
-        assert published[-1] == pytest.approx(wedge_zones(*good_fit, rho=2600.0), abs=1e-9)
+        assert published[-1] == pytest.approx(wedge_zones(*good_fit, rho=1600.0), abs=1e-9)
         assert published[-1][1] > good[1]
     finally:
         for s in subs:

@@ -1,21 +1,23 @@
-"""The extended FEE: closed form against an independent wedge equilibrium, limiting cases,
-monotonicity, the failure-angle search and the simulator's fast table."""
+"""The FEE (face frame, fee.py): on flat ground the closed form against an independent wedge
+equilibrium (McKyes/Reece), limiting cases, monotonicity and the failure-angle search. The
+sloped face is tested in test_fee_face.py."""
 import math
 
 import numpy as np
 import pytest
 
-from lhd_sim_node.fee import BETA_GRID, G, FeeTable, fee_force, fee_min, n_factors, tool_force_components
+from lhd_sim_node.fee import G, face_rake, fee_force, fee_min, n_factors, tool_force_components
 
 r = math.radians
 
 
 def wedge_equilibrium_force(beta, d, w, gamma, c, q, rho, delta, phi, c_a=0.0):
     """Solve the force balance of the passive wedge on flat ground (alpha = 0) bounded by the
-    vertical through the tool tip, the failure plane at beta and the surface, as a 2x2
-    linear system in the unknown tool force P and failure-plane reaction R."""
-    W = gamma * G * w * d * d / (2.0 * math.tan(beta))      # wedge weight
-    Q = q * w * d / math.tan(beta)                          # surcharge on the wedge's top
+    tool face, the failure plane at beta and the surface (McKyes: top length d (cot beta +
+    cot rho)), as a 2x2 linear system in the unknown tool force P and failure-plane reaction R."""
+    top = d / math.tan(beta) + d / math.tan(rho)            # wedge top: ahead of and above the blade
+    W = gamma * G * w * d * top / 2.0                       # wedge weight
+    Q = q * w * top                                         # surcharge on the wedge's top
     C = c * w * d / math.sin(beta)                          # cohesion along the failure plane
     A_ = c_a * w * d / math.sin(rho)                        # adhesion along the tool face
     b_dir = np.array([-math.cos(rho), math.sin(rho)])      # tool face, from the tip upwards
@@ -53,12 +55,13 @@ def test_limiting_cases_of_the_n_factors():
     # D by hand, and at alpha = 0 the slope term is 1
     assert D == pytest.approx(math.cos(r(90)) + math.sin(r(90)) / math.tan(r(65)))
     assert nq == pytest.approx(2.0 * ng)  # weight and surcharge act on the same wedge top
-    assert ng == pytest.approx((1.0 / math.tan(beta)) / (2.0 * D))
+    assert ng == pytest.approx((1.0 / math.tan(beta) + 1.0 / math.tan(rho)) / (2.0 * D))
     assert nc == pytest.approx((1.0 + 1.0 / (math.tan(beta) * math.tan(beta + phi))) / D)
-    # failure plane parallel to the surface: no wedge, N_gamma = 0
+    # on a face the surcharge factor does not see the slope, the weight factor leans with it
     alpha = r(25)
-    ng0, *_ = n_factors(r(65), alpha, rho, delta, phi)
-    assert ng0 == pytest.approx(0.0, abs=1e-12)
+    ng_a, _, nq_a, _, _ = n_factors(beta, alpha, rho, delta, phi)
+    assert nq_a == pytest.approx(nq)
+    assert ng_a == pytest.approx(nq * (math.cos(alpha) + math.sin(alpha) / math.tan(beta + phi)) / 2.0)
     # a smooth vertical tool on flat ground: D = cot(beta + phi), N_q = cot(beta) tan(beta + phi)
     _, _, nq_s, na_s, D_s = n_factors(beta, 0.0, r(90), 0.0, phi)
     assert D_s == pytest.approx(1.0 / math.tan(beta + phi))
@@ -75,7 +78,7 @@ def test_failure_angle_minimises_the_force():
     vals = fee_force(fine, 0.2, args["w"], args["gamma"], args["c"], args["q"], args["c_a"], args["alpha"],
                      args["rho"], args["delta"], args["phi"])
     ng, nc, nq, na, D = n_factors(fine, args["alpha"], args["rho"], args["delta"], args["phi"])
-    ok = (D > 0) & (1 / np.tan(fine) > np.tan(args["alpha"]))
+    ok = D > 0
     best = vals[ok].min()
     assert F[0] == pytest.approx(best, rel=2e-3)
     assert F[0] >= best * (1 - 1e-12)
@@ -88,30 +91,16 @@ def test_force_grows_with_depth_and_with_slope():
     F, _ = fee_min(depths, alpha=r(20), **kw)
     assert np.all(np.diff(F) > 0)
     # at a fixed penetration x into the pile the tool is deeper on a steeper pile: d = x tan(alpha)
+    # vertically, x sin(alpha) normal to the face, where the blade stands at 60 deg + alpha
     x = 0.5
-    forces = [fee_min(np.array([x * math.tan(r(a))]), alpha=r(a), **kw)[0][0] for a in (15, 20, 25, 30)]
+    kw.pop("rho")
+    forces = [fee_min(np.array([x * math.sin(r(a))]), alpha=r(a), rho=face_rake(r(60), r(a), kw["delta"], kw["phi"], r(30)),
+                      **kw)[0][0] for a in (15, 20, 25, 30)]
     assert np.all(np.diff(forces) > 0)
-    assert fee_min(np.array([0.0, -0.1]), alpha=r(20), **kw)[0].tolist() == [0.0, 0.0]
+    assert fee_min(np.array([0.0, -0.1]), alpha=r(20), rho=r(80), **kw)[0].tolist() == [0.0, 0.0]
 
 
 def test_force_components():
     h, v = tool_force_components(100.0, r(60), r(25))
     assert h == pytest.approx(100 * math.sin(r(85)))
     assert v == pytest.approx(100 * math.cos(r(85)))
-
-
-def test_simulator_table_matches_reference():
-    alpha, phi, delta = r(22), r(38), r(24)
-    table = FeeTable(alpha, [phi, r(45)], [delta, r(30)], rake_step=1e-9)
-    d = np.array([0.05, 0.12, 0.2, 0.33])
-    gamma = np.array([1800.0, 1900.0, 1700.0, 2000.0])
-    coh = np.array([0.0, 100.0, 50.0, 10.0])
-    for rake in (r(35), r(60), r(85)):
-        F, s, c = table.force(0, d, 0.057, gamma, coh, 700.0, 0.0, rake)
-        ref, _ = fee_min(d, 0.057, gamma, coh, 700.0, 0.0, alpha, rake, delta, phi, beta_grid=BETA_GRID)
-        np.testing.assert_allclose(F, ref, rtol=1e-9)
-        assert s == pytest.approx(math.sin(rake + delta)) and c == pytest.approx(math.cos(rake + delta))
-    # rocks (class 1) resist more than gravel at the same depth and density
-    Fg, *_ = table.force(0, d, 0.057, gamma, coh, 700.0, 0.0, r(60))
-    Fr, *_ = table.force(1, d, 0.057, gamma, coh, 700.0, 0.0, r(60))
-    assert np.all(Fr > Fg)

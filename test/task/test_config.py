@@ -93,3 +93,21 @@ def test_machine_mass_and_wheel_radius_follow_the_paper(cfg):
     assert m["chassis_mass"] + m["boom_mass"] + m["bucket_mass"] + 4 * m["wheel_mass"] == pytest.approx(121.0)
     # wheel radius from the 2.7 rad/s top wheel speed and the 0.37 m/s attack speed
     assert m["wheel_radius"] == pytest.approx(0.37 / 2.7, abs=0.001)
+
+
+def test_capacity_and_normaliser_keys(cfg):
+    """task.bucket_repose_deg (the gravel's angle of repose) and task.normalisers_from_pile (0/1),
+    checked like every key; the former mass cap task.bucket_max_load is gone."""
+    assert "bucket_max_load" not in cfg["task"]
+    bad = copy.deepcopy(cfg)
+    bad["task"]["bucket_repose_deg"] = 75.0
+    with pytest.raises(ConfigError, match=r"'task\.bucket_repose_deg' = 75(\.0)? is out of range"):
+        validate(bad)
+    bad = copy.deepcopy(cfg)
+    bad["task"]["normalisers_from_pile"] = 2
+    with pytest.raises(ConfigError, match=r"'task\.normalisers_from_pile' = 2 is out of range"):
+        validate(bad)
+    bad = copy.deepcopy(cfg)
+    bad["task"]["bucket_max_load"] = 37.5
+    with pytest.raises(ConfigError, match="bucket_max_load"):
+        validate(bad)

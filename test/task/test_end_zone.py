@@ -7,14 +7,25 @@ import pytest
 
 from lhd_loading_ros.task.end_zone import (InputLimits, Republisher, largest_change, load_survey, nominal_density,
                                            zones_of_pile)
+from lhd_loading_ros.task.config import load_config
+from lhd_loading_ros.task.params import TaskParams
 from lhd_loading_ros.task.zones import Zones
 
 r = math.radians
 LIMITS = InputLimits(r(5.0), r(50.0), 5.0)
 
 
+@pytest.fixture(scope="module")
+def paper_params():
+    """TaskParams with the paper's table normalisers (x_obs 1.1 m, d_end_max 0.87 m) instead of
+    the ones derived from the gravel pile family (task.normalisers_from_pile: 0), for hand numbers."""
+    cfg = load_config()
+    cfg["task"]["normalisers_from_pile"] = 0
+    return TaskParams.from_config(cfg)
+
+
 def test_nominal_density_is_the_config_midpoint(cfg):
-    assert nominal_density(cfg) == pytest.approx((3100.0 + 3400.0) / 2)
+    assert nominal_density(cfg) == pytest.approx((1760.0 + 2000.0) / 2)   # gravel (config pile.density_min/max)
 
 
 @pytest.mark.parametrize("alpha, toe, res, text", [
@@ -42,7 +53,7 @@ def test_a_wedge_lighter_than_m_max_has_no_end_zone(params):
     # 50 deg, 500 kg/m^3: 500 * 0.4 * 0.68^2 / (2 tan 50 deg) = 38.8 kg < m_max = 170 kg
     with pytest.raises(ValueError, match="holds 39 kg, less than m_max = 170 kg"):
         zones_of_pile(r(50.0), 0.0, 500.0, params)
-    # the config's density at the steepest accepted slope holds 252 kg: fine
+    # 3,250 kg/m^3 at the steepest accepted slope holds 252 kg: fine
     z = zones_of_pile(r(50.0), 0.0, 3250.0, params)
     assert z == Zones.for_measured_pile(r(50.0), 0.0, 3250.0, params)
 
@@ -83,7 +94,8 @@ def test_survey_of_a_pile_gives_the_measured_zones(tmp_path, params):
     assert s.density == 2900.0
 
 
-def test_survey_of_the_end_zone_alone(tmp_path, params):
+def test_survey_of_the_end_zone_alone(tmp_path, paper_params):
+    params = paper_params
     z = survey(tmp_path, "end_zone: [0.5, 0.8, 0.35]\n", params).zones_for(1.0, params)
     # the paper's observation zone about the toe, and no cut before its end
     assert z.as_list() == pytest.approx([0.5, 0.8, 0.35, 1.0, -0.1, 1.0, 0.2, 0.4])

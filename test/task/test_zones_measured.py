@@ -9,10 +9,21 @@ import numpy as np
 import pytest
 
 from lhd_loading_ros.task.pile import SoilRanges, VoxelPile
+from lhd_loading_ros.task.config import load_config
+from lhd_loading_ros.task.params import TaskParams
 from lhd_loading_ros.task.zones import Zones
 
 r = math.radians
-RHO = 3250.0          # kg/m^3: the config's nominal density (midpoint of 3100-3400)
+RHO = 3250.0          # kg/m^3: a dense ore (the config's gravel is 1,760-2,000; test_gravel_geometry.py)
+
+
+@pytest.fixture(scope="module")
+def paper_params():
+    """TaskParams with the paper's table normalisers (x_obs 1.1 m, d_end_max 0.87 m) instead of
+    the ones derived from the gravel pile family (task.normalisers_from_pile: 0), for hand numbers."""
+    cfg = load_config()
+    cfg["task"]["normalisers_from_pile"] = 0
+    return TaskParams.from_config(cfg)
 
 
 def voxel_pile(cfg, alpha_deg, rho, seed=0):
@@ -43,7 +54,8 @@ def test_same_zones_as_the_simulators_voxel_pile(cfg, params, alpha):
     assert 0.0 < meas.x_min < meas.x_max < meas.x_cutoff
 
 
-def test_hand_computed_20_deg(params):
+def test_hand_computed_20_deg(paper_params):
+    params = paper_params
     # tan 20 deg = 0.363970; rho w tan = 3250 * 0.4 * 0.363970 = 473.161 kg/m^2 per m
     # x_min = sqrt(2 * 65 / 473.161) = sqrt(0.274748) = 0.524164 m
     # x_max = sqrt(2 * 170 / 473.161) = sqrt(0.718571) = 0.847686 m

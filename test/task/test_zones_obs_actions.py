@@ -10,9 +10,21 @@ from lhd_loading_ros.task.observation import OBS_HIGH, OBS_LOW, build_observatio
 from lhd_loading_ros.task.state import LhdState
 from lhd_loading_ros.task.zones import Zones, classify, in_end_zone, in_restricted_zone
 
+from lhd_loading_ros.task.config import load_config
+from lhd_loading_ros.task.params import TaskParams
+
 from test_pile import uniform_pile
 
 r = math.radians
+
+
+@pytest.fixture(scope="module")
+def paper_params():
+    """TaskParams with the paper's table normalisers (x_obs 1.1 m, d_end_max 0.87 m) instead of
+    the ones derived from the gravel pile family (task.normalisers_from_pile: 0), for hand numbers."""
+    cfg = load_config()
+    cfg["task"]["normalisers_from_pile"] = 0
+    return TaskParams.from_config(cfg)
 
 
 def zones():
@@ -27,7 +39,8 @@ def test_end_zone_from_masses(params):
     assert z.x_min == pytest.approx(math.sqrt(2 * 65 / (1800 * 0.4 * math.tan(r(20)))), rel=0.01)
     assert z.x_max == pytest.approx(math.sqrt(2 * 170 / (1800 * 0.4 * math.tan(r(20)))), rel=0.01)
     assert z.x_cutoff == pytest.approx(p.L - 0.1)
-    assert (z.x_obs_start, z.x_obs_end, z.y_half) == pytest.approx((-0.1, 1.0, 0.2))
+    # the observation zone: x_obs derived from the gravel pile family (test_gravel_geometry.py)
+    assert (z.x_obs_start, z.x_obs_end, z.y_half) == pytest.approx((-0.1, -0.1 + params.x_obs, 0.2))
     # steeper piles: the end zone comes closer
     z30 = Zones.for_pile(uniform_pile(30.0, rho=1800.0), params)
     assert z30.x_min < z.x_min and z30.x_max < z.x_max
@@ -47,7 +60,8 @@ def test_zone_membership():
     assert in_restricted_zone(0.85, 0.0, 0.1, cut)  # past x_cutoff = L - d_cutoff
 
 
-def test_observation_hand_computed(params):
+def test_observation_hand_computed(paper_params):
+    params = paper_params
     s = LhdState(x_shovel=0.45, y_shovel=0.1, z_shovel=0.1, phi_shovel=r(15), v_x=0.25, drift=True,
                  phi_boom=-0.475, dphi_boom=-0.0955, phi_bucket=0.65, dphi_bucket=0.1)
     o = build_observation(s, r(22.5), 0.885, params)

@@ -15,6 +15,8 @@
   lhd bench node [--json]                  policy node latency and 10 Hz jitter against the sim node
   lhd config check [PATH]                  validate a parameter file
   lhd mjcf [--out FILE]                    the MJCF of the scaled LHD, generated from the parameters
+  lhd validate physics [--plots DIR] [--json] [--quick]
+                                           the simulator's physics next to independent references (issue 13)
 """
 from __future__ import annotations
 
@@ -214,7 +216,9 @@ def main(argv=None) -> int:
                       ("attempt", "attempt mass KG [--attempt N]: record the weighed mass of an attempt"),
                       ("attempts", "attempts RUN_DIR: the paper's results table from a run's attempts.csv"),
                       ("replay", "replay BAG [--plot OUT.png]: an attempt's metrics and plots from its rosbag2"),
-                      ("estop", "estop on|off|status: the software emergency stop (/lhd/estop)")):
+                      ("estop", "estop on|off|status: the software emergency stop (/lhd/estop)"),
+                      ("validate", "validate physics [--plots DIR] [--json] [--quick] [--config F]: the "
+                                   "simulator's physics next to independent hand-calculation references")):
         sub.add_parser(name, help=hlp, add_help=False).add_argument("rest", nargs=argparse.REMAINDER)
     p_bench = sub.add_parser("bench", help="benchmarks that print their figures")
     p_bench.add_argument("what", help="sim | train | node | bridge | perception | twin (lhd bench twin --help)")
@@ -309,6 +313,14 @@ def main(argv=None) -> int:
         from lhd_loading_ros.cli.replay import main as replay_main
 
         return replay_main(argv[1:])
+    if argv[:2] == ["validate", "physics"]:
+        from lhd_sim_node.validate import main as validate_main   # the simulator only where it runs
+
+        return validate_main(argv[2:])
+    if argv[:1] == ["validate"]:
+        print("lhd validate: expected `lhd validate physics [--plots DIR] [--json] [--quick] [--config F]`",
+              file=sys.stderr)
+        return 2
     if argv[:1] == ["estop"]:
         from lhd_loading_ros.cli.estop import main as estop_main
 

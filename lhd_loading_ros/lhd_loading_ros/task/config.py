@@ -69,7 +69,7 @@ SCHEMA: dict[str, Any] = {
         },
     },
     "task": {
-        "bucket_capacity": _f(0.1, 1e4), "loaded_fraction": _f(0.0, 1.0), "bucket_max_load": _f(0.1, 1e4), "d_cutoff": _f(0.0, 5.0),
+        "bucket_capacity": _f(0.1, 1e4), "loaded_fraction": _f(0.0, 1.0), "d_cutoff": _f(0.0, 5.0),
         "x_midgoal": _f(0.0, 10.0), "x_delta": _f(0.0, 5.0), "x_offset": _f(-10.0, 10.0),
         "z_offset": _f(-10.0, 10.0), "rail_exponent": _i(1, 99), "v_x_max": _f(1e-3, 20.0),
         "boom_angle_min": _f(-3.2, 0.0), "boom_angle_max": _f(0.0, 3.2),
@@ -80,13 +80,14 @@ SCHEMA: dict[str, Any] = {
         "r_dump_sign": _i(-1, 1), "r_weight_increments": _i(0, 1),
         "r_success_requires_sl": _i(0, 1), "success_pitch_margin_deg": _f(-45.0, 45.0),
         "bottom_tolerance": _f(0.0, 0.5),
+        "bucket_repose_deg": _f(5.0, 60.0), "normalisers_from_pile": _i(0, 1),  # H4: capacity, derived normalisers
     },
     "machine": {
         "total_mass": _f(1.0, 1e5), "chassis_mass": _f(0.1, 1e5), "rear_mass_fraction": _f(0.05, 0.95),
         "rear_com_behind_axle": _f(-2.0, 2.0), "boom_mass": _f(0.1, 1e4),
         "bucket_mass": _f(0.1, 1e4), "wheel_mass": _f(0.01, 1e3), "wheel_radius": _f(0.01, 5.0),
         "wheelbase": _f(0.1, 20.0), "track": _f(0.1, 10.0), "wheel_friction": _f(0.05, 3.0),
-        "wheel_torque_limit": _f(0.1, 1e5), "wheel_kv": _f(0.1, 1e5),
+        "wheel_torque_limit": _f(0.1, 1e5), "wheel_kv": _f(0.1, 1e5), "motor_armature": _f(1e-5, 100.0),
         "boom_pivot_ahead_of_front_axle": _f(-2.0, 5.0), "boom_pivot_height": _f(0.05, 5.0),
         "boom_length": _f(0.05, 10.0), "bucket_hinge_height": _f(0.01, 5.0),
         "bucket_tip_ahead_of_hinge": _f(0.01, 5.0), "bucket_width": _f(0.05, 10.0),
@@ -112,6 +113,7 @@ SCHEMA: dict[str, Any] = {
     },
     "sim": {"timestep": _f(1e-4, 0.05), "fee_every": _i(1, 1000), "attack_timeout": _f(0.1, 100.0),
             "attack_speed_min_fraction": _f(0.05, 1.0)},
+    "bucket_body": {"enabled": _i(0, 1), "k_uplift": _f(0.0, 3.0)},  # the whole bucket in the pile (bucket_body.py)
     "training": {
         "total_steps": _i(1, 100_000_000), "noise_decay_steps": _i(0, 100_000_000), "noise_final_scale": _f(0.0, 1.0),
         "learning_starts": _i(1, 10_000_000), "hidden_sizes": _ilist(1, 4096, 1, 8), "reward_scale": _f(1e-6, 1e3),
@@ -127,8 +129,6 @@ _RELATIONS = [
      lambda c: c["paper"]["episode"]["alpha_min_deg"] < c["paper"]["episode"]["alpha_max_deg"]),
     ("paper.episode.d_attack_min <= paper.episode.d_attack_max",
      lambda c: c["paper"]["episode"]["d_attack_min"] <= c["paper"]["episode"]["d_attack_max"]),
-    ("task.bucket_capacity <= task.bucket_max_load",
-     lambda c: c["task"]["bucket_capacity"] <= c["task"]["bucket_max_load"]),
     ("hardware.reconnect_backoff_min <= hardware.reconnect_backoff_max",
      lambda c: c["hardware"]["reconnect_backoff_min"] <= c["hardware"]["reconnect_backoff_max"]),
     ("pile.density_min <= pile.density_max", lambda c: c["pile"]["density_min"] <= c["pile"]["density_max"]),

@@ -4,7 +4,9 @@ Order: x, y, z of the bucket tip; its pitch; v_x; I_drift; boom angle and rate; 
 angle and rate; d_end = |x_shovel - x_max|; alpha. Normalisation:
 positions to [-1, 1] over the observation zone; angles to [-1, 1] over the joint's range
 of motion; joint rates to [-1, 1] over the actuator's speed limit; v_x to [-1, 1] over the
-top speed; d_end / d_end_max to [0, 1]; alpha to [0, 1] over [alpha_min, alpha_max];
+top speed; d_end / d_end_max to [0, 1]; alpha to [0, 1] over [alpha_min, alpha_max]
+(x_obs and d_end_max: the paper's table, or derived from the pile family with
+task.normalisers_from_pile, zones.derived_normalisers; TaskParams carries the ones in use);
 I_drift in {0, 1}. Every entry is clipped to its range so the vector always lies in the
 Box the environment declares.
 """

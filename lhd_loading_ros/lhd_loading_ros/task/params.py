@@ -4,6 +4,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from lhd_loading_ros.task.zones import derived_normalisers
+
 
 @dataclass(frozen=True)
 class TaskParams:
@@ -55,7 +57,6 @@ class TaskParams:
     # task choices
     bucket_capacity: float
     loaded_fraction: float
-    bucket_max_load: float
     d_cutoff: float
     x_midgoal: float
     x_delta: float
@@ -78,12 +79,16 @@ class TaskParams:
     r_weight_increments: int
     r_success_requires_sl: int
     bottom_tolerance: float
+    bucket_repose: float = math.radians(35.0)   # angle of repose of the material (bucket capacity)
+    normalisers_from_pile: int = 0              # 1: d_end_max / x_obs derived from the pile family (zones.py)
 
     @classmethod
     def from_config(cls, cfg: dict) -> "TaskParams":
         p, t = cfg["paper"], cfg["task"]
         r, o, c, e, z = p["reward"], p["observation"], p["control"], p["episode"], p["end_zone"]
         rad = math.radians
+        # d_end_max and x_obs: the paper's table, or derived from the pile family (docs/modeling.md)
+        d_end_max, x_obs = derived_normalisers(cfg) if t["normalisers_from_pile"] else (o["d_end_max"], o["x_obs"])
         return cls(
             R_zone=r["R_zone"], R_traj=r["R_traj"], R_drift=r["R_drift"], R_bottom=r["R_bottom"],
             R_midgoal=r["R_midgoal"], d_midgoal_max=r["d_midgoal_max"], R_stuck=r["R_stuck"],
@@ -92,13 +97,13 @@ class TaskParams:
             R_dump=r["R_dump"], phi_thresh_pitch=rad(r["phi_thresh_pitch_deg"]), R_success=r["R_success"],
             W_target=r["W_target"], phi_target=rad(r["phi_target_deg"] + t["success_pitch_margin_deg"]), rho_thresh_W=r["rho_thresh_W"],
             rho_thresh_phi=rad(r["rho_thresh_phi_deg"]),
-            d_end_max=o["d_end_max"], x_init_obs=o["x_init_obs"], x_obs=o["x_obs"], y_obs=o["y_obs"], z_obs=o["z_obs"],
+            d_end_max=d_end_max, x_init_obs=o["x_init_obs"], x_obs=x_obs, y_obs=o["y_obs"], z_obs=o["z_obs"],
             control_dt=1.0 / c["frequency_hz"], wheels_min=c["wheels_min"], wheels_max=c["wheels_max"],
             boom_min=c["boom_min"], boom_max=c["boom_max"], bucket_min=c["bucket_min"], bucket_max=c["bucket_max"],
             m_min=z["m_min"], m_max=z["m_max"], z_min=z["z_min"], h_pile=e["h_pile"], w_pile=e["w_pile"],
             alpha_min=rad(e["alpha_min_deg"]), alpha_max=rad(e["alpha_max_deg"]), d_init=e["d_init"],
             max_steps=e["max_steps"],
-            bucket_capacity=t["bucket_capacity"], loaded_fraction=t["loaded_fraction"], bucket_max_load=t["bucket_max_load"], d_cutoff=t["d_cutoff"],
+            bucket_capacity=t["bucket_capacity"], loaded_fraction=t["loaded_fraction"], d_cutoff=t["d_cutoff"],
             x_midgoal=t["x_midgoal"], x_delta=t["x_delta"], x_offset=t["x_offset"], z_offset=t["z_offset"],
             rail_exponent=t["rail_exponent"], v_x_max=t["v_x_max"], boom_angle_min=t["boom_angle_min"],
             boom_angle_max=t["boom_angle_max"], bucket_angle_min=t["bucket_angle_min"],
@@ -107,4 +112,5 @@ class TaskParams:
             drift_min_speed=t["drift_min_speed"], rlc_boom_saturate=t["rlc_boom_saturate"],
             rlc_bucket_saturate=t["rlc_bucket_saturate"], rld_threshold=t["rld_threshold"], r_dump_sign=t["r_dump_sign"], r_weight_increments=t["r_weight_increments"],
             r_success_requires_sl=t["r_success_requires_sl"], bottom_tolerance=t["bottom_tolerance"],
+            bucket_repose=rad(t["bucket_repose_deg"]), normalisers_from_pile=t["normalisers_from_pile"],
         )

@@ -50,11 +50,10 @@ class Zones:
             raise ValueError(f"pile toe x {toe_x!r}: expected a finite number (m)")
         if not (math.isfinite(density) and density > 0.0):
             raise ValueError(f"bulk density {density!r}: expected a positive number (kg/m^3)")
-        tan_a = math.tan(alpha)
-        L = p.h_pile / tan_a
+        L = p.h_pile / math.tan(alpha)
 
         def x_at(m: float) -> float:
-            return toe_x + min(math.sqrt(2.0 * m / (density * p.w_pile * tan_a)), L)
+            return toe_x + wedge_x_at_mass(m, alpha, density, p.w_pile, p.h_pile)
 
         return cls(
             x_min=x_at(p.m_min), x_max=x_at(p.m_max), z_min=p.z_min, x_cutoff=toe_x + L - p.d_cutoff,
@@ -85,6 +84,33 @@ class Zones:
         if not z.y_half > 0.0:
             raise ValueError(f"zones: y_half {z.y_half:g} must be positive")
         return z
+
+
+def wedge_x_at_mass(m: float, alpha: float, density: float, w: float, h: float) -> float:
+    """Distance from the toe within which an intact homogeneous wedge (face slope alpha, width w,
+    height h) holds mass m: the wedge holds density w tan(alpha) s^2 / 2 up to s, so
+    s = sqrt(2 m / (density w tan alpha)), capped at its depth L = h / tan(alpha)."""
+    tan_a = math.tan(alpha)
+    return min(math.sqrt(2.0 * m / (density * w * tan_a)), h / tan_a)
+
+
+def derived_normalisers(cfg: dict) -> tuple[float, float]:
+    """(d_end_max, x_obs) derived from the pile family instead of the paper's table (config
+    task.normalisers_from_pile; docs/modeling.md "Normalisers from the pile geometry").
+
+    The paper's values keep their meaning: x_max, the end of the end zone, lies farthest from the
+    toe on the shallowest pile (alpha_min) of the lightest material (pile.density_min; rocks only
+    make a pile heavier, so x_max nearer), x_far = wedge_x_at_mass(m_max, alpha_min, density_min).
+    d_end = |x_shovel - x_max| is largest when the episode starts (tip at d_init), so
+    d_end_max = x_far - d_init, and the observation zone [-x_init_obs, -x_init_obs + x_obs] reaches
+    past x_far by the room the paper's own table leaves there,
+    margin = x_obs - x_init_obs - d_init - d_end_max = 1.1 - 0.1 - 0.1 - 0.87 = 0.03 m:
+    x_obs = x_init_obs + x_far + margin. With x_far = 0.97 m this returns the paper's 0.87 / 1.1."""
+    o, e = cfg["paper"]["observation"], cfg["paper"]["episode"]
+    x_far = wedge_x_at_mass(cfg["paper"]["end_zone"]["m_max"], math.radians(e["alpha_min_deg"]),
+                            cfg["pile"]["density_min"], e["w_pile"], e["h_pile"])
+    margin = max(0.0, o["x_obs"] - o["x_init_obs"] - e["d_init"] - o["d_end_max"])
+    return x_far - e["d_init"], o["x_init_obs"] + x_far + margin
 
 
 def in_end_zone(x: float, z: float, zones: Zones) -> bool:
