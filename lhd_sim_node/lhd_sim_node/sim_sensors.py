@@ -27,7 +27,6 @@ plain arrays (twin_markers.marker_array makes the visualization_msgs/MarkerArray
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass, field, replace
 
 import cv2
@@ -36,6 +35,7 @@ import numpy as np
 from lhd_loading_ros.perception.aruco import dictionary
 from lhd_loading_ros.perception.geometry import transform
 from lhd_loading_ros.perception.synthetic import FAR, DrawPoint, cast_rays, marker_texture, render, scene_segments
+from lhd_loading_ros.task.viz import TipTrail, zone_boxes  # noqa: F401  (shared with the supervisor's markers)
 
 # The real nodes' defaults (aruco_pose_node.py, lidar_slope_node.py): a key missing from a
 # parameter section means the node runs with its default, so the simulated sensor must too.
@@ -338,44 +338,6 @@ def pile_surfaces(pile, back_wall_gap: float = 0.3) -> list[np.ndarray]:
         p = pile_profile(pile, float(y), back_wall_gap)
         out.append(np.column_stack([p[:, 0], np.full(len(p), float(y)), p[:, 1]]))
     return out
-
-
-def zone_boxes(zones, end_height: float = 0.4) -> list[tuple[str, np.ndarray, np.ndarray]]:
-    """(name, centre xyz, size xyz) of the zones (task.zones.Zones) as boxes in the pile frame:
-    `end` (x_min..x_max, |y| <= y_half, z_min..z_min + end_height: the end zone has no upper
-    limit), `permitted` (x_obs_start..min(x_obs_end, x_cutoff), |y| <= y_half, floor..z_top,
-    the observation zone's height) and `cutoff` (a thin wall at x_cutoff: deeper is restricted)."""
-    def box(name, x0, x1, z0, z1, y_half):
-        return (name, np.array([(x0 + x1) / 2, 0.0, (z0 + z1) / 2]), np.array([x1 - x0, 2 * y_half, z1 - z0]))
-    z = zones
-    return [box("end", z.x_min, z.x_max, z.z_min, z.z_min + end_height, z.y_half),
-            box("permitted", z.x_obs_start, min(z.x_obs_end, z.x_cutoff), 0.0, z.z_top, z.y_half),
-            box("cutoff", z.x_cutoff - 0.005, z.x_cutoff + 0.005, 0.0, z.z_top, z.y_half)]
-
-
-class TipTrail:
-    """The bucket tip's trajectory: points at least `spacing` m apart, the last `max_points`."""
-
-    def __init__(self, spacing: float = 0.005, max_points: int = 2000):
-        if not spacing >= 0 or max_points < 2:
-            raise ValueError(f"tip trail spacing {spacing!r} m (>= 0) and max_points {max_points} (>= 2) expected")
-        self.spacing = spacing
-        self.points: deque = deque(maxlen=int(max_points))
-
-    def add(self, xyz) -> bool:
-        p = np.array(xyz, dtype=float).reshape(3)      # a copy: callers pass views into MjData
-        if not np.isfinite(p).all():
-            return False
-        if self.points and np.linalg.norm(p - self.points[-1]) < self.spacing:
-            return False
-        self.points.append(p)
-        return True
-
-    def clear(self) -> None:
-        self.points.clear()
-
-    def array(self) -> np.ndarray:
-        return np.array(self.points, dtype=float).reshape(-1, 3)
 
 
 def fee_arrow(tip_xyz, force, scale: float = 0.0005, min_force: float = 1.0) -> np.ndarray | None:

@@ -1,4 +1,4 @@
-"""`lhd replay BAG [--plot OUT.png] [--json]`: an attempt's metrics from its rosbag2 (MCAP or
+"""`lhd replay BAG [--plot OUT.png] [--video OUT.gif|OUT.mp4] [--json]`: an attempt's metrics from its rosbag2 (MCAP or
 sqlite3, as the recorder node or `ros2 bag record` wrote it), read with rosbags; no ROS needed.
 
 Prints the outcome and reason, the attempt number, elapsed time, front / rear drift %, final
@@ -6,7 +6,8 @@ pitch, loaded mass, the commands (count, rate, max |u| per axis, the stop after 
 computed from the recorded topics (task/replay.py says how) next to what the supervisor or
 sim node reported in its last /lhd/episode status. --plot draws the bucket tip's path in the XZ
 plane of the pile frame (kinematics of task/kinematics.py from /lhd/odom + /lhd/joint_states)
-over the pile face and the end zone, and the three commands over time. A topic missing from the
+over the pile face and the end zone, and the three commands over time. --video animates the
+attempt in side view (cli/replay_video.py: pile, machine, tip trail, zones, FEE force, status). A topic missing from the
 bag is said in a line (what cannot be computed without it); a path that is not a bag: exit 2.
 """
 from __future__ import annotations
@@ -50,6 +51,8 @@ class Recording:
     end_zone: Series = field(default_factory=Series)
     toe: Series = field(default_factory=Series)
     bad: dict = field(default_factory=dict)       # topic -> messages that could not be used
+    start_ns: int = 0                             # the bag's first receive time
+    extra: dict = field(default_factory=dict)     # topic suffix -> Series (read_bag's extra handlers)
 
 
 def bag_dir(path: Path) -> Path:
@@ -85,7 +88,9 @@ def _prefix(custom: dict, types: dict) -> str:
     return eps[0][: -len("/episode")] if len(eps) == 1 else "/lhd"
 
 
-def read_bag(path: Path) -> Recording:
+def read_bag(path: Path, extra: dict | None = None) -> Recording:
+    """The bag's series; `extra` maps more topic suffixes (after the prefix) to converters, whose
+    series land in Recording.extra (the video's twin topics)."""
     from rosbags.highlevel import AnyReader, AnyReaderError
     from rosbags.typesys import Stores, get_typestore
 
@@ -102,7 +107,7 @@ def read_bag(path: Path) -> Recording:
         for c in reader.connections:
             counts[c.topic] = counts.get(c.topic, 0) + c.msgcount
         pre = _prefix(custom, types)
-        rec = Recording(path, storage, pre, custom, reader.duration / 1e9, counts, types)
+        rec = Recording(path, storage, pre, custom, reader.duration / 1e9, counts, types, start_ns=reader.start_time)
         handlers = {
             f"{pre}/episode": (rec.status, lambda m: {kv.key: kv.value for kv in m.values}),
             f"{pre}/cmd": (rec.cmd, lambda m: _vector(m.data, 3)),
@@ -115,6 +120,9 @@ def read_bag(path: Path) -> Recording:
             f"{pre}/pile/end_zone": (rec.end_zone, lambda m: _vector(m.data, 3)),
             f"{pre}/pile/toe": (rec.toe, lambda m: _finite(m.point.x)),
         }
+        for suffix, convert in (extra or {}).items():
+            rec.extra[suffix] = Series()
+            handlers[f"{pre}{suffix}"] = (rec.extra[suffix], convert)
         conns = [c for c in reader.connections if c.topic in handlers]
         for conn, t, raw in reader.messages(connections=conns):
             series, convert = handlers[conn.topic]
@@ -389,6 +397,9 @@ def main(argv=None) -> int:
     ap.add_argument("bag", help="rosbag2 folder (or its .mcap / .db3 file)")
     ap.add_argument("--plot", metavar="OUT.png", help="write the tip trajectory and the commands here")
     ap.add_argument("--json", action="store_true", help="the metrics as one JSON object")
+    ap.add_argument("--video", metavar="OUT.gif|OUT.mp4", help="an animation of the attempt, side view "
+                    "(cli/replay_video.py): GIF always, MP4 with imageio-ffmpeg installed")
+    ap.add_argument("--fps", type=float, default=10.0, help="video frames per second of bag time (default 10)")
     ap.add_argument("--config", help="parameter file (default: the shipped config/lhd_params.yaml)")
     args = ap.parse_args(argv)
     from lhd_loading_ros.task.config import ConfigError, load_config
@@ -398,8 +409,17 @@ def main(argv=None) -> int:
     except (ConfigError, OSError) as exc:
         print(f"lhd replay: {exc}", file=sys.stderr)
         return 2
+    extra = None
+    if args.video:
+        from lhd_loading_ros.cli import replay_video
+
+        problem = replay_video.check_output(Path(args.video), args.fps)
+        if problem:
+            print(f"lhd replay: {problem}", file=sys.stderr)
+            return 2
+        extra = replay_video.EXTRA_TOPICS
     try:
-        rec = read_bag(Path(args.bag))
+        rec = read_bag(Path(args.bag), extra)
     except ReplayError as exc:
         print(f"lhd replay: {exc}", file=sys.stderr)
         return 2
@@ -411,6 +431,12 @@ def main(argv=None) -> int:
             print(f"lhd replay: cannot write the plot {args.plot}: {exc}", file=sys.stderr)
             return 2
         m["plot"] = str(args.plot)
+    if args.video:
+        try:
+            m["video"] = replay_video.render(m, rec, cfg, Path(args.video), args.fps)
+        except (OSError, replay_video.VideoError) as exc:
+            print(f"lhd replay: cannot write the video {args.video}: {exc}", file=sys.stderr)
+            return 2
     public = {k: v for k, v in m.items() if not k.startswith("_")}
     if args.json:
         print(json.dumps(public))
@@ -418,6 +444,10 @@ def main(argv=None) -> int:
         print(format_text(public))
         if args.plot:
             print(f"plot: {args.plot}")
+        if args.video:
+            v = m["video"]
+            print(f"video: {v['path']} ({v['frames']} frames at {v['fps']:g} fps, {v['bytes'] / 1024:.0f} kB, "
+                  f"rendered in {v['render_s']:.1f} s)" + (f"; absent: {'; '.join(v['absent'])}" if v["absent"] else ""))
     return 0
 
 

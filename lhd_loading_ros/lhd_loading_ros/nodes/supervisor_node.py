@@ -12,6 +12,9 @@ Topics under the prefix (/lhd, or the node's namespace):
                                         latest ended attempt: `lhd attempt mass 23.4`)
   out  episode                         (diagnostic_msgs/DiagnosticStatus "lhd_supervisor/episode",
                                         the sim node's keys; on every change and at 2 Hz)
+       supervisor/markers              (visualization_msgs/MarkerArray, latched, in `frame_id`: the
+                                        zones from pile/zones and the tip trajectory of the current
+                                        attempt; a DELETEALL first at each new attempt)
        /diagnostics
   srv  arm, abort                      (std_srvs/Trigger)
 
@@ -40,9 +43,11 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64, Float64MultiArray
 from std_srvs.srv import Trigger
+from visualization_msgs.msg import MarkerArray
 
 from lhd_loading_ros.policy.actor_file import PolicyFileError, load_policy
 from lhd_loading_ros.ros.diagnostics import ERROR, OK, WARN, Diagnostics
+from lhd_loading_ros.ros.markers import supervisor_markers
 from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
 from lhd_loading_ros.ros.qos import LATCHED_QOS, MEASUREMENT_QOS, STATUS_QOS
 from lhd_loading_ros.ros.run import run_node
@@ -51,6 +56,7 @@ from lhd_loading_ros.task.attempt_record import MATERIALS, csv_path, read_rows, 
 from lhd_loading_ros.task.config import load_config
 from lhd_loading_ros.task.kinematics import ArmKinematics
 from lhd_loading_ros.task.params import TaskParams
+from lhd_loading_ros.task.viz import AttemptTrail, zone_boxes
 from lhd_loading_ros.task.zones import Zones
 
 # QoS (lhd_loading_ros.ros.qos). Measurements in: sensor-data QoS (best effort), which matches
@@ -61,7 +67,8 @@ from lhd_loading_ros.task.zones import Zones
 # after the button was pressed still sees it. The operator's mass: reliable and volatile, depth
 # 10 (MASS_QOS: an entry must not be lost, and an old one must not be replayed to a later
 # supervisor). Episode status out: STATUS_QOS (reliable + transient local), so a controller or
-# mux that starts later gets the current state at once.
+# mux that starts later gets the current state at once. Markers out: LATCHED_QOS, every array
+# whole (zones and trajectory), so a viewer started later gets the current picture.
 MASS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
                       durability=DurabilityPolicy.VOLATILE)
 CHECK_HZ = 50.0          # end conditions on the steady clock (and on every joints / odom arrival)
@@ -102,6 +109,9 @@ class SupervisorNode(Node):
                   "window is the attempt's mass", lo=0.1, hi=60.0),
             Param("namespace_prefix", "/lhd", "topic prefix in the root namespace (under a namespace, the "
                   "namespace is the prefix)"),
+            Param("frame_id", "pile", "frame of the markers (the pile frame of odom and pile/zones)"),
+            Param("markers_hz", 5.0, "Hz, supervisor/markers at most this often while something changed "
+                  "(0: none)", lo=0.0, hi=30.0),
         ])
         gp = self.params.__getitem__
         cfg = load_config(gp("config") or None)
@@ -139,6 +149,13 @@ class SupervisorNode(Node):
         self._recorded = None            # (attempt, mass) of the latest row handed to the record
 
         self.pub_status = self.create_publisher(DiagnosticStatus, f"{ns}/episode", STATUS_QOS)
+        self.frame_id = gp("frame_id")
+        self.trail = AttemptTrail()
+        self._marker_zones = None          # the zones of the last array
+        self.pub_markers = None
+        if gp("markers_hz") > 0:
+            self.pub_markers = self.create_publisher(MarkerArray, f"{ns}/supervisor/markers", LATCHED_QOS)
+            steady_timer(self, 1.0 / gp("markers_hz"), self._publish_markers)
         sd = qos_profile_sensor_data
         self.create_subscription(JointState, f"{ns}/joint_states", self._on_js, sd)
         self.create_subscription(Odometry, f"{ns}/odom", self._on_odom, sd)
@@ -259,7 +276,11 @@ class SupervisorNode(Node):
     # ------------------------------------------------------------------ the loop
     def _check(self) -> None:
         c = self.core
-        if c.update(time.monotonic()):
+        changed = c.update(time.monotonic())
+        tip = c.tip
+        self.trail.update(c.attempt.number if c.attempt is not None else None, c.state in LIVE,
+                          (tip.x_shovel, tip.y_shovel, tip.z_shovel) if tip is not None else None)
+        if changed:
             if c.state in ENDED:
                 self._after_end()
             else:
@@ -271,6 +292,16 @@ class SupervisorNode(Node):
                                    f"{row.success_level}, success {row.success}")
             self._write(row)
             self._publish_status()
+
+    def _publish_markers(self) -> None:
+        zones = self.core.inputs.values.get("zones")
+        if not self.trail.dirty and zones is self._marker_zones:
+            return
+        self._marker_zones = zones
+        points, clear = self.trail.take()
+        boxes = zone_boxes(zones) if zones is not None else []
+        self.pub_markers.publish(supervisor_markers(self.get_clock().now().to_msg(), self.frame_id, boxes, points,
+                                                    clear))
 
     def _after_end(self) -> None:
         """The end: status first (controllers and the mux stop on it), then the record."""
