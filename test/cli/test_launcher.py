@@ -203,8 +203,8 @@ def test_up_sim_stops_cleanly_on_ctrl_c():
         assert any(line.startswith("episode") for line in lines), "".join(lines)
         assert len(leftovers(marker)) >= 1
         os.killpg(p.pid, signal.SIGINT)
-        rc = p.wait(60)
-        rest = p.stdout.read()
+        rest, _ = p.communicate(timeout=60)  # drain stdout while waiting: a full pipe would block the launcher
+        rc = p.returncode
         assert rc == 0, rest
         assert "interrupted: nodes stopped" in rest
     finally:

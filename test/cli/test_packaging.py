@@ -220,6 +220,7 @@ PYTHON_KEYS = {
     "numba": "python3-numba",
     "mujoco": "python3-mujoco-pip",
     "gymnasium": "python3-gymnasium-pip",
+    "PIL": "python3-pil",                # Pillow: lhd replay --video writes GIFs
 }
 # Imports deliberately not declared, with the reason; each must sit inside a function, so that
 # importing the package's modules never needs them.
@@ -227,6 +228,7 @@ UNDECLARED = {
     ("lhd_loading_ros", "lhd_sim_node"): "lhd demo|up|train|eval import the simulator; it depends on us (no cycle)",
     ("lhd_loading_ros", "lhd_hw_bridge"): "lhd bench bridge; it depends on us (no cycle)",
     ("lhd_loading_ros", "stable_baselines3"): "optional: lhd bench train --vs-sb3 only",
+    ("lhd_loading_ros", "imageio_ffmpeg"): "optional: lhd replay --video OUT.mp4 only (GIF needs only Pillow)",
 }
 PACKAGES = ("lhd_loading_ros", "lhd_sim_node", "lhd_hw_bridge")
 # ROS packages a launch file starts (not imported): (package, key) -> the launch file that needs it

@@ -259,7 +259,10 @@ def test_estop_button_holds_the_machine_and_release_needs_a_fresh_command(rig):
     rig.drive([1.0, 0.0, 0.0], 1.0)
     assert status[-1]["estop"] == "False"
     after = [s for s in g["odom"] if s[0] > t_release + 0.8]
-    assert after and after[-1][1].twist.twist.linear.x == pytest.approx(1.0 * WHEEL_RADIUS, rel=0.15)
+    # the median, as above: on a loaded machine a starved test process lets the bridge's 0.3 s command
+    # timeout brake the wheels for a moment at the end of the drive
+    assert after and float(np.median([m.twist.twist.linear.x for _, m in after])) == pytest.approx(
+        1.0 * WHEEL_RADIUS, rel=0.15), [m.twist.twist.linear.x for _, m in after]
     rig.spin(0.6)                                        # the bridge's timeout: stopped again
 
 
