@@ -36,7 +36,7 @@ colcon-build: $(COLCON_STAMP)
 		--build-base build --install-base install --event-handlers console_cohesion- summary+
 
 test: $(STAMP) colcon-build
-	$(PY) -m pytest -q test
+	$(PY) -m pytest -q --durations=25 test
 
 bench: $(STAMP)
 	$(VENV)/bin/lhd bench sim --json
