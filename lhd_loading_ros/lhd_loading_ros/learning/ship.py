@@ -103,7 +103,7 @@ AML {fin['aml']['mean']:.1f} ± {fin['aml']['sd']:.1f} kg, AR {fin['ar']['mean']
 ![training curves](training_curves.png)
 
 ## Limits
-Trained and evaluated in our simulator only (MuJoCo + extended FEE, dense-ore piles of 15-30
+Trained and evaluated in our simulator only (MuJoCo + extended FEE, gravel piles of 15-30
 deg, docs/modeling.md). The reward is the paper's with four documented departures
 (docs/training.md): r_success's pitch target 47.5 deg instead of 40 and paid only on a
 successful attempt, r_weight paid on the material entering the bucket, and r_dump fining a
