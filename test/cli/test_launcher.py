@@ -189,9 +189,13 @@ def test_up_sim_rejects_a_bad_namespace():
 
 def test_up_sim_stops_cleanly_on_ctrl_c():
     marker = "seed:=434343"
+    # a terminal's Ctrl-C: SIGINT at its default in the launcher. An ignored SIGINT is inherited across
+    # exec, and the whole suite's pytest process may have it ignored by then (in-process rclpy and
+    # signal-handling tests): the launcher would then rightly treat itself as a script's background job
+    # (tested below) and ignore the Ctrl-C.
     p = subprocess.Popen([sys.executable, "-m", "lhd_loading_ros.cli.main", "up", "sim", "--seed", "434343"],
                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env_with_domain(),
-                         start_new_session=True)
+                         start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         t_end = time.monotonic() + 120
         lines = []
