@@ -7,21 +7,10 @@ import pytest
 
 from lhd_loading_ros.task.end_zone import (InputLimits, Republisher, largest_change, load_survey, nominal_density,
                                            zones_of_pile)
-from lhd_loading_ros.task.config import load_config
-from lhd_loading_ros.task.params import TaskParams
 from lhd_loading_ros.task.zones import Zones
 
 r = math.radians
 LIMITS = InputLimits(r(5.0), r(50.0), 5.0)
-
-
-@pytest.fixture(scope="module")
-def paper_params():
-    """TaskParams with the paper's table normalisers (x_obs 1.1 m, d_end_max 0.87 m) instead of
-    the ones derived from the gravel pile family (task.normalisers_from_pile: 0), for hand numbers."""
-    cfg = load_config()
-    cfg["task"]["normalisers_from_pile"] = 0
-    return TaskParams.from_config(cfg)
 
 
 def test_nominal_density_is_the_config_midpoint(cfg):

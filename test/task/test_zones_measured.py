@@ -9,21 +9,10 @@ import numpy as np
 import pytest
 
 from lhd_loading_ros.task.pile import SoilRanges, VoxelPile
-from lhd_loading_ros.task.config import load_config
-from lhd_loading_ros.task.params import TaskParams
 from lhd_loading_ros.task.zones import Zones
 
 r = math.radians
 RHO = 3250.0          # kg/m^3: a dense ore (the config's gravel is 1,760-2,000; test_gravel_geometry.py)
-
-
-@pytest.fixture(scope="module")
-def paper_params():
-    """TaskParams with the paper's table normalisers (x_obs 1.1 m, d_end_max 0.87 m) instead of
-    the ones derived from the gravel pile family (task.normalisers_from_pile: 0), for hand numbers."""
-    cfg = load_config()
-    cfg["task"]["normalisers_from_pile"] = 0
-    return TaskParams.from_config(cfg)
 
 
 def voxel_pile(cfg, alpha_deg, rho, seed=0):

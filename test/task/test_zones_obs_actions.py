@@ -10,21 +10,10 @@ from lhd_loading_ros.task.observation import OBS_HIGH, OBS_LOW, build_observatio
 from lhd_loading_ros.task.state import LhdState
 from lhd_loading_ros.task.zones import Zones, classify, in_end_zone, in_restricted_zone
 
-from lhd_loading_ros.task.config import load_config
-from lhd_loading_ros.task.params import TaskParams
 
 from test_pile import uniform_pile
 
 r = math.radians
-
-
-@pytest.fixture(scope="module")
-def paper_params():
-    """TaskParams with the paper's table normalisers (x_obs 1.1 m, d_end_max 0.87 m) instead of
-    the ones derived from the gravel pile family (task.normalisers_from_pile: 0), for hand numbers."""
-    cfg = load_config()
-    cfg["task"]["normalisers_from_pile"] = 0
-    return TaskParams.from_config(cfg)
 
 
 def zones():
