@@ -35,8 +35,10 @@ colcon-build: $(COLCON_STAMP)
 	$(COLCON_VENV)/bin/colcon --log-base log build --base-paths lhd_loading_ros lhd_sim_node lhd_hw_bridge \
 		--build-base build --install-base install --event-handlers console_cohesion- summary+
 
+# two workers (pytest-xdist), a test file stays on one worker in its order (module fixtures, the
+# supervisor's attempt sequence); each worker's ROS tests run on their own DDS domain
 test: $(STAMP) colcon-build
-	$(PY) -m pytest -q --durations=25 test
+	$(PY) -m pytest -q --durations=25 -n 2 --dist loadfile test
 
 bench: $(STAMP)
 	$(VENV)/bin/lhd bench sim --json

@@ -4,6 +4,7 @@ run with checkpoint and resume."""
 import csv
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -305,8 +306,27 @@ def test_ship_picks_a_seed_and_writes_the_model_card(cfg, tmp_path):
                log=lambda *a: None)
     out = tmp_path / "policies" / "rlc"
     pol = load_policy(out)
-    assert pol.variant == "rlc" and res["shipped_from"].endswith(("seed_0", "seed_1"))
+    # two seeds: the median is the lower ranked one, its final actor (not a best checkpoint)
+    assert pol.variant == "rlc" and res["select"] == "median"
+    assert res["shipped_from"].endswith(("seed_0/final", "seed_1/final"))
+    src = Path(res["shipped_from"])
+    assert (out / "actor.npz").read_bytes() == (src / "actor.npz").read_bytes()
     card = (out / "README.md").read_text()
     assert "| all | 4 |" in card and "training_curves.png" in card and "| seed_1 |" in card
+    assert "the median of 2 seeds" in card and card.count("| shipped |") == 1
     assert (out / "training_curves.png").stat().st_size > 10_000
     assert json.loads((out / "evaluation.json").read_text())["episodes"] == 4
+
+
+def test_ship_selection_median_and_best():
+    from lhd_loading_ros.learning.ship import pick
+
+    keys = [((0.75, 3.4, 10.0), "a"), ((1.0, 4.4, 50.0), "b"), ((0.875, 4.1, 30.0), "c"),
+            ((0.958, 4.6, 40.0), "d"), ((0.875, 3.9, 20.0), "e")]
+    # ranked: a (0.75) < e (0.875, 3.9) < c (0.875, 4.1) < d < b
+    assert pick(keys, "median")[1] == "c"
+    assert pick(keys, "best")[1] == "b"
+    assert pick(keys[:4], "median")[1] == "c"        # a < c < d < b: the lower middle one
+    assert pick(keys[:1], "median")[1] == "a"
+    with pytest.raises(ValueError, match="select must be one of"):
+        pick(keys, "luckiest")

@@ -36,7 +36,7 @@ LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=Hi
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
 STATUS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
-TIMEOUT_S = 2.0          # attempt_timeout of this test's supervisor
+TIMEOUT_S = 3.0          # attempt_timeout of this test's supervisor (room for a loaded machine)
 ARM_DELAY = 0.3
 
 # Hand geometry (config/lhd_params.yaml, machine), as in test/task/test_attempt.py: in the

@@ -10,7 +10,7 @@
   lhd train --variant rld|rlc --seed N     DDPG with the paper's protocol (resumable; --seeds 0-4 in parallel)
   lhd eval --policy DIR [--json]           the paper's metrics, overall and by slope and material
   lhd report RUNS... [--plot PNG]          final figures across seeds and the training curves
-  lhd ship --variant V RUNS_DIR            ship a variant's best seed to policies/V with its model card
+  lhd ship --variant V RUNS_DIR            ship a variant's median seed (final actor) to policies/V with its model card
   lhd bench train [--json] [--vs-sb3]      training-loop speed and the projected protocol time
   lhd bench node [--json]                  policy node latency and 10 Hz jitter against the sim node
   lhd config check [PATH]                  validate a parameter file
@@ -259,11 +259,14 @@ def main(argv=None) -> int:
     p_report.add_argument("runs", nargs="+", help="run directories, or parents holding seed_*/")
     p_report.add_argument("--plot", help="write the training curves (PNG) here")
     p_report.add_argument("--json", action="store_true")
-    p_ship = sub.add_parser("ship", help="pick a variant's best seed, evaluate it held-out, write policies/<variant>")
+    p_ship = sub.add_parser("ship", help="pick a variant's median seed (final actors, held-out evaluation), "
+                                        "write policies/<variant>")
     p_ship.add_argument("--variant", choices=["rld", "rlc"], required=True)
     p_ship.add_argument("runs", help="directory holding seed_*/ runs of this variant")
     p_ship.add_argument("--out", help="default policies/<variant>")
     p_ship.add_argument("--episodes", type=int, default=120)
+    p_ship.add_argument("--select", choices=["median", "best"], default="median",
+                        help="median: the median seed's final actor (default); best: the best seed's best checkpoint")
     p_ship.add_argument("--config", default=None)
     p_mjcf = sub.add_parser("mjcf", help="write the MJCF of the scaled LHD generated from the parameter file")
     p_mjcf.add_argument("--out", help="file to write (default: print)")
@@ -338,11 +341,12 @@ def main(argv=None) -> int:
         from lhd_loading_ros.learning.ship import ship
 
         try:
-            res = ship(args.variant, args.runs, args.out or f"policies/{args.variant}", args.episodes, args.config)
+            res = ship(args.variant, args.runs, args.out or f"policies/{args.variant}", args.episodes, args.config,
+                       select=args.select)
         except (FileNotFoundError, ValueError) as exc:
             print(f"lhd ship: {exc}", file=sys.stderr)
             return 1
-        print(f"shipped {res['shipped_from']}/best -> {args.out or f'policies/{args.variant}'}")
+        print(f"shipped {res['shipped_from']} -> {args.out or f'policies/{args.variant}'}")
         return 0
     if args.cmd == "config":
         return _config(args)

@@ -1,8 +1,13 @@
 """`lhd ship --variant V RUNS_DIR`: pick the shipped actor of a variant from its seeds, evaluate
 it on the held-out seed and write the model card (policies/<variant>/README.md + curves).
 
-Selection: each seed's `best/` actor (its best training-time evaluation) is evaluated again
-on the held-out evaluation seed; the one with the highest (success rate, ASL, AR) ships."""
+Selection (`select`):
+- "median" (default): each seed's `final/` actor (the end of training, no checkpoint picking) is
+  evaluated on the held-out evaluation seed and the seeds are ranked by (success rate, ASL, AR);
+  the median seed ships (the lower of the two middle ones for an even count). A user who retrains
+  with another seed gets an actor like it, not like the luckiest run.
+- "best": each seed's `best/` actor (its best training-time evaluation) is evaluated held-out and
+  the highest ranked ships; the card then says that it is the best of the seeds, not a typical one."""
 from __future__ import annotations
 
 import json
@@ -31,27 +36,43 @@ def _table(ev: dict) -> str:
     return "\n".join(lines)
 
 
-def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=print) -> dict:
+SELECTIONS = ("median", "best")
+
+
+def pick(ranked: list, select: str):
+    """ranked: (key, ...) tuples. "median": the median by key (the lower middle one for an
+    even count); "best": the highest key."""
+    if select not in SELECTIONS:
+        raise ValueError(f"select must be one of {SELECTIONS}, got {select!r}")
+    order = sorted(ranked, key=lambda c: c[0])
+    return order[-1] if select == "best" else order[(len(order) - 1) // 2]
+
+
+def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=print, select: str = "median") -> dict:
     from lhd_sim_node.env import LhdLoadingEnv
 
+    if select not in SELECTIONS:
+        raise ValueError(f"select must be one of {SELECTIONS}, got {select!r}")
+    sub = "final" if select == "median" else "best"
     cfg = load_config(config)
-    runs = sorted(d for d in Path(runs_dir).glob("seed_*") if (d / "best" / "policy.json").is_file())
+    runs = sorted(d for d in Path(runs_dir).glob("seed_*") if (d / sub / "policy.json").is_file())
     if not runs:
-        raise FileNotFoundError(f"{runs_dir} holds no finished seed (seed_*/best/policy.json)")
+        raise FileNotFoundError(f"{runs_dir} holds no finished seed (seed_*/{sub}/policy.json)")
     env = LhdLoadingEnv(variant, cfg)
     cands = []
     for d in runs:
-        pol = load_policy(d / "best")
+        pol = load_policy(d / sub)
         if pol.variant != variant:
-            raise ValueError(f"{d}/best is a {pol.variant} actor, not {variant}")
+            raise ValueError(f"{d}/{sub} is a {pol.variant} actor, not {variant}")
         ev = evaluate(env, pol.actor, episodes, HELD_OUT_SEED, cfg["task"]["bucket_capacity"])
-        log(f"{d.name}: held-out success {ev['success_rate']:.3f}, ASL {ev['asl']:.2f}, AML {ev['aml']:.1f}")
+        log(f"{d.name}/{sub}: held-out success {ev['success_rate']:.3f}, ASL {ev['asl']:.2f}, AML {ev['aml']:.1f}")
         cands.append(((ev["success_rate"], ev["asl"], ev["ar"]), d, pol, ev))
-    _, best_dir, pol, ev = max(cands, key=lambda c: c[0])
+    _, best_dir, pol, ev = pick(cands, select)
+    log(f"shipping {best_dir.name}/{sub} ({'median' if select == 'median' else 'best'} of {len(cands)} seeds)")
     out = Path(out)
     if out.exists():
         shutil.rmtree(out)
-    shutil.copytree(best_dir / "best", out)
+    shutil.copytree(best_dir / sub, out)
     summary = summarize(runs)
     plot_curves({variant.upper(): runs}, out / "training_curves.png")
     deploy_note = ""
@@ -65,13 +86,15 @@ def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=prin
     (out / "evaluation.json").write_text(json.dumps(ev, indent=1) + "\n")
     m = pol.meta
     seeds_rows = "\n".join(
-        f"| {d.name} | {e['success_rate']:.3f} | {e['asl']:.2f} | {e['aml']:.1f} | {e['ar']:.0f} |"
-        for _, d, _, e in cands)
+        f"| {d.name} | {e['success_rate']:.3f} | {e['asl']:.2f} | {e['aml']:.1f} | {e['ar']:.0f} | "
+        f"{'shipped' if d == best_dir else ''} |" for _, d, _, e in cands)
+    why = (f"its final actor at step {m['steps']:,}; the median of {len(cands)} seeds on the held-out evaluation"
+           if select == "median" else
+           f"its best training-time evaluation at step {m['steps']:,}; the best of {len(cands)} seeds")
     fin = summary["metrics"]
     card = f"""# {variant.upper()} loading policy ({'hybrid: continuous wheels, ternary arm' if variant == 'rld' else 'continuous actions, deployment filter on the machine'})
 
-Actor exported from `{best_dir}` (seed {m['seed']}, best training-time evaluation at step
-{m['steps']:,}), DDPG with the paper's protocol (docs/training.md). Files: `actor.npz`
+Actor exported from `{best_dir}/{sub}` (seed {m['seed']}, {why}), DDPG with the paper's protocol (docs/training.md). Files: `actor.npz`
 (float32 weights), `policy.json` (architecture {m['architecture']['sizes']}, observation and action
 normalisation, filter thresholds, config hash `{m['config_hash']}`, training evaluation),
 `evaluation.json` (the table below), `training_curves.png`.
@@ -89,10 +112,10 @@ are means over all attempts. {ev['failures']['restricted_zone']} attempts ended 
 {deploy_note}
 ## Across seeds
 
-Held-out evaluation of each seed's best actor (the shipped one has the highest success rate):
+Held-out evaluation of each seed's {sub} actor ({'the shipped one is the median seed by success, then ASL, then AR' if select == 'median' else 'the shipped one is the best of them: not what a retraining user should expect'}):
 
-| seed | success | ASL | AML [kg] | AR |
-|---|---|---|---|---|
+| seed | success | ASL | AML [kg] | AR | |
+|---|---|---|---|---|---|
 {seeds_rows}
 
 Final training-time evaluation (step {min(summary['final_steps']):,}, evaluation seed 1,000,000), {len(runs)} seeds:
@@ -111,4 +134,5 @@ forward-tilted bucket (the paper's prose).
 Not yet run on the scaled machine.
 """
     (out / "README.md").write_text(card)
-    return {"variant": variant, "shipped_from": str(best_dir), "evaluation": ev, "summary": summary}
+    return {"variant": variant, "shipped_from": str(best_dir / sub), "select": select, "evaluation": ev,
+            "summary": summary}
