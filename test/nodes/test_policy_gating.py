@@ -191,3 +191,49 @@ def test_tampier_controller_over_dds(ros, tmp_path):
     finally:
         assert pol.stop() == 0, pol.log()
         rig.close()
+
+
+def test_an_attempt_keeps_the_slope_it_was_armed_with(ros, tmp_path):
+    """slope_source attempt (the default): the slope in the running status (the supervisor's armed
+    slope_deg) is alpha for the whole attempt; a LiDAR fit that drifts out of the trained range
+    while the bucket cuts the face (31.5 deg, trained 15-30) does not stop the actor. Without a
+    slope in the status the live one is used and refused; an armed slope outside the range is
+    refused too."""
+    rig = Rig(ros, slope_deg=29.8)
+    pol = RosProcess(POLICY, {}, tmp_path / "pol.log")
+    refused = "slope 31.5 deg is outside the range the actor was trained on"
+
+    def running(episode, slope_deg=None):
+        st = status("running", episode)
+        if slope_deg is not None:
+            st.values.append(KeyValue(key="slope_deg", value=f"{slope_deg:.2f}"))
+        rig.status_pub.publish(st)
+        return time.monotonic()
+
+    try:
+        rig.publish_status("idle")
+        assert spin_until(ros, lambda: rig.has("inputs", DiagnosticStatus.OK, "all inputs fresh"), 60), pol.log()
+        running("1", 29.8)
+        assert rig.wait_commanding(), pol.log()[-2000:]
+        # the LiDAR's fit of the face being cut drifts past the trained range: ignored in the attempt
+        rig.latched[0].publish(Float64(data=math.radians(31.5)))
+        moving = rig.watch(1.5)
+        assert len(moving) >= 10 and all(c != ZERO for c in moving[-10:]), moving
+        assert rig.has("decision", DiagnosticStatus.OK, "actor commanding")
+        assert refused not in pol.log()
+        t_end = rig.publish_status("success")
+        assert_stops(rig, t_end, "success")
+        # a status without a slope: the live 31.5 deg is alpha, refused with the reason, zero commands
+        t2 = running("2")
+        assert spin_until(ros, lambda: rig.has("decision", DiagnosticStatus.ERROR, refused), 10), pol.log()[-2000:]
+        assert all(c == ZERO for t, c in rig.cmds if t >= t2 + 0.3)
+        rig.publish_status("aborted", "2")
+        # armed on a slope outside the range: refused as well (held, not clipped)
+        rig.latched[0].publish(Float64(data=math.radians(20.0)))
+        t3 = running("3", 31.5)
+        assert spin_until(ros, lambda: rig.has("decision", DiagnosticStatus.ERROR, refused), 10), pol.log()[-2000:]
+        spin_until(ros, lambda: False, 1.0)
+        assert all(c == ZERO for t, c in rig.cmds if t >= t3 + 0.3), rig.cmds[-5:]
+    finally:
+        assert pol.stop() == 0, pol.log()
+        rig.close()

@@ -23,6 +23,16 @@ end_zone_timeout for the slow ones, none by default: a latched constant never go
 is NaN, no actor is loaded, or the slope is outside the range the actor was trained on (the policy
 card's trained_ranges; the heuristic has no trained range).
 
+The slope of an attempt (slope_source = attempt, the default): while an attempt runs and its
+/lhd/episode status carries the slope it was armed with (the supervisor's slope_deg, the sim
+node's slope_rad), that slope is the observation's alpha for the whole attempt; /pile/slope
+updates are taken again when the attempt ends. The paper's alpha is the pile's slope, measured
+before loading; a LiDAR fit made while the bucket cuts the face and the machine stands in the
+scan is not it (in the digital twin it drifted from 29.8 to 31.8 deg on a 30 deg pile during
+attempts, past the trained range, and the actor was refused: docs/twin.md). slope_source = live
+takes every /pile/slope update, as before; a status without a slope (a test's, a third-party
+supervisor's) leaves the live slope in use.
+
 trigger = timer     10 Hz on the steady clock (the real machine; sim node in realtime mode),
                     with use_sim_time too: the loop must not stall on a /clock that holds still
 trigger = lockstep  one decision per state of the sim node in lockstep mode: when
@@ -86,6 +96,7 @@ from lhd_loading_ros.ros.run import run_node
 # during an attempt learns at once whether it may command).
 TRIGGERS = ("timer", "lockstep", "odom")
 CONTROLLERS = ("actor", "tampier")
+SLOPE_SOURCES = ("attempt", "live")
 RUNNING = "running"              # the only /lhd/episode state in which a controller may move the machine
 NO_PUBLISHER = "no attempt running (no /lhd/episode publisher: start the sim node or the supervisor)"
 FALLBACK_CHECKS = 4             # trigger odom: fallback checks per control period
@@ -135,6 +146,9 @@ class PolicyNode(Node):
             Param("slope_timeout", 0.0, "s: a slope older than this gives the zero command; 0: no timeout (a "
                   "latched constant, e.g. a surveyed pile)", lo=0.0, hi=3600.0,
                   on_change=lambda v: self._set_slow_timeout("slope", v)),
+            Param("slope_source", "attempt", "attempt: while an attempt runs, the slope it was armed with (the "
+                  "/lhd/episode status' slope_rad or slope_deg, when it carries one); live: every /pile/slope "
+                  "update", choices=SLOPE_SOURCES, on_change=lambda v: setattr(self, "slope_source", v)),
             Param("end_zone_timeout", 0.0, "s: an end zone older than this gives the zero command; 0: no timeout",
                   lo=0.0, hi=3600.0, on_change=lambda v: self._set_slow_timeout("end_zone", v)),
             Param("trigger", "timer", "timer: rate_hz on the steady clock; lockstep: one decision per sim-node "
@@ -156,6 +170,9 @@ class PolicyNode(Node):
             self._set_slow_timeout(name, gp(f"{name}_timeout"))
         self.trigger = gp("trigger")
         self.odom_margin = gp("odom_margin")
+        self.slope_source = gp("slope_source")
+        self.attempt_slope = None        # rad: the running attempt's armed slope in use (slope_source attempt)
+        self._live_slope = None          # (value, info, arrival) of a /pile/slope sample held back by it
         qin = qos_profile_sensor_data if gp("input_qos") == "sensor_data" else MEASUREMENT_QOS
         ns = topic_prefix(self, gp("namespace_prefix"))
 
@@ -267,7 +284,34 @@ class PolicyNode(Node):
         self._put(name, value)
 
     def _on_slope(self, msg: Float64, info) -> None:
+        if self.attempt_slope is not None:     # the attempt keeps the slope it was armed with; the
+            self._live_slope = (float(msg.data), info, time.monotonic())    # live one is kept for after
+            return
+        self._live_slope = None
         self._put_slow("slope", float(msg.data), info)
+
+    def _hold_attempt_slope(self, kv: dict) -> None:
+        """slope_source attempt: while running, the slope in the status (slope_rad exact, else
+        slope_deg) is the attempt's; out of running (or no slope in the status) the live one."""
+        armed = None
+        if self.slope_source == "attempt" and self.running():
+            try:
+                armed = float(kv["slope_rad"]) if "slope_rad" in kv else math.radians(float(kv["slope_deg"]))
+            except (KeyError, ValueError):
+                armed = None
+            if armed is not None and not math.isfinite(armed):
+                armed = None
+        held, self.attempt_slope = self.attempt_slope, armed
+        if armed is not None:
+            self._slow_source_ns.pop("slope", None)    # the next live sample after the attempt is taken
+            self._put("slope", armed)
+        elif held is not None:                         # the attempt ended: back to the live slope
+            self._slow_source_ns.pop("slope", None)
+            if self._live_slope is not None:           # one came during the attempt: it is the latest,
+                value, info, t = self._live_slope      # with its own arrival time (slope_timeout)
+                self._slow_source_ns["slope"] = info["source_timestamp"]
+                self.inputs.put("slope", value, t)
+                self._live_slope = None
 
     def _on_zone(self, msg: Float64MultiArray, info) -> None:
         if len(msg.data) != 3:
@@ -298,6 +342,7 @@ class PolicyNode(Node):
     def _on_status(self, msg) -> None:
         kv = {k.key: k.value for k in msg.values}
         self._set_episode(kv.get("state", msg.message), kv.get("episode"))
+        self._hold_attempt_slope(kv)
         try:
             self._status_stamp = int(kv["stamp_ns"])
             if self.trigger == "lockstep":   # the unstamped inputs of exactly this state
