@@ -42,6 +42,9 @@ def test_up_sim_runs_episodes_and_leaves_nothing_behind(tmp_path):
     assert p.returncode == 0, p.stderr[-3000:]
     res = json.loads(p.stdout)
     assert len(res["episodes"]) == 2
+    # the overall figure, as `lhd up twin --json` has it: the share of attempts with success
+    n_ok = sum(1 for e in res["episodes"] if e["success"])
+    assert (res["attempts"], res["successes"], res["success_rate"]) == (2, n_ok, n_ok / 2)
     assert all(e["alpha_deg"] == 25.0 and e["material"] == "homogeneous" for e in res["episodes"])
     assert "25" in res["rows"]
     assert "Traceback" not in p.stderr

@@ -298,7 +298,9 @@ def main(argv=None, demo: bool = False) -> int:
 
     rows = table_rows(results, slopes or sorted({round(r.alpha_deg) for r in results}), pol.meta)
     if args.json:
-        print(json.dumps({"rows": rows, "episodes": [r.to_dict() for r in results], "policy": policy,
+        ok = sum(1 for r in results if r.to_dict()["success"])
+        print(json.dumps({"success_rate": ok / len(results), "successes": ok, "attempts": len(results),
+                          "rows": rows, "episodes": [r.to_dict() for r in results], "policy": policy,
                           "wall_s": time.monotonic() - t0}))
     else:
         print(format_table(rows, f"{pol.variant.upper()} policy through the ROS nodes ({args.mode}), {args.material} "
