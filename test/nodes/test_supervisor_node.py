@@ -8,34 +8,23 @@ import io
 import math
 import subprocess
 import sys
-import threading
 import time
 from contextlib import redirect_stdout
 
 import pytest
 import rclpy
-from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
-from nav_msgs.msg import Odometry
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64, Float64MultiArray
-from std_srvs.srv import Trigger
 
 from lhd_loading_ros.cli.attempts import main as attempts_main
 from lhd_loading_ros.task.attempt_record import read_rows
 
+from fake_machine import FakeMachine, wait_for
 from rosutil import RosProcess, init_ros, shutdown_ros
 
 SUPERVISOR = "lhd_loading_ros.nodes.supervisor_node"
 CLI = [sys.executable, "-m", "lhd_loading_ros.cli.attempts"]
-REL = QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
-LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
-                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
-STATUS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
-                    durability=DurabilityPolicy.TRANSIENT_LOCAL)
 TIMEOUT_S = 3.0          # attempt_timeout of this test's supervisor (room for a loaded machine)
 ARM_DELAY = 0.3
 
@@ -44,7 +33,6 @@ ARM_DELAY = 0.3
 # rear axle, 0.015 m above the floor (axle at r = 0.137 m). Lifted (boom b, bucket k): about the
 # boom pivot (0.95 m ahead, 0.42 m high), hinge offset (reach, -0.30) rotated by b, tip offset
 # (0.30, -0.105) rotated by b - k; R_y: (x, z) -> (c x + s z, -s x + c z); pitch = k - b.
-R_WHEEL = 0.137
 REACH = math.sqrt(0.55 ** 2 - 0.30 ** 2)
 
 
@@ -65,114 +53,11 @@ LIFT = (-0.5, 0.3)                                    # pitch 0.8 rad = 45.84 de
 END = (0.7 - tip_hand(0.0, *LIFT)[0], *LIFT)          # tip at x = 0.7, z = 0.52: in the end zone
 
 
-class Rig:
-    """This test's side of the machine: a 50 Hz feeder and the supervisor's outputs, spun in a
-    background thread."""
-
-    def __init__(self, node):
-        self.node = node
-        self.pose = START
-        self.feed = {"joints": True, "odom": True, "drift": True, "hw": True}
-        self.front, self.rear = True, False
-        self.load_cell = None              # kg to publish on /lhd/load_cell/mass at 50 Hz, or None
-        self.pose_published_at = {}        # pose -> first publish time (monotonic)
-        self.last_joints_at = None
-        self.statuses = []                 # (arrival, {key: value})
-        self.pub_js = node.create_publisher(JointState, "/lhd/joint_states", REL)
-        self.pub_odom = node.create_publisher(Odometry, "/lhd/odom", REL)
-        self.pub_front = node.create_publisher(Bool, "/lhd/wheel_drift/front", REL)
-        self.pub_rear = node.create_publisher(Bool, "/lhd/wheel_drift/rear", REL)
-        self.pub_hw = node.create_publisher(DiagnosticStatus, "/lhd/hw/status", REL)
-        self.pub_slope = node.create_publisher(Float64, "/lhd/pile/slope", LATCHED)
-        self.pub_zones = node.create_publisher(Float64MultiArray, "/lhd/pile/zones", LATCHED)
-        self.pub_estop = node.create_publisher(Bool, "/lhd/estop", LATCHED)
-        self.pub_cell = node.create_publisher(Float64, "/lhd/load_cell/mass", REL)
-        node.create_subscription(DiagnosticStatus, "/lhd/episode", self._on_status, STATUS)
-        self.arm_client = node.create_client(Trigger, "/lhd/arm")
-        self.abort_client = node.create_client(Trigger, "/lhd/abort")
-        node.create_timer(0.02, self._tick)
-        self.executor = SingleThreadedExecutor(context=node.context)
-        self.executor.add_node(node)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self.thread.start()
-
-    def _on_status(self, msg):
-        self.statuses.append((time.monotonic(), {k.key: k.value for k in msg.values}))
-
-    def _tick(self):
-        base_x, boom, bucket = self.pose
-        stamp = self.node.get_clock().now().to_msg()
-        if self.feed["odom"]:
-            o = Odometry()
-            o.header.stamp = stamp
-            o.pose.pose.position.x, o.pose.pose.position.z = base_x, R_WHEEL
-            o.pose.pose.orientation.w = 1.0
-            self.pub_odom.publish(o)
-        if self.feed["joints"]:
-            js = JointState()
-            js.header.stamp = stamp
-            js.name = ["boom", "bucket", "wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr"]
-            js.position = [boom, bucket, 0.0, 0.0, 0.0, 0.0]
-            js.velocity = [0.0] * 6
-            self.pub_js.publish(js)
-            self.last_joints_at = time.monotonic()
-            self.pose_published_at.setdefault(self.pose, self.last_joints_at)
-        if self.feed["drift"]:
-            self.pub_front.publish(Bool(data=self.front))
-            self.pub_rear.publish(Bool(data=self.rear))
-        if self.load_cell is not None:
-            self.pub_cell.publish(Float64(data=self.load_cell))
-        if self.feed["hw"]:
-            st = DiagnosticStatus(level=DiagnosticStatus.OK, name="/lhd_bridge: device", message="drive enabled")
-            st.values = [KeyValue(key="estop", value="False")]
-            self.pub_hw.publish(st)
-
-    def set_pose(self, pose):
-        self.pose_published_at.pop(pose, None)
-        self.pose = pose
-
-    def call(self, client, timeout=20.0):
-        assert client.wait_for_service(timeout_sec=timeout), "no supervisor service"
-        fut = client.call_async(Trigger.Request())
-        assert wait_for(fut.done, timeout)
-        return fut.result()
-
-    def state(self):
-        return self.statuses[-1][1] if self.statuses else {}
-
-    def wait_state(self, state, episode=None, timeout=10.0, since=0):
-        """The first status from index `since` on with this state (and attempt number)."""
-        found = []
-
-        def pred():
-            for t, kv in self.statuses[since:]:
-                if kv.get("state") == state and (episode is None or kv.get("episode") == str(episode)):
-                    found.append((t, kv))
-                    return True
-            return False
-
-        assert wait_for(pred, timeout), f"no '{state}' status; last: {self.state()}"
-        return found[0]
-
-    def close(self):
-        self.executor.shutdown()
-        self.thread.join(5.0)
-
-
-def wait_for(pred, timeout, step=0.005):
-    t_end = time.monotonic() + timeout
-    while time.monotonic() < t_end:
-        if pred():
-            return True
-        time.sleep(step)
-    return pred()
-
-
 @pytest.fixture(scope="module")
 def rig(tmp_path_factory):
     init_ros()
     node = rclpy.create_node("test_supervisor")
-    r = Rig(node)
+    r = FakeMachine(node, START, front=True)
     r.feed = dict.fromkeys(r.feed, False)         # nothing yet: the first test arms without inputs
     r.run_dir = tmp_path_factory.mktemp("run")
     r.proc = RosProcess(SUPERVISOR, {"run_dir": str(r.run_dir), "attempt_timeout": TIMEOUT_S,
