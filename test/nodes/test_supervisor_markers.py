@@ -93,6 +93,8 @@ def test_zones_trajectory_and_clearing(feeder):
     # attempt 1: the base drives 0.25 m forward in 1 s; the trajectory grows
     t0 = time.monotonic()
     f.arm()
+    # the trail's first point is taken with the running state: drive only once it is running
+    assert wait_for(lambda: f.state().get("state") == "running", 5.0), f.state()
     for k in range(1, 26):
         f.drive_to(-TIP_AHEAD + 0.01 * k)
         time.sleep(0.04)
