@@ -1,8 +1,7 @@
 """The hardware side of the machine as the supervisor hears it, faked by a test: joint states,
 odometry, drift flags, the bridge's status (and optionally the load cell) at 50 Hz from a pose
 (base x, boom, bucket), latched pile slope / zones / e-stop publishers, the supervisor's arm and
-abort services, and its /lhd/episode statuses, spun in a background thread. Shared by the
-supervisor tests (test_supervisor_node.py, test_supervisor_markers.py)."""
+abort services, and its /lhd/episode statuses, spun in a background thread (test_supervisor_node.py)."""
 import threading
 import time
 

@@ -9,41 +9,99 @@ import time
 
 import pytest
 import rclpy
-from std_msgs.msg import Float64, Float64MultiArray
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from nav_msgs.msg import Odometry
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Bool, Float64, Float64MultiArray
+from std_srvs.srv import Trigger
 from visualization_msgs.msg import Marker, MarkerArray
 
-from fake_machine import LATCHED, FakeMachine, wait_for
 from rosutil import RosProcess, init_ros, shutdown_ros
 
+REL = QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+R_WHEEL = 0.137
 REACH = math.sqrt(0.55 ** 2 - 0.30 ** 2)
 TIP_AHEAD = 0.80 + 0.15 + REACH + 0.30             # tip ahead of the rear axle in the attack pose (config)
 ZONES = [0.5, 1.0, 0.35, 1.5, -0.1, 1.1, 0.2, 0.4]  # x_min, x_max, z_min, x_cutoff, x_obs_start, x_obs_end, y_half, z_top
-START = (-TIP_AHEAD, 0.0, 0.0)                      # base x, boom, bucket: the attack pose
 
 
-class Feeder(FakeMachine):
-    """The fake machine (no drift) and the supervisor's marker arrays as they arrive."""
+def wait_for(pred, timeout, step=0.01):
+    t_end = time.monotonic() + timeout
+    while time.monotonic() < t_end:
+        if pred():
+            return True
+        time.sleep(step)
+    return pred()
 
+
+class Feeder:
     def __init__(self, node):
+        self.node = node
+        self.base_x, self.boom, self.bucket = -TIP_AHEAD, 0.0, 0.0
         self.arrays = []                     # (arrival, MarkerArray)
+        self.states = []
         self.lock = threading.Lock()
+        self.pub_js = node.create_publisher(JointState, "/lhd/joint_states", REL)
+        self.pub_odom = node.create_publisher(Odometry, "/lhd/odom", REL)
+        self.pub_front = node.create_publisher(Bool, "/lhd/wheel_drift/front", REL)
+        self.pub_rear = node.create_publisher(Bool, "/lhd/wheel_drift/rear", REL)
+        self.pub_hw = node.create_publisher(DiagnosticStatus, "/lhd/hw/status", REL)
+        self.pub_slope = node.create_publisher(Float64, "/lhd/pile/slope", LATCHED)
+        self.pub_zones = node.create_publisher(Float64MultiArray, "/lhd/pile/zones", LATCHED)
         node.create_subscription(MarkerArray, "/lhd/supervisor/markers", self._on_markers, LATCHED)
-        super().__init__(node, START)     # starts spinning: every entity of the node exists by then
+        node.create_subscription(DiagnosticStatus, "/lhd/episode", self._on_status,
+                                 QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                                            history=HistoryPolicy.KEEP_LAST,
+                                            durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        self.arm_client = node.create_client(Trigger, "/lhd/arm")
+        node.create_timer(0.02, self._tick)
+        self.executor = SingleThreadedExecutor(context=node.context)
+        self.executor.add_node(node)
+        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self.thread.start()
 
     def _on_markers(self, msg):
         with self.lock:
             self.arrays.append((time.monotonic(), msg))
 
-    def drive_to(self, base_x):
-        self.pose = (base_x, *self.pose[1:])
+    def _on_status(self, msg):
+        self.states.append({k.key: k.value for k in msg.values})
+
+    def _tick(self):
+        stamp = self.node.get_clock().now().to_msg()
+        o = Odometry()
+        o.header.stamp = stamp
+        o.pose.pose.position.x, o.pose.pose.position.z = self.base_x, R_WHEEL
+        o.pose.pose.orientation.w = 1.0
+        self.pub_odom.publish(o)
+        js = JointState()
+        js.header.stamp = stamp
+        js.name = ["boom", "bucket"]
+        js.position = [self.boom, self.bucket]
+        js.velocity = [0.0, 0.0]
+        self.pub_js.publish(js)
+        self.pub_front.publish(Bool(data=False))
+        self.pub_rear.publish(Bool(data=False))
+        st = DiagnosticStatus(level=DiagnosticStatus.OK, name="/lhd_bridge: device", message="drive enabled")
+        st.values = [KeyValue(key="estop", value="False")]
+        self.pub_hw.publish(st)
 
     def arm(self):
-        res = self.call(self.arm_client, timeout=30.0)
-        assert res.success, res.message
+        assert self.arm_client.wait_for_service(timeout_sec=30.0), "no supervisor"
+        fut = self.arm_client.call_async(Trigger.Request())
+        assert wait_for(fut.done, 10.0)
+        assert fut.result().success, fut.result().message
 
     def since(self, t):
         with self.lock:
             return [m for at, m in self.arrays if at >= t]
+
+    def state(self):
+        return self.states[-1] if self.states else {}
 
 
 def parts(arr):
@@ -66,7 +124,8 @@ def feeder(tmp_path_factory):
                         run.parent / "supervisor_markers.log")
     yield f
     f.proc.stop()
-    f.close()
+    f.executor.shutdown()
+    f.thread.join(5.0)
     node.destroy_node()
     shutdown_ros()
 
@@ -93,10 +152,8 @@ def test_zones_trajectory_and_clearing(feeder):
     # attempt 1: the base drives 0.25 m forward in 1 s; the trajectory grows
     t0 = time.monotonic()
     f.arm()
-    # the trail's first point is taken with the running state: drive only once it is running
-    assert wait_for(lambda: f.state().get("state") == "running", 5.0), f.state()
     for k in range(1, 26):
-        f.drive_to(-TIP_AHEAD + 0.01 * k)
+        f.base_x = -TIP_AHEAD + 0.01 * k
         time.sleep(0.04)
     assert wait_for(lambda: (tip_points(f.arrays[-1][1]) or [(0, 0)])[-1][0] > 0.249, 3.0)
     seen = [len(tip_points(a)) for a in f.since(t0)]
@@ -113,13 +170,14 @@ def test_zones_trajectory_and_clearing(feeder):
     f.node.destroy_subscription(sub)
 
     # the end (success: tip lifted into the end zone) keeps the trajectory; the next arming clears it
-    f.pose = (0.7 - (0.95 + REACH * math.cos(-0.5) - 0.30 * math.sin(-0.5)
-                     + 0.30 * math.cos(-0.8) - 0.105 * math.sin(-0.8)), -0.5, 0.3)
+    f.boom, f.bucket = -0.5, 0.3
+    f.base_x = 0.7 - (0.95 + REACH * math.cos(-0.5) - 0.30 * math.sin(-0.5)
+                      + 0.30 * math.cos(-0.8) - 0.105 * math.sin(-0.8))
     assert wait_for(lambda: f.state().get("state") == "success", 5.0), f.state()
     time.sleep(0.2)
     n_end = len(tip_points(f.arrays[-1][1]))
     assert n_end > 24
-    f.pose = START
+    f.boom, f.bucket, f.base_x = 0.0, 0.0, -TIP_AHEAD
     time.sleep(0.3)
     assert len(tip_points(f.arrays[-1][1])) == n_end          # not live: nothing added
     t1 = time.monotonic()
@@ -129,7 +187,7 @@ def test_zones_trajectory_and_clearing(feeder):
     assert first.markers[0].action == Marker.DELETEALL
     assert parts(first)[("tip", 0)].action == Marker.DELETE and parts(first)[("zones", 0)].action == Marker.ADD
     for k in range(1, 11):
-        f.drive_to(-TIP_AHEAD + 0.01 * k)
+        f.base_x = -TIP_AHEAD + 0.01 * k
         time.sleep(0.04)
     assert wait_for(lambda: len(tip_points(f.arrays[-1][1])) >= 8, 3.0)
     assert all(m.action != Marker.DELETEALL for a in f.since(t1)[1:] for m in a.markers)
