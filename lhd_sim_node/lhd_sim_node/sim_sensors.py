@@ -47,6 +47,7 @@ ARUCO_DEFAULTS = {
 }
 LIDAR_DEFAULTS = {"sensor_xyz": [0.6, 0.0, 1.6], "sensor_rpy": [math.pi / 2, 0.0, 0.0]}
 MARKER_PX = 200          # texture pixels across the black square (render's marker_px)
+NOISE_FIELDS = 4         # sensor-noise fields a camera crops its frames' noise from (render's noise_bank)
 
 
 def _section(section: dict | None, defaults: dict, name: str) -> dict:
@@ -102,6 +103,7 @@ class CameraModel:
     dropout: float                # probability that a frame is lost
     texture: np.ndarray = field(repr=False)      # the printed marker after exposure, uint8
     background: np.ndarray = field(repr=False)   # the floor around it after exposure, uint8
+    noise_bank: np.ndarray | None = field(default=None, repr=False)   # standard normal fields (render's)
 
     @classmethod
     def from_params(cls, aruco_section: dict | None, width: int = 640, height: int = 480, f: float | None = None,
@@ -137,7 +139,8 @@ class CameraModel:
         return cls(width, height, K, transform(p["camera_xyz"], p["camera_rpy"]),
                    np.linalg.inv(transform(p["marker_to_base_xyz"], p["marker_to_base_rpy"])),
                    float(p["marker_size"]), int(p["marker_id"]), str(p["dictionary"]), float(noise), float(blur),
-                   float(exposure), float(offset), float(dropout), expose(tex), expose(bg))
+                   float(exposure), float(offset), float(dropout), expose(tex), expose(bg),
+                   rng.standard_normal((NOISE_FIELDS, height + 32, width + 32), dtype=np.float32))
 
     def marker_pose(self, base_pos, base_quat_wxyz) -> np.ndarray:
         """4x4 pose of the marker (centre, z out of the printed face) in the pile frame."""
@@ -185,7 +188,8 @@ def camera_image(model: CameraModel, base_pos, base_quat_wxyz, rng: np.random.Ge
         img += rng.normal(0.0, model.noise, img.shape)
         return np.clip(img, 0, 255).astype(np.uint8)
     return render(model.K, model.width, model.height, T, model.texture, model.marker_size, rng,
-                  noise=model.noise, blur=model.blur, background=model.background, marker_px=MARKER_PX)
+                  noise=model.noise, blur=model.blur, background=model.background, marker_px=MARKER_PX,
+                  noise_bank=model.noise_bank)
 
 
 # ---------------------------------------------------------------------------------- LiDAR

@@ -28,8 +28,9 @@ period) by the device loop of sim_due.SimDue (a thread on the steady clock), and
 * <prefix>/twin/markers (visualization_msgs/MarkerArray at `markers_hz`): the pile's surface, the
   zones, the bucket tip's trajectory, the FEE force (twin_markers.py);
 * attempts: the real stack's supervisor arms and ends them. The twin watches <prefix>/episode;
-  `reset_delay` s after an ended state (success, failure, timeout, estop, lost_input, aborted) it
-  makes a new pile (pile k: seed + k, slopes_deg cycling, material) and puts the machine in the
+  once an ended attempt (success, failure, timeout, estop, lost_input, aborted) is weighed (its
+  status carries a finite loaded_mass), and at least `reset_delay` s after the end (at the latest
+  `weigh_timeout` s after it, weighed or not), it makes a new pile (pile k: seed + k, slopes_deg cycling, material) and puts the machine in the
   attack pose with the tip d_init inside the pile (the simulator's own reset: the paper's episode
   starts after the bucket hit the pile), or d_attack before the toe at rest with
   `start_pose:=approach`. Service ~/reset (std_srvs/Trigger) does it on demand; the first pile is
@@ -104,6 +105,14 @@ def machine_sections(path: str) -> tuple[dict | None, dict | None]:
     return doc.get("aruco_pose_node"), doc.get("lidar_slope_node")
 
 
+def _weighed(status_values: dict) -> bool:
+    """The ended attempt's status carries its mass (the load cell's or the operator's)."""
+    try:
+        return math.isfinite(float(status_values.get("loaded_mass", "nan")))
+    except ValueError:
+        return False
+
+
 class TwinNode(Node):
     def __init__(self, **node_kwargs):
         super().__init__("lhd_twin", **node_kwargs)
@@ -127,8 +136,11 @@ class TwinNode(Node):
                   "from the config's range)", lo=-1.0, hi=5.0, on_change=lambda v: setattr(self, "d_attack", v)),
             Param("auto_reset", True, "a new pile reset_delay s after the attempt ended",
                   on_change=lambda v: setattr(self, "auto_reset", v)),
-            Param("reset_delay", 2.5, "s from an ended attempt to the new pile (the supervisor weighs over 1 s once "
-                  "the machine is still)", lo=0.0, hi=60.0, on_change=lambda v: setattr(self, "reset_delay", v)),
+            Param("reset_delay", 2.5, "s from an ended attempt to the new pile at the earliest; the pile is kept "
+                  "until the attempt is weighed (its status carries a loaded_mass)", lo=0.0, hi=60.0,
+                  on_change=lambda v: setattr(self, "reset_delay", v)),
+            Param("weigh_timeout", 20.0, "s after the end: a new pile even if the attempt was not weighed (no load "
+                  "cell, no operator)", lo=0.0, hi=600.0, on_change=lambda v: setattr(self, "weigh_timeout", v)),
             Param("estop", False, "the simulated machine's emergency-stop button pressed",
                   on_change=self._set_estop),
             Param("load_cell", True, "the device has the bucket's load cell (load-cell frames at 10 Hz)"),
@@ -168,7 +180,7 @@ class TwinNode(Node):
         self._set_slopes(gp("slopes_deg"))
         self._set_material(gp("material"))
         self.seed, self.start_pose, self.d_attack = gp("seed"), gp("start_pose"), gp("d_attack")
-        self.auto_reset, self.reset_delay = gp("auto_reset"), gp("reset_delay")
+        self.auto_reset, self.reset_delay, self.weigh_timeout = gp("auto_reset"), gp("reset_delay"), gp("weigh_timeout")
         self.frame_id, self.base_frame_id = gp("frame_id"), gp("base_frame_id")
         aruco, lidar = machine_sections(gp("machine_params"))
         self.camera = None
@@ -196,6 +208,7 @@ class TwinNode(Node):
         self._attempt = None                # (state, episode) of the latest /episode status
         self._handled_end = None            # the ended (state, episode) a reset was scheduled for
         self._reset_at = None               # monotonic time of the scheduled reset
+        self._ended_at = None               # monotonic time the handled end was seen (waiting for its weighing)
         self.camera_frames = self.camera_dropped = self.scans = 0
         self.marker_visible = None
         self._window = {"t": time.monotonic(), "sim": 0.0, "chunks": 0, "overruns": 0, "resyncs": 0, "busy": 0.0}
@@ -329,12 +342,25 @@ class TwinNode(Node):
         vals = {kv.key: kv.value for kv in msg.values}
         key = (vals.get("state", ""), vals.get("episode", ""))
         self._attempt = key
+        now = time.monotonic()
         if key[0] in ENDED and key != self._handled_end:
-            self._handled_end = key
-            if self.auto_reset:
-                self._reset_at = time.monotonic() + self.reset_delay
+            self._handled_end, self._ended_at, self._reset_at = key, now, None
+        if key == self._handled_end and self._ended_at is not None and self.auto_reset and self._reset_at is None:
+            # the pile stays until the supervisor has weighed the attempt (a new pile empties the
+            # bucket: weighing after it read 0.4 kg for a 38 kg load once); weigh_timeout caps the wait
+            if _weighed(vals):
+                self._reset_at = max(now, self._ended_at + self.reset_delay)
+                self._ended_at = None
+
+    def _check_weigh_timeout(self) -> None:
+        if self._ended_at is not None and self._reset_at is None and self.auto_reset and \
+                time.monotonic() - self._ended_at >= max(self.weigh_timeout, self.reset_delay):
+            self.get_logger().warn(f"attempt {self._handled_end[1]} not weighed {self.weigh_timeout:.0f} s after its "
+                                   "end: new pile anyway")
+            self._reset_at, self._ended_at = time.monotonic(), None
 
     def _check_reset(self) -> None:
+        self._check_weigh_timeout()
         if self._reset_at is not None and time.monotonic() >= self._reset_at:
             try:
                 self.reset(f"attempt {self._handled_end[1]} ended: {self._handled_end[0]}")
@@ -348,21 +374,21 @@ class TwinNode(Node):
 
     def _publish_truth(self) -> None:
         sim = self.sim
+        stamp = self.get_clock().now().to_msg()
         with self.due.lock:
             d = sim.data
-            q = d.qpos[:7].tolist()
+            pos, quat, v_x = self.due.base_state_at(time.monotonic())   # at the stamp (between chunks)
             wz = float(d.qvel[5])
             s = sim.state()
             mass = float(sim.loaded_mass)
             wheels = d.qvel[sim.wheel_dof].tolist()
             wheel_q = d.qpos[self._wheel_q].tolist()
-        stamp = self.get_clock().now().to_msg()
         od = Odometry()
         od.header.stamp, od.header.frame_id, od.child_frame_id = stamp, self.frame_id, self.base_frame_id
         p, o = od.pose.pose.position, od.pose.pose.orientation
-        p.x, p.y, p.z = q[0], q[1], q[2]
-        o.w, o.x, o.y, o.z = q[3], q[4], q[5], q[6]
-        od.twist.twist.linear.x = float(s.v_x)
+        p.x, p.y, p.z = (float(c) for c in pos)
+        o.w, o.x, o.y, o.z = (float(c) for c in quat)
+        od.twist.twist.linear.x = float(v_x)
         od.twist.twist.angular.z = wz
         self.pub_odom.publish(od)
         self.pub_drift.publish(Float64MultiArray(data=[float(bool(s.drift_front)), float(bool(s.drift_rear))]))
@@ -413,9 +439,8 @@ class TwinNode(Node):
         return info
 
     def _publish_image(self) -> None:
-        with self.due.lock:
-            pos, quat = self.sim.data.qpos[:3].copy(), self.sim.data.qpos[3:7].copy()
         stamp = self.get_clock().now().to_msg()       # the instant the machine was where the image shows it
+        pos, quat, _ = self.due.base_state_at(time.monotonic())   # the state at that instant (between chunks)
         img = ss.camera_image(self.camera, pos, quat, self._rng_sensors)
         if img is None:
             self.camera_dropped += 1

@@ -7,8 +7,8 @@ import re
 import numpy as np
 import pytest
 
-from lhd_loading_ros.perception.aruco import (CameraModel, ImageEncodingError, MarkerDetector, VelocityEstimator,
-                                              image_to_gray, level)
+from lhd_loading_ros.perception.aruco import (CameraModel, ImageEncodingError, KalmanVelocityEstimator,
+                                              MarkerDetector, VelocityEstimator, image_to_gray, level)
 from lhd_loading_ros.perception.geometry import apply, quaternion_xyzw, rpy_matrix, transform
 from lhd_loading_ros.perception.slope import TooFewPoints, fit_slope, scan_to_points
 from lhd_loading_ros.perception.synthetic import (CAMERA_RPY, drive_poses, intrinsics, marker_texture, render,
@@ -109,6 +109,114 @@ def test_velocity_estimator_is_a_least_squares_slope():
     assert len(v.samples) == 6  # only the last 0.5 s
     v.add(0.0, 0.0)  # time jumped back
     assert v.velocity() is None
+
+
+def _ramp_speed(t):
+    """0 until 0.2 s, then 1.85 m/s^2 up to 0.37 m/s at 0.4 s, then constant (an attack start)."""
+    return np.clip((np.asarray(t) - 0.2) * 1.85, 0.0, 0.37)
+
+
+def _ramp_x(t):
+    t = np.asarray(t, dtype=float)
+    a = np.clip(t - 0.2, 0.0, 0.2)
+    return 1.85 * a ** 2 / 2 + 0.37 * np.clip(t - 0.4, 0.0, None)
+
+
+def _best_delay(est, fps=30.0, t_end=1.2):
+    """The delay d (s) that best explains an estimator's output on the noiseless ramp: its
+    output at t compared with the true speed at t - d."""
+    ts = np.arange(0.0, t_end, 1 / fps)
+    out = []
+    for t, x in zip(ts, _ramp_x(ts)):
+        est.add(float(t), float(x))
+        out.append(est.velocity())
+    t, v = ts[2:], np.array(out[2:], dtype=float)
+    delays = np.arange(0.0, 0.3, 0.005)
+    rms = [np.sqrt(np.mean((v - _ramp_speed(t - d)) ** 2)) for d in delays]
+    return float(delays[int(np.argmin(rms))]), v, t
+
+
+def test_window_estimator_lags_half_its_window_and_the_kalman_filter_does_not():
+    # a least-squares slope over a window is the speed at the window's middle: 0.15 s late for
+    # 0.3 s (exact for a ramp); the Kalman filter reports the speed at the last measurement
+    d_ls, _, _ = _best_delay(VelocityEstimator(0.3))
+    assert d_ls == pytest.approx(0.15, abs=0.02)
+    d_kf, v, t = _best_delay(KalmanVelocityEstimator(accel_noise=1.0, position_noise=0.001))
+    assert d_kf <= 0.04
+    # at constant speed both are exact (noiseless): the filter has no bias
+    assert v[t > 0.9] == pytest.approx(0.37, abs=2e-3)
+
+
+def test_kalman_velocity_noise_matches_its_riccati_covariance():
+    # a machine moving as the filter's model says (speed a random walk of spectral density q),
+    # seen at 30 Hz with white 1 mm noise: the spread of the filter's speed error must be the
+    # steady-state covariance of the Riccati recursion, iterated here independently
+    q, sigma, dt = 1.0, 0.001, 1 / 30.0
+    F = np.array([[1.0, dt], [0.0, 1.0]])
+    Q = q * np.array([[dt ** 3 / 3, dt ** 2 / 2], [dt ** 2 / 2, dt]])
+    H = np.array([[1.0, 0.0]])
+    P = np.eye(2)
+    for _ in range(2000):
+        Pp = F @ P @ F.T + Q
+        K = Pp @ H.T / (H @ Pp @ H.T + sigma ** 2)
+        P = (np.eye(2) - K @ H) @ Pp
+    sd_theory = math.sqrt(P[1, 1])
+    rng = np.random.default_rng(3)
+    est = KalmanVelocityEstimator(q, sigma)
+    L = np.linalg.cholesky(Q)
+    state = np.array([0.0, 0.37])
+    errs = []
+    for k in range(20000):
+        est.add(k * dt, state[0] + rng.normal(0.0, sigma))
+        if k > 60:
+            errs.append(est.velocity() - state[1])
+        state = F @ state + L @ rng.standard_normal(2)
+    assert abs(np.mean(errs)) < 0.1 * sd_theory
+    assert np.std(errs) == pytest.approx(sd_theory, rel=0.1)
+    assert est.speed_sd() == pytest.approx(sd_theory, rel=1e-3)
+
+
+def test_kalman_velocity_stamps_gaps_and_parameters():
+    v = KalmanVelocityEstimator(max_gap=0.5)
+    assert v.add(0.0, 0.0) and v.velocity() is None
+    assert v.add(0.1, 0.037) and v.velocity() is None       # two measurements: not yet a speed
+    assert v.add(0.2, 0.074) and v.velocity() == pytest.approx(0.37, abs=1e-3)
+    assert not v.add(0.2, 5.0)                               # repeated stamp: nothing added
+    assert v.velocity() == pytest.approx(0.37, abs=1e-3)
+    assert not v.add(0.1, 0.0)                               # backward: restarts from this sample
+    assert v.velocity() is None and v.last_t == 0.1
+    for k in range(2, 5):
+        v.add(0.1 * k, 0.0)
+    assert v.velocity() == pytest.approx(0.0, abs=1e-3)
+    v.add(1.5, 1.0)                                          # after a 1.1 s gap: a new start, no speed
+    assert v.velocity() is None
+    for bad in ({"accel_noise": 0.0}, {"position_noise": float("nan")}, {"max_gap": -1.0}):
+        with pytest.raises(ValueError, match="must be a finite number > 0"):
+            KalmanVelocityEstimator(**bad)
+
+
+def test_rendered_marker_moves_smoothly_below_a_pixel():
+    # a camera pixel integrates light over its area, so a marker moved by 1/40 px moves its
+    # detected corners by 1/40 px; one sample per pixel (supersample=1) puts the edges on the pixel
+    # grid and the corners jump in steps (a sawtooth error of about 0.15 px sd, 1 mm at 1.6 m)
+    from lhd_loading_ros.perception.aruco import project
+    K, T_pc, tex = intrinsics(640, 480), transform(CAM_XYZ, CAMERA_RPY), marker_texture("DICT_4X4_50", 7)
+    det = MarkerDetector("DICT_4X4_50", 7, SIZE)
+
+    def mean_corner_error(supersample):
+        out = []
+        for j in range(40):     # 0.05 mm steps along x: 0.026 px each, 1 px in all
+            T_cm = np.linalg.inv(T_pc) @ transform((-0.6 + j * 0.00005, 0.0, 0.35), (0, 0, 0))
+            img = render(K, 640, 480, T_cm, tex, SIZE, np.random.default_rng(j), noise=0.0, blur=1,
+                         supersample=supersample)
+            out.append((det.detect(img) - project(K, T_cm, det.obj)).mean(axis=0))
+        return np.array(out)
+
+    area = mean_corner_error(8)
+    point = mean_corner_error(1)
+    assert np.abs(area.mean(axis=0)).max() < 0.02           # px: no bias
+    assert area.std(axis=0).max() < 0.05                     # px: no pixel-locked pattern
+    assert point.std(axis=0).max() > 2 * area.std(axis=0).max()
 
 
 def test_geometry_helpers():

@@ -80,15 +80,15 @@ def test_marker_is_where_the_pinhole_puts_it_and_decodes(sim):
     assert img.shape == (480, 640) and img.dtype == np.uint8
     corners = MarkerDetector("DICT_4X4_50", 7, 0.12).detect(img)
     assert corners is not None
-    # by hand: f = 0.94 * 640 = 601.6 px; the camera looks down from (-1.3, 0, 2.0) with image
-    # right = -y and image down = -x; the marker centre is 0.10 m behind base_link, 0.213 m above
-    # it (the machine stands level at rest), so depth d = 2.0 - z_m, u = 320 - f y_m / d,
-    # v = 240 - f (x_m + 1.3) / d
+    # by hand: f = 0.94 * 640 = 601.6 px; the camera looks down from (-1.3, 0, 2.0), rpy (pi, 0, 0):
+    # optical x = +x, optical y = -y, optical z = -z, so image right = +x and image down = -y; the
+    # marker centre is 0.10 m behind base_link, 0.213 m above it (the machine stands level at
+    # rest), so depth d = 2.0 - z_m, u = 320 + f (x_m + 1.3) / d, v = 240 - f y_m / d
     xm, ym, zm = pos[0] - 0.10, pos[1], pos[2] + 0.213
     d = 2.0 - zm
-    u, v = 320 - 601.6 * ym / d, 240 - 601.6 * (xm + 1.3) / d
-    # within half a pixel (the warp's and the sub-pixel detector's pixel conventions: < 1 mm at 1.5 m)
-    assert corners.mean(axis=0) == pytest.approx([u, v], abs=0.5)
+    u, v = 320 + 601.6 * (xm + 1.3) / d, 240 - 601.6 * ym / d
+    # within a quarter pixel (area-integrated rendering, sub-pixel corners: < 0.7 mm at 1.6 m)
+    assert corners.mean(axis=0) == pytest.approx([u, v], abs=0.25)
     side = 601.6 * 0.12 / d                                      # px, the black square's side
     assert np.linalg.norm(corners[1] - corners[0]) == pytest.approx(side, abs=0.6)
     assert cam.visible(pos, quat)

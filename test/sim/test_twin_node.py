@@ -43,7 +43,7 @@ class Rig:
         self.twin = RosProcess("lhd_sim_node.twin_node", {
             "link": self.link, "start_pose": "approach", "d_attack": 0.8, "seed": 3,
             "slopes_deg": ",".join(f"{s:g}" for s in SLOPES), "material": "homogeneous", "reset_delay": 0.5,
-            "camera_fps": 10.0, "lidar_hz": 4.0, "markers_hz": 4.0}, tmp_path / "twin.log")
+            "weigh_timeout": 2.5, "camera_fps": 10.0, "lidar_hz": 4.0, "markers_hz": 4.0}, tmp_path / "twin.log")
         self.node = rclpy.create_node("twin_test")
         self.got = {k: [] for k in ("odom", "mass", "tip", "truth_js", "slope", "zones", "drift", "js", "lc",
                                     "img", "info", "scan", "markers", "diag")}
@@ -195,9 +195,10 @@ def test_joint_states_and_load_cell_are_the_simulators(rig):
     assert m_cell == pytest.approx(m_truth, abs=1e-3)
 
 
-def _status(state, episode):
+def _status(state, episode, mass="nan"):
     st = DiagnosticStatus(name="supervisor", level=DiagnosticStatus.OK, message=state)
-    st.values = [KeyValue(key="state", value=state), KeyValue(key="episode", value=str(episode))]
+    st.values = [KeyValue(key="state", value=state), KeyValue(key="episode", value=str(episode)),
+                 KeyValue(key="loaded_mass", value=mass)]
     return st
 
 
@@ -208,15 +209,20 @@ def test_ended_attempt_and_reset_service_make_new_piles(rig):
     rig.spin(0.3)
     assert len(g["slope"]) == n_slope                   # a running attempt changes nothing
     t_end = time.monotonic()
-    rig.pub_episode.publish(_status("success", 1))
+    rig.pub_episode.publish(_status("success", 1))      # ended, not yet weighed: the pile stays
+    for _ in range(4):
+        rig.spin(0.25)
+        rig.pub_episode.publish(_status("success", 1))  # (the supervisor republishes its status)
+    assert len(g["slope"]) == n_slope
+    rig.pub_episode.publish(_status("success", 1, "31.20"))   # weighed: a new pile
     assert spin_until(rig.node, lambda: len(g["slope"]) > n_slope, timeout=5.0), rig.twin.log()
     t_new = g["slope"][-1][0]
-    assert t_new - t_end >= 0.5                        # reset_delay
+    assert t_new - t_end >= 1.0                        # after the weighing (and reset_delay)
     assert rig.last("slope") == pytest.approx(math.radians(SLOPES[1]), abs=1e-12)   # pile 1: the next slope
     rig.spin(0.5)
     assert rig.last("mass") == 0.0 and rig.last("tip").point.x == pytest.approx(-0.8, abs=0.01)
     assert spin_until(rig.node, lambda: g["lc"] and g["lc"][-1][1] == 0.0, timeout=2.0)
-    rig.pub_episode.publish(_status("success", 1))      # the same status again (latched): no second reset
+    rig.pub_episode.publish(_status("success", 1, "31.20"))   # the same status again (latched): no second reset
     rig.spin(1.0)
     assert len(g["slope"]) == n_slope + 1
     assert rig.reset_client.wait_for_service(timeout_sec=5.0)
@@ -225,6 +231,12 @@ def test_ended_attempt_and_reset_service_make_new_piles(rig):
     assert fut.result().success and "pile 2" in fut.result().message
     assert spin_until(rig.node, lambda: len(g["slope"]) > n_slope + 1, timeout=3.0)
     assert rig.last("slope") == pytest.approx(math.radians(SLOPES[0]), abs=1e-12)   # cycles back
+    # an attempt nobody weighs (no load cell, no operator): a new pile weigh_timeout after its end
+    n_slope = len(g["slope"])
+    t_end = time.monotonic()
+    rig.pub_episode.publish(_status("aborted", 2))
+    assert spin_until(rig.node, lambda: len(g["slope"]) > n_slope, timeout=6.0), rig.twin.log()
+    assert g["slope"][-1][0] - t_end >= 2.4
 
 
 def test_estop_button_holds_the_machine_and_release_needs_a_fresh_command(rig):

@@ -12,7 +12,10 @@ and /diagnostics (OK / WARN / ERROR with the reason).
 "Unknown speed" is the absence of /lhd/odom, never a number: odometry is published only for
 a detection whose v_x comes from consecutive detections (no lost or rejected frame between
 them) with strictly increasing, non-zero image stamps. A lost marker, a rejected frame, a zero
-or repeated stamp publish no odometry; a backward stamp restarts the speed window. Consumers
+or repeated stamp publish no odometry; a backward stamp restarts the speed estimate. v_x comes
+from a constant-velocity Kalman filter on the marker's x (`velocity_filter: kalman`, the default:
+the speed at the image's instant) or the least-squares slope over `velocity_window`
+(`velocity_filter: window`: about half the window late); docs/perception.md compares them. Consumers
 time out on /lhd/odom (the policy node: input timeout -> zero command; the bridge: odom_timeout)
 and may read /lhd/aruco/stale and /diagnostics for the reason. Every published value is finite.
 """
@@ -31,7 +34,7 @@ from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import Bool
 
 from lhd_loading_ros.perception.aruco import (CameraModel, ImageEncodingError, MarkerDetector, MountingPrior,
-                                              VelocityEstimator, dictionary, image_to_gray, level, opencv_problem)
+                                              KalmanVelocityEstimator, VelocityEstimator, dictionary, image_to_gray, level, opencv_problem)
 from lhd_loading_ros.perception.geometry import quaternion_xyzw, transform
 from lhd_loading_ros.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
@@ -66,10 +69,17 @@ class ArucoPoseNode(Node):
             Param("marker_to_base_rpy", [0.0, 0.0, 0.0], "base_link roll, pitch, yaw in the marker frame (rad)",
                   length=3),
             Param("planar_motion", True, "keep position and heading only (the machine drives on a flat floor)"),
-            Param("velocity_window", 0.3, "v_x is the least-squares slope of x(t) over this window (s)",
-                  lo=0.02, hi=10.0, on_change=self._set_window),
+            Param("velocity_filter", "kalman", "how v_x is estimated from x(t): kalman (constant-velocity Kalman "
+                  "filter, no window lag) or window (least-squares slope over velocity_window)",
+                  choices=("kalman", "window"), on_change=lambda v: self._set_filter(filter=v)),
+            Param("velocity_accel_noise", 1.0, "kalman: spectral density of the machine's acceleration (m^2/s^3)",
+                  lo=1e-4, hi=1e4, on_change=lambda v: self._set_filter(accel_noise=v)),
+            Param("velocity_position_noise", 0.001, "kalman: standard deviation of a detection's x (m)",
+                  lo=1e-5, hi=0.1, on_change=lambda v: self._set_filter(position_noise=v)),
+            Param("velocity_window", 0.3, "window: v_x is the least-squares slope of x(t) over this window (s)",
+                  lo=0.02, hi=10.0, on_change=lambda v: self._set_filter(window=v)),
             Param("stale_timeout", 0.5, "without the marker or images this long (s): stale, odometry stops",
-                  lo=0.02, hi=60.0, on_change=lambda v: setattr(self, "stale_timeout", v)),
+                  lo=0.02, hi=60.0, on_change=self._set_stale_timeout),
             Param("frame_id", "pile", "frame of the published poses"),
             Param("child_frame_id", "base_link", "child frame of the odometry"),
             Param("image_topic", "/camera/image_raw", "Image input"),
@@ -84,7 +94,9 @@ class ArucoPoseNode(Node):
         self.T_pile_cam = transform(p["camera_xyz"], p["camera_rpy"])
         self.T_marker_base = transform(p["marker_to_base_xyz"], p["marker_to_base_rpy"])
         self.prior = MountingPrior(self.T_pile_cam, self.T_marker_base)
-        self.vel = VelocityEstimator(p["velocity_window"])
+        self._vel_params = {"filter": p["velocity_filter"], "accel_noise": p["velocity_accel_noise"],
+                            "position_noise": p["velocity_position_noise"], "window": p["velocity_window"], "max_gap": p["stale_timeout"]}
+        self.vel = self._make_velocity()
         self.stale_timeout = p["stale_timeout"]
         self.planar = p["planar_motion"]
         self.frame_id, self.child_frame_id = p["frame_id"], p["child_frame_id"]
@@ -111,8 +123,20 @@ class ArucoPoseNode(Node):
         steady_timer(self, 0.1, self._check_stale)
         self.diag = Diagnostics(self, {"pose": self._report})
 
-    def _set_window(self, v: float) -> None:
-        self.vel = VelocityEstimator(v)     # a new window: samples of the old one are not mixed in
+    def _set_stale_timeout(self, v: float) -> None:
+        self.stale_timeout = v
+        self._set_filter(max_gap=v)
+
+    def _make_velocity(self):
+        v = self._vel_params
+        if v["filter"] == "window":
+            return VelocityEstimator(v["window"])
+        return KalmanVelocityEstimator(v["accel_noise"], v["position_noise"], max_gap=v["max_gap"])
+
+    def _set_filter(self, **changes) -> None:
+        """A velocity parameter changed: a new estimator (samples of the old one are not mixed in)."""
+        self._vel_params.update(changes)
+        self.vel = self._make_velocity()
 
     # ------------------------------------------------------------------ inputs
     def _on_info(self, msg: CameraInfo) -> None:
@@ -183,7 +207,7 @@ class ArucoPoseNode(Node):
             self.stamp_problem = "image stamp is zero: no speed (the camera driver must stamp frames)"
             return None
         t = stamp.sec + stamp.nanosec * 1e-9
-        last = self.vel.samples[-1][0] if self.vel.samples else None
+        last = self.vel.last_t
         if not self.vel.add(t, x):
             self.stamp_problem = (f"image stamp {t:.3f} repeated: no speed from it" if t == last else
                                   f"image stamp went back from {last:.3f} to {t:.3f}: speed window restarted")

@@ -26,24 +26,53 @@ def marker_texture(dict_name: str, marker_id: int, px: int = 200, border: int = 
     return cv2.copyMakeBorder(img, border, border, border, border, cv2.BORDER_CONSTANT, value=255)
 
 
+SUPERSAMPLE = 4   # sub-pixels per pixel side where the marker is drawn (area integration; 8 is no smoother)
+
+
 def render(K: np.ndarray, width: int, height: int, T_cam_marker: np.ndarray, texture: np.ndarray, marker_size: float,
            rng: np.random.Generator, noise: float = 4.0, blur: int = 3, occlusion: float = 0.0,
-           background: np.ndarray | None = None, marker_px: int = 200) -> np.ndarray:
+           background: np.ndarray | None = None, marker_px: int = 200, supersample: int = SUPERSAMPLE,
+           noise_bank: np.ndarray | None = None) -> np.ndarray:
     """Grayscale image of the marker (black square of side marker_size, white quiet zone)
     at pose T_cam_marker, on a textured background, with sensor noise, blur and an optional
-    occluding bar covering `occlusion` of the marker's width."""
+    occluding bar covering `occlusion` of the marker's width.
+
+    A camera pixel integrates the light over its area. Sampling the texture once per pixel (a
+    plain warp) puts every edge on the pixel grid: the corners then move in whole-pixel steps
+    and the ArUco pose carries a sawtooth error with a one-pixel period (1 mm sd at 1.6 m with
+    the twin's camera; test_perception.py measures it). So the marker's bounding box is drawn on
+    a grid of `supersample` x `supersample` sub-pixels per pixel (texture warp, anti-aliased
+    outline over the background) and averaged back to pixels (INTER_AREA: the box filter of
+    the pixel's area). Pixel centres are at integer coordinates (OpenCV's and the pinhole
+    model's convention); texel centres too, so the texture's outer edges are at -0.5 and n-0.5.
+
+    `noise_bank` (optional, (k, >= height, >= width) standard normal float32): the sensor noise
+    is a random crop of a random one of these fields instead of fresh draws (a real-time twin
+    saves 4 ms a frame; the noise keeps its distribution and stays white within a frame)."""
     h = marker_size * texture.shape[0] / marker_px / 2.0  # the texture includes the white quiet zone
     obj = np.array([[-h, h, 0], [h, h, 0], [h, -h, 0], [-h, -h, 0]])
-    uv = project(K, T_cam_marker, obj).astype(np.float32)
-    src = np.array([[0, 0], [texture.shape[1], 0], [texture.shape[1], texture.shape[0]], [0, texture.shape[0]]],
-                   dtype=np.float32)
-    H = cv2.getPerspectiveTransform(src, uv)
+    uv = project(K, T_cam_marker, obj)
     if background is None:
         background = (90 + 40 * rng.random((height, width))).astype(np.uint8)
         background = cv2.GaussianBlur(background, (0, 0), 3)
-    warped = cv2.warpPerspective(texture, H, (width, height), flags=cv2.INTER_LINEAR)
-    mask = cv2.warpPerspective(np.full_like(texture, 255), H, (width, height), flags=cv2.INTER_LINEAR)
-    img = np.where(mask > 127, warped, background).astype(np.float64)
+    img = background.astype(np.float32)
+    x0, x1 = max(0, int(np.floor(uv[:, 0].min())) - 2), min(width, int(np.ceil(uv[:, 0].max())) + 3)
+    y0, y1 = max(0, int(np.floor(uv[:, 1].min())) - 2), min(height, int(np.ceil(uv[:, 1].max())) + 3)
+    if x1 > x0 and y1 > y0 and np.isfinite(uv).all():
+        S = int(supersample)
+        n, m = texture.shape[1], texture.shape[0]
+        src = np.array([[-0.5, -0.5], [n - 0.5, -0.5], [n - 0.5, m - 0.5], [-0.5, m - 0.5]], dtype=np.float32)
+        # sub-pixel i of ROI pixel p is centred at image coordinate x0 + p - 0.5 + (i + 0.5) / S
+        dst = ((uv - [x0, y0] + 0.5) * S - 0.5).astype(np.float32)
+        H = cv2.getPerspectiveTransform(src, dst)
+        size = ((x1 - x0) * S, (y1 - y0) * S)
+        warped = cv2.warpPerspective(texture.astype(np.float32), H, size, flags=cv2.INTER_LINEAR,
+                                     borderMode=cv2.BORDER_REPLICATE)
+        cover = np.zeros(size[::-1], np.float32)
+        cv2.fillConvexPoly(cover, np.round(dst * 16).astype(np.int32), 1.0, lineType=cv2.LINE_AA, shift=4)
+        under = cv2.resize(img[y0:y1, x0:x1], size, interpolation=cv2.INTER_NEAREST)
+        img[y0:y1, x0:x1] = cv2.resize(cover * warped + (1.0 - cover) * under, (x1 - x0, y1 - y0),
+                                       interpolation=cv2.INTER_AREA)
     if occlusion > 0:
         c = uv.mean(axis=0)
         w = np.linalg.norm(uv[1] - uv[0])
@@ -51,7 +80,13 @@ def render(K: np.ndarray, width: int, height: int, T_cam_marker: np.ndarray, tex
         cv2.rectangle(img, (x0, int(c[1] - w)), (x0 + int(occlusion * w), int(c[1] + w)), 60, thickness=-1)
     if blur:
         img = cv2.GaussianBlur(img, (0, 0), blur / 3.0)
-    img += rng.normal(0.0, noise, img.shape)
+    if noise and noise_bank is not None:
+        k = int(rng.integers(noise_bank.shape[0]))
+        dy = int(rng.integers(noise_bank.shape[1] - height + 1))
+        dx = int(rng.integers(noise_bank.shape[2] - width + 1))
+        img += noise_bank[k, dy:dy + height, dx:dx + width] * np.float32(noise)
+    elif noise:
+        img += rng.standard_normal(img.shape, dtype=np.float32) * np.float32(noise)
     return np.clip(img, 0, 255).astype(np.uint8)
 
 
