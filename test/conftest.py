@@ -40,3 +40,32 @@ def _no_leftover_nodes():
     for p in started_processes():
         if id(p) not in before and p.alive():
             p.stop(timeout=5.0)
+
+
+_ROS_SOURCE = ("import rclpy", "from rclpy", "import rosutil", "from rosutil", "import subprocess",
+               "from subprocess", "RosProcess", "FakeMachine")
+_ros_modules: dict = {}
+
+
+def _talks_to_processes(module) -> bool:
+    """The module starts node processes or talks over DDS (rclpy, rosutil, subprocess): its tests
+    depend on timing and run serially (`make test`); the others may run on several workers."""
+    path = getattr(module, "__file__", None)
+    if path not in _ros_modules:
+        try:
+            text = open(path, encoding="utf-8").read() if path else ""
+        except OSError:
+            text = ""
+        _ros_modules[path] = any(s in text for s in _ROS_SOURCE)
+    return _ros_modules[path]
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "ros: starts node processes or talks over DDS (timing-sensitive: run serially)")
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        module = getattr(item, "module", None)
+        if module is not None and _talks_to_processes(module):
+            item.add_marker(pytest.mark.ros)

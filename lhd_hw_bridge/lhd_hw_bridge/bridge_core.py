@@ -81,6 +81,34 @@ def command_rate_problem(rate_hz: float, device_watchdog: float) -> str | None:
     return None
 
 
+class CommandScheduler:
+    """When command frames leave: at the command rate, and at once when the command differs
+    from the frame last sent, so a new decision does not wait up to a whole period (20 ms at
+    50 Hz) for its frame; never sooner than `min_gap` after the last frame (a teleop stream
+    cannot flood the 115,200-baud line). After an early frame the cadence restarts from it, so
+    two frames are never further apart than one period (plus the caller's tick): the device
+    watchdog's margin (command_rate_problem) is kept."""
+
+    def __init__(self, period: float, min_gap: float, now: float):
+        self.period, self.min_gap = float(period), float(min_gap)
+        self.next_frame = now
+        self.last_sent = None
+        self.last_write: float | None = None
+
+    def due(self, now: float, cmd) -> bool:
+        if self.last_write is not None and now - self.last_write < self.min_gap:
+            return False
+        return now >= self.next_frame or (self.last_sent is not None and cmd != self.last_sent)
+
+    def sent(self, now: float, cmd) -> None:
+        """A frame carrying `cmd` left at `now` (or was due and tried)."""
+        if now < self.next_frame:
+            self.next_frame = now + self.period
+        else:
+            self.next_frame = max(self.next_frame + self.period, now)
+        self.last_sent, self.last_write = cmd, now
+
+
 class CommandMapper:
     """[u_wheels, u_boom, u_bucket] (rad/s) -> CommandFrame for the ternary valves.
 

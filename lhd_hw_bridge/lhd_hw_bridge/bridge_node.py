@@ -50,10 +50,14 @@ from lhd_loading_ros.ros.run import run_node
 from lhd_loading_ros.task.config import load_config
 
 from .bridge_core import (CMD_TIMEOUT_MAX, JOINT_NAMES, BridgeParams, CommandMapper, CommandRejected,
-                          LoadCellMonitor, Watchdog, command_rate_problem, deadband_problem, detect_drift,
-                          joint_state_arrays)
+                          LoadCellMonitor, Watchdog, CommandScheduler, command_rate_problem, deadband_problem,
+                          detect_drift, joint_state_arrays)
 from .protocol import (FLAG_ENABLED, FLAG_ESTOP, FLAG_WATCHDOG, TYPE_LOAD_CELL, TYPE_SENSOR, CommandFrame,
                        FrameParser, HeartbeatFrame, LoadCellFrame, SensorFrame, TxSequence)
+
+# Command frames at most every 2 ms: a 1 kHz teleop stream becomes <= 500 frames/s (about 6 kB/s, half
+# of a 115,200-baud UART); a 5 ms watchdog tick with a little jitter still sends every changed command
+MIN_FRAME_GAP = 0.002
 
 # QoS (lhd_loading_ros.ros.qos): measurements and the device status MEASUREMENT_QOS (reliable,
 # keep-last 5: matches reliable and best-effort subscribers; a short queue never delays fresh
@@ -143,8 +147,7 @@ class BridgeNode(Node):
         # every timer on the steady clock: with use_sim_time and no /clock they must still run.
         # The watchdog is checked every WATCHDOG_TICK s and a stop leaves at once when it trips;
         # command frames themselves go out at command_rate_hz.
-        self._frame_period = 1.0 / self.p.command_rate_hz
-        self._next_frame = time.monotonic()
+        self._frames = CommandScheduler(1.0 / self.p.command_rate_hz, MIN_FRAME_GAP, time.monotonic())
         steady_timer(self, WATCHDOG_TICK, self._tick)
         steady_timer(self, 1.0, self._heartbeat)
         steady_timer(self, STATUS_PERIOD, self._publish_status)
@@ -158,7 +161,7 @@ class BridgeNode(Node):
         self.p = dataclasses.replace(self.p, **changes)
         self.mapper.p = self.p
         self.watchdog.timeout = self.p.cmd_timeout
-        self._frame_period = 1.0 / self.p.command_rate_hz
+        self._frames.period = 1.0 / self.p.command_rate_hz
 
     # ------------------------------------------------------------------ ROS inputs
     def _on_cmd(self, msg: Float64MultiArray) -> None:
@@ -168,7 +171,9 @@ class BridgeNode(Node):
             self.get_logger().warn(f"rejected command: {exc}", throttle_duration_sec=1.0)
             return
         self._cmd = frame
-        self.watchdog.feed(time.monotonic())
+        now = time.monotonic()
+        self.watchdog.feed(now)
+        self._send_command(now, tripped=False)    # a changed command leaves at once (CommandScheduler)
 
     def _on_odom(self, msg: Odometry) -> None:
         v = msg.twist.twist.linear.x
@@ -204,8 +209,12 @@ class BridgeNode(Node):
         if tripped:
             self.get_logger().warn(f"no valid command for {self.p.cmd_timeout} s: stopping the machine",
                                    throttle_duration_sec=1.0)
-        if tripped or now >= self._next_frame:
-            self._next_frame = max(self._next_frame + self._frame_period, now)
+        self._send_command(now, tripped)
+
+    def _send_command(self, now: float, tripped: bool) -> None:
+        cmd = self.current_command(now)
+        if tripped or self._frames.due(now, cmd):
+            self._frames.sent(now, cmd)
             if self._write(cmd):
                 self.command_frames += 1
 

@@ -39,10 +39,7 @@ class LhdLoadingEnv(gym.Env):
         self.cfg = config if isinstance(config, dict) else load_config(config)
         self.sim = LhdSimulator(self.cfg)
         self.p = self.sim.p
-        if slope_deg is not None:
-            lo, hi = math.degrees(self.p.alpha_min), math.degrees(self.p.alpha_max)
-            if not (lo - 1e-9 <= slope_deg <= hi + 1e-9):
-                raise ValueError(f"slope_deg must be in [{lo:g}, {hi:g}] degrees, got {slope_deg}")
+        self._check_slope(slope_deg, "slope_deg")
         self.variant = variant
         self.slope_deg = slope_deg
         self.material = material
@@ -51,11 +48,23 @@ class LhdLoadingEnv(gym.Env):
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
         self._done = True
 
+    def _check_slope(self, slope_deg, name: str) -> None:
+        """A pile slope outside the configured range (paper.episode alpha_min_deg..alpha_max_deg,
+        the range the actors are trained on) is refused, never clipped: a pile the actors never
+        saw must not be reported as if it were one they did."""
+        if slope_deg is None:
+            return
+        lo, hi = math.degrees(self.p.alpha_min), math.degrees(self.p.alpha_max)
+        if not (isinstance(slope_deg, (int, float)) and math.isfinite(slope_deg) and lo - 1e-9 <= slope_deg <= hi + 1e-9):
+            raise ValueError(f"{name} = {slope_deg!r} degrees is outside the configured pile range [{lo:g}, {hi:g}] "
+                             "degrees (paper.episode.alpha_min_deg / alpha_max_deg); expected a slope in it")
+
     # ------------------------------------------------------------------ gym API
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
         options = options or {}
         slope = options.get("slope_deg", self.slope_deg)
+        self._check_slope(slope, "options['slope_deg']")
         alpha = None if slope is None else math.radians(slope)
         self.sim.reset(self.np_random, alpha=alpha, material=options.get("material", self.material),
                        d_attack=options.get("d_attack"), attack_speed=options.get("attack_speed"))

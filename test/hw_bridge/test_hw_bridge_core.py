@@ -3,7 +3,8 @@ import math
 
 import pytest
 
-from lhd_hw_bridge.bridge_core import BridgeParams, CommandMapper, CommandRejected, Watchdog, detect_drift, joint_state_arrays
+from lhd_hw_bridge.bridge_core import (BridgeParams, CommandMapper, CommandRejected, CommandScheduler, Watchdog,
+                                       detect_drift, joint_state_arrays)
 from lhd_hw_bridge.protocol import CommandFrame, SensorFrame
 
 
@@ -94,3 +95,36 @@ def test_rearming_is_not_a_watchdog_trip():
     assert not w.stale(1.1)
     w.rearm(1.2)                           # reconnection or e-stop release while commands flow
     assert w.stale(1.21) and w.trips == 0
+
+
+def test_command_frames_leave_at_the_rate_and_a_changed_command_at_once():
+    """The bridge's 5 ms tick over 2 s, a 50 Hz command rate, a policy changing its command at
+    10 Hz at instants off the tick and a teleop burst changing it every 1 ms: a changed command
+    leaves at the first tick after it (within 5 ms: the tick) instead of up to 20 ms later; frames
+    are never closer than the 2 ms gap and never further apart than one period plus a tick."""
+    sch = CommandScheduler(period=0.02, min_gap=0.002, now=0.0)
+    cmd, sent, changed_at, delays = CommandFrame(0.0, 0, 0, True), [], None, []
+    for k in range(400):
+        now = k * 0.005
+        arrivals = [now - 0.005 + 0.0037] if k % 20 == 7 else []          # 10 Hz, 3.7 ms into a tick
+        if 300 <= k < 310:
+            arrivals = [now - 0.005 + 0.001 * j for j in range(5)]         # a 1 kHz burst
+        for t in arrivals:
+            cmd = CommandFrame(round(0.1 * (k % 27) + 0.01 * t, 3), 0, 0, True)   # every arrival a new set-point
+            changed_at = changed_at if changed_at is not None else t
+        if sch.due(now, cmd):
+            sch.sent(now, cmd)
+            sent.append(now)
+            if changed_at is not None and cmd == sch.last_sent:
+                delays.append(now - changed_at)
+                changed_at = None
+    gaps = [b - a for a, b in zip(sent, sent[1:])]
+    assert min(gaps) >= 0.002
+    assert max(gaps) <= 0.02 + 0.005 + 1e-9
+    assert max(delays) <= 0.005 + 1e-9            # (the old fixed cadence: up to 20 ms)
+    assert 100 <= len(sent) <= 100 + 20 + 10        # the rate, plus at most one early frame per change
+    # an unchanged command keeps the plain 50 Hz cadence
+    sch = CommandScheduler(period=0.02, min_gap=0.002, now=0.0)
+    steady = [k * 0.005 for k in range(400) if sch.due(k * 0.005, cmd) and sch.sent(k * 0.005, cmd) is None]
+    gaps = [b - a for a, b in zip(steady, steady[1:])]
+    assert 99 <= len(steady) <= 100 and all(0.015 - 1e-9 <= g <= 0.025 + 1e-9 for g in gaps)   # within a tick

@@ -64,8 +64,13 @@ def test_bad_construction_arguments():
         LhdLoadingEnv(variant="ppo")
     with pytest.raises(ValueError, match="material must be one of"):
         LhdLoadingEnv(material="sand")
-    with pytest.raises(ValueError, match=r"slope_deg must be in \[15, 30\]"):
+    with pytest.raises(ValueError, match=r"slope_deg = 45 degrees is outside the configured pile range \[15, 30\]"):
         LhdLoadingEnv(slope_deg=45)
+    env = LhdLoadingEnv()
+    for bad in (10.0, 30.5, float("nan")):       # per-episode options are checked too: refused, not clipped
+        with pytest.raises(ValueError, match=r"options\['slope_deg'\] = .* outside the configured pile range"):
+            env.reset(seed=0, options={"slope_deg": bad})
+    env.reset(seed=0, options={"slope_deg": 30.0})   # the range's end is in it
 
 
 def test_truncation_after_200_steps_is_not_termination(env):

@@ -155,8 +155,12 @@ def test_wheel_command_drives_the_machine_and_the_command_timeout_stops_it(rig):
     assert xs[-1] - xs[0] == pytest.approx(integral, rel=0.05)
     assert rig.last("tip").point.x < -0.4                    # still on the flat
     # the bridge's joint states carry the wheels: front wheels and the rear differential at the set-point
-    js = rig.last("js")
-    assert js.velocity[2] == pytest.approx(1.0, abs=0.05) and js.velocity[4] == pytest.approx(1.0, abs=0.05)
+    # (the median over the steady window, as for v_x: one frame can catch the wheels in a transient,
+    # 1.12 rad/s once on a loaded machine)
+    js = [m for t, m in g["js"] if t0 + 0.8 <= t <= t_last]
+    assert js
+    assert float(np.median([m.velocity[2] for m in js])) == pytest.approx(1.0, abs=0.05)
+    assert float(np.median([m.velocity[4] for m in js])) == pytest.approx(1.0, abs=0.05)
     # /lhd/cmd falls silent: the bridge sends stop frames after its 0.3 s timeout, the wheels brake
     rig.spin(1.5)
     stopped = [s for s in g["odom"] if s[0] > t_last + 0.3 + 0.5]
