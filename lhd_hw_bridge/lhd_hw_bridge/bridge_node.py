@@ -204,7 +204,7 @@ class BridgeNode(Node):
     def _tick(self) -> None:
         now = time.monotonic()
         trips = self.watchdog.trips
-        cmd = self.current_command(now)
+        self.current_command(now)               # checks the watchdog: a trip sends the stop at once
         tripped = self.watchdog.trips > trips
         if tripped:
             self.get_logger().warn(f"no valid command for {self.p.cmd_timeout} s: stopping the machine",

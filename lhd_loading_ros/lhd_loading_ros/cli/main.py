@@ -10,6 +10,9 @@
   lhd train --variant rld|rlc --seed N     DDPG with the paper's protocol (resumable; --seeds 0-4 in parallel)
   lhd eval --policy DIR [--json]           the paper's metrics, overall and by slope and material
   lhd report RUNS... [--plot PNG]          final figures across seeds and the training curves
+  lhd experiment paper [--episodes N] [--out DIR] [--jobs J]
+                                           the paper's real-world tables in simulation: controllers x slopes x
+                                           materials, and the slope-error table (markdown, CSV, figures)
   lhd ship --variant V RUNS_DIR            ship a variant's median seed (final actor) to policies/V with its model card
   lhd bench train [--json] [--vs-sb3]      training-loop speed and the projected protocol time
   lhd bench node [--json]                  policy node latency and 10 Hz jitter against the sim node
@@ -141,6 +144,39 @@ def format_eval(res: dict) -> str:
     return "\n".join(lines)
 
 
+def _floats(text: str, what: str) -> tuple:
+    try:
+        return tuple(float(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise SystemExit(f"lhd experiment paper: --{what} {text!r}: expected comma-separated numbers, e.g. 15,20,25,30")
+
+
+def _experiment(args) -> int:
+    from lhd_loading_ros.learning import experiment as ex
+
+    ctls = tuple(c.strip() for c in args.controllers.split(",") if c.strip())
+    mats = tuple(m.strip() for m in args.materials.split(",") if m.strip())
+    for m in mats:
+        if m not in ex.MATERIALS:
+            print(f"lhd experiment paper: --materials: unknown material {m!r}; expected {', '.join(ex.MATERIALS)}",
+                  file=sys.stderr)
+            return 2
+    policy_dirs = {k: v for k, v in (("rld", args.rld), ("rlc", args.rlc)) if v}
+    try:
+        res = ex.paper(args.out, args.episodes, ctls, _floats(args.slopes, "slopes"), mats, _floats(args.errors, "errors"),
+                       args.jobs, args.seed, args.config, policy_dirs)
+    except ValueError as exc:
+        print(f"lhd experiment paper: {exc}", file=sys.stderr)
+        return 2
+    if args.json:
+        print(json.dumps({k: v for k, v in res.items() if k != "markdown"}))
+    else:
+        print(res["markdown"])
+        print(f"{res['attempts']} attempts in {res['wall_s']:.0f} s on {res['jobs']} processes; tables, CSV and "
+              f"figures in {args.out}")
+    return 0
+
+
 def _report(args) -> int:
     from lhd_loading_ros.learning.report import format_summary, plot_curves, summarize
 
@@ -255,6 +291,22 @@ def main(argv=None) -> int:
     p_eval.add_argument("--deploy-filter", action="store_true", help="RLC: apply the deployment filter, as on the machine")
     p_eval.add_argument("--config", default=None)
     p_eval.add_argument("--json", action="store_true")
+    p_exp = sub.add_parser("experiment", help="the paper's experiments in simulation")
+    p_exp_sub = p_exp.add_subparsers(dest="experiment", required=True)
+    p_paper = p_exp_sub.add_parser("paper", help="controllers x slopes x materials, and the slope-error table")
+    p_paper.add_argument("--episodes", type=int, default=10, help="attempts per cell (default 10)")
+    p_paper.add_argument("--out", default="runs/experiment_paper", help="folder for tables, CSV and figures")
+    p_paper.add_argument("--jobs", type=int, default=0, help="processes (0: one per core)")
+    p_paper.add_argument("--controllers", default="rld,rlc,tampier,scripted")
+    p_paper.add_argument("--slopes", default="15,20,25,30", help="pile slopes of table (a), degrees")
+    p_paper.add_argument("--materials", default="homogeneous,nonhomogeneous")
+    p_paper.add_argument("--errors", default="-15,-10,-5,0,5,10,15",
+                         help="slope errors (told - true) of table (b) on 15 and 30 deg piles, degrees")
+    p_paper.add_argument("--rld", help="RLD policy directory (default policies/rld)")
+    p_paper.add_argument("--rlc", help="RLC policy directory (default policies/rlc)")
+    p_paper.add_argument("--seed", type=int, default=3_000_000)
+    p_paper.add_argument("--config", default=None)
+    p_paper.add_argument("--json", action="store_true")
     p_report = sub.add_parser("report", help="aggregate training runs across seeds")
     p_report.add_argument("runs", nargs="+", help="run directories, or parents holding seed_*/")
     p_report.add_argument("--plot", help="write the training curves (PNG) here")
@@ -337,6 +389,8 @@ def main(argv=None) -> int:
         return _eval(args)
     if args.cmd == "report":
         return _report(args)
+    if args.cmd == "experiment":
+        return _experiment(args)
     if args.cmd == "ship":
         from lhd_loading_ros.learning.ship import ship
 

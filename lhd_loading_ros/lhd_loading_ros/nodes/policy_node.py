@@ -63,7 +63,6 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
-from pathlib import Path
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
@@ -79,7 +78,7 @@ from lhd_loading_ros.task.config import config_hash, load_config
 from lhd_loading_ros.task.kinematics import ArmKinematics
 from lhd_loading_ros.task.params import TaskParams
 from lhd_loading_ros.policy.core import INPUTS, SLOW_INPUTS, Inputs, PolicyCore, ZERO_COMMAND
-from lhd_loading_ros.policy.actor_file import PolicyFileError, load_policy
+from lhd_loading_ros.policy.actor_file import PolicyFileError, default_policy_dir, load_policy  # noqa: F401 (re-exported)
 from lhd_loading_ros.policy.tampier import TampierCore, default_tampier_path, load_tampier_config
 from lhd_loading_ros.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
@@ -105,21 +104,6 @@ OVERTAKEN_NS = 1_000_000_000    # a slow-input sample this much older than the o
 # zero-command reasons on /diagnostics: these need a person (wrong pile, wrong actor), the rest
 # (inputs not there yet or stale, a NaN) may clear by themselves
 ERROR_KINDS = ("no_actor", "out_of_range", "actor_output")
-
-
-def default_policy_dir(variant: str = "rld") -> Path:
-    """policies/<variant> of the source tree, else the installed share copy."""
-    here = Path(__file__).resolve()
-    for parent in here.parents:
-        cand = parent / "policies" / variant
-        if (cand / "policy.json").is_file():
-            return cand
-    try:
-        from ament_index_python.packages import get_package_share_directory
-
-        return Path(get_package_share_directory("lhd_loading_ros")) / "policies" / variant
-    except Exception:  # noqa: BLE001 - no ament index here
-        return Path("policies") / variant
 
 
 def stamp_ns(stamp) -> int:

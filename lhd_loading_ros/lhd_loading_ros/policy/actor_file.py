@@ -138,6 +138,21 @@ def _json_default(o):
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
+def default_policy_dir(variant: str = "rld") -> Path:
+    """policies/<variant> of the source tree, else the installed share copy."""
+    here = Path(__file__).resolve()
+    for parent in here.parents:
+        cand = parent / "policies" / variant
+        if (cand / "policy.json").is_file():
+            return cand
+    try:
+        from ament_index_python.packages import get_package_share_directory
+
+        return Path(get_package_share_directory("lhd_loading_ros")) / "policies" / variant
+    except Exception:  # noqa: BLE001 - no ament index here
+        return Path("policies") / variant
+
+
 def load_policy(directory) -> LoadedPolicy:
     """Load and check a policy directory. Raises PolicyFileError naming what is wrong."""
     d = Path(directory)

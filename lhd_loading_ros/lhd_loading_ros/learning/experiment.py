@@ -1,0 +1,401 @@
+"""`lhd experiment paper`: the paper's real-world tables, run in the simulator.
+
+(a) **Controllers x slopes x materials** (the paper's results table): every controller on 15, 20,
+    25 and 30 deg piles, homogeneous and nonhomogeneous, `episodes` attempts per cell; success
+    rate, and over the SUCCESSFUL attempts (as the paper reports them) loaded mass, time, front and
+    rear drift, mean and standard deviation.
+(b) **Slope error** (the paper's robustness table and a sweep): the RL actors on 15 and 30 deg
+    piles told a wrong slope (the observation's alpha is the told slope, everything else the true
+    pile): the paper's two cases (a 15 deg pile told 30, a 30 deg pile told 15) are the +15 and -15
+    deg entries of a sweep over `errors`.
+
+Controllers: `rld`, `rlc` (the shipped actors, policies/; RLC with the deployment filter, as on the
+machine), `tampier` (the Tampier-style heuristic, config/tampier.yaml) and `scripted` (the fixed
+maneuver of lhd_sim_node.scripted). Every attempt is limited to the paper's real-world 10 s.
+Each attempt has its own seed (base seed + index in the grid), so a cell is the same set of piles
+for every controller; the attempts run on a process pool (`jobs`) and print their progress.
+
+A told slope outside the actors' trained range (15-30 deg) is given to the actor as it is, as a
+wrong LiDAR estimate would be: the normalised alpha then leaves [0, 1]. The nodes refuse such a
+slope; this table shows what the actor alone would do.
+
+Writes to `out`: attempts.csv (one row per attempt), table_controllers.md/.csv,
+table_slope_error.md/.csv, mass_vs_time.png, tip_trajectories.png, slope_error.png, summary.json.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import sys
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+CONTROLLERS = ("rld", "rlc", "tampier", "scripted")
+SLOPES = (15.0, 20.0, 25.0, 30.0)
+MATERIALS = ("homogeneous", "nonhomogeneous")
+ERRORS = (-15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0)
+ERROR_PILES = (15.0, 30.0)
+TIME_LIMIT_S = 10.0          # the paper's real-world attempts (experimental settings)
+TRACE_ATTEMPTS = 3           # attempts per (controller, 20 deg, homogeneous) cell whose tip path is kept
+
+
+@dataclass(frozen=True)
+class Job:
+    table: str               # "controllers" or "slope_error"
+    controller: str
+    slope_deg: float         # the pile's true slope
+    told_deg: float          # the slope in the controller's observation
+    material: str
+    seed: int
+    trace: bool = False
+
+
+def grid(controllers=CONTROLLERS, slopes=SLOPES, materials=MATERIALS, errors=ERRORS, error_piles=ERROR_PILES,
+         episodes: int = 10, seed: int = 3_000_000) -> list[Job]:
+    """Every attempt of both tables. Attempt k of a cell has seed seed + 1000 * cell_key + k, where
+    the cell key depends on the pile only (slope, material), so all controllers meet the same piles."""
+    for c in controllers:
+        if c not in CONTROLLERS:
+            raise ValueError(f"unknown controller {c!r}; expected some of {', '.join(CONTROLLERS)}")
+    if episodes < 1:
+        raise ValueError(f"episodes must be >= 1, got {episodes}")
+    jobs = []
+    for c in controllers:
+        for a in slopes:
+            for m in materials:
+                key = int(round(a)) * 10 + MATERIALS.index(m)
+                for k in range(episodes):
+                    jobs.append(Job("controllers", c, float(a), float(a), m, seed + 1000 * key + k,
+                                    trace=(a == 20.0 and m == "homogeneous" and k < TRACE_ATTEMPTS)))
+    for c in (c for c in controllers if c in ("rld", "rlc")):
+        for a in error_piles:
+            for e in errors:
+                key = 900 + int(round(a))
+                for k in range(episodes):
+                    jobs.append(Job("slope_error", c, float(a), float(a + e), "homogeneous", seed + 1000 * key + k))
+    return jobs
+
+
+# ------------------------------------------------------------------------------ one attempt
+_WORKER: dict = {}
+
+
+def _setup(config, policy_dirs: dict) -> None:
+    _WORKER.clear()
+    _WORKER.update(config=config, policy_dirs=dict(policy_dirs))
+
+
+def _env(variant: str, deploy_filter: bool = False):
+    from lhd_sim_node.env import LhdLoadingEnv
+
+    from lhd_loading_ros.task.config import load_config
+    key = ("env", variant, deploy_filter)
+    if key not in _WORKER:
+        cfg = _WORKER.get("config")
+        cfg = cfg if isinstance(cfg, dict) else load_config(cfg)
+        _WORKER[key] = LhdLoadingEnv(variant, cfg, deploy_filter=deploy_filter)
+    return _WORKER[key]
+
+
+def _actor(controller: str):
+    from lhd_loading_ros.policy.actor_file import load_policy
+    key = ("actor", controller)
+    if key not in _WORKER:
+        _WORKER[key] = load_policy(_WORKER["policy_dirs"][controller]).actor
+    return _WORKER[key]
+
+
+def told_observation(obs: np.ndarray, told_rad: float, p) -> np.ndarray:
+    """The observation with alpha (its last entry, normalised over [alpha_min, alpha_max] as
+    task.observation does) replaced by the told slope; nothing else changes."""
+    out = np.array(obs, dtype=np.float32, copy=True)
+    out[-1] = (told_rad - p.alpha_min) / (p.alpha_max - p.alpha_min)
+    return out
+
+
+def run_job(job: Job) -> dict:
+    """One attempt; a row of attempts.csv (and the tip's path when job.trace)."""
+    from lhd_sim_node.scripted import scripted_action
+
+    from lhd_loading_ros.policy.tampier import TampierController, load_tampier_config
+    c = job.controller
+    env = _env("rlc" if c == "rlc" else "rld", deploy_filter=(c == "rlc"))
+    limit = max(1, int(round(TIME_LIMIT_S / env.p.control_dt)))
+    obs, _ = env.reset(seed=job.seed, options={"slope_deg": job.slope_deg, "material": job.material})
+    profile = None
+    if job.trace:
+        from lhd_sim_node.sim_sensors import pile_profile
+        profile = pile_profile(env.sim.pile).tolist()
+    told = math.radians(job.told_deg)
+    if c == "tampier":
+        if ("tampier",) not in _WORKER:
+            _WORKER[("tampier",)] = TampierController(load_tampier_config(), env.p)
+        ctl = _WORKER[("tampier",)]
+        ctl.reset()
+        z = env.sim.zones
+        end_zone = (z.x_min, z.x_max, z.z_min)
+    path = [(env.state.x_shovel, env.state.z_shovel)]
+    while True:
+        if c in ("rld", "rlc"):
+            a = np.clip(np.asarray(_actor(c)(told_observation(obs, told, env.p)), dtype=np.float64), -1.0, 1.0)
+            obs, _, term, trunc, info = env.step(a)
+        elif c == "scripted":
+            obs, _, term, trunc, info = env.step(scripted_action(env.state, env.p.x_midgoal, lift_on_drift=True))
+        else:
+            obs, _, term, trunc, info = env.step_actuator(np.asarray(ctl.step(env.state, end_zone)))
+        path.append((env.state.x_shovel, env.state.z_shovel))
+        if term or trunc:
+            r = info["episode_result"]
+            break
+        if env.steps >= limit:
+            r = env.result("timeout", truncated=True)
+            break
+    row = {**asdict(job), "success": bool(r.success), "success_level": int(r.success_level),
+           "reached_end_zone": bool(r.reached_end_zone), "failed": bool(r.failed), "timeout": bool(r.truncated),
+           "loaded_kg": float(r.loaded), "elapsed_s": float(r.elapsed_s), "front_drift_pct": float(r.front_drift_pct),
+           "rear_drift_pct": float(r.rear_drift_pct), "phi_final_deg": math.degrees(r.phi_final)}
+    row.pop("trace")
+    if job.trace:
+        row["path"] = path
+        row["profile"] = profile
+    return row
+
+
+# ------------------------------------------------------------------------------ the study
+def run(jobs: list[Job], jobs_n: int = 0, config=None, policy_dirs: dict | None = None, progress=sys.stderr) -> list[dict]:
+    """Run every attempt on a pool of `jobs_n` processes (0: the machine's cores); rows in job order."""
+    import multiprocessing as mp
+
+    from lhd_loading_ros.policy.actor_file import default_policy_dir
+    dirs = {v: str(default_policy_dir(v)) for v in ("rld", "rlc")}
+    dirs.update(policy_dirs or {})
+    n = jobs_n or os.cpu_count() or 1
+    rows: list = [None] * len(jobs)
+    t0 = time.monotonic()
+
+    def tick(done):
+        if progress is not None:
+            el = time.monotonic() - t0
+            eta = el / done * (len(jobs) - done) if done else float("nan")
+            bar = "#" * int(30 * done / len(jobs))
+            progress.write(f"\rlhd experiment paper [{bar:<30}] {done}/{len(jobs)} attempts, {el:.0f} s, "
+                           f"about {eta:.0f} s left ")
+            progress.flush()
+
+    if n == 1:
+        _setup(config, dirs)
+        for i, j in enumerate(jobs):
+            rows[i] = run_job(j)
+            tick(i + 1)
+    else:
+        with mp.get_context("spawn").Pool(n, initializer=_setup, initargs=(config, dirs)) as pool:
+            for done, (i, row) in enumerate(pool.imap_unordered(_indexed, list(enumerate(jobs)), chunksize=1), 1):
+                rows[i] = row
+                tick(done)
+    if progress is not None:
+        progress.write("\n")
+    return rows
+
+
+def _indexed(item):
+    i, job = item
+    return i, run_job(job)
+
+
+def _stat(xs) -> tuple[float, float]:
+    xs = [x for x in xs if x is not None and math.isfinite(x)]
+    if not xs:
+        return math.nan, math.nan
+    return float(np.mean(xs)), float(np.std(xs, ddof=1)) if len(xs) > 1 else 0.0
+
+
+def summarize_controllers(rows: list[dict]) -> list[dict]:
+    """Per (controller, material, slope): success rate over all attempts; mass, time, drift over
+    the successful ones (the paper's convention); plus a row per (controller, material) over slopes."""
+    out = []
+    rs = [r for r in rows if r["table"] == "controllers"]
+    keys = sorted({(r["controller"], r["material"]) for r in rs}, key=lambda k: (CONTROLLERS.index(k[0]), k[1]))
+    for c, m in keys:
+        slopes = sorted({r["slope_deg"] for r in rs if r["controller"] == c and r["material"] == m})
+        for a in [*slopes, None]:
+            cell = [r for r in rs if r["controller"] == c and r["material"] == m and (a is None or r["slope_deg"] == a)]
+            ok = [r for r in cell if r["success"]]
+            row = {"controller": c, "material": m, "slope_deg": "all" if a is None else a, "attempts": len(cell),
+                   "success_rate": len(ok) / len(cell)}
+            for k in ("loaded_kg", "elapsed_s", "front_drift_pct", "rear_drift_pct"):
+                row[k], row[k + "_sd"] = _stat([r[k] for r in ok])
+            out.append(row)
+    return out
+
+
+def summarize_slope_error(rows: list[dict]) -> list[dict]:
+    """Per (controller, pile, error): success rate and mean loaded mass over all attempts (a failed
+    attempt's load counts: the table asks how much material a wrong slope costs), and the mass's
+    change against the same pile without error."""
+    rs = [r for r in rows if r["table"] == "slope_error"]
+    out = []
+    for c in [c for c in CONTROLLERS if any(r["controller"] == c for r in rs)]:
+        for a in sorted({r["slope_deg"] for r in rs}):
+            cells = {}
+            for e in sorted({r["told_deg"] - r["slope_deg"] for r in rs if r["slope_deg"] == a}):
+                cell = [r for r in rs if r["controller"] == c and r["slope_deg"] == a
+                        and abs(r["told_deg"] - a - e) < 1e-9]
+                if cell:
+                    cells[e] = cell
+            base = np.mean([r["loaded_kg"] for r in cells[0.0]]) if 0.0 in cells else math.nan
+            for e, cell in cells.items():
+                mass, sd = _stat([r["loaded_kg"] for r in cell])
+                out.append({"controller": c, "slope_deg": a, "told_deg": a + e, "error_deg": e, "attempts": len(cell),
+                            "success_rate": float(np.mean([r["success"] for r in cell])), "loaded_kg": mass,
+                            "loaded_kg_sd": sd, "mass_change_pct": 100.0 * (mass / base - 1.0) if base > 0 else math.nan})
+    return out
+
+
+def _f(v, fmt="{:.1f}"):
+    return "-" if v is None or (isinstance(v, float) and not math.isfinite(v)) else fmt.format(v)
+
+
+def markdown_controllers(summary: list[dict]) -> str:
+    """Laid out like the paper's table: a row per (metric, slope), a column per controller, one
+    table per material."""
+    L = []
+    for m in MATERIALS:
+        rows = [r for r in summary if r["material"] == m]
+        if not rows:
+            continue
+        ctls = [c for c in CONTROLLERS if any(r["controller"] == c for r in rows)]
+        slopes = [s for s in dict.fromkeys(r["slope_deg"] for r in rows)]
+        L += [f"### {m} piles (successful attempts; success rate over all)", "",
+              "| metric | slope | " + " | ".join(c.upper() if c.startswith("rl") else c for c in ctls) + " |",
+              "|---|---|" + "---|" * len(ctls)]
+        for label, k, pct in (("Success rate [%]", "success_rate", True), ("Loaded mass [kg]", "loaded_kg", False),
+                              ("Elapsed time [s]", "elapsed_s", False), ("Front drift [%]", "front_drift_pct", False),
+                              ("Rear drift [%]", "rear_drift_pct", False)):
+            for a in slopes:
+                cells = []
+                for c in ctls:
+                    r = next(r for r in rows if r["controller"] == c and r["slope_deg"] == a)
+                    cells.append(_f(100 * r[k], "{:.0f}") if pct else f"{_f(r[k])} ± {_f(r[k + '_sd'])}")
+                name = "all" if a == "all" else f"{a:g}"
+                L.append(f"| {label} | {name} | " + " | ".join(cells) + " |")
+        L.append("")
+    return "\n".join(L)
+
+
+def markdown_slope_error(summary: list[dict]) -> str:
+    if not summary:
+        return ""
+    L = ["| controller | pile [deg] | told [deg] | error [deg] | success [%] | loaded mass [kg] | vs no error [%] |",
+         "|---|---|---|---|---|---|---|"]
+    for r in summary:
+        L.append(f"| {r['controller'].upper()} | {r['slope_deg']:g} | {r['told_deg']:g} | {r['error_deg']:+g} | "
+                 f"{100 * r['success_rate']:.0f} | {_f(r['loaded_kg'])} ± {_f(r['loaded_kg_sd'])} | "
+                 f"{_f(r['mass_change_pct'], '{:+.0f}')} |")
+    return "\n".join(L) + "\n"
+
+
+def _write_csv(path: Path, rows: list[dict]) -> None:
+    if not rows:
+        path.write_text("")
+        return
+    keys = [k for k in rows[0] if k not in ("path", "profile")]
+    with path.open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=keys, extrasaction="ignore")
+        w.writeheader()
+        w.writerows(rows)
+
+
+def figures(rows: list[dict], err_summary: list[dict], out: Path) -> list[str]:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    written = []
+    rs = [r for r in rows if r["table"] == "controllers"]
+    ctls = [c for c in CONTROLLERS if any(r["controller"] == c for r in rs)]
+    if rs:   # loaded mass vs time, per controller (the paper's scatter)
+        fig, axes = plt.subplots(1, len(ctls), figsize=(4 * len(ctls), 3.6), sharey=True, squeeze=False)
+        for ax, c in zip(axes[0], ctls):
+            for ok, mk, lab in ((True, "o", "success"), (False, "x", "failure")):
+                pts = [(r["elapsed_s"], r["loaded_kg"]) for r in rs if r["controller"] == c and r["success"] == ok]
+                if pts:
+                    ax.scatter(*zip(*pts), marker=mk, s=18, label=lab)
+            ax.set_title(c.upper() if c.startswith("rl") else c)
+            ax.set_xlabel("time [s]")
+            ax.grid(alpha=0.3)
+        axes[0][0].set_ylabel("loaded mass [kg]")
+        axes[0][0].legend()
+        fig.tight_layout()
+        fig.savefig(out / "mass_vs_time.png", dpi=110)
+        plt.close(fig)
+        written.append("mass_vs_time.png")
+    traced = [r for r in rs if "path" in r]
+    if traced:   # bucket-tip paths in the XZ plane over the pile profile
+        fig, axes = plt.subplots(1, len(ctls), figsize=(4 * len(ctls), 3.4), sharey=True, squeeze=False)
+        xs = [x for r in traced for x, _ in r["path"]]
+        for ax, c in zip(axes[0], ctls):
+            for r in [r for r in traced if r["controller"] == c]:
+                prof = np.array(r["profile"])
+                ax.plot(prof[:, 0], prof[:, 1], color="0.6", lw=1)
+                p = np.array(r["path"])
+                ax.plot(p[:, 0], p[:, 1], lw=1.2)
+            ax.set_title(f"{c.upper() if c.startswith('rl') else c}: 20 deg")
+            ax.set_xlabel("x [m] (pile toe at 0)")
+            ax.set_xlim(min(-0.2, min(xs) - 0.05), max(xs) + 0.3)
+            ax.set_ylim(-0.05, 0.75)
+            ax.grid(alpha=0.3)
+        axes[0][0].set_ylabel("z [m]")
+        fig.tight_layout()
+        fig.savefig(out / "tip_trajectories.png", dpi=110)
+        plt.close(fig)
+        written.append("tip_trajectories.png")
+    if err_summary:   # success and mass vs slope error
+        fig, (a1, a2) = plt.subplots(1, 2, figsize=(9, 3.6))
+        for c in dict.fromkeys(r["controller"] for r in err_summary):
+            for a in dict.fromkeys(r["slope_deg"] for r in err_summary):
+                pts = [r for r in err_summary if r["controller"] == c and r["slope_deg"] == a]
+                e = [r["error_deg"] for r in pts]
+                a1.plot(e, [100 * r["success_rate"] for r in pts], marker="o", label=f"{c.upper()} {a:g} deg")
+                a2.plot(e, [r["loaded_kg"] for r in pts], marker="o", label=f"{c.upper()} {a:g} deg")
+        a1.set_xlabel("slope error (told - true) [deg]")
+        a1.set_ylabel("success [%]")
+        a2.set_xlabel("slope error (told - true) [deg]")
+        a2.set_ylabel("loaded mass [kg]")
+        for ax in (a1, a2):
+            ax.grid(alpha=0.3)
+        a1.legend(fontsize=8)
+        fig.tight_layout()
+        fig.savefig(out / "slope_error.png", dpi=110)
+        plt.close(fig)
+        written.append("slope_error.png")
+    return written
+
+
+def paper(out: str | os.PathLike, episodes: int = 10, controllers=CONTROLLERS, slopes=SLOPES, materials=MATERIALS,
+          errors=ERRORS, jobs_n: int = 0, seed: int = 3_000_000, config=None, policy_dirs: dict | None = None,
+          progress=sys.stderr) -> dict:
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.monotonic()
+    jobs = grid(controllers, slopes, materials, errors, ERROR_PILES, episodes, seed)
+    rows = run(jobs, jobs_n, config, policy_dirs, progress)
+    ctl = summarize_controllers(rows)
+    err = summarize_slope_error(rows)
+    _write_csv(out / "attempts.csv", rows)
+    _write_csv(out / "table_controllers.csv", ctl)
+    _write_csv(out / "table_slope_error.csv", err)
+    md_c, md_e = markdown_controllers(ctl), markdown_slope_error(err)
+    (out / "table_controllers.md").write_text(md_c)
+    (out / "table_slope_error.md").write_text(md_e)
+    figs = figures(rows, err, out)
+    summary = {"attempts": len(rows), "episodes_per_cell": episodes, "controllers": list(controllers),
+               "slopes_deg": list(slopes), "materials": list(materials), "errors_deg": list(errors),
+               "time_limit_s": TIME_LIMIT_S, "seed": seed, "wall_s": time.monotonic() - t0,
+               "jobs": jobs_n or os.cpu_count(), "figures": figs, "controllers_table": ctl, "slope_error_table": err}
+    (out / "summary.json").write_text(json.dumps(summary, indent=1))
+    summary["markdown"] = md_c + ("\n### Slope error (homogeneous piles, all attempts)\n\n" + md_e if md_e else "")
+    return summary

@@ -1,0 +1,65 @@
+"""`lhd experiment paper`: the grid, the told slope, and a small study end to end (a real process
+pool, the real simulator and the shipped actors)."""
+import csv
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from lhd_loading_ros.learning import experiment as ex
+
+
+def test_grid_gives_every_controller_the_same_piles():
+    jobs = ex.grid(("rld", "tampier"), (15.0, 30.0), ("homogeneous",), (-15.0, 0.0, 15.0), episodes=3, seed=10)
+    table_a = [j for j in jobs if j.table == "controllers"]
+    assert len(table_a) == 2 * 2 * 1 * 3
+    seeds = {c: sorted(j.seed for j in table_a if j.controller == c) for c in ("rld", "tampier")}
+    assert seeds["rld"] == seeds["tampier"] and len(set(seeds["rld"])) == 6
+    table_b = [j for j in jobs if j.table == "slope_error"]
+    assert {j.controller for j in table_b} == {"rld"}                       # the heuristic reads no slope
+    assert len(table_b) == 2 * 3 * 3
+    assert {(j.slope_deg, j.told_deg) for j in table_b} >= {(15.0, 30.0), (30.0, 15.0)}   # the paper's two cases
+    assert all(j.told_deg == j.slope_deg for j in table_a)
+    with pytest.raises(ValueError, match="unknown controller 'ppo'"):
+        ex.grid(("ppo",))
+
+
+def test_the_told_slope_changes_only_the_observed_alpha():
+    from lhd_sim_node.env import LhdLoadingEnv
+    env = LhdLoadingEnv("rld")
+    obs, _ = env.reset(seed=4, options={"slope_deg": 20.0, "material": "homogeneous"})
+    same = ex.told_observation(obs, math.radians(20.0), env.p)
+    assert np.allclose(same, obs, atol=1e-6)
+    told = ex.told_observation(obs, math.radians(30.0), env.p)
+    assert np.array_equal(told[:-1], obs[:-1])
+    assert told[-1] == pytest.approx(1.0)                                   # 30 deg: the top of [15, 30]
+    assert ex.told_observation(obs, math.radians(0.0), env.p)[-1] == pytest.approx(-1.0)   # outside: as it is
+
+
+def test_a_small_study_end_to_end(tmp_path):
+    out = tmp_path / "exp"
+    p = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "experiment", "paper", "--episodes", "1",
+                        "--jobs", "2", "--controllers", "rld,tampier", "--slopes", "20", "--materials", "homogeneous",
+                        "--errors", "0,15", "--out", str(out)], capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr[-3000:]
+    assert "Success rate [%]" in p.stdout and "| 15 | 30 | +15 |" in p.stdout
+    rows = list(csv.DictReader((out / "attempts.csv").open()))
+    assert len(rows) == 2 + 2 * 2                          # table (a): 2 controllers; (b): RLD, 2 piles x 2 errors
+    for r in rows:
+        assert r["success"] in ("True", "False") and 0.0 <= float(r["loaded_kg"]) < 60.0
+        assert 0.0 < float(r["elapsed_s"]) <= ex.TIME_LIMIT_S + 1e-9
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["attempts"] == 6 and summary["time_limit_s"] == 10.0
+    for f in ("table_controllers.md", "table_controllers.csv", "table_slope_error.md", "table_slope_error.csv",
+              "mass_vs_time.png", "tip_trajectories.png", "slope_error.png"):
+        assert (out / f).stat().st_size > 0, f
+    # the no-error rows are their own baseline: a mass change of 0 %
+    err = list(csv.DictReader((out / "table_slope_error.csv").open()))
+    assert {float(r["mass_change_pct"]) for r in err if float(r["error_deg"]) == 0.0} == {0.0}
+    # bad input: one line, exit 2
+    p = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "experiment", "paper", "--slopes", "20,x",
+                        "--out", str(tmp_path / "bad")], capture_output=True, text=True, timeout=60)
+    assert p.returncode != 0 and "expected comma-separated numbers" in p.stderr
