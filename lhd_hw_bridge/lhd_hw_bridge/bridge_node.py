@@ -173,7 +173,7 @@ class BridgeNode(Node):
         self._cmd = frame
         now = time.monotonic()
         self.watchdog.feed(now)
-        self._send_command(now, tripped=False)    # a changed command leaves at once (CommandScheduler)
+        self._send_command(now, self.current_command(now), tripped=False)   # a changed one leaves at once
 
     def _on_odom(self, msg: Odometry) -> None:
         v = msg.twist.twist.linear.x
@@ -204,15 +204,14 @@ class BridgeNode(Node):
     def _tick(self) -> None:
         now = time.monotonic()
         trips = self.watchdog.trips
-        self.current_command(now)               # checks the watchdog: a trip sends the stop at once
+        cmd = self.current_command(now)         # checks the watchdog: a trip sends the stop at once
         tripped = self.watchdog.trips > trips
         if tripped:
             self.get_logger().warn(f"no valid command for {self.p.cmd_timeout} s: stopping the machine",
                                    throttle_duration_sec=1.0)
-        self._send_command(now, tripped)
+        self._send_command(now, cmd, tripped)
 
-    def _send_command(self, now: float, tripped: bool) -> None:
-        cmd = self.current_command(now)
+    def _send_command(self, now: float, cmd: CommandFrame, tripped: bool) -> None:
         if tripped or self._frames.due(now, cmd):
             self._frames.sent(now, cmd)
             if self._write(cmd):
