@@ -309,8 +309,9 @@ class SimDue:
         d = self.sim.data
         return d.qpos[:3].copy(), d.qpos[3:7].copy(), float(d.qvel[0])
 
-    def base_state_at(self, now: float) -> tuple[np.ndarray, np.ndarray, float]:
-        """base_link's position, orientation (w, x, y, z) and v_x at monotonic time `now`.
+    def base_state_at(self, now: float) -> tuple[np.ndarray, np.ndarray, float, float]:
+        """base_link's position, orientation (w, x, y, z) and v_x at monotonic time `now`, and the
+        monotonic instant that state belongs to.
 
         A chunk simulates its 20 ms as soon as it is due, so between two chunks the simulator
         holds the state of the chunk's END, up to 20 ms ahead of the wall clock. A sensor that
@@ -318,17 +319,25 @@ class SimDue:
         interpolated between the chunk's start and end states at `now`: linear in position and
         speed, normalised linear in the quaternion (rotations of a few mrad per chunk).
         Without it, a camera stamped `now` would show the machine 0-20 ms ahead (7 mm at
-        0.37 m/s): stamp jitter that no speed estimator can tell from motion."""
+        0.37 m/s): stamp jitter that no speed estimator can tell from motion.
+
+        When the simulation has fallen behind the wall clock (`now` past the chunk's end: the
+        next chunk is late on a loaded machine), the newest state is the chunk's end and the
+        instant returned is that end, not `now`: a sensor stamps its message with it (a frame
+        that shows the machine as it was, delivered late), so pose and speed stay consistent
+        over the stamps. Before the span's start (or with no span) the instant is `now`."""
         with self.lock:
             span = self._span
             if span is None:
-                return self._base_state()
+                p, q, v = self._base_state()
+                return p, q, v, now
             t0, t1, (p0, q0, v0), (p1, q1, v1) = span
         a = min(1.0, max(0.0, (now - t0) / (t1 - t0)))
         if float(q0 @ q1) < 0.0:
             q1 = -q1
         q = (1.0 - a) * q0 + a * q1
-        return (1.0 - a) * p0 + a * p1, q / np.linalg.norm(q), (1.0 - a) * v0 + a * v1
+        t = min(now, t1)
+        return (1.0 - a) * p0 + a * p1, q / np.linalg.norm(q), (1.0 - a) * v0 + a * v1, t
 
     def step_chunk(self, now: float, due: float | None = None) -> bool:
         """One chunk: latch the firmware's outputs for the joints' angles now, advance the

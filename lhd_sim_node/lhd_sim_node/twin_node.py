@@ -53,6 +53,7 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PointStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
+from rclpy.time import Time
 from sensor_msgs.msg import CameraInfo, Image, JointState, LaserScan
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension
 from std_srvs.srv import Trigger
@@ -212,6 +213,7 @@ class TwinNode(Node):
         self.camera_frames = self.camera_dropped = self.scans = 0
         self.marker_visible = None
         self._window = {"t": time.monotonic(), "sim": 0.0, "chunks": 0, "overruns": 0, "resyncs": 0, "busy": 0.0}
+        self._clock_offset_ns: int | None = None    # ROS time - monotonic time, for stamps (_stamp_of)
 
         t = time.perf_counter()
         self._new_pile("start")             # before the device loop: nothing else holds the simulator yet
@@ -372,12 +374,26 @@ class TwinNode(Node):
         """After each 20 ms chunk, with the simulator's lock held: the tip's trajectory."""
         self.trail.add(self.sim._site_xpos[self.sim.sid_tip])
 
+    def _state_and_stamp(self):
+        """base_link's state as the machine is now (between chunks) and the ROS stamp of the
+        instant it belongs to: now, or, when the simulation runs late, the newest simulated
+        instant (the message then reports the past, stamped as such)."""
+        pos, quat, v_x, t_state = self.due.base_state_at(time.monotonic())
+        return pos, quat, v_x, self._stamp_of(t_state)
+
+    def _stamp_of(self, t_mono: float):
+        """The ROS stamp of monotonic instant t_mono. One fixed offset between the two clocks
+        (measured at start): stamps of successive states never step back by the clocks' jitter,
+        which would restart the ArUco node's speed filter."""
+        if self._clock_offset_ns is None:
+            self._clock_offset_ns = self.get_clock().now().nanoseconds - int(time.monotonic() * 1e9)
+        return Time(nanoseconds=self._clock_offset_ns + int(round(t_mono * 1e9))).to_msg()
+
     def _publish_truth(self) -> None:
         sim = self.sim
-        stamp = self.get_clock().now().to_msg()
         with self.due.lock:
             d = sim.data
-            pos, quat, v_x = self.due.base_state_at(time.monotonic())   # at the stamp (between chunks)
+            pos, quat, v_x, stamp = self._state_and_stamp()
             wz = float(d.qvel[5])
             s = sim.state()
             mass = float(sim.loaded_mass)
@@ -439,8 +455,7 @@ class TwinNode(Node):
         return info
 
     def _publish_image(self) -> None:
-        stamp = self.get_clock().now().to_msg()       # the instant the machine was where the image shows it
-        pos, quat, _ = self.due.base_state_at(time.monotonic())   # the state at that instant (between chunks)
+        pos, quat, _, stamp = self._state_and_stamp()   # the instant the machine was where the image shows it
         img = ss.camera_image(self.camera, pos, quat, self._rng_sensors)
         if img is None:
             self.camera_dropped += 1

@@ -159,14 +159,15 @@ def test_sensors_sample_the_machine_between_chunks(sim):
     p1, q1, v1 = sim.data.qpos[:3].copy(), sim.data.qpos[3:7].copy(), float(sim.data.qvel[0])
     assert p1[0] - p0[0] > 1e-3                                    # it moved during the chunk
     for t, a in ((100.2, 0.0), (100.205, 0.25), (100.21, 0.5), (100.22, 1.0), (100.5, 1.0), (99.0, 0.0)):
-        p, q, v = due.base_state_at(t)
+        p, q, v, t_state = due.base_state_at(t)
+        assert t_state == pytest.approx(min(t, 100.22))           # late: the state of the chunk's end
         assert p == pytest.approx((1 - a) * p0 + a * p1, abs=1e-12)
         assert v == pytest.approx((1 - a) * v0 + a * v1, abs=1e-12)
         assert np.linalg.norm(q) == pytest.approx(1.0)
         assert q == pytest.approx((1 - a) * q0 + a * q1, abs=1e-6)   # nlerp over a few mrad
     due.skip_backlog()                                             # a new pile: the current state
-    p, q, v = due.base_state_at(100.21)
-    assert p == pytest.approx(p1) and v == pytest.approx(v1)
+    p, q, v, t_state = due.base_state_at(100.21)
+    assert p == pytest.approx(p1) and v == pytest.approx(v1) and t_state == 100.21
 
 
 def _host(link):
