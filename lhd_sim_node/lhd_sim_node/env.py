@@ -4,12 +4,18 @@ Observation: the 12-vector of lhd_loading_ros.task.observation. Action: [-1, 1]^
 (wheels, boom, bucket). variant="rld" passes boom and bucket through the hybrid filter
 (threshold 0) before they reach the machine; variant="rlc" keeps them continuous
 (deploy_filter=True adds the RLC deployment filter, as on the real machine).
+randomize=True (default: the config's randomization.enabled) draws each episode's conditions
+(task/randomization.py: slope-estimate error, sensor noise, dropouts and delays, actuator dead
+time, material, tyre friction, start pose); reset(options={"conditions": Conditions(...)}) sets
+them instead. The reward and the episode's outcome use the true state; only the observation
+carries the sensor errors.
 An episode ends with success (bucket tip in the end zone), failure (restricted zone), or
 truncation after max_steps (200) control steps, which is not a terminal state.
 """
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Any
 
 import gymnasium as gym
@@ -19,6 +25,7 @@ from lhd_loading_ros.task.actions import apply_variant_filter, to_actuator, vali
 from lhd_loading_ros.task.config import load_config
 from lhd_loading_ros.task.metrics import EpisodeResult, drift_pct, success_level
 from lhd_loading_ros.task.observation import OBS_HIGH, OBS_LOW, build_observation
+from lhd_loading_ros.task.randomization import NOMINAL, Conditions, ObservationCorruptor, RandomizationRanges, draw
 from lhd_loading_ros.task.reward import RewardTracker
 from lhd_loading_ros.task.zones import classify
 
@@ -31,7 +38,7 @@ class LhdLoadingEnv(gym.Env):
     metadata = {"render_modes": [], "render_fps": 10}
 
     def __init__(self, variant: str = "rld", config: dict | str | None = None, slope_deg: float | None = None,
-                 material: str | None = None, deploy_filter: bool = False):
+                 material: str | None = None, deploy_filter: bool = False, randomize: bool | None = None):
         if variant not in VARIANTS:
             raise ValueError(f"variant must be one of {VARIANTS}, got {variant!r}")
         if material is not None and material not in MATERIALS:
@@ -44,6 +51,9 @@ class LhdLoadingEnv(gym.Env):
         self.slope_deg = slope_deg
         self.material = material
         self.deploy_filter = deploy_filter
+        self.ranges = RandomizationRanges.from_config(self.cfg)
+        self.randomize = self.ranges.enabled if randomize is None else bool(randomize)
+        self.conditions = NOMINAL
         self.observation_space = gym.spaces.Box(OBS_LOW, OBS_HIGH, dtype=np.float32)
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
         self._done = True
@@ -66,8 +76,15 @@ class LhdLoadingEnv(gym.Env):
         slope = options.get("slope_deg", self.slope_deg)
         self._check_slope(slope, "options['slope_deg']")
         alpha = None if slope is None else math.radians(slope)
+        c = options.get("conditions")
+        if c is None:
+            c = draw(self.np_random, self.ranges) if self.randomize else NOMINAL
+        elif not isinstance(c, Conditions):
+            raise ValueError(f"options['conditions'] must be a task.randomization.Conditions, got {type(c).__name__}")
+        self.conditions = c
         self.sim.reset(self.np_random, alpha=alpha, material=options.get("material", self.material),
-                       d_attack=options.get("d_attack"), attack_speed=options.get("attack_speed"))
+                       d_attack=options.get("d_attack"), attack_speed=options.get("attack_speed"), conditions=c)
+        self._sensors = None if c == NOMINAL else ObservationCorruptor(c, self.np_random)
         s = self.sim.state()
         self.tracker = RewardTracker(self.p, self.sim.zones, self.p.h_pile)
         self.tracker.reset(s, self.sim.loaded_mass)
@@ -118,7 +135,11 @@ class LhdLoadingEnv(gym.Env):
 
     # ------------------------------------------------------------------ helpers
     def _obs(self, s):
-        return build_observation(s, self.sim.pile.alpha, self.sim.zones.x_max, self.p)
+        alpha = self.sim.pile.alpha
+        if self._sensors is not None:        # what the camera and the LiDAR tell the policy
+            v_x, alpha = self._sensors.observe(s.v_x, alpha)
+            s = replace(s, v_x=v_x)
+        return build_observation(s, alpha, self.sim.zones.x_max, self.p)
 
     def _info(self, s, outcome: str, terms: dict, u=None) -> dict[str, Any]:
         return {
@@ -128,6 +149,7 @@ class LhdLoadingEnv(gym.Env):
             "x_min": self.sim.zones.x_min, "x_max": self.sim.zones.x_max,
             "drift_front": s.drift_front, "drift_rear": s.drift_rear,
             "command": None if u is None else u.tolist(),
+            "conditions": self.conditions,
         }
 
     def result(self, outcome: str, truncated: bool) -> EpisodeResult:

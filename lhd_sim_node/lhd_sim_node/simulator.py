@@ -18,6 +18,7 @@ import numpy as np
 
 from lhd_loading_ros.task.params import TaskParams
 from lhd_loading_ros.task.pile import SoilRanges, VoxelPile
+from lhd_loading_ros.task.randomization import NOMINAL, Conditions, delay_chunks
 from lhd_loading_ros.task.state import LhdState
 from lhd_loading_ros.task.zones import Zones
 
@@ -84,6 +85,13 @@ class LhdSimulator:
         self.body = BucketBody(cfg, m)  # breakout and ploughing of the whole bucket (bucket_body.py)
         self.wheel_dof = np.array([m.jnt_dofadr[m.joint(w).id] for w in WHEELS])
         self._wheel_dofs = [int(i) for i in self.wheel_dof]
+        self._wheel_geoms = [m.geom(w).id for w in WHEELS]
+        self._tyre_friction0 = float(m.geom_friction[self._wheel_geoms[0], 0])
+        # domain randomisation (task/randomization.py): chunks of a control period that still run
+        # the previous command (drive, hydraulics), and that command
+        self._delay_chunks = (0, 0)
+        self._u_prev = np.zeros(3)
+        self.conditions = NOMINAL
         # drift over a window of one control period (wheel_drift): the marks (time, x, wheel angles)
         # at the start of the last chunks; advance() and the attack drive keep the last n of them
         self._wheel_qs = [int(m.jnt_qposadr[m.joint(w).id]) for w in WHEELS]
@@ -123,7 +131,10 @@ class LhdSimulator:
         self._slices = np.zeros(0, dtype=int)
 
     # ------------------------------------------------------------------ episode set-up
-    def new_pile(self, rng: np.random.Generator, alpha: float | None = None, material: str | None = None) -> None:
+    def new_pile(self, rng: np.random.Generator, alpha: float | None = None, material: str | None = None,
+                 soil: SoilRanges | None = None) -> None:
+        """A new pile of slope alpha and material (drawn when None); soil: ranges to draw its
+        parameters from (default the config's pile ranges; domain randomisation widens them)."""
         p = self.p
         if alpha is None:
             alpha = rng.uniform(p.alpha_min, p.alpha_max)
@@ -132,7 +143,8 @@ class LhdSimulator:
         if material not in MATERIALS:
             raise ValueError(f"material must be one of {MATERIALS}, got {material!r}")
         vx = self.cfg["paper"]["voxels"]
-        self.pile = VoxelPile.generate(rng, alpha, p.h_pile, p.w_pile, vx["n_x"], vx["n_y"], vx["n_z"], self.soil,
+        self.pile = VoxelPile.generate(rng, alpha, p.h_pile, p.w_pile, vx["n_x"], vx["n_y"], vx["n_z"],
+                                       self.soil if soil is None else soil,
                                        nonhomogeneous=(material == "nonhomogeneous"))
         self.material = material
         self.zones = Zones.for_pile(self.pile, p)
@@ -143,12 +155,18 @@ class LhdSimulator:
         self._deltas = np.array([gravel_delta, s.rock_delta])
         self._tabs = beta_tables(self._phis, BETA_GRID)  # the FEE kernel's beta-only terms per class
 
-    def place_machine(self, d_attack: float) -> None:
-        """Attack pose, at rest, bucket tip d_attack before the toe of the pile."""
+    def place_machine(self, d_attack: float, heading: float = 0.0, lateral: float = 0.0) -> None:
+        """Attack pose, at rest, bucket tip d_attack before the toe of the pile; heading (rad, yaw,
+        positive turns the nose to +y) and lateral (m, the lip centre's y) for a machine placed by
+        hand. The bucket's slices of the pile are those under the lip where it starts (the lip
+        moves 2.6 cm sideways over a 0.5 m attack at 3 deg: the FEE keeps the start's slices)."""
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
-        d.qpos[0] = -d_attack - self.geometry["tip"][0]
+        tip = self.geometry["tip"][0]
+        d.qpos[0] = -d_attack - tip * math.cos(heading)
+        d.qpos[1] = lateral - tip * math.sin(heading)
         d.qpos[2] = self.geometry["r"]
+        d.qpos[3:7] = (math.cos(heading / 2), 0.0, 0.0, math.sin(heading / 2))
         m.body_mass[self.bid_bucket] = self.bucket_mass0
         m.tendon_frictionloss[self.tid_fee] = 0.0
         mujoco.mj_forward(m, d)
@@ -160,7 +178,8 @@ class LhdSimulator:
         self._m_bucket = 0.0    # kg in the bucket (= loaded_mass)
         self._spilled = 0.0     # kg loaded beyond the capacity and spilled
         self._alpha_s = 0.0
-        self._slices = self.pile.slices_in(-self.bucket_width / 2, self.bucket_width / 2)
+        y_lip = float(d.site_xpos[self.sid_tip][1])
+        self._slices = self.pile.slices_in(y_lip - self.bucket_width / 2, y_lip + self.bucket_width / 2)
         self._tip_prev_x = float(d.site_xpos[self.sid_tip][0])
         self._cut_prev_x = self._tip_prev_x
         self._cut_prev_z = float(d.site_xpos[self.sid_tip][2])
@@ -174,19 +193,36 @@ class LhdSimulator:
         self._body_args = self.body.bind(m, d, self.pile, self._slices, self.bucket_mass0)
 
     def reset(self, rng: np.random.Generator, alpha: float | None = None, material: str | None = None,
-              d_attack: float | None = None, attack_speed: float | None = None) -> None:
+              d_attack: float | None = None, attack_speed: float | None = None,
+              conditions: Conditions | None = None) -> None:
         """New pile, machine in the attack pose d_attack before it; drive in at attack_speed
-        (rad/s at the wheels) with the arm still until the tip is d_init inside the pile."""
+        (rad/s at the wheels) with the arm still until the tip is d_init inside the pile.
+        conditions (task/randomization.py): the episode's physical departures (soil ranges, tyre
+        friction, start distance, attack speed, heading, lateral offset, actuator delays);
+        explicit d_attack / attack_speed win over theirs. NOMINAL (the default) draws exactly what
+        the simulator drew before conditions existed."""
         p = self.p
-        self.new_pile(rng, alpha, material)
+        c = NOMINAL if conditions is None else conditions
+        self.conditions = c
+        self.new_pile(rng, alpha, material, soil=c.soil)
         if d_attack is None:
-            d_attack = rng.uniform(self.cfg["paper"]["episode"]["d_attack_min"], self.cfg["paper"]["episode"]["d_attack_max"])
+            d_attack = c.d_attack if c.d_attack is not None else rng.uniform(
+                self.cfg["paper"]["episode"]["d_attack_min"], self.cfg["paper"]["episode"]["d_attack_max"])
         if attack_speed is None:
-            attack_speed = rng.uniform(self.cfg["sim"]["attack_speed_min_fraction"], 1.0) * p.wheels_max
+            frac = c.attack_speed_fraction if c.attack_speed_fraction is not None else rng.uniform(
+                self.cfg["sim"]["attack_speed_min_fraction"], 1.0)
+            attack_speed = frac * p.wheels_max
+        mu = self._tyre_friction0 if c.tyre_friction is None else float(c.tyre_friction)
+        for g in self._wheel_geoms:
+            self.model.geom_friction[g, 0] = mu
+        chunks = self.n_phys // self.fee_every
+        self._delay_chunks = (delay_chunks(c.drive_delay_s, self.fee_dt, chunks),
+                              delay_chunks(c.hydraulic_delay_s, self.fee_dt, chunks))
         self.d_attack, self.attack_speed = float(d_attack), float(attack_speed)
-        self.place_machine(self.d_attack)
+        self.place_machine(self.d_attack, math.radians(c.heading_deg), c.lateral_offset)
         t = 0.0
         self.set_command(np.array([self.attack_speed, 0.0, 0.0]))
+        self._u_prev = np.array([self.attack_speed, 0.0, 0.0])
         self._drift_marks.clear()
         while self.data.site_xpos[self.sid_tip][0] < p.d_init:
             self._drift_marks.append(self._drift_mark())
@@ -211,7 +247,12 @@ class LhdSimulator:
         ctrl[self.act_bucket] = u[2]
 
     def step(self, u: np.ndarray) -> None:
-        """One control period with command u (rad/s)."""
+        """One control period with command u (rad/s). With actuator delays (conditions), the
+        first chunks of the period still run the previous period's command on that channel."""
+        dd, dh = self._delay_chunks
+        if dd or dh:
+            self._step_delayed(np.asarray(u, dtype=float), dd, dh)
+            return
         self.set_command(u)
         self._anti_windup()
         self._drift_marks.clear()
@@ -221,6 +262,22 @@ class LhdSimulator:
         mujoco.mj_kinematics(self.model, self.data)
         if self.use_kernel:
             self._sync_from_kernel()
+        self._u_prev = np.array(u, dtype=float)
+
+    def _step_delayed(self, u: np.ndarray, dd: int, dh: int) -> None:
+        prev = self._u_prev
+        self._drift_marks.clear()
+        self._drift_from = self._drift_mark()
+        for k in range(self.n_phys // self.fee_every):
+            uk = np.array([prev[0] if k < dd else u[0], prev[1] if k < dh else u[1], prev[2] if k < dh else u[2]])
+            if k == 0 or k == dd or k == dh:       # the command changed: set it and pull the set-points back
+                self.set_command(uk)
+                self._anti_windup()
+            self._physics(self.fee_every)
+        mujoco.mj_kinematics(self.model, self.data)
+        if self.use_kernel:
+            self._sync_from_kernel()
+        self._u_prev = u.copy()
 
     def advance(self, u: np.ndarray) -> None:
         """One FEE period (``fee_every`` physics steps: 20 ms at the shipped config) with command

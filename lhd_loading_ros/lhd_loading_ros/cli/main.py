@@ -78,13 +78,14 @@ def _train(args) -> int:
     if len(seeds) > 1:
         extra = (["--steps", str(args.steps)] if args.steps else []) + (["--config", args.config] if args.config else [])
         extra += ["--no-resume"] if not args.resume else []
+        extra += ["--randomize"] if args.randomize else []
         return run_seeds(args.variant, seeds, out, args.jobs or (os.cpu_count() or 1), extra)
     from lhd_loading_ros.learning.train import train
 
     run_dir = out if args.out and not args.seeds else out / f"seed_{seeds[0]}"
     try:
         ev = train(args.variant, seeds[0], run_dir, steps=args.steps, config=args.config, resume=args.resume,
-                   progress=args.progress)
+                   progress=args.progress, randomize=args.randomize)
     except (ConfigError, ValueError) as exc:
         print(f"lhd train: {exc}", file=sys.stderr)
         return 1
@@ -120,9 +121,10 @@ def _eval(args) -> int:
         print(f"lhd eval: {exc}", file=sys.stderr)
         return 1
     deploy = args.deploy_filter
-    env = LhdLoadingEnv(pol.variant, cfg, deploy_filter=deploy)
+    env = LhdLoadingEnv(pol.variant, cfg, deploy_filter=deploy, randomize=args.randomize or None)
     res = evaluate(env, pol.actor, args.episodes, args.seed, cfg["task"]["bucket_capacity"])
-    res.update({"policy": str(args.policy), "variant": pol.variant, "seed": args.seed, "deploy_filter": deploy})
+    res.update({"policy": str(args.policy), "variant": pol.variant, "seed": args.seed, "deploy_filter": deploy,
+                "randomize": env.randomize})
     if args.json:
         print(json.dumps(res))
     else:
@@ -135,7 +137,8 @@ def format_eval(res: dict) -> str:
     def row(name, r):
         return (f"{name:>16} {r['episodes']:>8} {r['success_rate']:>8.2f} {r['asl']:>5.2f} {r['aml']:>7.1f} "
                 f"{r['aff']:>5.2f} {r['ar']:>8.1f} {r['elapsed_s']:>6.2f} {r['front_drift_pct']:>7.1f} {r['rear_drift_pct']:>6.1f}")
-    lines = [f"policy {res['policy']} ({res['variant'].upper()}), evaluation seed {res['seed']}", head, row("all", res)]
+    dr = ", domain randomisation" if res.get("randomize") else ""
+    lines = [f"policy {res['policy']} ({res['variant'].upper()}), evaluation seed {res['seed']}{dr}", head, row("all", res)]
     lines += [row(f"{k} deg", v) for k, v in res.get("by_slope", {}).items()]
     lines += [row(k, v) for k, v in res.get("by_material", {}).items()]
     f = res.get("failures", {})
@@ -276,6 +279,9 @@ def main(argv=None) -> int:
     p_train.add_argument("--config", default=None)
     p_train.add_argument("--no-resume", dest="resume", action="store_false", help="start over even if a checkpoint exists")
     p_train.add_argument("--no-progress", dest="progress", action="store_false")
+    p_train.add_argument("--randomize", action="store_true",
+                         help="domain randomisation (config section randomization: slope-estimate error, sensor noise, "
+                              "dropouts, actuator delay, material, tyre friction, start pose; docs/training.md)")
     p_eval = sub.add_parser("eval", help="evaluate an exported policy on the simulator")
     p_eval.add_argument("--controller", choices=["actor", "tampier"], default="actor",
                         help="actor: an exported policy (--policy); tampier: the Tampier-style heuristic baseline")
@@ -289,6 +295,9 @@ def main(argv=None) -> int:
     p_eval.add_argument("--episodes", type=int, default=120)
     p_eval.add_argument("--seed", type=int, default=2_000_000, help="evaluation seed (training evaluates on 1,000,000)")
     p_eval.add_argument("--deploy-filter", action="store_true", help="RLC: apply the deployment filter, as on the machine")
+    p_eval.add_argument("--randomize", action="store_true",
+                        help="actor: every episode under drawn conditions (config section randomization): how the "
+                             "actor fares when the machine differs from the simulator")
     p_eval.add_argument("--config", default=None)
     p_eval.add_argument("--json", action="store_true")
     p_exp = sub.add_parser("experiment", help="the paper's experiments in simulation")

@@ -110,11 +110,15 @@ def _rank(ev: dict) -> tuple:
 
 def train(variant: str, seed: int, out, steps: int | None = None, config=None, resume: bool = True,
           progress: bool = True, eval_episodes: int | None = None, eval_every: int | None = None,
-          checkpoint_every: int | None = None, log=print) -> dict:
-    """Train one DDPG agent; return the last evaluation (dict). See the module docstring."""
+          checkpoint_every: int | None = None, log=print, randomize: bool = False) -> dict:
+    """Train one DDPG agent; return the last evaluation (dict). See the module docstring.
+    randomize: domain randomisation (config section `randomization`, task/randomization.py) in
+    training and in the periodic evaluations; it enters the config hash of the run and its actor."""
     from lhd_sim_node.env import LhdLoadingEnv   # the simulator is only needed to train
 
     cfg = config if isinstance(config, dict) else load_config(config)
+    if randomize:
+        cfg = {**cfg, "randomization": {**cfg["randomization"], "enabled": 1}}
     dc = DdpgConfig.from_config(cfg)
     over = {k: v for k, v in (("total_steps", steps), ("eval_episodes", eval_episodes),
                                ("eval_every", eval_every), ("checkpoint_every", checkpoint_every)) if v is not None}

@@ -114,6 +114,16 @@ SCHEMA: dict[str, Any] = {
     "sim": {"timestep": _f(1e-4, 0.05), "fee_every": _i(1, 1000), "attack_timeout": _f(0.1, 100.0),
             "attack_speed_min_fraction": _f(0.05, 1.0)},
     "bucket_body": {"enabled": _i(0, 1), "k_uplift": _f(0.0, 3.0)},  # the whole bucket in the pile (bucket_body.py)
+    "randomization": {  # issue 14, task/randomization.py
+        "enabled": _i(0, 1), "slope_error_max_deg": _f(0.0, 45.0), "slope_noise_deg": _f(0.0, 10.0),
+        "vx_noise": _f(0.0, 1.0), "vx_dropout_probability": _f(0.0, 1.0), "vx_dropout_max_steps": _i(0, 100),
+        "vx_delay_steps_max": _i(0, 10), "actuator_delay_max_s": _f(0.0, 1.0),
+        "density_min": _f(100.0, 6000.0), "density_max": _f(100.0, 6000.0),
+        "phi_min_deg": _f(5.0, 60.0), "phi_max_deg": _f(5.0, 60.0), "cohesion_max": _f(0.0, 1e6),
+        "rocks_max": _i(0, 1000), "tyre_friction_min": _f(0.05, 3.0), "tyre_friction_max": _f(0.05, 3.0),
+        "d_attack_max": _f(0.0, 5.0), "attack_speed_min_fraction": _f(0.05, 1.0),
+        "heading_max_deg": _f(0.0, 45.0), "lateral_offset_max": _f(0.0, 1.0),
+    },
     "training": {
         "total_steps": _i(1, 100_000_000), "noise_decay_steps": _i(0, 100_000_000), "noise_final_scale": _f(0.0, 1.0),
         "learning_starts": _i(1, 10_000_000), "hidden_sizes": _ilist(1, 4096, 1, 8), "reward_scale": _f(1e-6, 1e3),
@@ -150,6 +160,15 @@ _RELATIONS = [
     ("paper.control.wheels_max * machine.wheel_radius < task.v_x_max",
      lambda c: c["paper"]["control"]["wheels_max"] * c["machine"]["wheel_radius"] < c["task"]["v_x_max"]),
     ("task.r_dump_sign is -1 or +1", lambda c: c["task"]["r_dump_sign"] in (-1, 1)),
+    ("randomization.density_min <= randomization.density_max",
+     lambda c: c["randomization"]["density_min"] <= c["randomization"]["density_max"]),
+    ("randomization.phi_min_deg <= randomization.phi_max_deg",
+     lambda c: c["randomization"]["phi_min_deg"] <= c["randomization"]["phi_max_deg"]),
+    ("randomization.tyre_friction_min <= randomization.tyre_friction_max",
+     lambda c: c["randomization"]["tyre_friction_min"] <= c["randomization"]["tyre_friction_max"]),
+    ("paper.episode.d_attack_min <= randomization.d_attack_max",
+     lambda c: c["paper"]["episode"]["d_attack_min"] <= c["randomization"]["d_attack_max"]),
+    ("randomization.rocks_max >= pile.rocks_min", lambda c: c["randomization"]["rocks_max"] >= c["pile"]["rocks_min"]),
     ("training.noise_decay_steps <= training.total_steps",
      lambda c: c["training"]["noise_decay_steps"] <= c["training"]["total_steps"]),
     ("training.learning_starts >= paper.ddpg.batch_size",
@@ -265,5 +284,9 @@ def load_config(path: str | os.PathLike | None = None) -> dict:
 
 
 def config_hash(cfg: dict) -> str:
-    """Stable short hash of a validated config (goes into exported policies)."""
+    """Stable short hash of a validated config (goes into exported policies). A switched-off
+    `randomization` section changes nothing an actor sees, so it is left out of the hash: actors
+    trained before the section existed keep their hash; a randomised run's hash differs."""
+    if int(cfg.get("randomization", {}).get("enabled", 0)) == 0:
+        cfg = {k: v for k, v in cfg.items() if k != "randomization"}
     return hashlib.sha256(json.dumps(cfg, sort_keys=True).encode()).hexdigest()[:16]

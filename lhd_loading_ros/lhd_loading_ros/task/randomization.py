@@ -1,0 +1,156 @@
+"""Domain randomisation (issue 14): what differs between the simulator and the machine (ROS-free).
+
+Two kinds, applied where they act on the machine:
+
+* **Episode conditions** (:class:`Conditions`), drawn once per episode by :func:`draw`:
+  the error of the LiDAR's slope estimate, the camera speed's delay, the actuators' dead time
+  (drive and hydraulics separately), the material (density, friction, cohesion, rocks), the tyre
+  friction, the start distance, attack speed, heading and lateral offset of a machine placed by
+  hand. The simulator applies the physical ones (``LhdSimulator.reset(conditions=...)``), the
+  environment the observation ones.
+* **Sensor noise** (:class:`ObservationCorruptor`), every control step: noise on the observed
+  slope and v_x, camera dropouts (v_x keeps its last value, as the policy node keeps the newest
+  odometry until input_timeout) and the camera delay.
+
+Ranges come from the config's ``randomization`` section (each with its reason there and in
+docs/training.md). :data:`NOMINAL` is the paper's protocol: nothing changes.
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import asdict, dataclass, replace
+
+import numpy as np
+
+from lhd_loading_ros.task.pile import SoilRanges
+
+
+@dataclass(frozen=True)
+class Conditions:
+    """One episode's departures from the nominal simulator. Angles in degrees, lengths in m."""
+    slope_error_deg: float = 0.0        # observed alpha - true alpha (before the per-step noise)
+    slope_noise_deg: float = 0.0        # sd of the per-step noise on the observed alpha
+    vx_noise: float = 0.0               # m/s, sd of the per-step noise on the observed v_x
+    vx_dropout_probability: float = 0.0
+    vx_dropout_max_steps: int = 0
+    vx_delay_steps: int = 0             # the observed v_x is this many control steps old
+    drive_delay_s: float = 0.0          # a wheel command takes effect this late
+    hydraulic_delay_s: float = 0.0      # a boom / bucket command takes effect this late
+    soil: SoilRanges | None = None      # None: the config's pile ranges
+    tyre_friction: float | None = None  # None: machine.wheel_friction
+    d_attack: float | None = None       # None: the paper's U(d_attack_min, d_attack_max)
+    attack_speed_fraction: float | None = None   # of wheels_max; None: U(sim.attack_speed_min_fraction, 1)
+    heading_deg: float = 0.0            # start yaw of the machine (positive: nose to +y)
+    lateral_offset: float = 0.0         # m, the lip's centre off the pile's axis at the start
+
+    def summary(self) -> dict:
+        """A flat dict of the drawn values (for info and CSVs)."""
+        d = asdict(self)
+        soil = d.pop("soil")
+        d["density_range"] = None if soil is None else list(soil["density"])
+        return d
+
+
+NOMINAL = Conditions()
+
+
+@dataclass(frozen=True)
+class RandomizationRanges:
+    enabled: bool
+    slope_error_max_deg: float
+    slope_noise_deg: float
+    vx_noise: float
+    vx_dropout_probability: float
+    vx_dropout_max_steps: int
+    vx_delay_steps_max: int
+    actuator_delay_max_s: float
+    soil: SoilRanges                    # the pile's ranges widened by the section's
+    tyre_friction: tuple[float, float]
+    d_attack: tuple[float, float]
+    attack_speed_min_fraction: float
+    heading_max_deg: float
+    lateral_offset_max: float
+    chunk_s: float                      # the grain of the actuator delay (one FEE chunk)
+
+    @classmethod
+    def from_config(cls, cfg: dict) -> "RandomizationRanges":
+        r = cfg["randomization"]
+        base = SoilRanges.from_config(cfg)
+        soil = replace(base, density=(r["density_min"], r["density_max"]),
+                       phi=(math.radians(r["phi_min_deg"]), math.radians(r["phi_max_deg"])),
+                       cohesion=(base.cohesion[0], max(base.cohesion[1], r["cohesion_max"])),
+                       rocks=(base.rocks[0], r["rocks_max"]))
+        return cls(
+            enabled=bool(r["enabled"]), slope_error_max_deg=r["slope_error_max_deg"],
+            slope_noise_deg=r["slope_noise_deg"], vx_noise=r["vx_noise"],
+            vx_dropout_probability=r["vx_dropout_probability"], vx_dropout_max_steps=int(r["vx_dropout_max_steps"]),
+            vx_delay_steps_max=int(r["vx_delay_steps_max"]), actuator_delay_max_s=r["actuator_delay_max_s"],
+            soil=soil, tyre_friction=(r["tyre_friction_min"], r["tyre_friction_max"]),
+            d_attack=(cfg["paper"]["episode"]["d_attack_min"], r["d_attack_max"]),
+            attack_speed_min_fraction=r["attack_speed_min_fraction"], heading_max_deg=r["heading_max_deg"],
+            lateral_offset_max=r["lateral_offset_max"],
+            chunk_s=cfg["sim"]["timestep"] * cfg["sim"]["fee_every"],
+        )
+
+
+def draw(rng: np.random.Generator, rr: RandomizationRanges) -> Conditions:
+    """One episode's conditions, uniform within the ranges (delays on the chunk grain)."""
+    n_delay = int(math.floor(rr.actuator_delay_max_s / rr.chunk_s + 1e-9))
+    u = rng.uniform
+    return Conditions(
+        slope_error_deg=float(u(-rr.slope_error_max_deg, rr.slope_error_max_deg)),
+        slope_noise_deg=rr.slope_noise_deg, vx_noise=rr.vx_noise,
+        vx_dropout_probability=rr.vx_dropout_probability, vx_dropout_max_steps=rr.vx_dropout_max_steps,
+        vx_delay_steps=int(rng.integers(0, rr.vx_delay_steps_max + 1)),
+        drive_delay_s=rr.chunk_s * int(rng.integers(0, n_delay + 1)),
+        hydraulic_delay_s=rr.chunk_s * int(rng.integers(0, n_delay + 1)),
+        soil=rr.soil, tyre_friction=float(u(*rr.tyre_friction)),
+        d_attack=float(u(*rr.d_attack)), attack_speed_fraction=float(u(rr.attack_speed_min_fraction, 1.0)),
+        heading_deg=float(u(-rr.heading_max_deg, rr.heading_max_deg)),
+        lateral_offset=float(u(-rr.lateral_offset_max, rr.lateral_offset_max)),
+    )
+
+
+def delay_chunks(delay_s: float, chunk_s: float, chunks_per_step: int) -> int:
+    """Chunks of a control period that still run the previous command. A delay longer than a
+    control period is refused (the simulator keeps only the previous command)."""
+    n = int(round(delay_s / chunk_s))
+    if not (0 <= n <= chunks_per_step) or abs(n * chunk_s - delay_s) > 1e-9:
+        raise ValueError(f"actuator delay {delay_s!r} s must be a multiple of the {chunk_s:g} s chunk "
+                         f"within one control period (0..{chunks_per_step * chunk_s:g} s)")
+    return n
+
+
+class ObservationCorruptor:
+    """Per-step sensor errors on the observed v_x and slope of one episode.
+
+    ``observe(v_x_true, alpha_true)`` returns what the policy sees this step: v_x from
+    ``vx_delay_steps`` steps ago plus Gaussian noise, or, in a dropout, the value it saw last
+    step (a run of at most ``vx_dropout_max_steps``); alpha plus the episode's error plus
+    Gaussian noise (radians in, radians out). With NOMINAL it returns its inputs unchanged and
+    draws nothing from the generator."""
+
+    def __init__(self, c: Conditions, rng: np.random.Generator):
+        self.c, self.rng = c, rng
+        self._vx = deque(maxlen=c.vx_delay_steps + 1)
+        self._last_vx: float | None = None
+        self._held = 0
+
+    def observe(self, v_x: float, alpha: float) -> tuple[float, float]:
+        c, rng = self.c, self.rng
+        self._vx.append(float(v_x))
+        vx = self._vx[0]                                   # the oldest kept: delay steps ago (fewer at the start)
+        if c.vx_noise > 0.0:
+            vx += float(rng.normal(0.0, c.vx_noise))
+        if (self._last_vx is not None and c.vx_dropout_probability > 0.0 and self._held < c.vx_dropout_max_steps
+                and rng.random() < c.vx_dropout_probability):
+            vx = self._last_vx                             # no new frame: the last speed stands
+            self._held += 1
+        else:
+            self._held = 0
+        self._last_vx = vx
+        a = float(alpha) + math.radians(c.slope_error_deg)
+        if c.slope_noise_deg > 0.0:
+            a += math.radians(float(rng.normal(0.0, c.slope_noise_deg)))
+        return vx, a

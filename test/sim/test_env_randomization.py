@@ -1,0 +1,148 @@
+"""Domain randomisation in the simulator and the environment: actuator dead time, the machine
+placed by hand, tyre friction, the material, and the sensor errors reaching the observation only."""
+import math
+
+import numpy as np
+import pytest
+
+from lhd_loading_ros.task.randomization import NOMINAL, Conditions
+from lhd_sim_node.env import LhdLoadingEnv
+from lhd_sim_node.simulator import LhdSimulator
+
+
+@pytest.fixture(scope="module")
+def cfg():
+    from lhd_loading_ros.task.config import load_config
+    return load_config()
+
+
+def _sim_state(sim):
+    return np.concatenate([sim.data.qpos, sim.data.qvel, sim.data.act])
+
+
+def _pair(cfg, cond):
+    """Two simulators on the same pile: one nominal, one under `cond`'s delays."""
+    a, b = LhdSimulator(cfg), LhdSimulator(cfg)
+    fixed = dict(alpha=math.radians(20.0), material="homogeneous", d_attack=0.15, attack_speed=2.7)
+    a.reset(np.random.default_rng(4), **fixed)
+    b.reset(np.random.default_rng(4), conditions=cond, **fixed)
+    np.testing.assert_array_equal(_sim_state(a), _sim_state(b))     # delays change nothing before the first command
+    return a, b
+
+
+def test_a_delay_of_one_period_runs_the_previous_command_for_that_period(cfg):
+    """Hydraulic dead time of 100 ms = one control period: the first period after the attack
+    still runs the attack's arm command (arm still), the wheels take the new one; from the second
+    period on, both run what was commanded one period earlier. Bit-identical to a nominal
+    simulator fed those commands (MuJoCo is deterministic)."""
+    a, b = _pair(cfg, Conditions(hydraulic_delay_s=0.1))
+    u1 = np.array([2.0, -0.191, 0.2])          # drive, lift, curl
+    u2 = np.array([1.0, 0.0, 0.2])             # stop lifting, keep curling
+    b.step(u1)
+    a.step(np.array([u1[0], 0.0, 0.0]))        # the attack left the arm still
+    np.testing.assert_array_equal(_sim_state(a), _sim_state(b))
+    b.step(u2)
+    a.step(np.array([u2[0], u1[1], u1[2]]))    # the arm one period late
+    np.testing.assert_array_equal(_sim_state(a), _sim_state(b))
+    # the same for the drive channel
+    a, b = _pair(cfg, Conditions(drive_delay_s=0.1))
+    b.step(np.array([0.0, -0.191, 0.0]))
+    a.step(np.array([2.7, -0.191, 0.0]))       # the wheels keep the attack's speed for a period
+    np.testing.assert_array_equal(_sim_state(a), _sim_state(b))
+
+
+def test_a_partial_delay_starts_the_boom_later(cfg):
+    """A 40 ms hydraulic dead time inside a 100 ms period: the boom lifts for the last 60 ms of
+    the first period instead of 100 ms. The joint's travel over the period: the valve-limited
+    speed 0.191 rad/s times the time it was open, less the servo's start-up transient in both;
+    the ratio is about 0.06 / 0.1 = 0.6 (between 0.45 and 0.75 with the transient)."""
+    a, b = _pair(cfg, Conditions(hydraulic_delay_s=0.04))
+    q0 = float(a.data.qpos[a.boom_q])
+    u = np.array([0.0, -0.191, 0.0])
+    a.step(u)
+    b.step(u)
+    da, db = q0 - float(a.data.qpos[a.boom_q]), q0 - float(b.data.qpos[b.boom_q])
+    assert da > 0.01                                     # the undelayed boom lifted (negative angle is up)
+    assert 0.45 < db / da < 0.75, (da, db)
+
+
+def test_a_machine_placed_by_hand(cfg):
+    sim = LhdSimulator(cfg)
+    sim.new_pile(np.random.default_rng(0), math.radians(20.0), "homogeneous")
+    heading, lateral = math.radians(3.0), 0.05
+    sim.place_machine(0.15, heading, lateral)
+    tip = sim.data.site_xpos[sim.sid_tip]
+    assert tip[1] == pytest.approx(lateral, abs=1e-5)                 # the lip's centre is where it was put
+    assert tip[0] == pytest.approx(-0.15, abs=1e-3)                   # d_attack before the toe (x of a 0.4 m lip)
+    w, x, y, z = sim.data.qpos[3:7]
+    assert math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)) == pytest.approx(heading, abs=1e-9)
+    # the bucket's slices: the pile's slice centres within the lip's width around y = 0.05 (computed here)
+    yc = sim.pile.y_centers
+    expect = [j for j in range(len(yc)) if lateral - 0.2 <= yc[j] <= lateral + 0.2]
+    assert list(sim._slices) == expect and len(expect) < len(yc)
+    # and a full reset with the same conditions: the attack drive keeps the heading (no steering)
+    sim.reset(np.random.default_rng(0), alpha=math.radians(20.0), material="homogeneous",
+              conditions=Conditions(heading_deg=3.0, lateral_offset=0.05, d_attack=0.15, attack_speed_fraction=1.0))
+    w, x, y, z = sim.data.qpos[3:7]
+    assert math.degrees(math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))) == pytest.approx(3.0, abs=0.3)
+    # it drove about 0.25 m along its heading: the lip moved sideways by about 0.25 sin 3 deg = 1.3 cm
+    assert sim.data.site_xpos[sim.sid_tip][1] == pytest.approx(0.05 + 0.25 * math.sin(heading), abs=0.006)
+
+
+def test_tyre_friction_and_soil_are_per_episode(cfg):
+    sim = LhdSimulator(cfg)
+    wheels = sim._wheel_geoms
+    sim.reset(np.random.default_rng(1), conditions=Conditions(tyre_friction=0.6))
+    assert all(sim.model.geom_friction[g, 0] == 0.6 for g in wheels)
+    sim.reset(np.random.default_rng(1))
+    assert all(sim.model.geom_friction[g, 0] == cfg["machine"]["wheel_friction"] for g in wheels)
+    # the randomised soil ranges reach the pile: over 40 homogeneous piles the densities span more than
+    # the paper's gravel range (1,760-2,000) and stay inside the section's (1,500-2,200)
+    from lhd_loading_ros.task.randomization import RandomizationRanges
+    soil = RandomizationRanges.from_config(cfg).soil
+    rng = np.random.default_rng(2)
+    rho = []
+    for _ in range(40):
+        sim.new_pile(rng, math.radians(20.0), "homogeneous", soil=soil)
+        rho.append(float(np.median(sim.pile.density)))
+    assert min(rho) >= 1500 * 0.9 and max(rho) <= 2200 * 1.1            # voxels jitter around the pile's draw
+    assert min(rho) < 1700 and max(rho) > 2050
+
+
+def test_the_environment_draws_conditions_and_only_the_observation_sees_sensor_errors(cfg):
+    a = LhdLoadingEnv("rld", cfg, randomize=True)
+    b = LhdLoadingEnv("rld", cfg, randomize=True)
+    oa, ia = a.reset(seed=11)
+    ob, ib = b.reset(seed=11)
+    np.testing.assert_array_equal(oa, ob)                      # reproducible from the seed
+    assert ia["conditions"] == ib["conditions"] != NOMINAL
+    c = ia["conditions"]
+    p = a.p
+    told = math.radians(ia["alpha_deg"] + c.slope_error_deg)
+    expect = min(1.0, max(0.0, (told - p.alpha_min) / (p.alpha_max - p.alpha_min)))
+    # the observed slope: the true one plus the episode's error, within the per-step noise (4 sd)
+    sd = math.radians(c.slope_noise_deg) / (p.alpha_max - p.alpha_min)
+    assert oa[11] == pytest.approx(expect, abs=4 * sd + 1e-6)
+    # the reward and the outcome come from the true state: the same episode with the sensor errors switched
+    # off after the reset (same pile, same physical conditions) gives the same rewards and outcomes
+    n = b
+    n._sensors = None
+    rng = np.random.default_rng(0)
+    for _ in range(15):
+        act = rng.uniform(-1, 1, 3)
+        ra, rn = a.step(act), n.step(act)
+        assert ra[1] == rn[1] and ra[2] == rn[2]
+        assert ra[4]["loaded_mass"] == rn[4]["loaded_mass"]
+        if ra[2] or ra[3]:
+            break
+    # the observed v_x differs from the true one (noise), every other entry is the same
+    diff = np.nonzero(ra[0] != rn[0])[0].tolist()
+    assert set(diff) <= {4, 11} and 4 in diff
+
+
+def test_bad_conditions_are_refused(cfg):
+    env = LhdLoadingEnv("rld", cfg)
+    with pytest.raises(ValueError, match="options\\['conditions'\\] must be"):
+        env.reset(seed=0, options={"conditions": {"heading_deg": 3}})
+    with pytest.raises(ValueError, match="multiple of the 0.02 s chunk"):
+        env.reset(seed=0, options={"conditions": Conditions(drive_delay_s=0.03)})

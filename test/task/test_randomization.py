@@ -1,0 +1,131 @@
+"""Domain randomisation, the pure part (task/randomization.py): ranges from the config, the
+episode draw, the per-step sensor errors. Expectations are computed here from the definitions
+(uniform ranges, Gaussian spread, hold and delay), not read back from the module."""
+import copy
+import math
+
+import numpy as np
+import pytest
+
+from lhd_loading_ros.task.config import ConfigError, config_hash, load_config, validate
+from lhd_loading_ros.task.randomization import (NOMINAL, Conditions, ObservationCorruptor, RandomizationRanges,
+                                                delay_chunks, draw)
+
+
+@pytest.fixture(scope="module")
+def cfg():
+    return load_config()
+
+
+def test_the_shipped_section_is_off_and_a_disabled_section_leaves_the_hash_alone(cfg):
+    assert cfg["randomization"]["enabled"] == 0
+    without = {k: v for k, v in cfg.items() if k != "randomization"}
+    import hashlib
+    import json
+    assert config_hash(cfg) == hashlib.sha256(json.dumps(without, sort_keys=True).encode()).hexdigest()[:16]
+    on = copy.deepcopy(cfg)
+    on["randomization"]["enabled"] = 1
+    assert config_hash(on) != config_hash(cfg)
+    on2 = copy.deepcopy(on)
+    on2["randomization"]["vx_noise"] = 0.05                    # a randomised run's ranges are part of its identity
+    assert config_hash(on2) != config_hash(on)
+
+
+@pytest.mark.parametrize("key,value,needle", [
+    ("vx_noise", -0.1, "randomization.vx_noise"),
+    ("vx_dropout_probability", 1.5, "randomization.vx_dropout_probability"),
+    ("density_min", 2500.0, "randomization.density_min <= randomization.density_max"),
+    ("tyre_friction_max", 0.5, "randomization.tyre_friction_min <= randomization.tyre_friction_max"),
+    ("d_attack_max", 0.05, "paper.episode.d_attack_min <= randomization.d_attack_max"),
+    ("enabled", 2, "randomization.enabled"),
+])
+def test_bad_values_are_refused_naming_the_key(cfg, key, value, needle):
+    bad = copy.deepcopy(cfg)
+    bad["randomization"][key] = value
+    with pytest.raises(ConfigError, match=needle.replace(".", r"\.")):
+        validate(bad)
+
+
+def test_draws_cover_the_ranges_and_only_them(cfg):
+    rr = RandomizationRanges.from_config(cfg)
+    r = cfg["randomization"]
+    rng = np.random.default_rng(0)
+    cs = [draw(rng, rr) for _ in range(2000)]
+    chunk = cfg["sim"]["timestep"] * cfg["sim"]["fee_every"]          # 0.02 s
+    for name, lo, hi in (("slope_error_deg", -r["slope_error_max_deg"], r["slope_error_max_deg"]),
+                         ("heading_deg", -r["heading_max_deg"], r["heading_max_deg"]),
+                         ("lateral_offset", -r["lateral_offset_max"], r["lateral_offset_max"]),
+                         ("tyre_friction", r["tyre_friction_min"], r["tyre_friction_max"]),
+                         ("d_attack", cfg["paper"]["episode"]["d_attack_min"], r["d_attack_max"]),
+                         ("attack_speed_fraction", r["attack_speed_min_fraction"], 1.0)):
+        v = np.array([getattr(c, name) for c in cs])
+        assert v.min() >= lo and v.max() <= hi, name
+        # uniform: 2000 draws come within 1 % of the width of both ends, the mean near the middle
+        assert v.min() < lo + 0.01 * (hi - lo) and v.max() > hi - 0.01 * (hi - lo), name
+        assert abs(v.mean() - 0.5 * (lo + hi)) < 0.03 * (hi - lo), name
+    # delays: every multiple of 20 ms from 0 to 100 ms, each about 1/6 of the draws
+    for name in ("drive_delay_s", "hydraulic_delay_s"):
+        k = np.array([round(getattr(c, name) / chunk) for c in cs])
+        assert np.allclose([getattr(c, name) for c in cs], k * chunk)
+        counts = np.bincount(k, minlength=6)
+        assert len(counts) == 6 and all(abs(n / 2000 - 1 / 6) < 0.03 for n in counts)
+    assert {c.vx_delay_steps for c in cs} == set(range(r["vx_delay_steps_max"] + 1))
+    # the soil ranges: the section's, wider than the paper's gravel
+    s = cs[0].soil
+    assert s.density == (r["density_min"], r["density_max"])
+    assert s.phi == pytest.approx((math.radians(r["phi_min_deg"]), math.radians(r["phi_max_deg"])))
+    assert s.rocks[1] == r["rocks_max"] and s.cohesion[1] == r["cohesion_max"]
+    assert s.density[0] < cfg["pile"]["density_min"] and s.density[1] > cfg["pile"]["density_max"]
+
+
+def test_delay_chunks_refuses_what_the_simulator_cannot_do():
+    assert delay_chunks(0.0, 0.02, 5) == 0 and delay_chunks(0.06, 0.02, 5) == 3 and delay_chunks(0.1, 0.02, 5) == 5
+    for bad in (0.03, 0.12, -0.02):
+        with pytest.raises(ValueError, match="multiple of the 0.02 s chunk"):
+            delay_chunks(bad, 0.02, 5)
+
+
+def test_nominal_sensors_pass_through_and_draw_nothing():
+    rng = np.random.default_rng(3)
+    before = rng.bit_generator.state
+    s = ObservationCorruptor(NOMINAL, rng)
+    for k in range(50):
+        assert s.observe(0.01 * k, 0.3) == (0.01 * k, 0.3)
+    assert rng.bit_generator.state == before
+
+
+def test_speed_noise_spread_delay_and_slope_error():
+    rng = np.random.default_rng(1)
+    c = Conditions(vx_noise=0.025, vx_delay_steps=1, slope_error_deg=-7.0, slope_noise_deg=0.5)
+    s = ObservationCorruptor(c, rng)
+    true_v = np.sin(np.arange(8000) * 0.05) * 0.3
+    out = np.array([s.observe(v, math.radians(20.0)) for v in true_v])
+    err = out[1:, 0] - true_v[:-1]                       # one step late, then noisy
+    assert abs(err.mean()) < 0.002 and err.std() == pytest.approx(0.025, rel=0.05)
+    a = np.degrees(out[:, 1])
+    assert a.mean() == pytest.approx(13.0, abs=0.03) and a.std() == pytest.approx(0.5, rel=0.05)
+    s0 = ObservationCorruptor(Conditions(vx_delay_steps=2), np.random.default_rng(0))
+    seen = [s0.observe(v, 0.0)[0] for v in (1.0, 2.0, 3.0, 4.0)]
+    assert seen == [1.0, 1.0, 1.0, 2.0]                  # the oldest kept sample until the delay line is full
+
+
+def test_dropouts_hold_the_last_value_for_bounded_runs():
+    p, m = 0.3, 3
+    s = ObservationCorruptor(Conditions(vx_dropout_probability=p, vx_dropout_max_steps=m), np.random.default_rng(2))
+    vals = np.arange(1, 20001, dtype=float)              # every true value distinct: a repeat is a hold
+    out = np.array([s.observe(v, 0.0)[0] for v in vals])
+    held = out[1:] == out[:-1]
+    runs, n = [], 0
+    for h in held:
+        if h:
+            n += 1
+        elif n:
+            runs.append(n)
+            n = 0
+    assert max(runs) == m
+    # hold probability: a step holds with p unless m holds just happened. Stationary share of held steps for a
+    # run-length cap m: sum_{k=1..m} p^k / sum_{k=0..m} p^k (a Markov chain on the run length, solved by hand)
+    share = sum(p ** k for k in range(1, m + 1)) / sum(p ** k for k in range(0, m + 1))
+    assert held.mean() == pytest.approx(share, abs=0.01)
+    # a held value is always a value actually seen before (never invented)
+    assert set(out) <= set(vals)
