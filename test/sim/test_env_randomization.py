@@ -146,3 +146,28 @@ def test_bad_conditions_are_refused(cfg):
         env.reset(seed=0, options={"conditions": {"heading_deg": 3}})
     with pytest.raises(ValueError, match="multiple of the 0.02 s chunk"):
         env.reset(seed=0, options={"conditions": Conditions(drive_delay_s=0.03)})
+
+
+def test_stress_cases_in_the_evaluation(cfg):
+    """`lhd eval --stress placement`: every episode at a corner of heading +-3 deg and lip +-5 cm,
+    all four corners used, with the sensors' errors and 100 ms dead time on both channels."""
+    from lhd_loading_ros.learning.evaluate import evaluate
+    from lhd_loading_ros.task.randomization import stress_conditions
+
+    env = LhdLoadingEnv("rld", cfg)
+    seen = []
+
+    def policy(obs):
+        if env.steps == 0:
+            seen.append(env.conditions)
+        return np.array([1.0, 1.0, 1.0])       # drive, lift and curl at full speed
+
+    res = evaluate(env, policy, 32, 5, cfg["task"]["bucket_capacity"], breakdown=False, stress="placement")
+    assert res["episodes"] == 32 and len(seen) == 32
+    assert {(c.heading_deg, c.lateral_offset) for c in seen} == {(3.0, 0.05), (-3.0, 0.05), (3.0, -0.05), (-3.0, -0.05)}
+    assert all(c.drive_delay_s == c.hydraulic_delay_s == 0.1 for c in seen)
+    assert all(c.vx_noise == cfg["randomization"]["vx_noise"] and c.slope_error_deg == 0.0 for c in seen)
+    assert stress_conditions("sensors", 0, cfg).drive_delay_s == 0.0
+    assert stress_conditions("delay", 0, cfg).vx_noise == 0.0
+    with pytest.raises(ValueError, match="unknown stress case 'wind'; expected one of placement, sensors, delay"):
+        stress_conditions("wind", 0, cfg)

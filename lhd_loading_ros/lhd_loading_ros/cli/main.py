@@ -122,9 +122,9 @@ def _eval(args) -> int:
         return 1
     deploy = args.deploy_filter
     env = LhdLoadingEnv(pol.variant, cfg, deploy_filter=deploy, randomize=args.randomize or None)
-    res = evaluate(env, pol.actor, args.episodes, args.seed, cfg["task"]["bucket_capacity"])
+    res = evaluate(env, pol.actor, args.episodes, args.seed, cfg["task"]["bucket_capacity"], stress=args.stress)
     res.update({"policy": str(args.policy), "variant": pol.variant, "seed": args.seed, "deploy_filter": deploy,
-                "randomize": env.randomize})
+                "randomize": env.randomize, "stress": args.stress})
     if args.json:
         print(json.dumps(res))
     else:
@@ -137,7 +137,7 @@ def format_eval(res: dict) -> str:
     def row(name, r):
         return (f"{name:>16} {r['episodes']:>8} {r['success_rate']:>8.2f} {r['asl']:>5.2f} {r['aml']:>7.1f} "
                 f"{r['aff']:>5.2f} {r['ar']:>8.1f} {r['elapsed_s']:>6.2f} {r['front_drift_pct']:>7.1f} {r['rear_drift_pct']:>6.1f}")
-    dr = ", domain randomisation" if res.get("randomize") else ""
+    dr = (", domain randomisation" if res.get("randomize") else "") + (f", stress {res['stress']}" if res.get("stress") else "")
     lines = [f"policy {res['policy']} ({res['variant'].upper()}), evaluation seed {res['seed']}{dr}", head, row("all", res)]
     lines += [row(f"{k} deg", v) for k, v in res.get("by_slope", {}).items()]
     lines += [row(k, v) for k, v in res.get("by_material", {}).items()]
@@ -242,6 +242,8 @@ def _mjcf(args) -> int:
 
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    from lhd_loading_ros.task.randomization import STRESS_CASES   # names only (numpy, no simulator)
+
     ap = argparse.ArgumentParser(prog="lhd", description="LHD loading: simulator, training and ROS tools")
     sub = ap.add_subparsers(dest="cmd", required=True)
     for name, hlp in (("demo", "the main job: sim + policy nodes load piles of 15-30 deg, results table"),
@@ -295,6 +297,9 @@ def main(argv=None) -> int:
     p_eval.add_argument("--episodes", type=int, default=120)
     p_eval.add_argument("--seed", type=int, default=2_000_000, help="evaluation seed (training evaluates on 1,000,000)")
     p_eval.add_argument("--deploy-filter", action="store_true", help="RLC: apply the deployment filter, as on the machine")
+    p_eval.add_argument("--stress", choices=list(STRESS_CASES), default=None,
+                        help="actor: every episode under a named stress case (placement: heading +-3 deg, lip +-5 cm "
+                             "off axis, camera noise/dropouts/delay, 100 ms actuator dead time; sensors; delay)")
     p_eval.add_argument("--randomize", action="store_true",
                         help="actor: every episode under drawn conditions (config section randomization): how the "
                              "actor fares when the machine differs from the simulator")

@@ -14,6 +14,7 @@ from typing import Callable
 import numpy as np
 
 from lhd_loading_ros.task.metrics import EpisodeResult, aggregate
+from lhd_loading_ros.task.randomization import stress_conditions
 
 EVAL_SLOPES = (15.0, 20.0, 25.0, 30.0)
 EVAL_MATERIALS = ("homogeneous", "nonhomogeneous")
@@ -33,15 +34,18 @@ def run_policy_episode(env, policy: Callable[[np.ndarray], np.ndarray], seed: in
 
 
 def evaluate(env, policy: Callable[[np.ndarray], np.ndarray], episodes: int, seed: int,
-             bucket_capacity: float, breakdown: bool = True) -> dict:
+             bucket_capacity: float, breakdown: bool = True, stress: str | None = None) -> dict:
     """Run `episodes` stratified episodes; return the aggregate metrics (see metrics.aggregate),
-    plus ``by_slope`` / ``by_material`` breakdowns when asked, and ``wall_s``."""
+    plus ``by_slope`` / ``by_material`` breakdowns when asked, and ``wall_s``. stress: a named
+    case of task.randomization.stress_conditions applied to every episode."""
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
     t0 = time.perf_counter()
     results = []
     for i in range(episodes):
         s, opts = episode_conditions(i, seed)
+        if stress is not None:
+            opts["conditions"] = stress_conditions(stress, i, env.cfg)
         results.append(run_policy_episode(env, policy, s, opts))
     out = aggregate(results, bucket_capacity)
     if breakdown:

@@ -154,3 +154,32 @@ class ObservationCorruptor:
         if c.slope_noise_deg > 0.0:
             a += math.radians(float(rng.normal(0.0, c.slope_noise_deg)))
         return vx, a
+
+
+def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
+    """The conditions of evaluation episode i under a named stress case (`lhd eval --stress`):
+    fixed departures at the corners of what issue 14 asks an actor to survive, not draws.
+
+    placement  the machine placed by hand, heading +-3 deg and lip +-5 cm off the pile's axis
+               (signs alternate over the episodes: (i // 8) % 2 and (i // 16) % 2, so each sign pair
+               meets every slope and material), with the camera's speed noise, dropouts and a
+               one-step delay (the section's values) and 100 ms actuator dead time on both channels
+    sensors    only the camera's noise, dropouts and delay
+    delay      only 100 ms actuator dead time on both channels
+    """
+    r = cfg["randomization"]
+    sensors = dict(vx_noise=r["vx_noise"], vx_dropout_probability=r["vx_dropout_probability"],
+                   vx_dropout_max_steps=int(r["vx_dropout_max_steps"]), vx_delay_steps=int(r["vx_delay_steps_max"]),
+                   slope_noise_deg=r["slope_noise_deg"])
+    delay = dict(drive_delay_s=0.1, hydraulic_delay_s=0.1)
+    if name == "placement":
+        return Conditions(heading_deg=3.0 if (i // 8) % 2 == 0 else -3.0,
+                          lateral_offset=0.05 if (i // 16) % 2 == 0 else -0.05, **sensors, **delay)
+    if name == "sensors":
+        return Conditions(**sensors)
+    if name == "delay":
+        return Conditions(**delay)
+    raise ValueError(f"unknown stress case {name!r}; expected one of {', '.join(STRESS_CASES)}")
+
+
+STRESS_CASES = ("placement", "sensors", "delay")
