@@ -315,7 +315,12 @@ def test_ship_picks_a_seed_and_writes_the_model_card(cfg, tmp_path):
     assert "| all | 4 |" in card and "training_curves.png" in card and "| seed_1 |" in card
     assert "the median of 2 seeds" in card and card.count("| shipped |") == 1
     assert (out / "training_curves.png").stat().st_size > 10_000
-    assert json.loads((out / "evaluation.json").read_text())["episodes"] == 4
+    ev = json.loads((out / "evaluation.json").read_text())
+    assert ev["episodes"] == 4
+    # the card also shows the actor under domain randomisation and at the placement corners
+    assert ev["randomized"]["episodes"] == ev["stress_placement"]["episodes"] == 4
+    assert "| randomised |" in card and "| placement corners |" in card
+    assert "Trained without domain randomisation" in card
 
 
 def test_ship_selection_median_and_best():

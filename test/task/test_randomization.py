@@ -26,6 +26,13 @@ def test_the_shipped_section_is_off_and_a_disabled_section_leaves_the_hash_alone
     on = copy.deepcopy(cfg)
     on["randomization"]["enabled"] = 1
     assert config_hash(on) != config_hash(cfg)
+    # an actor trained with this section switched on may run on this config (same observation and filters)
+    from lhd_loading_ros.task.config import hash_matches
+    assert hash_matches(config_hash(on), cfg) and hash_matches(config_hash(cfg), cfg)
+    assert not hash_matches("0123456789abcdef", cfg) and not hash_matches(None, cfg)
+    other = copy.deepcopy(cfg)
+    other["paper"]["reward"]["R_zone"] = 1000.0
+    assert not hash_matches(config_hash(other), cfg)
     on2 = copy.deepcopy(on)
     on2["randomization"]["vx_noise"] = 0.05                    # a randomised run's ranges are part of its identity
     assert config_hash(on2) != config_hash(on)

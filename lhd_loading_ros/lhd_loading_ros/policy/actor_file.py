@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lhd_loading_ros.task.config import config_hash
+from lhd_loading_ros.task.config import hash_matches
 
 FORMAT = "lhd-actor/1"
 ACTOR_FILE = "actor.npz"
@@ -96,7 +96,7 @@ class LoadedPolicy:
             return float(rng[0]), float(rng[1]), "policy card (trained_ranges.slope_deg)"
         ep = cfg["paper"]["episode"]
         lo, hi = float(ep["alpha_min_deg"]), float(ep["alpha_max_deg"])
-        if self.meta.get("config_hash") == config_hash(cfg):
+        if hash_matches(self.meta.get("config_hash"), cfg):
             return lo, hi, "training config (alpha_min_deg/alpha_max_deg; config hash matches the card)"
         return lo, hi, ("this node's config (alpha_min_deg/alpha_max_deg): the card states no trained range "
                         "and was trained with another config")

@@ -290,3 +290,14 @@ def config_hash(cfg: dict) -> str:
     if int(cfg.get("randomization", {}).get("enabled", 0)) == 0:
         cfg = {k: v for k, v in cfg.items() if k != "randomization"}
     return hashlib.sha256(json.dumps(cfg, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def hash_matches(h: str | None, cfg: dict) -> bool:
+    """Whether an actor card's config hash `h` names this config: trained on it as it is, or on it
+    with its domain randomisation switched on (`lhd train --randomize` with this `randomization`
+    section). Randomisation changes what the actor was trained on, not what it sees or commands:
+    the observation, the normalisers and the filters are the same, so the nodes may run it."""
+    if not h:
+        return False
+    on = {**cfg, "randomization": {**cfg.get("randomization", {}), "enabled": 1}}
+    return h == config_hash(cfg) or ("randomization" in cfg and h == config_hash(on))
