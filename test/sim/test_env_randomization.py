@@ -169,5 +169,7 @@ def test_stress_cases_in_the_evaluation(cfg):
     assert all(c.vx_noise == cfg["randomization"]["vx_noise"] and c.slope_error_deg == 0.0 for c in seen)
     assert stress_conditions("sensors", 0, cfg).drive_delay_s == 0.0
     assert stress_conditions("delay", 0, cfg).vx_noise == 0.0
-    with pytest.raises(ValueError, match="unknown stress case 'wind'; expected one of placement, sensors, delay"):
+    assert stress_conditions("light", 0, cfg).soil.density == (1500.0, 1600.0)
+    assert stress_conditions("dense", 0, cfg).soil.density == (2100.0, 2200.0)
+    with pytest.raises(ValueError, match="unknown stress case 'wind'; expected one of placement, sensors, delay, light"):
         stress_conditions("wind", 0, cfg)

@@ -299,7 +299,8 @@ def main(argv=None) -> int:
     p_eval.add_argument("--deploy-filter", action="store_true", help="RLC: apply the deployment filter, as on the machine")
     p_eval.add_argument("--stress", choices=list(STRESS_CASES), default=None,
                         help="actor: every episode under a named stress case (placement: heading +-3 deg, lip +-5 cm "
-                             "off axis, camera noise/dropouts/delay, 100 ms actuator dead time; sensors; delay)")
+                             "off axis, camera noise/dropouts/delay, 100 ms actuator dead time; sensors; delay; light / dense gravel: "
+                             "the density range's ends)")
     p_eval.add_argument("--randomize", action="store_true",
                         help="actor: every episode under drawn conditions (config section randomization): how the "
                              "actor fares when the machine differs from the simulator")

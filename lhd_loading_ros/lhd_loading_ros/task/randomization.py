@@ -166,6 +166,9 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
                one-step delay (the section's values) and 100 ms actuator dead time on both channels
     sensors    only the camera's noise, dropouts and delay
     delay      only 100 ms actuator dead time on both channels
+    light      gravel at the light end of the section's density range (its lowest 100 kg/m^3:
+               loose, dry), the pile's other ranges as configured
+    dense      gravel at the dense end (its highest 100 kg/m^3: dense, moist)
     """
     r = cfg["randomization"]
     sensors = dict(vx_noise=r["vx_noise"], vx_dropout_probability=r["vx_dropout_probability"],
@@ -179,7 +182,11 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
         return Conditions(**sensors)
     if name == "delay":
         return Conditions(**delay)
+    if name in ("light", "dense"):
+        lo, hi = r["density_min"], r["density_max"]
+        band = (lo, min(hi, lo + 100.0)) if name == "light" else (max(lo, hi - 100.0), hi)
+        return Conditions(soil=replace(SoilRanges.from_config(cfg), density=band))
     raise ValueError(f"unknown stress case {name!r}; expected one of {', '.join(STRESS_CASES)}")
 
 
-STRESS_CASES = ("placement", "sensors", "delay")
+STRESS_CASES = ("placement", "sensors", "delay", "light", "dense")
