@@ -45,8 +45,8 @@ def _record(env: LhdLoadingEnv, actions: np.ndarray, seed: int) -> list:
     chunks = []
     orig_place = sim.place_machine
 
-    def rec_place(d_attack):
-        orig_place(d_attack)
+    def rec_place(*args):
+        orig_place(*args)
         chunks.append(("place", d.qpos.copy(), d.qvel.copy(), d.act.copy()))
 
     def rec_physics(n):
