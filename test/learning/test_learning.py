@@ -321,6 +321,20 @@ def test_ship_picks_a_seed_and_writes_the_model_card(cfg, tmp_path):
     assert ev["randomized"]["episodes"] == ev["stress_placement"]["episodes"] == 4
     assert "| randomised |" in card and "| placement corners |" in card
     assert "Trained without domain randomisation" in card
+    # lhd report --held-out: every seed's final actor under each condition, the same figures as an
+    # evaluation of that actor by hand (RLC with the deployment filter, as on the machine)
+    from lhd_loading_ros.learning.evaluate import evaluate
+    from lhd_loading_ros.learning.report import held_out
+    from lhd_sim_node.env import LhdLoadingEnv
+
+    runs = [tmp_path / "runs" / "seed_0", tmp_path / "runs" / "seed_1"]
+    h = held_out(runs, ("nominal", "delay"), 4, str(cfg_path))
+    by_hand = evaluate(LhdLoadingEnv("rlc", cfg, deploy_filter=True), load_policy(runs[1] / "final").actor, 4,
+                       2_000_000, cfg["task"]["bucket_capacity"], breakdown=False, stress="delay")
+    assert h["conditions"]["delay"]["aml"]["values"][1] == pytest.approx(by_hand["aml"])
+    assert len(h["conditions"]["nominal"]["success_rate"]["values"]) == 2
+    with pytest.raises(ValueError, match="unknown condition 'windy'"):
+        held_out(runs, ("windy",), 4, str(cfg_path))
 
 
 def test_ship_selection_median_and_best():

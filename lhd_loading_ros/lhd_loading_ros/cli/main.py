@@ -193,6 +193,13 @@ def _report(args) -> int:
         groups[p.name if len(dirs) > 1 else str(p)] = dirs
     try:
         summaries = {k: summarize(v) for k, v in groups.items()}
+        if args.held_out:
+            from lhd_loading_ros.learning.report import held_out
+
+            conds = tuple(c.strip() for c in args.held_out.split(",") if c.strip())
+            for k, v in groups.items():
+                summaries[k]["held_out"] = held_out(v, conds, args.episodes, args.config,
+                                                    log=None if args.json else print)
     except (FileNotFoundError, ValueError) as exc:
         print(f"lhd report: {exc}", file=sys.stderr)
         return 1
@@ -201,8 +208,12 @@ def _report(args) -> int:
     if args.json:
         print(json.dumps(summaries))
     else:
+        from lhd_loading_ros.learning.report import format_held_out
+
         for k, s in summaries.items():
             print(format_summary(k, s))
+            if "held_out" in s:
+                print(format_held_out(k, s["held_out"]))
         if args.plot:
             print(f"training curves: {args.plot}")
     return 0
@@ -326,6 +337,11 @@ def main(argv=None) -> int:
     p_report.add_argument("runs", nargs="+", help="run directories, or parents holding seed_*/")
     p_report.add_argument("--plot", help="write the training curves (PNG) here")
     p_report.add_argument("--json", action="store_true")
+    p_report.add_argument("--held-out", metavar="CONDITIONS",
+                          help="also evaluate each run's final actor on the held-out piles (seed 2,000,000) under these "
+                               "comma-separated conditions: nominal, randomized, placement, sensors, delay, light, dense")
+    p_report.add_argument("--episodes", type=int, default=120, help="--held-out: episodes per actor and condition")
+    p_report.add_argument("--config", default=None, help="--held-out: parameter file (default config/lhd_params.yaml)")
     p_ship = sub.add_parser("ship", help="pick a variant's median seed (final actors, held-out evaluation), "
                                         "write policies/<variant>")
     p_ship.add_argument("--variant", choices=["rld", "rlc"], required=True)

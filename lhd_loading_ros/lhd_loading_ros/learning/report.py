@@ -61,6 +61,64 @@ def summarize(run_dirs: list) -> dict:
     return out
 
 
+HELD_OUT_METRICS = ("success_rate", "asl", "aml", "elapsed_s", "front_drift_pct", "rear_drift_pct")
+
+
+def _stats(vals) -> dict:
+    vals = np.asarray(vals, dtype=float)
+    return {"mean": float(vals.mean()), "sd": float(vals.std(ddof=1)) if len(vals) > 1 else 0.0,
+            "iqm": iqm(vals), "iqm_ci95": list(bootstrap_ci(vals)), "values": vals.tolist()}
+
+
+def held_out(run_dirs: list, conditions=("nominal",), episodes: int = 120, config=None, seed: int = 2_000_000,
+             log=None) -> dict:
+    """Each run's final actor (`final/`, the end of training: no checkpoint or seed picking) on the
+    held-out evaluation piles (`seed`, stratified as `lhd eval`), under each condition: "nominal",
+    "randomized" (the config's domain randomisation drawn per episode) or a stress case of
+    task.randomization.stress_conditions. RLC runs with the deployment filter, as on the machine.
+    Returns {condition: {metric: mean, sd, iqm, iqm_ci95, values}} and the runs."""
+    from lhd_sim_node.env import LhdLoadingEnv   # the simulator only where it runs
+
+    from lhd_loading_ros.learning.evaluate import evaluate
+    from lhd_loading_ros.policy.actor_file import load_policy
+    from lhd_loading_ros.task.config import load_config
+    from lhd_loading_ros.task.randomization import STRESS_CASES
+
+    for c in conditions:
+        if c not in ("nominal", "randomized") + STRESS_CASES:
+            raise ValueError(f"unknown condition {c!r}; expected nominal, randomized or one of {', '.join(STRESS_CASES)}")
+    cfg = load_config(config)
+    runs = [Path(d) for d in run_dirs]
+    missing = [str(d) for d in runs if not (d / "final" / "policy.json").is_file()]
+    if missing:
+        raise FileNotFoundError(f"no final actor (final/policy.json) in {', '.join(missing)}: training not finished")
+    per = {c: {m: [] for m in HELD_OUT_METRICS} for c in conditions}
+    for d in runs:
+        pol = load_policy(d / "final")
+        deploy = pol.variant == "rlc"
+        for c in conditions:
+            env = LhdLoadingEnv(pol.variant, cfg, deploy_filter=deploy, randomize=(c == "randomized"))
+            ev = evaluate(env, pol.actor, episodes, seed, cfg["task"]["bucket_capacity"], breakdown=False,
+                          stress=None if c in ("nominal", "randomized") else c)
+            for m in HELD_OUT_METRICS:
+                per[c][m].append(ev[m])
+            if log:
+                log(f"{d}: {c}: success {ev['success_rate']:.3f}, ASL {ev['asl']:.2f}, AML {ev['aml']:.1f} kg")
+    return {"runs": [str(d) for d in runs], "episodes": episodes, "seed": seed,
+            "conditions": {c: {m: _stats(v) for m, v in per[c].items()} for c in conditions}}
+
+
+def format_held_out(label: str, h: dict) -> str:
+    lines = [f"{label}: {len(h['runs'])} final actors, held-out seed {h['seed']:,}, {h['episodes']} episodes each"]
+    for c, ms in h["conditions"].items():
+        lines.append(f"  {c}:")
+        for m, v in ms.items():
+            vals = ", ".join(f"{x:.3g}" for x in v["values"])
+            lines.append(f"    {m:>16}: {v['mean']:9.3f} +- {v['sd']:7.3f}   IQM {v['iqm']:9.3f} "
+                         f"[{v['iqm_ci95'][0]:.3f}, {v['iqm_ci95'][1]:.3f}]   ({vals})")
+    return "\n".join(lines)
+
+
 def plot_curves(groups: dict[str, list], path) -> Path:
     """groups: label -> run dirs. One panel per metric (AR, AML, ASL): mean across seeds with a
     +-1 sd band, on the evaluation steps the runs share."""
