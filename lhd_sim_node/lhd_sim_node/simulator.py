@@ -247,37 +247,23 @@ class LhdSimulator:
         ctrl[self.act_bucket] = u[2]
 
     def step(self, u: np.ndarray) -> None:
-        """One control period with command u (rad/s). With actuator delays (conditions), the
+        """One control period with command u (rad/s). With actuator dead time (conditions), the
         first chunks of the period still run the previous period's command on that channel."""
+        u = np.array(u, dtype=float)
         dd, dh = self._delay_chunks
-        if dd or dh:
-            self._step_delayed(np.asarray(u, dtype=float), dd, dh)
-            return
-        self.set_command(u)
-        self._anti_windup()
-        self._drift_marks.clear()
-        self._drift_from = self._drift_mark()
-        for _ in range(self.n_phys // self.fee_every):
-            self._physics(self.fee_every)
-        mujoco.mj_kinematics(self.model, self.data)
-        if self.use_kernel:
-            self._sync_from_kernel()
-        self._u_prev = np.array(u, dtype=float)
-
-    def _step_delayed(self, u: np.ndarray, dd: int, dh: int) -> None:
         prev = self._u_prev
         self._drift_marks.clear()
         self._drift_from = self._drift_mark()
         for k in range(self.n_phys // self.fee_every):
-            uk = np.array([prev[0] if k < dd else u[0], prev[1] if k < dh else u[1], prev[2] if k < dh else u[2]])
-            if k == 0 or k == dd or k == dh:       # the command changed: set it and pull the set-points back
-                self.set_command(uk)
+            if k == 0 or k == dd or k == dh:       # the command changes: set it, pull the set-points back
+                self.set_command(np.array([prev[0] if k < dd else u[0], prev[1] if k < dh else u[1],
+                                           prev[2] if k < dh else u[2]]))
                 self._anti_windup()
             self._physics(self.fee_every)
         mujoco.mj_kinematics(self.model, self.data)
         if self.use_kernel:
             self._sync_from_kernel()
-        self._u_prev = u.copy()
+        self._u_prev = u
 
     def advance(self, u: np.ndarray) -> None:
         """One FEE period (``fee_every`` physics steps: 20 ms at the shipped config) with command
