@@ -106,6 +106,10 @@ def _eval(args) -> int:
     if args.controller == "tampier":
         from lhd_loading_ros.learning.baselines import run_cli
 
+        if args.randomize or args.stress or args.deploy_filter:
+            print("lhd eval: --randomize, --stress and --deploy-filter apply to --controller actor only",
+                  file=sys.stderr)
+            return 2
         return run_cli(args.episodes, args.seed, args.slopes, args.material, args.time_limit, args.config,
                        args.tampier_config, args.json)
     if args.episodes < 1:
