@@ -173,3 +173,11 @@ def test_stress_cases_in_the_evaluation(cfg):
     assert stress_conditions("dense", 0, cfg).soil.density == (2100.0, 2200.0)
     with pytest.raises(ValueError, match="unknown stress case 'wind'; expected one of placement, sensors, delay, light"):
         stress_conditions("wind", 0, cfg)
+
+
+def test_lhd_eval_refuses_actor_only_options_for_the_heuristic(capsys):
+    from lhd_loading_ros.cli.main import main
+
+    for opt in (["--randomize"], ["--stress", "delay"], ["--deploy-filter"]):
+        assert main(["eval", "--controller", "tampier", *opt]) == 2
+        assert "apply to --controller actor only" in capsys.readouterr().err
