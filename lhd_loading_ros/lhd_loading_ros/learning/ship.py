@@ -100,12 +100,13 @@ def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=prin
                                              stress="placement"))
     (out / "evaluation.json").write_text(json.dumps(ev, indent=1) + "\n")
     m = pol.meta
+    shown = out.as_posix() if not out.is_absolute() else str(out)
     trained_dr = hash_matches(m.get("config_hash"), cfg) and m.get("config_hash") != config_hash(cfg)
     dr_note = ("Trained with domain randomisation (`lhd train --randomize`, the config's `randomization` section)."
                if trained_dr else "Trained without domain randomisation (the paper's protocol).")
     r, st = ev["randomized"], ev["stress_placement"]
     robust = f"""
-## When the machine differs (`lhd eval --policy policies/{variant} --randomize` / `--stress placement`{' --deploy-filter' if deploy else ''})
+## When the machine differs (`lhd eval --policy {shown} --randomize` / `--stress placement`{' --deploy-filter' if deploy else ''})
 
 {dr_note} The same held-out piles under drawn conditions (slope-estimate error up to +-15 deg, camera
 noise, dropouts and delay, 0-100 ms actuator dead time, gravel of 1,500-2,200 kg/m^3, tyre friction,
@@ -126,14 +127,14 @@ dead time):
     fin = summary["metrics"]
     card = f"""# {variant.upper()} loading policy ({'hybrid: continuous wheels, ternary arm' if variant == 'rld' else 'continuous actions, deployment filter on the machine'})
 
-Actor exported from `{best_dir}/{sub}` (seed {m['seed']}, {why}), DDPG with the paper's protocol (docs/training.md). Files: `actor.npz`
+Actor exported from `{best_dir}/{sub}` (seed {m['seed']}, {why}), DDPG with the paper's protocol{' and domain randomisation' if trained_dr else ''} (docs/training.md). Files: `actor.npz`
 (float32 weights), `policy.json` (architecture {m['architecture']['sizes']}, observation and action
 normalisation, filter thresholds, config hash `{m['config_hash']}`, training evaluation),
 `evaluation.json` (the table below), `training_curves.png`.
 
-Run it: `lhd up sim --policy policies/{variant}` or `ros2 run lhd_loading_ros policy_node --ros-args -p policy_dir:=...`.
+Run it: `lhd up sim --policy {shown}` or `ros2 run lhd_loading_ros policy_node --ros-args -p policy_dir:=...`.
 
-## Evaluation in simulation (`lhd eval --policy policies/{variant} --episodes {episodes}`, held-out seed {HELD_OUT_SEED:,})
+## Evaluation in simulation (`lhd eval --policy {shown} --episodes {episodes}`, held-out seed {HELD_OUT_SEED:,})
 
 {_table(ev)}
 
