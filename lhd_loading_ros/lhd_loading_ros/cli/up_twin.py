@@ -53,12 +53,14 @@ from lhd_loading_ros.cli.up_real import ENDED, default_params_file, format_prefl
 from lhd_loading_ros.cli.up_real import parser as real_parser
 from lhd_loading_ros.cli.up_real import check_args as real_check_args
 from lhd_loading_ros.cli.up_real import stack
+from lhd_loading_ros.task.zones import Zones
 
 DEFAULT_SLOPES = (15.0, 20.0, 25.0, 30.0)
 ARM_RETRY_S = 1.0          # s between /lhd/arm calls while the preflight refuses
 # before arming: odometry steady (the supervisor's input timeout is 0.5 s: a chain still starting
 # up, or starved, would end the attempt as lost_input at once)
 STEADY_S, STEADY_N, STEADY_GAP_S = 1.0, 5, 0.25
+ZONES_CAUGHT_UP_M = 0.08            # m: the stack's zones are the current pile's (Watch.zones_caught_up)
 EPISODE_SUBSCRIBERS = 5
 
 
@@ -273,8 +275,23 @@ class Watch:
         node.create_subscription(Float64MultiArray, "/lhd/twin/truth/zones",
                                  lambda m: setattr(self, "truth_zones", list(m.data)), LATCHED_QOS)
 
+    def zones_caught_up(self) -> bool:
+        """The stack's zones are those of the current pile: toe (x_obs_start), x_max and x_cutoff
+        within ZONES_CAUGHT_UP_M of the twin's truth (the stack's error is 2-4 cm; a previous pile's
+        differ by 0.1-1.4 m)."""
+        if self.zones is None or self.truth_zones is None:
+            return False
+        try:
+            z, t = Zones.from_list(self.zones), Zones.from_list(self.truth_zones)
+        except ValueError:
+            return False
+        return all(abs(a - b) <= ZONES_CAUGHT_UP_M for a, b in ((z.x_obs_start, t.x_obs_start), (z.x_max, t.x_max),
+                                                                  (z.x_cutoff, t.x_cutoff)))
+
     def odom_steady(self, t: float) -> bool:
-        recent = [a for a in self.odom_arrivals if a >= t - STEADY_S]
+        """STEADY_N odometry messages in the last STEADY_S s, none older than STEADY_GAP_S, all
+        after the current pile was made (the machine's new place, not the last attempt's end)."""
+        recent = [a for a in self.odom_arrivals if a >= max(t - STEADY_S, self.pile_t)]
         return len(recent) >= STEADY_N and t - recent[-1] <= STEADY_GAP_S
 
     def start_recording(self):
@@ -381,8 +398,12 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
             for k in range(total):
                 pile = w.piles
                 # the LiDAR has scanned the current pile (a scan stamped after the pile was made)
-                spin(60.0, lambda: w.slope_scan_t > w.pile_t and w.zones is not None,
-                     f"the LiDAR slope of pile {pile} (a scan after the pile was made)")
+                # and zones of this pile: arming on the last attempt's (the end-zone node re-estimates
+                # the pile while the machine is in it, and publishes only when they move) failed an
+                # attempt 7 ms after its start. The end-zone node republishes on a change of 2 cm, so
+                # "this pile's" is: within ZONES_CAUGHT_UP_M of the twin's truth for this pile
+                spin(60.0, lambda: w.slope_scan_t > w.pile_t and w.zones_caught_up(),
+                     f"the LiDAR slope and end zone of pile {pile} (a scan after the pile was made)")
                 # the camera -> ArUco chain delivers odometry steadily, and every node that acts on
                 # the attempt status (mux, controller, recorder, twin) has joined the graph
                 spin(60.0, lambda: w.odom_steady(now()), "steady odometry from the ArUco node (/lhd/odom: "
