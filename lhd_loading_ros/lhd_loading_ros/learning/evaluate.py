@@ -60,3 +60,24 @@ def evaluate(env, policy: Callable[[np.ndarray], np.ndarray], episodes: int, see
     }
     out["wall_s"] = time.perf_counter() - t0
     return out
+
+
+CONDITIONS = ("nominal", "randomized")   # and the stress cases of task.randomization
+
+
+def evaluate_under(condition: str, variant: str, actor, cfg: dict, episodes: int, seed: int,
+                   breakdown: bool = False) -> dict:
+    """`evaluate` of an actor under a named condition, as the policy node runs it (RLC with the
+    deployment filter): "nominal", "randomized" (the config's domain randomisation drawn per
+    episode) or a stress case of task.randomization.stress_conditions. Used by `lhd report
+    --held-out` and `lhd ship`."""
+    from lhd_sim_node.env import LhdLoadingEnv   # the simulator only where it runs
+
+    from lhd_loading_ros.task.randomization import STRESS_CASES
+
+    if condition not in CONDITIONS + STRESS_CASES:
+        raise ValueError(f"unknown condition {condition!r}; expected nominal, randomized or one of "
+                         f"{', '.join(STRESS_CASES)}")
+    env = LhdLoadingEnv(variant, cfg, deploy_filter=(variant == "rlc"), randomize=(condition == "randomized"))
+    return evaluate(env, actor, episodes, seed, cfg["task"]["bucket_capacity"], breakdown=breakdown,
+                    stress=None if condition in CONDITIONS else condition)

@@ -77,15 +77,13 @@ def held_out(run_dirs: list, conditions=("nominal",), episodes: int = 120, confi
     "randomized" (the config's domain randomisation drawn per episode) or a stress case of
     task.randomization.stress_conditions. RLC runs with the deployment filter, as on the machine.
     Returns {condition: {metric: mean, sd, iqm, iqm_ci95, values}} and the runs."""
-    from lhd_sim_node.env import LhdLoadingEnv   # the simulator only where it runs
-
-    from lhd_loading_ros.learning.evaluate import evaluate
+    from lhd_loading_ros.learning.evaluate import CONDITIONS, evaluate_under
     from lhd_loading_ros.policy.actor_file import load_policy
     from lhd_loading_ros.task.config import load_config
     from lhd_loading_ros.task.randomization import STRESS_CASES
 
     for c in conditions:
-        if c not in ("nominal", "randomized") + STRESS_CASES:
+        if c not in CONDITIONS + STRESS_CASES:
             raise ValueError(f"unknown condition {c!r}; expected nominal, randomized or one of {', '.join(STRESS_CASES)}")
     cfg = load_config(config)
     runs = [Path(d) for d in run_dirs]
@@ -95,11 +93,8 @@ def held_out(run_dirs: list, conditions=("nominal",), episodes: int = 120, confi
     per = {c: {m: [] for m in HELD_OUT_METRICS} for c in conditions}
     for d in runs:
         pol = load_policy(d / "final")
-        deploy = pol.variant == "rlc"
         for c in conditions:
-            env = LhdLoadingEnv(pol.variant, cfg, deploy_filter=deploy, randomize=(c == "randomized"))
-            ev = evaluate(env, pol.actor, episodes, seed, cfg["task"]["bucket_capacity"], breakdown=False,
-                          stress=None if c in ("nominal", "randomized") else c)
+            ev = evaluate_under(c, pol.variant, pol.actor, cfg, episodes, seed)
             for m in HELD_OUT_METRICS:
                 per[c][m].append(ev[m])
             if log:

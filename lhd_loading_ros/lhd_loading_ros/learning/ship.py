@@ -16,7 +16,7 @@ from pathlib import Path
 
 from lhd_loading_ros.task.config import config_hash, hash_matches, load_config
 from lhd_loading_ros.policy.actor_file import load_policy
-from lhd_loading_ros.learning.evaluate import evaluate
+from lhd_loading_ros.learning.evaluate import evaluate, evaluate_under
 from lhd_loading_ros.learning.report import plot_curves, summarize
 
 HELD_OUT_SEED = 2_000_000
@@ -93,11 +93,8 @@ def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=prin
     # what the machine will do differently (docs/training.md "Domain randomisation"): the same
     # held-out piles under drawn conditions and at the placement corners, as the policy node runs it
     deploy = variant == "rlc"
-    ev["randomized"] = _brief(evaluate(LhdLoadingEnv(variant, cfg, deploy_filter=deploy, randomize=True), pol.actor,
-                                       episodes, HELD_OUT_SEED, cfg["task"]["bucket_capacity"], breakdown=False))
-    ev["stress_placement"] = _brief(evaluate(LhdLoadingEnv(variant, cfg, deploy_filter=deploy), pol.actor, episodes,
-                                             HELD_OUT_SEED, cfg["task"]["bucket_capacity"], breakdown=False,
-                                             stress="placement"))
+    ev["randomized"] = _brief(evaluate_under("randomized", variant, pol.actor, cfg, episodes, HELD_OUT_SEED))
+    ev["stress_placement"] = _brief(evaluate_under("placement", variant, pol.actor, cfg, episodes, HELD_OUT_SEED))
     (out / "evaluation.json").write_text(json.dumps(ev, indent=1) + "\n")
     m = pol.meta
     shown = out.as_posix() if not out.is_absolute() else str(out)
