@@ -152,6 +152,7 @@ def test_zones_trajectory_and_clearing(feeder):
     # attempt 1: the base drives 0.25 m forward in 1 s; the trajectory grows
     t0 = time.monotonic()
     f.arm()
+    time.sleep(0.1)     # the trajectory's first point is the attack pose (not a race with the first move)
     for k in range(1, 26):
         f.base_x = -TIP_AHEAD + 0.01 * k
         time.sleep(0.04)

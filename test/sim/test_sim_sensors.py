@@ -95,6 +95,17 @@ def test_marker_is_where_the_pinhole_puts_it_and_decodes(sim):
     assert not cam.visible((pos[0] + 3.0, 0.0, pos[2]), quat)       # driven 3 m on: out of the image
 
 
+def test_the_configured_marker_height_is_the_simulated_machines(sim):
+    """The ArUco node's marker_height (config/real_machine.yaml) is where the twin's marker is
+    with the machine standing on the floor: rear axle height (the wheel radius, base_link's
+    z at rest) plus the marker's 0.213 m above it."""
+    aruco = MACHINE["aruco_pose_node"]["ros__parameters"]
+    cam = CameraModel.from_params(aruco)
+    z = cam.marker_pose(sim.data.qpos[:3], sim.data.qpos[3:7])[2, 3]
+    assert aruco["marker_height"] == pytest.approx(z, abs=0.005)
+    assert aruco["marker_height"] == pytest.approx(0.137 + 0.213, abs=0.005)
+
+
 def test_exposure_noise_and_dropped_frames():
     sec = {"camera_xyz": [-1.3, 0.0, 2.0]}
     pose = ((-1.3 + 0.10, 0.0, 0.137), IDENTITY)                    # marker right under the camera

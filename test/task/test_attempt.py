@@ -227,15 +227,63 @@ def test_arm_delay_then_running_then_success_in_the_end_zone(kin):
     assert r.step(1.0) == "running"
     r.base_x, (r.boom, r.bucket) = END_X, LIFT
     r.feed(r.t + 0.01)
+    assert r.sv.update(r.t) is False and r.sv.state == "running"     # in the end zone mid-period
+    r.feed(t_run + 1.1)                                              # the period's end: judged
     assert r.sv.update(r.t) is True and r.sv.state == "success"
     row = r.sv.attempt.row()
-    assert row.elapsed_s == pytest.approx(r.t - t_run) and row.elapsed_s == pytest.approx(1.01)
+    assert row.elapsed_s == pytest.approx(r.t - t_run) and row.elapsed_s == pytest.approx(1.1)
     assert row.phi_final_deg == pytest.approx(math.degrees(0.8))
     assert row.reason == "bucket tip reached the end zone"
     assert row.success is None and row.success_level is None and row.mass_kg is None      # until weighed
     v = r.sv.status_values(r.t)
     assert v["state"] == "success" and v["episode"] == "1" and v["loaded_mass"] == "nan"
     assert v["phi_final_deg"] == "45.84" and "success" not in v and v["bag"] == "bags/attempt_0001"
+
+
+def test_end_zone_is_judged_at_the_end_of_each_control_period_as_in_the_task(kin):
+    """The task (the environment the controllers were trained in) ends an episode when the tip
+    is in the end zone at the end of a 0.1 s step, and the state there is the final one: a tip
+    that enters at 0.23 s is judged at 0.3 s, with the pitch it has then (the bucket went on
+    curling). The restricted zone (a safety end) is judged at once, mid-period."""
+    r = Rig(kin, arm_delay=0.0).ready()
+    r.arm()
+    t0 = r.t
+    assert r.step(0.22) == "running"
+    r.base_x, (r.boom, r.bucket) = END_X, (LIFT[0], LIFT[1] - 0.05)     # pitch 0.75 rad
+    r.feed(t0 + 0.23)
+    r.sv.update(r.t)
+    assert r.sv.state == "running"
+    r.bucket = LIFT[1]                                                  # curled on to 0.8 rad
+    r.feed(t0 + 0.29)
+    r.sv.update(r.t)
+    assert r.sv.state == "running"
+    r.feed(t0 + 0.30)
+    r.sv.update(r.t)
+    assert r.sv.state == "success"
+    row = r.sv.attempt.row()
+    assert row.elapsed_s == pytest.approx(0.30) and row.phi_final_deg == pytest.approx(math.degrees(0.8))
+    # end_check_period 0: judged on the update the tip enters, with the pitch it has then
+    r = Rig(kin, arm_delay=0.0, end_check_period=0.0).ready()
+    r.arm()
+    t0 = r.t
+    r.step(0.22)
+    r.base_x, (r.boom, r.bucket) = END_X, (LIFT[0], LIFT[1] - 0.05)
+    r.feed(t0 + 0.23)
+    r.sv.update(r.t)
+    assert r.sv.state == "success"
+    row = r.sv.attempt.row()
+    assert row.elapsed_s == pytest.approx(0.23) and row.phi_final_deg == pytest.approx(math.degrees(0.75))
+    # the restricted zone mid-period: at once
+    r = Rig(kin, arm_delay=0.0).ready()
+    r.arm()
+    t0 = r.t
+    r.step(0.22)
+    r.base_x = -0.5
+    r.feed(t0 + 0.23)
+    r.sv.update(r.t)
+    assert r.sv.state == "failure" and r.sv.attempt.row().elapsed_s == pytest.approx(0.23)
+    with pytest.raises(ValueError, match="end_check_period = -0.1: expected seconds >= 0"):
+        settings(end_check_period=-0.1)
 
 
 def test_restricted_zone_is_a_failure_known_without_weighing(kin):
@@ -421,7 +469,7 @@ def test_load_cell_median_after_the_machine_stopped(kin):
     r.arm()
     r.base_x, (r.boom, r.bucket) = END_X, LIFT
     r.vel = 0.2                                    # still moving after the end
-    r.step(0.02)
+    r.step(0.1)                                    # the end zone is judged at the control period's end
     assert r.sv.state == "success"
     for k in range(25):                            # 0.5 s of readings while moving: not used
         r.sv.load_cell(40.0, r.t)

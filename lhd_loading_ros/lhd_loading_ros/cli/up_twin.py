@@ -550,10 +550,9 @@ def main(argv=None) -> int:
     ap.add_argument("--attempt-timeout", type=float, default=10.0, help="s (the paper: 10 s)")
     ap.add_argument("--reset-delay", type=float, default=2.5, help="s from an attempt's end to the twin's new pile "
                                                                    "(the supervisor weighs over 1 s once still)")
-    ap.add_argument("--camera-fps", type=float, default=15.0,
-                    help="the simulated camera's frame rate (default 15; 30 is the real camera's and the twin node's "
-                         "default, but with the whole stack on 2 cores the extra ArUco detections cost the other "
-                         "nodes their timing: docs/twin.md, run 10)")
+    ap.add_argument("--camera-fps", type=float, default=30.0,
+                    help="the simulated camera's frame rate (default 30, the real camera's and the twin node's; at 15 "
+                         "the v_x error doubles: docs/twin.md, runs 13-16)")
     ap.add_argument("--markers-hz", type=float, default=2.0, help="the twin's MarkerArray rate (0: none)")
     ap.add_argument("--twin-param", action="append", default=[], metavar="NAME=VALUE",
                     help="a parameter of the twin node (lhd_sim_node/twin_node.py), e.g. camera_dropout=0.05; "

@@ -34,7 +34,8 @@ from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import Bool
 
 from lhd_loading_ros.perception.aruco import (CameraModel, ImageEncodingError, MarkerDetector, MountingPrior,
-                                              KalmanVelocityEstimator, VelocityEstimator, dictionary, image_to_gray, level, opencv_problem)
+                                              KalmanVelocityEstimator, VelocityEstimator, dictionary, image_to_gray, level,
+                                              marker_centre_px, opencv_problem, position_on_plane)
 from lhd_loading_ros.perception.geometry import quaternion_xyzw, transform
 from lhd_loading_ros.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
@@ -46,6 +47,9 @@ POSE_VAR = 0.005 ** 2     # m^2, position variance of a fresh detection (about 5
 # docs/perception.md): the Kalman filter 0.025 m/s worst, the 0.3 s window 0.11 m/s (mostly its lag).
 # Not the filter's own P: its random-walk model (q = 1 m^2/s^3) says 0.11 m/s, 4x the measured error.
 SPEED_VAR = {"kalman": 0.025 ** 2, "window": 0.11 ** 2}
+# m: solvePnP's marker height may differ this much from marker_height before diagnostics warn (its
+# own error is about 2 cm on the twin's images: 1.6 cm bias, 0.6 cm sd, docs/perception.md)
+HEIGHT_TOLERANCE = 0.05
 
 
 def _dictionary_problem(name: str) -> str | None:
@@ -72,12 +76,15 @@ class ArucoPoseNode(Node):
             Param("marker_to_base_rpy", [0.0, 0.0, 0.0], "base_link roll, pitch, yaw in the marker frame (rad)",
                   length=3),
             Param("planar_motion", True, "keep position and heading only (the machine drives on a flat floor)"),
+            Param("marker_height", 0.35, "planar_motion: height of the marker's centre above the floor (m; the "
+                  "marker's position is where the camera ray through its centre meets that plane); 0: the "
+                  "position solvePnP gives", lo=0.0, hi=100.0, on_change=lambda v: setattr(self, "marker_height", v)),
             Param("velocity_filter", "kalman", "how v_x is estimated from x(t): kalman (constant-velocity Kalman "
                   "filter, no window lag) or window (least-squares slope over velocity_window)",
                   choices=("kalman", "window"), on_change=lambda v: self._set_filter(filter=v)),
             Param("velocity_accel_noise", 1.0, "kalman: spectral density of the machine's acceleration (m^2/s^3)",
                   lo=1e-4, hi=1e4, on_change=lambda v: self._set_filter(accel_noise=v)),
-            Param("velocity_position_noise", 0.001, "kalman: standard deviation of a detection's x (m)",
+            Param("velocity_position_noise", 0.0005, "kalman: standard deviation of a detection's x (m)",
                   lo=1e-5, hi=0.1, on_change=lambda v: self._set_filter(position_noise=v)),
             Param("velocity_window", 0.3, "window: v_x is the least-squares slope of x(t) over this window (s)",
                   lo=0.02, hi=10.0, on_change=lambda v: self._set_filter(window=v)),
@@ -102,6 +109,8 @@ class ArucoPoseNode(Node):
         self.vel = self._make_velocity()
         self.stale_timeout = p["stale_timeout"]
         self.planar = p["planar_motion"]
+        self.marker_height = p["marker_height"]
+        self.height_problem: str | None = None  # the marker seen far from marker_height
         self.frame_id, self.child_frame_id = p["frame_id"], p["child_frame_id"]
         self.cam: CameraModel | None = None
         self.info_problem: str | None = None    # why the last CameraInfo was rejected
@@ -192,6 +201,9 @@ class ArucoPoseNode(Node):
         T_pile_marker = self.T_pile_cam @ T_cam_marker
         if self.planar:  # the machine drives on the floor: keep x, y, z and heading only
             T_pile_marker = level(T_pile_marker)
+            if self.marker_height > 0.0:   # ... and the marker's height is known: the ray through its centre
+                if not self._on_plane(T_pile_marker, corners, cam):
+                    return
         T_base = T_pile_marker @ self.T_marker_base
         self.last_seen = now
         self._set_stale(False)
@@ -199,6 +211,28 @@ class ArucoPoseNode(Node):
         v = self._speed(msg.header.stamp, float(T_pile_marker[0, 3]))
         if v is not None:
             self._publish_odom(msg.header.stamp, T_base, v)
+
+    def _on_plane(self, T_pile_marker: np.ndarray, corners: np.ndarray, cam: CameraModel) -> bool:
+        """Replace the marker's position (in place) by the camera ray through its centre met with the
+        plane z = marker_height. False (frame rejected) when the ray misses the plane, which only
+        a wrong camera pose or height does. solvePnP's own height is kept as a check: far off
+        marker_height means the calibration is wrong (diagnostics warn)."""
+        h = self.marker_height
+        try:
+            pos = position_on_plane(marker_centre_px(corners), cam, self.T_pile_cam, h)
+        except ValueError as exc:
+            self._reject(f"marker not usable: {exc}")
+            return False
+        if pos is None:
+            self._reject(f"the camera ray through the marker does not meet the plane z = marker_height = {h:g} m; "
+                         "expected a camera above the marker (check camera_xyz, camera_rpy, marker_height)")
+            return False
+        z_pnp = float(T_pile_marker[2, 3])
+        self.height_problem = (None if abs(z_pnp - h) <= HEIGHT_TOLERANCE else
+                               f"marker seen at z = {z_pnp:.3f} m by solvePnP but marker_height is {h:g} m; expected "
+                               f"within {HEIGHT_TOLERANCE:g} m (check marker_height, camera_xyz, marker_size)")
+        T_pile_marker[:3, 3] = pos
+        return True
 
     def _speed(self, stamp, x: float) -> float | None:
         """v_x from the marker's own position: the articulation is locked and the machine drives
@@ -290,6 +324,8 @@ class ArucoPoseNode(Node):
             return WARN, self.info_problem + "; using the previous one", values
         if self.stamp_problem is not None:
             return WARN, self.stamp_problem, values
+        if self.height_problem is not None:
+            return WARN, self.height_problem, values
         if self.lost:
             return WARN, f"marker lost for {lost:.1f} s", values
         return OK, "marker tracked", values

@@ -104,6 +104,11 @@ class SupervisorNode(Node):
             Param("arm_delay", 1.0, "s between armed and running (0: at once)", lo=0.0, hi=60.0),
             Param("input_timeout", 0.5, "s: joints, odometry or a drift flag older than this while armed or running "
                   "ends the attempt (lost_input), and fails the preflight", lo=0.01, hi=60.0),
+            Param("end_check_period", -1.0, "s: the end zone is judged at the end of each such period since "
+                  "running began (-1: the task's control period, 0.1 s, as the controllers were trained; 0: on every "
+                  "update); e-stop, lost input, restricted zone and timeout are checked on every update",
+                  lo=-1.0, hi=10.0, check=lambda v: None if v == -1.0 or v >= 0.0 else
+                  "expected -1 (the task's control period) or seconds >= 0"),
             Param("hw_status_timeout", 0.5, "s: the same for the bridge's hw/status", lo=0.01, hi=60.0),
             Param("mass_settle_s", 1.0, "s: after the machine stopped, the median of load_cell/mass over this "
                   "window is the attempt's mass", lo=0.1, hi=60.0),
@@ -130,7 +135,8 @@ class SupervisorNode(Node):
         settings = Settings(slope_range_deg=(lo, hi), slope_source=source, phi_thresh=p.phi_thresh_pitch,
                             control_dt=p.control_dt, attempt_timeout=gp("attempt_timeout"),
                             arm_delay=gp("arm_delay"), input_timeout=gp("input_timeout"),
-                            hw_status_timeout=gp("hw_status_timeout"), mass_settle_s=gp("mass_settle_s"), prefix=ns)
+                            hw_status_timeout=gp("hw_status_timeout"), mass_settle_s=gp("mass_settle_s"), prefix=ns,
+                            end_check_period=p.control_dt if gp("end_check_period") < 0 else gp("end_check_period"))
         self.run_dir = Path(gp("run_dir")).expanduser().resolve()
         self.csv = csv_path(self.run_dir)
         try:

@@ -12,8 +12,10 @@ state stays until the next arming. While armed or running:
   lost_input  joints, odometry, a drift flag or the bridge status older than its timeout,
               a non-finite value, or the bridge reporting ERROR / STALE;
 and while running, checked in this order after those two:
-  success     the bucket tip in the end zone (task.zones.classify);
-  failure     the tip in the restricted zone;
+  success     the bucket tip in the end zone (task.zones.classify), judged at the end of each
+              control period since running began (`end_check_period`, the task's 0.1 s: the
+              POMDP's termination instants; 0: on every update);
+  failure     the tip in the restricted zone (on every update: it protects the machine);
   timeout     attempt_timeout (10 s, the paper's) since running began;
   aborted     the operator's /lhd/abort (any time while armed or running).
 The tip comes from odometry + joint states through the kinematics the policy node uses
@@ -76,6 +78,11 @@ class Settings:
     hw_status_timeout: float = 0.5    # s, the bridge's status
     mass_settle_s: float = 1.0        # s, load-cell window after the machine stopped
     prefix: str = "/lhd"              # topic prefix, for the messages
+    # s: the end zone is judged at the end of each such period since running began, as the task
+    # (the POMDP the controllers were trained on) judges it at the end of each control step; the
+    # safety ends (e-stop, lost input, restricted zone, timeout) are checked on every update.
+    # 0: the end zone on every update too (docs/supervisor.md: why the task's grid is the default)
+    end_check_period: float = 0.1
 
     def __post_init__(self):
         lo, hi = self.slope_range_deg
@@ -87,6 +94,8 @@ class Settings:
                 raise ValueError(f"{name} = {v!r}: expected a positive number of seconds")
         if not (math.isfinite(self.arm_delay) and self.arm_delay >= 0):
             raise ValueError(f"arm_delay = {self.arm_delay!r}: expected seconds >= 0")
+        if not (math.isfinite(self.end_check_period) and self.end_check_period >= 0):
+            raise ValueError(f"end_check_period = {self.end_check_period!r}: expected seconds >= 0 (0: every update)")
 
 
 @dataclass
@@ -129,6 +138,7 @@ class Attempt:
     reason: str = ""
     front: list = field(default_factory=list)
     rear: list = field(default_factory=list)
+    end_checks: int = 0                   # end_check_period ends judged so far
     last_state: LhdState | None = None    # the latest tip while armed / running
     mass: float | None = None
     mass_source: str = ""
@@ -361,12 +371,26 @@ class Supervisor:
                 self._start_running(now)
             return
         where = classify(tip.x_shovel, tip.y_shovel, tip.z_shovel, a.zones)
-        if where == "end":
+        period_end = self._period_ended(now)
+        if where == "end" and period_end:
             self._end(now, "success", REASONS["success"])
         elif where == "restricted":
             self._end(now, "failure", REASONS["failure"])
         elif now - a.running_at >= a.timeout:
             self._end(now, "timeout", f"attempt_timeout {a.timeout:g} s passed")
+
+    def _period_ended(self, now: float) -> bool:
+        """Called on every update while running: True when an end_check_period has ended since
+        the previous update (always with a period of 0). A tip that enters the end zone
+        mid-period is judged at the period's end, as in the task, where the machine follows the
+        step's command to the step's end and the state there is the final one."""
+        a, dt = self.attempt, self.s.end_check_period
+        if dt <= 0.0:
+            return True
+        ended = int(math.floor((now - a.running_at) / dt + 1e-9))
+        new = ended > a.end_checks
+        a.end_checks = max(a.end_checks, ended)
+        return new
 
     # ------------------------------------------------------------------ the loaded mass
     def set_mass(self, kg, source: str = "operator") -> AttemptRow:
