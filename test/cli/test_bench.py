@@ -5,6 +5,8 @@ import os
 import subprocess
 import sys
 
+import pytest
+
 from lhd_sim_node.bench import bench_sim
 
 from rosutil import unique_domain_id
@@ -14,7 +16,8 @@ def test_bench_replays_the_same_physics():
     res = bench_sim(steps=150, rounds=1)
     assert res["replay_max_qpos_error"] == 0.0
     assert res["env_steps_per_s"] > 0 and res["physics_only_steps_per_s"] > 0
-    assert res["ratio"] == round(res["env_steps_per_s"] / res["physics_only_steps_per_s"], 3)
+    # the ratio is computed from the unrounded rates; the printed rates are rounded to 0.1 step/s
+    assert res["ratio"] == pytest.approx(res["env_steps_per_s"] / res["physics_only_steps_per_s"], abs=1.5e-3)
     assert res["substeps_per_control_step"] == 25 and res["fee_updates_per_control_step"] == 5
 
 
