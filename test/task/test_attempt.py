@@ -286,6 +286,35 @@ def test_end_zone_is_judged_at_the_end_of_each_control_period_as_in_the_task(kin
         settings(end_check_period=-0.1)
 
 
+def test_an_attempt_whose_zones_changed_or_whose_tip_moved_while_armed_does_not_start(kin):
+    """At the end of the arm delay the supervisor checks the zones it now hears against the
+    zones frozen at arming (another pile estimate republished meanwhile: the twin's fault 6),
+    and the tip against the frozen zones. Either ends the attempt as aborted with the reason,
+    before the controller may move; small changes (under 2 cm) and a still machine start."""
+    from dataclasses import replace
+    r = Rig(kin).ready()
+    r.arm()
+    r.sv.inputs.put("zones", replace(ZONES, x_max=0.85), r.t + 0.5)         # a new pile's zones
+    assert r.step(0.98) == "armed"
+    assert r.step(0.02) == "aborted"
+    row = r.sv.attempt.row()
+    assert row.reason.startswith("not started: the pile zones changed while armed (x_max 1.000 -> 0.850 m)")
+    assert row.success is False and row.elapsed_s == 0.0
+    # the machine moved during the delay: its tip now in the restricted zone of the frozen zones
+    r = Rig(kin).ready()
+    r.arm()
+    r.step(0.5)
+    r.base_x = -0.5
+    assert r.step(0.5) == "aborted"
+    assert "not started: the bucket tip is in the restricted zone (x " in r.sv.attempt.row().reason
+    # a 1 cm re-estimate (below the end-zone node's 2 cm republishing threshold) is the same pile
+    r = Rig(kin).ready()
+    r.arm()
+    r.sv.inputs.put("zones", replace(ZONES, x_max=1.01, x_min=0.49), r.t + 0.5)
+    assert r.step(1.0) == "running"
+    assert r.sv.attempt.zones == ZONES                                     # still arming's
+
+
 def test_restricted_zone_is_a_failure_known_without_weighing(kin):
     r = Rig(kin, arm_delay=0.0).ready()
     r.arm()

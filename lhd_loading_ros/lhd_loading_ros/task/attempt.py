@@ -51,6 +51,8 @@ STOP_SPEED = 0.05          # rad/s: every joint slower than this = the machine s
 LOAD_CELL_MIN_SAMPLES = 3
 LOAD_CELL_RANGE = (-5.0, 200.0)   # kg: a reading outside is a broken amplifier, not a load (tare noise is < 0)
 RANGE_TOL_DEG = 1e-6       # a slope published in rad at exactly a range end is inside (policy core's rule)
+ZONE_LIMITS = ("x_min", "x_max", "z_min", "x_cutoff", "x_obs_start", "x_obs_end", "y_half", "z_top")
+ZONES_CHANGED_M = 0.02     # m: a zone limit republished this far from arming's = another pile estimate
 REASONS = {
     "success": "bucket tip reached the end zone",
     "failure": "bucket tip entered the restricted zone",
@@ -322,6 +324,28 @@ class Supervisor:
         self._end(now, "aborted", reason or f"{REASONS['aborted']} ({self.s.prefix}/abort)")
         return True, f"attempt {self.attempt.number} aborted"
 
+    def _start_problem(self, tip: LhdState) -> str:
+        """Why an armed attempt must not start running after its arm delay ("": it may). The
+        preflight ran at arming; during the delay the pile estimate may have moved (the end-zone
+        node republishing the zones of a new pile: the twin's fault 6, an attempt armed on the
+        previous pile's zones that failed 7 ms after its start) or the machine may have been
+        moved. The attempt keeps the zones frozen at arming, so both are checked against them;
+        such an attempt is aborted (a set-up fault), not failed (the controller never moved)."""
+        a, inp = self.attempt, self.inputs
+        now_zones = inp.values.get("zones")
+        if now_zones is not None and not inp.zones_error:
+            moved = {k: (getattr(a.zones, k), getattr(now_zones, k)) for k in ZONE_LIMITS
+                     if abs(getattr(a.zones, k) - getattr(now_zones, k)) > ZONES_CHANGED_M}
+            if moved:
+                what = ", ".join(f"{k} {old:.3f} -> {new:.3f} m" for k, (old, new) in moved.items())
+                return (f"not started: the pile zones changed while armed ({what}); the attempt would run on the "
+                        "zones of arming: check the pile estimate and arm again")
+        where = classify(tip.x_shovel, tip.y_shovel, tip.z_shovel, a.zones)
+        if where != "permitted":
+            at = f"(x {tip.x_shovel:.3f}, y {tip.y_shovel:.3f}, z {tip.z_shovel:.3f} m)"
+            return f"not started: the bucket tip is in the {where} zone {at} at the end of the arm delay; arm again"
+        return ""
+
     def _start_running(self, now: float) -> None:
         a = self.attempt
         self.state = "running"
@@ -368,7 +392,11 @@ class Supervisor:
             return
         if self.state == "armed":
             if now - a.armed_at >= s.arm_delay:
-                self._start_running(now)
+                why = self._start_problem(tip)
+                if why:
+                    self._end(now, "aborted", why)
+                else:
+                    self._start_running(now)
             return
         where = classify(tip.x_shovel, tip.y_shovel, tip.z_shovel, a.zones)
         period_end = self._period_ended(now)
