@@ -121,7 +121,8 @@ def test_arm_running_success_at_the_end_of_the_control_period(rig):
     # judges it): at most a period, plus the 50 Hz check and the DDS hops
     assert latency < 0.1 + 0.1
     elapsed = float(kv["elapsed_s"])
-    assert abs(elapsed - round(elapsed / 0.1) * 0.1) < 0.03, elapsed      # on the period grid (50 Hz checks)
+    # on the period grid: the first check after a period's end (50 Hz timer, inputs at 50 Hz)
+    assert abs(elapsed - round(elapsed / 0.1) * 0.1) < 0.05, elapsed
     x, z = tip_hand(END[0], *LIFT)
     assert float(kv["x_shovel"]) == pytest.approx(x, abs=1e-3) and float(kv["z_shovel"]) == pytest.approx(z, abs=1e-3)
     assert kv["phi_final_deg"] == "45.84" and kv["reason"] == "bucket tip reached the end zone"
@@ -230,7 +231,7 @@ def test_lhd_attempts_on_the_record_the_node_wrote(rig):
     # counted: 1 (success, 23.4 kg), 3 (lost input), 4 (e-stop); 2 waits for its mass; 5 aborted
     assert "5 attempt(s) recorded, 3 counted" in out
     assert "not yet weighed, not counted (lhd attempt mass KG --attempt N): attempt(s) 2" in out
-    assert "aborted by the operator, not counted: attempt(s) 5" in out
+    assert "aborted (by the operator, or not started by the supervisor), not counted: attempt(s) 5" in out
     lines = out.splitlines()
     assert lines[0] == f"Attempts in {rig.run_dir / 'attempts.csv'}"
     assert next(l for l in lines[1:] if l.startswith("Attempts")).split() == ["Attempts", "20", "3"]

@@ -220,42 +220,53 @@ def test_rendered_marker_moves_smoothly_below_a_pixel():
 
 
 def test_marker_centre_is_where_the_diagonals_cross_not_the_corner_mean():
-    from lhd_loading_ros.perception.aruco import marker_centre_px, project
+    from lhd_loading_ros.perception.aruco import diagonal_crossing, project
     K, T_pc = intrinsics(640, 480), transform(CAM_XYZ, CAMERA_RPY)
     # a marker tilted 40 deg about y and far off the camera axis: strong perspective
     T_cm = np.linalg.inv(T_pc) @ transform((-0.1, 0.3, 0.35), (0.0, math.radians(40), 0.2))
     s = SIZE / 2
     corners = project(K, T_cm, np.array([[-s, s, 0], [s, s, 0], [s, -s, 0], [-s, -s, 0]]))
     centre = project(K, T_cm, np.zeros((1, 3)))[0]
-    assert np.allclose(marker_centre_px(corners), centre, atol=1e-9)
+    assert np.allclose(diagonal_crossing(corners), centre, atol=1e-9)
     assert np.linalg.norm(corners.mean(axis=0) - centre) > 0.1      # px: the mean is not the centre
     with pytest.raises(ValueError, match="degenerate"):
-        marker_centre_px(np.zeros((4, 2)))
+        diagonal_crossing(np.zeros((4, 2)))
+    with pytest.raises(ValueError, match="degenerate"):                # a self-crossing (bow-tie) order
+        diagonal_crossing(corners[[0, 2, 1, 3]])
 
 
 def test_ray_through_the_centre_meets_the_plane_where_the_marker_is():
-    """Independent check: OpenCV projects a point (with lens distortion); the ray back through
-    its pixel, met with the point's height, must give the point again."""
+    """Independent check: OpenCV projects the marker's corners through a distorting lens; the
+    ray through their undistorted diagonals' crossing, met with the marker's height, must give
+    the marker's centre. Crossing the diagonals in the distorted image instead would be off."""
     import cv2
 
-    from lhd_loading_ros.perception.aruco import position_on_plane
+    from lhd_loading_ros.perception.aruco import diagonal_crossing, marker_centre_ray, position_on_plane
     T_pc = transform(CAM_XYZ, CAMERA_RPY)
     D = np.array([-0.12, 0.05, 0.001, -0.002, 0.0])
     cam = CameraModel(intrinsics(640, 480), D)
     T_cp = np.linalg.inv(T_pc)
-    for p in ([-0.9, 0.2, 0.35], [-0.2, -0.3, 0.35], [-0.5, 0.0, 0.5], [0.1, 0.1, 0.0]):
-        rvec, _ = cv2.Rodrigues(T_cp[:3, :3])
-        uv, _ = cv2.projectPoints(np.array([p], dtype=float), rvec, T_cp[:3, 3], cam.K, D)
-        got = position_on_plane(uv.reshape(2), cam, T_pc, p[2])
-        assert np.allclose(got, p, atol=1e-6), (got, p)
+    rvec, _ = cv2.Rodrigues(T_cp[:3, :3])
+    s = SIZE / 2
+    sq = np.array([[-s, s, 0], [s, s, 0], [s, -s, 0], [-s, -s, 0]])
+    naive = []
+    for xyz, rpy in (((-0.9, 0.2, 0.35), (0, 0, 0)), ((-0.2, -0.3, 0.35), (0, 0, 0.5)),
+                     ((-0.5, 0.0, 0.5), (0.1, -0.1, 0)), ((0.1, 0.25, 0.0), (0, 0, -0.3))):
+        T = transform(xyz, rpy)
+        uv, _ = cv2.projectPoints(sq @ T[:3, :3].T + T[:3, 3], rvec, T_cp[:3, 3], cam.K, D)
+        got = position_on_plane(marker_centre_ray(uv.reshape(4, 2), cam), T_pc, xyz[2])
+        assert np.allclose(got, xyz, atol=1e-6), (got, xyz)
+        c = cv2.undistortPoints(diagonal_crossing(uv.reshape(4, 2)).reshape(1, 1, 2), cam.K, D).reshape(2)
+        naive.append(np.linalg.norm(position_on_plane(c, T_pc, xyz[2]) - xyz))
+    assert max(naive) > 1e-4          # m: crossing the distorted diagonals would be 0.1 mm and more off
     # a plane above the camera is behind the ray: no position, not a mirrored one
-    assert position_on_plane(np.array([320.0, 240.0]), cam, T_pc, 2.0) is None
+    assert position_on_plane(np.zeros(2), T_pc, 2.0) is None
 
 
 def test_position_from_the_ray_is_ten_times_steadier_than_solvepnp():
     """On rendered frames of a drive (noise 4 grey levels, blur): the marker's x from the ray
     through its centre at the known height against solvePnP's x, both against the truth."""
-    from lhd_loading_ros.perception.aruco import marker_centre_px, position_on_plane
+    from lhd_loading_ros.perception.aruco import marker_centre_ray, position_on_plane
     rng = np.random.default_rng(4)
     K, T_pile_cam, t, truth, frames = drive_sequence(rng)
     det = MarkerDetector("DICT_4X4_50", 7, SIZE)
@@ -264,7 +275,7 @@ def test_position_from_the_ray_is_ten_times_steadier_than_solvepnp():
     for img, T_pm in zip(frames, truth):
         c = det.detect(img)
         e_pnp.append((T_pile_cam @ det.pose(c, cam))[0, 3] - T_pm[0, 3])
-        e_ray.append(position_on_plane(marker_centre_px(c), cam, T_pile_cam, 0.35)[0] - T_pm[0, 3])
+        e_ray.append(position_on_plane(marker_centre_ray(c, cam), T_pile_cam, 0.35)[0] - T_pm[0, 3])
     e_pnp, e_ray = np.array(e_pnp), np.array(e_ray)
     rms = lambda e: float(np.sqrt(np.mean(e ** 2)))   # noqa: E731
     print(f"x error RMS: ray {rms(e_ray) * 1000:.2f} mm, solvePnP {rms(e_pnp) * 1000:.2f} mm")

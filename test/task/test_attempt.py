@@ -284,6 +284,16 @@ def test_end_zone_is_judged_at_the_end_of_each_control_period_as_in_the_task(kin
     assert r.sv.state == "failure" and r.sv.attempt.row().elapsed_s == pytest.approx(0.23)
     with pytest.raises(ValueError, match="end_check_period = -0.1: expected seconds >= 0"):
         settings(end_check_period=-0.1)
+    # a period longer than the attempt: the tip in the end zone at the timeout is a success
+    r = Rig(kin, arm_delay=0.0, end_check_period=5.0, attempt_timeout=3.0).ready()
+    r.arm()
+    t0 = r.t
+    r.step(1.0)
+    r.base_x, (r.boom, r.bucket) = END_X, LIFT
+    assert r.step(1.98) == "running"
+    r.feed(t0 + 3.0)
+    r.sv.update(r.t)
+    assert r.sv.state == "success" and r.sv.attempt.row().elapsed_s == pytest.approx(3.0)
 
 
 def test_an_attempt_whose_zones_changed_or_whose_tip_moved_while_armed_does_not_start(kin):
@@ -307,6 +317,15 @@ def test_an_attempt_whose_zones_changed_or_whose_tip_moved_while_armed_does_not_
     r.base_x = -0.5
     assert r.step(0.5) == "aborted"
     assert "not started: the bucket tip is in the restricted zone (x " in r.sv.attempt.row().reason
+    # new zones, then an invalid message: not started either (the last valid zones are compared,
+    # and invalid zones fail the start as they fail the preflight)
+    r = Rig(kin).ready()
+    r.arm()
+    r.sv.inputs.put("zones", replace(ZONES, x_max=0.85), r.t + 0.3)
+    r.sv.inputs.zones_error = "8 values expected, got 3"
+    assert r.step(1.0) == "aborted"
+    assert "the pile zones became invalid while armed" in r.sv.attempt.row().reason
+    r.sv.inputs.put("zones", ZONES, r.t)                                  # a valid message clears it
     # a 1 cm re-estimate (below the end-zone node's 2 cm republishing threshold) is the same pile
     r = Rig(kin).ready()
     r.arm()

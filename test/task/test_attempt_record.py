@@ -162,7 +162,7 @@ def test_table_layout():
     lines = out.splitlines()
     assert lines[0] == "Attempts in x"
     assert "10 attempt(s) recorded, 8 counted" in out
-    assert "aborted by the operator, not counted: attempt(s) 8" in out
+    assert "aborted (by the operator, or not started by the supervisor), not counted: attempt(s) 8" in out
     assert "not yet weighed, not counted (lhd attempt mass KG --attempt N): attempt(s) 9" in out
     head = next(l for l in lines if "Homogeneous material" in l)
     assert head.index("Homogeneous material") < head.index("Nonhomogeneous material")

@@ -35,7 +35,7 @@ from std_msgs.msg import Bool
 
 from lhd_loading_ros.perception.aruco import (CameraModel, ImageEncodingError, MarkerDetector, MountingPrior,
                                               KalmanVelocityEstimator, VelocityEstimator, dictionary, image_to_gray, level,
-                                              marker_centre_px, opencv_problem, position_on_plane)
+                                              marker_centre_ray, opencv_problem, position_on_plane)
 from lhd_loading_ros.perception.geometry import quaternion_xyzw, transform
 from lhd_loading_ros.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
@@ -78,7 +78,7 @@ class ArucoPoseNode(Node):
             Param("planar_motion", True, "keep position and heading only (the machine drives on a flat floor)"),
             Param("marker_height", 0.35, "planar_motion: height of the marker's centre above the floor (m; the "
                   "marker's position is where the camera ray through its centre meets that plane); 0: the "
-                  "position solvePnP gives", lo=0.0, hi=100.0, on_change=lambda v: setattr(self, "marker_height", v)),
+                  "position solvePnP gives", lo=0.0, hi=100.0, on_change=self._set_marker_height),
             Param("velocity_filter", "kalman", "how v_x is estimated from x(t): kalman (constant-velocity Kalman "
                   "filter, no window lag) or window (least-squares slope over velocity_window)",
                   choices=("kalman", "window"), on_change=lambda v: self._set_filter(filter=v)),
@@ -134,6 +134,13 @@ class ArucoPoseNode(Node):
         self.create_subscription(Image, p["image_topic"], self._on_image, img_qos)
         steady_timer(self, 0.1, self._check_stale)
         self.diag = Diagnostics(self, {"pose": self._report})
+
+    def _set_marker_height(self, v: float) -> None:
+        """A new height moves every position: the speed estimate restarts (no step in x reaches
+        v_x), and the height check is redone on the next frame."""
+        self.marker_height = v
+        self.height_problem = None
+        self.vel.reset()
 
     def _set_stale_timeout(self, v: float) -> None:
         self.stale_timeout = v
@@ -197,13 +204,17 @@ class ArucoPoseNode(Node):
             if self.last_seen is not None and now - self.last_seen > self.stale_timeout:
                 self._set_stale(True)
             return
-        self.detections += 1
         T_pile_marker = self.T_pile_cam @ T_cam_marker
         if self.planar:  # the machine drives on the floor: keep x, y, z and heading only
             T_pile_marker = level(T_pile_marker)
             if self.marker_height > 0.0:   # ... and the marker's height is known: the ray through its centre
                 if not self._on_plane(T_pile_marker, corners, cam):
                     return
+            else:
+                self.height_problem = None
+        else:
+            self.height_problem = None
+        self.detections += 1
         T_base = T_pile_marker @ self.T_marker_base
         self.last_seen = now
         self._set_stale(False)
@@ -219,9 +230,9 @@ class ArucoPoseNode(Node):
         marker_height means the calibration is wrong (diagnostics warn)."""
         h = self.marker_height
         try:
-            pos = position_on_plane(marker_centre_px(corners), cam, self.T_pile_cam, h)
-        except ValueError as exc:
-            self._reject(f"marker not usable: {exc}")
+            pos = position_on_plane(marker_centre_ray(corners, cam), self.T_pile_cam, h)
+        except (ValueError, cv2.error) as exc:
+            self._reject(f"marker not usable: {str(exc).strip().splitlines()[-1]}")
             return False
         if pos is None:
             self._reject(f"the camera ray through the marker does not meet the plane z = marker_height = {h:g} m; "

@@ -4,8 +4,8 @@ Pipeline: image (numpy) -> cv2.aruco.ArucoDetector -> corners of the configured 
 solvePnPGeneric(SOLVEPNP_IPPE_SQUARE) with the camera intrinsics -> the two marker poses of the
 planar ambiguity in the camera frame -> the one consistent with the mounting and the last pose
 -> pile frame through the camera extrinsic -> (planar motion) the marker's position replaced by
-the camera ray through its centre met with the plane of the marker's known height
-(`position_on_plane`) -> base_link through the marker-to-base offset -> v_x from a constant-velocity Kalman filter on x(t) (KalmanVelocityEstimator, the default) or
+the camera ray through its centre (`marker_centre_ray`) met with the plane of the marker's
+known height (`position_on_plane`) -> base_link through the marker-to-base offset -> v_x from a constant-velocity Kalman filter on x(t) (KalmanVelocityEstimator, the default) or
 the least-squares slope of x(t) over a time window (VelocityEstimator).
 
 Needs OpenCV >= MIN_OPENCV_VERSION: `cv2.aruco.ArucoDetector` and `DetectorParameters()`
@@ -302,31 +302,49 @@ def level(T: np.ndarray) -> np.ndarray:
     return out
 
 
-def marker_centre_px(corners: np.ndarray) -> np.ndarray:
-    """The image of the marker's centre: where its diagonals cross. A perspective image keeps
-    the centre on both diagonals; the mean of the four corners is off it when the square is
-    seen obliquely."""
-    h = np.c_[np.asarray(corners, dtype=float).reshape(4, 2), np.ones(4)]
+def diagonal_crossing(corners: np.ndarray) -> np.ndarray:
+    """Where the diagonals (corner 0 - corner 2, corner 1 - corner 3) of a quadrilateral cross.
+    A perspective image keeps a square's centre on both diagonals, so in an UNDISTORTED image
+    (or in normalised camera coordinates) this is the image of the centre; the mean of the
+    corners is off it when the square is seen obliquely. ValueError when the four points do not
+    form a quadrilateral whose diagonals cross inside it (degenerate or self-crossing)."""
+    c = np.asarray(corners, dtype=float).reshape(4, 2)
+    h = np.c_[c, np.ones(4)]
     p = np.cross(np.cross(h[0], h[2]), np.cross(h[1], h[3]))
-    if abs(p[2]) < 1e-12:
+    if not np.isfinite(p).all() or abs(p[2]) <= 1e-12 * max(1.0, float(np.abs(p[:2]).max())):
         raise ValueError("marker corners are degenerate: the diagonals do not cross")
-    return p[:2] / p[2]
+    x = p[:2] / p[2]
+    # inside both diagonals (a proper convex quadrilateral), with a small tolerance
+    for a, b in ((c[0], c[2]), (c[1], c[3])):
+        d = b - a
+        t = float(np.dot(x - a, d) / max(np.dot(d, d), 1e-300))
+        if not (-1e-9 <= t <= 1.0 + 1e-9):
+            raise ValueError("marker corners are degenerate: the diagonals cross outside the marker")
+    return x
 
 
-def position_on_plane(centre_px: np.ndarray, cam: CameraModel, T_pile_cam: np.ndarray, height: float) -> np.ndarray | None:
-    """Where the camera ray through the pixel `centre_px` meets the horizontal plane
-    z = `height` of the pile frame (the marker's height on a machine standing on the floor).
+def marker_centre_ray(corners: np.ndarray, cam: CameraModel) -> np.ndarray:
+    """Normalised camera coordinates (x/z, y/z) of the ray through the marker's centre: the
+    detected pixel corners undistorted first (cv2.undistortPoints with the camera's K and D), and
+    their diagonals crossed there. (Crossing them in the distorted image and undistorting the
+    crossing would be off by the lens's bending of the diagonals: 0.1-0.4 px, 0.2-1 mm here.)"""
+    n = cv2.undistortPoints(np.asarray(corners, dtype=np.float64).reshape(4, 1, 2), cam.K, cam.D).reshape(4, 2)
+    return diagonal_crossing(n)
+
+
+def position_on_plane(ray_xy: np.ndarray, T_pile_cam: np.ndarray, height: float) -> np.ndarray | None:
+    """Where the camera ray with normalised coordinates `ray_xy` (marker_centre_ray) meets the
+    horizontal plane z = `height` of the pile frame (the marker's height on a machine standing
+    on the floor).
 
     Why: the marker's position from solvePnP carries its distance error along the line of
     sight, and a 0.12 m marker seen from 1.65 m has a few millimetres of it (a 1 % scale error
     of the marker's apparent size moves x by 1 % of its offset from the camera axis); the
     direction of the ray through its centre is known to a fraction of a pixel. With the
     height known, that direction alone fixes the position (docs/perception.md: x error sd 3.6 ->
-    0.26 mm on the twin's images). Distortion is removed first (cv2.undistortPoints).
-    None when the ray does not reach the plane (parallel to it, or the plane behind the camera)."""
-    uv = np.asarray(centre_px, dtype=np.float64).reshape(1, 1, 2)
-    n = cv2.undistortPoints(uv, cam.K, cam.D).reshape(2)
-    ray = T_pile_cam[:3, :3] @ np.array([n[0], n[1], 1.0])
+    0.26 mm on the twin's images). None when the ray does not reach the plane (parallel to it,
+    or the plane behind the camera)."""
+    ray = T_pile_cam[:3, :3] @ np.array([float(ray_xy[0]), float(ray_xy[1]), 1.0])
     o = T_pile_cam[:3, 3]
     if abs(ray[2]) < 1e-9:
         return None

@@ -332,8 +332,11 @@ class Supervisor:
         moved. The attempt keeps the zones frozen at arming, so both are checked against them;
         such an attempt is aborted (a set-up fault), not failed (the controller never moved)."""
         a, inp = self.attempt, self.inputs
-        now_zones = inp.values.get("zones")
-        if now_zones is not None and not inp.zones_error:
+        if inp.zones_error:
+            return (f"not started: the pile zones became invalid while armed ({self.s.prefix}/pile/zones: "
+                    f"{inp.zones_error}); check the end-zone node and arm again")
+        now_zones = inp.values.get("zones")       # the last valid zones heard
+        if now_zones is not None:
             moved = {k: (getattr(a.zones, k), getattr(now_zones, k)) for k in ZONE_LIMITS
                      if abs(getattr(a.zones, k) - getattr(now_zones, k)) > ZONES_CHANGED_M}
             if moved:
@@ -400,11 +403,12 @@ class Supervisor:
             return
         where = classify(tip.x_shovel, tip.y_shovel, tip.z_shovel, a.zones)
         period_end = self._period_ended(now)
-        if where == "end" and period_end:
+        timed_out = now - a.running_at >= a.timeout
+        if where == "end" and (period_end or timed_out):   # the attempt's last instant is judged too
             self._end(now, "success", REASONS["success"])
         elif where == "restricted":
             self._end(now, "failure", REASONS["failure"])
-        elif now - a.running_at >= a.timeout:
+        elif timed_out:
             self._end(now, "timeout", f"attempt_timeout {a.timeout:g} s passed")
 
     def _period_ended(self, now: float) -> bool:

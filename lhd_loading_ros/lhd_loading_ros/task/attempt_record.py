@@ -22,7 +22,8 @@ loaded, elapsed time, front and rear drift, mean and standard deviation; then th
 of each metric: the mean across the slopes of the per-slope means, with the standard
 deviation of those means (the paper's footnote a; its RLC homogeneous "material loaded"
 column 22.40, 24.18, 26.08, 27.24 -> 24.98 +- 1.84 is the population standard deviation,
-ddof = 0, which is used throughout). Attempts aborted by the operator are not counted;
+ddof = 0, which is used throughout). Aborted attempts (the operator, or the supervisor not
+starting an attempt whose set-up changed while armed) are not counted;
 attempts whose success still waits for the weighed mass are listed apart, not counted.
 """
 from __future__ import annotations
@@ -298,7 +299,7 @@ def format_table(summary: dict, title: str = "") -> str:
     lines = [title] if title else []
     lines.append(f"{summary['rows']} attempt(s) recorded, {summary['counted']} counted")
     if summary["aborted"]:
-        lines.append(f"aborted by the operator, not counted: attempt(s) {', '.join(map(str, summary['aborted']))}")
+        lines.append(f"aborted (by the operator, or not started by the supervisor), not counted: attempt(s) {', '.join(map(str, summary['aborted']))}")
     if summary["not_weighed"]:
         lines.append(f"not yet weighed, not counted (lhd attempt mass KG --attempt N): attempt(s) "
                      f"{', '.join(map(str, summary['not_weighed']))}")
