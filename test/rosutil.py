@@ -29,12 +29,18 @@ def started_processes() -> list:
     return list(_STARTED)
 
 
+DIAGNOSTICS_PERIOD = "diagnostic_updater.period"
+TEST_DIAGNOSTICS_PERIOD_S = 0.25
+
+
 class RosProcess:
     """A node started as a separate process (python -m module --ros-args ...)."""
 
     def __init__(self, module: str, params: dict, log_path, extra_env: dict | None = None,
                  remaps: dict | None = None):
         args = [sys.executable, "-m", module, "--ros-args"]
+        # diagnostics at 4 Hz instead of 1 Hz: the tests that wait for a status wait less
+        params = {DIAGNOSTICS_PERIOD: TEST_DIAGNOSTICS_PERIOD_S, **params}
         for k, v in params.items():
             args += ["-p", f"{k}:={v}"]
         for k, v in (remaps or {}).items():     # e.g. {"__ns": "/lhd2", "/clock": "/lhd2/clock"}

@@ -4,13 +4,18 @@ one DiagnosticArray per period (steady clock, so it keeps coming with use_sim_ti
 the reason in `message`, figures as key/value pairs.
 
 A node gives a function returning (level, message, values); the level constants are
-DiagnosticStatus.OK / WARN / ERROR / STALE.
+DiagnosticStatus.OK / WARN / ERROR / STALE. The period is the ROS parameter
+`diagnostic_updater.period` (s, default 1.0), the name and default of ROS's diagnostic_updater,
+so `-p diagnostic_updater.period:=0.2` works as with any ROS node (the tests use it).
 """
 from __future__ import annotations
 
 from typing import Callable
 
+import math
+
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import ParameterDescriptor
 
 from lhd_loading_ros.ros.params import steady_timer
 
@@ -18,6 +23,8 @@ OK, WARN, ERROR, STALE = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticS
 LEVEL_NAMES = {OK: "OK", WARN: "WARN", ERROR: "ERROR", STALE: "STALE"}
 
 Report = tuple  # (level, message, {key: value})
+PERIOD_PARAM = "diagnostic_updater.period"      # diagnostic_updater's own parameter name
+PERIOD_RANGE = (0.01, 60.0)                     # s
 
 
 def status(name: str, hardware_id: str, level, message: str, values: dict | None = None) -> DiagnosticStatus:
@@ -36,6 +43,23 @@ def _fmt(v) -> str:
     return str(v)
 
 
+def period_param(node, default: float) -> float:
+    """The node's `diagnostic_updater.period` (declared here, dynamically typed so that an int
+    such as `:=1` is taken); ValueError naming the parameter and the expected range otherwise."""
+    if not node.has_parameter(PERIOD_PARAM):
+        node.declare_parameter(PERIOD_PARAM, float(default), ParameterDescriptor(
+            dynamic_typing=True, read_only=True, description="s between two /diagnostics messages of this node"))
+    v = node.get_parameter(PERIOD_PARAM).value
+    lo, hi = PERIOD_RANGE
+    try:
+        period = float(v)
+    except (TypeError, ValueError):
+        period = math.nan
+    if isinstance(v, bool) or not (lo <= period <= hi):
+        raise ValueError(f"parameter '{PERIOD_PARAM}' = {v!r} is invalid; expected seconds in [{lo:g}, {hi:g}]")
+    return period
+
+
 class Diagnostics:
     """Publishes the statuses given by `sources` ({what: fn() -> (level, message, values)})
     on /diagnostics every `period_s`."""
@@ -45,7 +69,8 @@ class Diagnostics:
         self.sources = dict(sources)
         self.hardware_id = hardware_id
         self.pub = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        self.timer = steady_timer(node, period_s, self.publish)
+        self.period_s = period_param(node, period_s)
+        self.timer = steady_timer(node, self.period_s, self.publish)
         self.last: dict[str, DiagnosticStatus] = {}
 
     def publish(self) -> None:
