@@ -53,6 +53,9 @@ from lhd_loading_ros.cli.up_real import ENDED, default_params_file, format_prefl
 from lhd_loading_ros.cli.up_real import parser as real_parser
 from lhd_loading_ros.cli.up_real import check_args as real_check_args
 from lhd_loading_ros.cli.up_real import stack
+from lhd_loading_ros.task.config import load_config
+from lhd_loading_ros.task.kinematics import ArmKinematics
+from lhd_loading_ros.task.params import TaskParams
 from lhd_loading_ros.task.zones import Zones
 
 DEFAULT_SLOPES = (15.0, 20.0, 25.0, 30.0)
@@ -114,6 +117,31 @@ def agreement(flags: list[tuple[float, bool]], truth: list[tuple[float, bool]]) 
     return agree / n if n else float("nan")
 
 
+def pitch_dropped_deg(kin, pose: tuple, joints: dict) -> float:
+    """What the stack's `planar_motion` leaves out of the bucket tip's pitch: the tip pitch the
+    task's kinematics give with the machine's TRUE orientation minus the pitch with that
+    orientation levelled (heading kept, roll and pitch dropped, as the ArUco node publishes
+    it), for the same joint angles. The supervisor's final pitch plus this is the true one."""
+    from lhd_loading_ros.perception.aruco import level
+    from lhd_loading_ros.task.kinematics import quat_to_mat
+
+    _, pos, quat = pose
+    T = np.eye(4)
+    T[:3, :3] = quat_to_mat(*quat)
+    R_level = level(T)[:3, :3]
+    pb, pk = joints["boom"][0], joints["bucket"][0]
+    art = joints.get("articulation", (0.0, 0.0))[0]
+    _, true_pitch, _ = kin.tip_and_bottom(np.asarray(pos), T[:3, :3], pb, pk, art)
+    _, level_pitch, _ = kin.tip_and_bottom(np.asarray(pos), R_level, pb, pk, art)
+    return math.degrees(true_pitch - level_pitch)
+
+
+def latest_before(series: list, t: float):
+    """The last (stamp, ...) entry of a time-ordered series with stamp <= t (None: none)."""
+    i = int(np.searchsorted([e[0] for e in series], t, side="right")) - 1
+    return series[i] if i >= 0 else None
+
+
 def _fmt(v, spec=".3f") -> str:
     return "-" if v is None or (isinstance(v, float) and not math.isfinite(v)) else format(v, spec)
 
@@ -140,7 +168,7 @@ def error_summary(records: list[dict]) -> dict:
 def format_errors(records: list[dict], summary: dict) -> str:
     head = (f"{'att':>3} {'slope':>5} {'outcome':<10} {'vx RMS':>7} {'n':>4} {'alpha est':>9} {'err':>6} "
             f"{'x_max est':>9} {'truth':>6} {'err':>6} {'drift agree F/R':>15} {'mass csv':>8} {'truth':>6} "
-            f"{'err':>6}")
+            f"{'err':>6} {'phi end':>7} {'truth':>6}")
     lines = ["Estimation errors (stack minus the twin's ground truth)", head, "-" * len(head)]
     for r in records:
         lines.append(
@@ -148,7 +176,8 @@ def format_errors(records: list[dict], summary: dict) -> str:
             f"{r['vx_n']:>4} {_fmt(r['alpha_est_deg'], '.2f'):>9} {_fmt(r['alpha_err_deg'], '+.2f'):>6} "
             f"{_fmt(r['x_max_est_m']):>9} {_fmt(r['x_max_truth_m']):>6} {_fmt(r['x_max_err_m'], '+.3f'):>6} "
             f"{_fmt(r['drift_agree_front'], '.2f'):>7}/{_fmt(r['drift_agree_rear'], '.2f'):<7} "
-            f"{_fmt(r['mass_csv_kg'], '.2f'):>8} {_fmt(r['mass_truth_kg'], '.2f'):>6} {_fmt(r['mass_err_kg'], '+.2f'):>6}")
+            f"{_fmt(r['mass_csv_kg'], '.2f'):>8} {_fmt(r['mass_truth_kg'], '.2f'):>6} {_fmt(r['mass_err_kg'], '+.2f'):>6} "
+            f"{_fmt(r.get('phi_final_deg'), '.2f'):>7} {_fmt(r.get('phi_final_truth_deg'), '.2f'):>6}")
     lines.append("-" * len(head))
     s = summary
 
@@ -171,6 +200,13 @@ def format_errors(records: list[dict], summary: dict) -> str:
     m = s["mass_err_kg"]
     if m["max_abs"] is not None:
         lines.append(f"mass_err_kg: worst {m['max_abs']:.2f} kg, mean {m['mean_abs']:.2f} kg")
+    drops = [r["phi_dropped_deg"] for r in records if r.get("phi_dropped_deg") is not None]
+    if drops:
+        flips = [r["attempt"] for r in records if r.get("phi_final_truth_deg") is not None
+                 and (r["phi_final_deg"] > r["phi_thresh_deg"]) != (r["phi_final_truth_deg"] > r["phi_thresh_deg"])]
+        lines.append(f"final pitch: the stack leaves out the machine's own pitch (planar motion), {np.mean(drops):+.2f} deg "
+                     f"mean, {min(drops):+.2f}..{max(drops):+.2f}; attempts the true pitch judges otherwise against the "
+                     f"success test's threshold: {', '.join(map(str, flips)) or 'none'}")
     for side in ("front", "rear"):
         d = s[f"drift_agree_{side}"]
         if d["mean"] is not None:
@@ -186,6 +222,7 @@ class Watch:
         from geometry_msgs.msg import Vector3Stamped
         from nav_msgs.msg import Odometry
         from rclpy.qos import qos_profile_sensor_data
+        from sensor_msgs.msg import JointState
         from std_msgs.msg import Bool, Float64, Float64MultiArray
 
         from lhd_loading_ros.ros.qos import LATCHED_QOS, STATUS_QOS
@@ -205,6 +242,8 @@ class Watch:
         self.odom: list[tuple[float, float]] = []
         self.odom_arrivals: list[float] = []
         self.truth_odom: list[tuple[float, float]] = []
+        self.truth_pose: list[tuple[float, tuple, tuple]] = []      # (stamp, position, quaternion w x y z)
+        self.truth_joints: list[tuple[float, dict]] = []           # (stamp, {name: (position, velocity)})
         self.flags = {"front": [], "rear": []}
         self.truth_drift: list[tuple[float, tuple[bool, bool]]] = []
 
@@ -233,6 +272,14 @@ class Watch:
         def on_truth_odom(m):
             if self.recording:
                 self.truth_odom.append((stamp(m.header), float(m.twist.twist.linear.x)))
+                p, q = m.pose.pose.position, m.pose.pose.orientation
+                self.truth_pose.append((stamp(m.header), (p.x, p.y, p.z), (q.w, q.x, q.y, q.z)))
+
+        def on_truth_js(m):
+            if self.recording:
+                vel = list(m.velocity) + [0.0] * (len(m.name) - len(m.velocity))
+                self.truth_joints.append((stamp(m.header), {n: (float(a), float(v)) for n, a, v in
+                                                            zip(m.name, m.position, vel)}))
 
         def on_flag(side):
             def cb(m):
@@ -261,6 +308,7 @@ class Watch:
         node.create_subscription(DiagnosticArray, "/diagnostics", on_diag, 50)
         node.create_subscription(Odometry, "/lhd/odom", on_odom, sd)
         node.create_subscription(Odometry, "/lhd/twin/truth/odom", on_truth_odom, sd)
+        node.create_subscription(JointState, "/lhd/twin/truth/joint_states", on_truth_js, sd)
         node.create_subscription(Bool, "/lhd/wheel_drift/front", on_flag("front"), sd)
         node.create_subscription(Bool, "/lhd/wheel_drift/rear", on_flag("rear"), sd)
         node.create_subscription(Float64MultiArray, "/lhd/twin/truth/drift", on_truth_drift, sd)
@@ -296,6 +344,7 @@ class Watch:
 
     def start_recording(self):
         self.odom, self.truth_odom, self.truth_drift = [], [], []
+        self.truth_pose, self.truth_joints = [], []
         self.flags = {"front": [], "rear": []}
         self.recording = True
 
@@ -314,6 +363,9 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
     from lhd_loading_ros.task.attempt_record import csv_path, format_table, read_rows, summarize
 
     out = sys.stderr if args.json else sys.stdout
+    cfg = load_config(real_args.config or None)
+    kin = ArmKinematics.from_config(cfg)                                   # the supervisor's kinematics
+    phi_thresh_deg = math.degrees(TaskParams.from_config(cfg).phi_thresh_pitch)
 
     def say(msg):
         print(msg, file=out, flush=True)
@@ -476,6 +528,17 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                        "mass_csv_kg": None, "mass_truth_kg": truth_mass,
                        "mass_status_kg": float(weighed["loaded_mass"]),
                        "success_level": weighed.get("success_level"), "success": weighed.get("success") == "True"}
+                # the final pitch the supervisor judged, and what planar motion left out of it
+                # (the machine's true orientation at the end; the end status is published within
+                # a 50 Hz check of the end, and the machine's own pitch changes slowly)
+                rec["phi_final_deg"] = float(kv_end.get("phi_final_deg", "nan"))
+                rec["phi_thresh_deg"] = phi_thresh_deg
+                pose_end, js_end = latest_before(w.truth_pose, t_end), latest_before(w.truth_joints, t_end)
+                rec["phi_dropped_deg"] = (pitch_dropped_deg(kin, pose_end, js_end[1])
+                                          if pose_end is not None and js_end is not None and "boom" in js_end[1]
+                                          else None)
+                rec["phi_final_truth_deg"] = (rec["phi_final_deg"] + rec["phi_dropped_deg"]
+                                              if rec["phi_dropped_deg"] is not None else None)
                 rec["alpha_err_deg"] = (rec["alpha_est_deg"] - rec["slope_truth_deg"]
                                         if rec["alpha_est_deg"] is not None and rec["slope_truth_deg"] is not None
                                         else None)
