@@ -46,3 +46,33 @@ def test_latest_before_picks_the_last_entry_at_or_before():
     assert latest_before(series, 2.0) == (2.0, "b")
     assert latest_before(series, 2.9) == (2.0, "b")
     assert latest_before(series, 9.0) == (3.0, "c")
+
+
+@pytest.mark.parametrize("heading_deg, theta_deg", [(20.0, 3.0), (-35.0, -2.0)])
+def test_pitch_and_heading_together(kin, heading_deg, theta_deg):
+    """Independently: the arm turns the tip frame about the machine's y axis by its own angle a
+    (-(the tip pitch of the level, unturned machine)); the machine's rotation Rz(heading) Ry(theta)
+    composes with it, and the project's pitch is atan2(R[2,0], R[0,0]) of the result. What planar
+    motion drops is that pitch minus the one of Rz(heading) Ry(a)."""
+    def rz(a):
+        c, s = math.cos(a), math.sin(a)
+        return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+
+    def ry(a):
+        c, s = math.cos(a), math.sin(a)
+        return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+    def pitch(R):
+        return math.atan2(R[2, 0], R[0, 0])
+
+    a = -kin.tip_and_bottom(np.zeros(3), np.eye(3), JOINTS["boom"][0], JOINTS["bucket"][0])[1]
+    psi, th = math.radians(heading_deg), math.radians(theta_deg)
+    expect = math.degrees(pitch(rz(psi) @ ry(th) @ ry(a)) - pitch(rz(psi) @ ry(a)))
+    w, x, y, z = quat_about((0, 0, 1), psi)
+    qz = np.array([w, x, y, z])
+    qy = np.array(quat_about((0, 1, 0), th))
+    # Hamilton product qz * qy: the rotation Rz(psi) Ry(theta)
+    q = (qz[0] * qy[0] - qz[1:] @ qy[1:], *(qz[0] * qy[1:] + qy[0] * qz[1:] + np.cross(qz[1:], qy[1:])))
+    pose = (0.0, (-1.0, 0.1, 0.137), q)
+    assert pitch_dropped_deg(kin, pose, JOINTS) == pytest.approx(expect, abs=1e-9)
+    assert abs(expect + theta_deg) < 0.1 * abs(theta_deg)      # about -theta, not exactly (heading couples in)

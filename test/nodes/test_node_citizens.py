@@ -104,7 +104,8 @@ def test_other_numeric_type_starts_and_a_wrong_value_is_one_line_exit_2(tmp_path
             assert p.stop() == 0, p.log()
     for module, params, name in ((SIM, {"cmd_timeout": 0}, "cmd_timeout"), (SIM, {"seed": 2.5}, "seed"),
                                  (SIM, {"slope_deg": 40}, "slope_deg"), (POLICY, {"rate_hz": "fast"}, "rate_hz"),
-                                 (POLICY, {"slope_timeout": -1}, "slope_timeout")):
+                                 (POLICY, {"slope_timeout": -1}, "slope_timeout"),
+                                 (POLICY, {"diagnostic_updater.period": 0}, "diagnostic_updater.period")):
         p = RosProcess(module, params, tmp_path / f"bad_{name}.log")
         assert p.proc.wait(60) == 2, p.log()
         p.stop()

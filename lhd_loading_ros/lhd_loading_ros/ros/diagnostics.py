@@ -12,19 +12,15 @@ from __future__ import annotations
 
 from typing import Callable
 
-import math
-
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rcl_interfaces.msg import ParameterDescriptor
 
-from lhd_loading_ros.ros.params import steady_timer
+from lhd_loading_ros.ros.params import DIAGNOSTICS_PERIOD, Params, steady_timer
 
 OK, WARN, ERROR, STALE = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR, DiagnosticStatus.STALE
 LEVEL_NAMES = {OK: "OK", WARN: "WARN", ERROR: "ERROR", STALE: "STALE"}
 
 Report = tuple  # (level, message, {key: value})
-PERIOD_PARAM = "diagnostic_updater.period"      # diagnostic_updater's own parameter name
-PERIOD_RANGE = (0.01, 60.0)                     # s
+PERIOD_PARAM = DIAGNOSTICS_PERIOD.name           # diagnostic_updater's own parameter name
 
 
 def status(name: str, hardware_id: str, level, message: str, values: dict | None = None) -> DiagnosticStatus:
@@ -43,33 +39,24 @@ def _fmt(v) -> str:
     return str(v)
 
 
-def period_param(node, default: float) -> float:
-    """The node's `diagnostic_updater.period` (declared here, dynamically typed so that an int
-    such as `:=1` is taken); ValueError naming the parameter and the expected range otherwise."""
+def period_param(node) -> float:
+    """The node's `diagnostic_updater.period` (s, read-only): declared and checked with the node's
+    first parameters (ros/params.py DIAGNOSTICS_PERIOD), or here for a node without them."""
     if not node.has_parameter(PERIOD_PARAM):
-        node.declare_parameter(PERIOD_PARAM, float(default), ParameterDescriptor(
-            dynamic_typing=True, read_only=True, description="s between two /diagnostics messages of this node"))
-    v = node.get_parameter(PERIOD_PARAM).value
-    lo, hi = PERIOD_RANGE
-    try:
-        period = float(v)
-    except (TypeError, ValueError):
-        period = math.nan
-    if isinstance(v, bool) or not (lo <= period <= hi):
-        raise ValueError(f"parameter '{PERIOD_PARAM}' = {v!r} is invalid; expected seconds in [{lo:g}, {hi:g}]")
-    return period
+        Params(node, [])
+    return float(node.get_parameter(PERIOD_PARAM).value)
 
 
 class Diagnostics:
     """Publishes the statuses given by `sources` ({what: fn() -> (level, message, values)})
-    on /diagnostics every `period_s`."""
+    on /diagnostics every `diagnostic_updater.period` seconds (the node's parameter, default 1)."""
 
-    def __init__(self, node, sources: dict[str, Callable[[], Report]], hardware_id: str = "", period_s: float = 1.0):
+    def __init__(self, node, sources: dict[str, Callable[[], Report]], hardware_id: str = ""):
         self.node = node
         self.sources = dict(sources)
         self.hardware_id = hardware_id
         self.pub = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        self.period_s = period_param(node, period_s)
+        self.period_s = period_param(node)
         self.timer = steady_timer(node, self.period_s, self.publish)
         self.last: dict[str, DiagnosticStatus] = {}
 

@@ -149,11 +149,19 @@ class Param:
         return d
 
 
+# Every node's `/diagnostics` period (ros/diagnostics.py), under ROS's diagnostic_updater name and
+# default; declared with whichever Params a node creates first.
+DIAGNOSTICS_PERIOD = Param("diagnostic_updater.period", 1.0, "s between two /diagnostics messages of this node",
+                           lo=0.01, hi=60.0)
+
+
 class Params:
     """The declared, checked parameters of one node: `params["rate_hz"]`, always of the declared type."""
 
     def __init__(self, node, specs: list[Param]):
         self.node = node
+        if not node.has_parameter(DIAGNOSTICS_PERIOD.name):   # with the node's first parameters: a bad
+            specs = [*specs, DIAGNOSTICS_PERIOD]               # value ends it before it does anything
         self.specs = {s.name: s for s in specs}
         self.values: dict[str, Any] = {}
         for s in specs:
