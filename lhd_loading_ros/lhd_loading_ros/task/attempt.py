@@ -33,7 +33,7 @@ from __future__ import annotations
 import math
 import statistics
 from collections import deque
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 
 from lhd_loading_ros.task.attempt_record import AttemptRow, bag_name, check_mass, judge
 from lhd_loading_ros.task.kinematics import ArmKinematics, state_from_measurements
@@ -51,7 +51,7 @@ STOP_SPEED = 0.05          # rad/s: every joint slower than this = the machine s
 LOAD_CELL_MIN_SAMPLES = 3
 LOAD_CELL_RANGE = (-5.0, 200.0)   # kg: a reading outside is a broken amplifier, not a load (tare noise is < 0)
 RANGE_TOL_DEG = 1e-6       # a slope published in rad at exactly a range end is inside (policy core's rule)
-ZONE_LIMITS = ("x_min", "x_max", "z_min", "x_cutoff", "x_obs_start", "x_obs_end", "y_half", "z_top")
+ZONE_LIMITS = tuple(f.name for f in fields(Zones))
 ZONES_CHANGED_M = 0.02     # m: a zone limit republished this far from arming's = another pile estimate
 REASONS = {
     "success": "bucket tip reached the end zone",
