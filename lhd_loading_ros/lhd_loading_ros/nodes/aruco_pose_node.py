@@ -207,13 +207,10 @@ class ArucoPoseNode(Node):
         T_pile_marker = self.T_pile_cam @ T_cam_marker
         if self.planar:  # the machine drives on the floor: keep x, y, z and heading only
             T_pile_marker = level(T_pile_marker)
-            if self.marker_height > 0.0:   # ... and the marker's height is known: the ray through its centre
-                if not self._on_plane(T_pile_marker, corners, cam):
-                    return
-            else:
-                self.height_problem = None
-        else:
-            self.height_problem = None
+            # ... and the marker's height is known: the ray through its centre (the height check is
+            # set there; planar_motion is fixed and a marker_height change clears it)
+            if self.marker_height > 0.0 and not self._on_plane(T_pile_marker, corners, cam):
+                return
         self.detections += 1
         T_base = T_pile_marker @ self.T_marker_base
         self.last_seen = now
