@@ -335,6 +335,24 @@ def test_ship_picks_a_seed_and_writes_the_model_card(cfg, tmp_path):
     assert len(h["conditions"]["nominal"]["success_rate"]["values"]) == 2
     with pytest.raises(ValueError, match="unknown condition 'windy'"):
         held_out(runs, ("windy",), 4, str(cfg_path))
+    # best-final: the best seed's FINAL actor; the card's tables on piles the choice never saw,
+    # the same figures as an evaluation of that actor by hand on the confirmation seed
+    res2 = ship("rlc", tmp_path / "runs", tmp_path / "policies" / "best", episodes=4, config=str(cfg_path),
+                log=lambda *a: None, select="best-final")
+    assert res2["shipped_from"].endswith("/final") and res2["select"] == "best-final"
+    card2 = (tmp_path / "policies" / "best" / "README.md").read_text()
+    assert "the best of 2 seeds' final actors" in card2 and "--seed 3000000" in card2
+    ev2 = json.loads((tmp_path / "policies" / "best" / "evaluation.json").read_text())
+    assert ev2["evaluation_seed"] == 3_000_000
+    by_hand2 = evaluate(LhdLoadingEnv("rlc", cfg), load_policy(res2["shipped_from"]).actor, 4, 3_000_000,
+                        cfg["task"]["bucket_capacity"], breakdown=False)
+    assert ev2["aml"] == pytest.approx(by_hand2["aml"]) and ev2["success_rate"] == by_hand2["success_rate"]
+    # the training-only settings are on the card: the pitch margin of the config it was trained with
+    meta = load_policy(res2["shipped_from"]).meta
+    assert meta["trained_with"] == {"randomize": False,
+                                    "r_success_pitch_margin_deg": cfg["task"]["r_success_pitch_margin_deg"]}
+    if cfg["task"]["r_success_pitch_margin_deg"] > 0:
+        assert f"paid only above {40 + cfg['task']['r_success_pitch_margin_deg']:g} deg" in card2
 
 
 def test_ship_selection_median_and_best():
@@ -345,6 +363,7 @@ def test_ship_selection_median_and_best():
     # ranked: a (0.75) < e (0.875, 3.9) < c (0.875, 4.1) < d < b
     assert pick(keys, "median")[1] == "c"
     assert pick(keys, "best")[1] == "b"
+    assert pick(keys, "best-final")[1] == "b"
     assert pick(keys[:4], "median")[1] == "c"        # a < c < d < b: the lower middle one
     assert pick(keys[:1], "median")[1] == "a"
     with pytest.raises(ValueError, match="select must be one of"):

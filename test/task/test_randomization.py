@@ -136,3 +136,38 @@ def test_dropouts_hold_the_last_value_for_bounded_runs():
     assert held.mean() == pytest.approx(share, abs=0.01)
     # a held value is always a value actually seen before (never invented)
     assert set(out) <= set(vals)
+
+
+def test_the_training_pitch_margin_is_a_training_only_setting(cfg):
+    """task.r_success_pitch_margin_deg changes the reward, not what the actor sees: an actor trained
+    before the key existed (key absent from its hash), with this config's margin, with another margin
+    named on its card, or with randomisation too, runs on this config; another change does not."""
+    import hashlib
+    import json
+    from lhd_loading_ros.task.config import hash_matches
+
+    def raw(c):       # the hash by its definition, written out here
+        c = {k: v for k, v in c.items() if k != "randomization" or c["randomization"]["enabled"]}
+        return hashlib.sha256(json.dumps(c, sort_keys=True).encode()).hexdigest()[:16]
+    old = copy.deepcopy(cfg)
+    del old["task"]["r_success_pitch_margin_deg"]                    # an actor from before the key
+    zero = copy.deepcopy(cfg)
+    zero["task"]["r_success_pitch_margin_deg"] = 0.0
+    assert config_hash(zero) == raw(old)                             # 0 leaves the hash as it was
+    m3 = copy.deepcopy(cfg)
+    m3["task"]["r_success_pitch_margin_deg"] = 3.0
+    assert config_hash(m3) == raw(m3) != raw(old)
+    m5 = copy.deepcopy(cfg)
+    m5["task"]["r_success_pitch_margin_deg"] = 5.0
+    m3_dr = copy.deepcopy(m3)
+    m3_dr["randomization"]["enabled"] = 1
+    for config in (zero, m3):
+        assert hash_matches(raw(old), config)
+        assert hash_matches(raw(m3), config) == (config is m3)
+        assert hash_matches(raw(m3), config, trained_margin_deg=3.0)
+        assert hash_matches(raw(m3_dr), config, trained_margin_deg=3.0)
+        assert not hash_matches(raw(m5), config)
+        assert hash_matches(raw(m5), config, trained_margin_deg=5.0)
+        other = copy.deepcopy(m3)
+        other["paper"]["reward"]["R_zone"] = 1000.0
+        assert not hash_matches(raw(other), config, trained_margin_deg=3.0)

@@ -119,6 +119,23 @@ def test_success_reward_requires_the_success_test(params):
     assert R.r_success(30.0, r(44), params) == pytest.approx(40 * 30)
 
 
+def test_training_pitch_margin_raises_only_r_success_s_pitch_test(params):
+    """r_success_pitch_margin (training): nothing paid at 41 and 42.9 deg with a 3 deg margin, in
+    full above 43 deg; the paper's success level of the same attempt is unchanged (SL 5 at 41 deg)."""
+    import dataclasses
+    from lhd_loading_ros.task.metrics import success_level
+    m3 = dataclasses.replace(params, r_success_pitch_margin=r(3.0))
+    m0 = dataclasses.replace(params, r_success_pitch_margin=0.0)
+    assert R.r_success(30.0, r(41), m0) > 0.0
+    assert R.r_success(30.0, r(41), m3) == 0.0
+    assert R.r_success(30.0, r(42.9), m3) == 0.0
+    assert R.r_success(30.0, r(44), m3) == pytest.approx(R.r_success(30.0, r(44), m0)) == pytest.approx(40 * 30)
+    assert success_level(30.0, r(41), m3.phi_thresh_pitch) == 5
+    # off when r_success does not require the success test (the paper's printed term)
+    paper = dataclasses.replace(m3, r_success_requires_sl=0)
+    assert R.r_success(30.0, r(41), paper) > 0.0
+
+
 def test_success(params):
     import dataclasses
     params = dataclasses.replace(params, phi_target=r(40), r_success_requires_sl=0)   # the paper's printed term

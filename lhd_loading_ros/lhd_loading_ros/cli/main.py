@@ -352,8 +352,9 @@ def main(argv=None) -> int:
     p_ship.add_argument("runs", help="directory holding seed_*/ runs of this variant")
     p_ship.add_argument("--out", help="default policies/<variant>")
     p_ship.add_argument("--episodes", type=int, default=120)
-    p_ship.add_argument("--select", choices=["median", "best"], default="median",
-                        help="median: the median seed's final actor (default); best: the best seed's best checkpoint")
+    p_ship.add_argument("--select", choices=["median", "best", "best-final"], default="median",
+                        help="median: the median seed's final actor (default); best: the best seed's best checkpoint; "
+                             "best-final: the best seed's final actor, its table on piles the selection never saw")
     p_ship.add_argument("--config", default=None)
     p_mjcf = sub.add_parser("mjcf", help="write the MJCF of the scaled LHD generated from the parameter file")
     p_mjcf.add_argument("--out", help="file to write (default: print)")

@@ -146,6 +146,21 @@ def _fmt(v, spec=".3f") -> str:
     return "-" if v is None or (isinstance(v, float) and not math.isfinite(v)) else format(v, spec)
 
 
+def machine_pitch_success(records: list[dict]) -> tuple[int, int] | None:
+    """(successes, attempts) of the weighed attempts (ended in success or at the timeout, with a
+    mass) judged again with the machine's true pitch added to the final pitch: the paper's test,
+    >= 20 kg and phi^T > phi_thresh (task.metrics.success_level). None without corrected pitches."""
+    from lhd_loading_ros.task.metrics import success_level
+
+    judged = [r for r in records if r.get("outcome") in ("success", "timeout")
+              and r.get("phi_final_corrected_deg") is not None and r.get("mass_csv_kg") is not None]
+    if not judged:
+        return None
+    ok = sum(success_level(r["mass_csv_kg"], math.radians(r["phi_final_corrected_deg"]),
+                           math.radians(r["phi_thresh_deg"])) >= 1 for r in judged)
+    return ok, len(judged)
+
+
 def error_summary(records: list[dict]) -> dict:
     """Worst case and mean of each error over the attempts that measured it, and whether the
     issue's bounds hold (v_x RMS <= 0.02 m/s, |alpha| <= 1.5 deg, |x_max| <= 5 cm)."""
@@ -208,7 +223,11 @@ def format_errors(records: list[dict], summary: dict) -> str:
         lines.append(f"final pitch: the stack leaves out the machine's own pitch (planar motion; '+pitch' adds the "
                      f"twin's true machine pitch at the end), {np.mean(drops):+.2f} deg mean, {min(drops):+.2f}.."
                      f"{max(drops):+.2f}; attempts whose pitch test the correction turns: "
-                     f"{', '.join(map(str, flips)) or 'none'}")
+                     f"{', '.join('#' + str(a) for a in flips) or 'none'}")
+        mp = machine_pitch_success(records)
+        if mp is not None:
+            lines.append(f"success with the machine's pitch added: {mp[0]} / {mp[1]} = {mp[0] / mp[1]:.2f} "
+                         f"(what the supervisor would judge with a pitch sensor on the machine)")
     for side in ("front", "rear"):
         d = s[f"drift_agree_{side}"]
         if d["mean"] is not None:
@@ -595,7 +614,9 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
     print(f"success rate {_fmt(success_rate, '.2f')} over {counted} counted attempt(s); run folder {run_dir}",
           file=out, flush=True)
     if args.json:
-        print(json.dumps({"success_rate": success_rate, "attempts": records, "errors": err, "table": summary,
+        mp = machine_pitch_success(records)
+        print(json.dumps({"success_rate": success_rate,
+                          "success_rate_machine_pitch": mp[0] / mp[1] if mp else None, "attempts": records, "errors": err, "table": summary,
                           "run_dir": str(run_dir), "controller": real_args.controller, "slopes": slopes,
                           "episodes_per_slope": args.episodes, "wall_s": wall, "exit": rc}), flush=True)
     return rc

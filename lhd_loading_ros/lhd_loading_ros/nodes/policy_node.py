@@ -74,7 +74,7 @@ from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float32MultiArray, Float64, Float64MultiArray
 
-from lhd_loading_ros.task.config import hash_matches, load_config
+from lhd_loading_ros.task.config import load_config
 from lhd_loading_ros.task.kinematics import ArmKinematics
 from lhd_loading_ros.task.params import TaskParams
 from lhd_loading_ros.policy.core import INPUTS, SLOW_INPUTS, Inputs, PolicyCore, ZERO_COMMAND
@@ -175,7 +175,7 @@ class PolicyNode(Node):
                 pol = load_policy(path)
                 lo, hi, source = pol.trained_slope_range_deg(cfg)
                 actor, variant, slope_range = pol.actor, pol.variant, (lo, hi)
-                if pol.meta.get("config_hash") not in (None, "") and not hash_matches(pol.meta["config_hash"], cfg):
+                if pol.meta.get("config_hash") not in (None, "") and not pol.config_matches(cfg):
                     self.get_logger().warn(f"policy {path} was trained with another parameter file "
                                            f"(config hash {pol.meta['config_hash']}); check the filters and ranges")
                 self.get_logger().info(f"loaded {variant.upper()} actor from {path} (sizes {pol.actor.sizes}); "

@@ -96,10 +96,18 @@ class LoadedPolicy:
             return float(rng[0]), float(rng[1]), "policy card (trained_ranges.slope_deg)"
         ep = cfg["paper"]["episode"]
         lo, hi = float(ep["alpha_min_deg"]), float(ep["alpha_max_deg"])
-        if hash_matches(self.meta.get("config_hash"), cfg):
+        if self.config_matches(cfg):
             return lo, hi, "training config (alpha_min_deg/alpha_max_deg; config hash matches the card)"
         return lo, hi, ("this node's config (alpha_min_deg/alpha_max_deg): the card states no trained range "
                         "and was trained with another config")
+
+
+    def config_matches(self, cfg: dict) -> bool:
+        """The card's config hash names `cfg` up to training-only settings (task.config.hash_matches;
+        the card's `trained_with` gives the pitch margin the actor was trained with)."""
+        margin = (self.meta.get("trained_with") or {}).get("r_success_pitch_margin_deg")
+        return hash_matches(self.meta.get("config_hash"), cfg,
+                            margin if isinstance(margin, (int, float)) and not isinstance(margin, bool) else None)
 
 
 def _sha256(path: Path) -> str:

@@ -79,6 +79,7 @@ SCHEMA: dict[str, Any] = {
         "rlc_boom_saturate": _f(-1.0, 1.0), "rlc_bucket_saturate": _f(-1.0, 1.0), "rld_threshold": _f(-1.0, 1.0),
         "r_dump_sign": _i(-1, 1), "r_weight_increments": _i(0, 1),
         "r_success_requires_sl": _i(0, 1), "success_pitch_margin_deg": _f(-45.0, 45.0),
+        "r_success_pitch_margin_deg": _f(0.0, 20.0),
         "bottom_tolerance": _f(0.0, 0.5),
         "bucket_repose_deg": _f(5.0, 60.0), "normalisers_from_pile": _i(0, 1),  # H4: capacity, derived normalisers
     },
@@ -283,21 +284,47 @@ def load_config(path: str | os.PathLike | None = None) -> dict:
         raise ConfigError(f"{p}: {exc}") from None
 
 
+# Settings that change what an actor was TRAINED on but not what it sees or commands (the
+# observation, the normalisers, the filters): the nodes may run an actor trained with other values.
+# Each is left out of the hash at its neutral value, so actors trained before it existed keep theirs.
+TRAINING_ONLY = (("randomization", "enabled", 0), ("task", "r_success_pitch_margin_deg", 0.0))
+
+
+def _neutral(cfg: dict, section: str, key: str, value) -> dict:
+    return {**cfg, section: {**cfg.get(section, {}), key: value}}
+
+
 def config_hash(cfg: dict) -> str:
     """Stable short hash of a validated config (goes into exported policies). A switched-off
     `randomization` section changes nothing an actor sees, so it is left out of the hash: actors
-    trained before the section existed keep their hash; a randomised run's hash differs."""
+    trained before the section existed keep their hash; a randomised run's hash differs. Likewise
+    task.r_success_pitch_margin_deg at 0 (TRAINING_ONLY)."""
     if int(cfg.get("randomization", {}).get("enabled", 0)) == 0:
         cfg = {k: v for k, v in cfg.items() if k != "randomization"}
+    if "task" in cfg and float(cfg["task"].get("r_success_pitch_margin_deg", 0.0)) == 0.0:
+        cfg = {**cfg, "task": {k: v for k, v in cfg["task"].items() if k != "r_success_pitch_margin_deg"}}
     return hashlib.sha256(json.dumps(cfg, sort_keys=True).encode()).hexdigest()[:16]
 
 
-def hash_matches(h: str | None, cfg: dict) -> bool:
-    """Whether an actor card's config hash `h` names this config: trained on it as it is, or on it
-    with its domain randomisation switched on (`lhd train --randomize` with this `randomization`
-    section). Randomisation changes what the actor was trained on, not what it sees or commands:
-    the observation, the normalisers and the filters are the same, so the nodes may run it."""
+def hash_matches(h: str | None, cfg: dict, trained_margin_deg: float | None = None) -> bool:
+    """Whether an actor card's config hash `h` names this config up to its TRAINING_ONLY settings:
+    trained on it as it is, with its domain randomisation switched on (`lhd train --randomize` with
+    this `randomization` section), and/or with r_success's pitch margin at 0 (actors trained before
+    the margin existed) or at `trained_margin_deg` (the card's `trained_with`). These change what
+    the actor was trained on, not what it sees or commands, so the nodes may run it."""
     if not h:
         return False
-    on = {**cfg, "randomization": {**cfg.get("randomization", {}), "enabled": 1}}
+    margins = {cfg.get("task", {}).get("r_success_pitch_margin_deg", 0.0), 0.0}
+    if trained_margin_deg is not None:
+        margins.add(float(trained_margin_deg))
+    for rand in (None, 1):
+        for margin in margins:
+            c = cfg if rand is None else _neutral(cfg, "randomization", "enabled", 1)
+            if rand is not None and "randomization" not in cfg:
+                continue
+            if "task" in c:
+                c = _neutral(c, "task", "r_success_pitch_margin_deg", margin)
+            if h == config_hash(c):
+                return True
+    return False
     return h == config_hash(cfg) or ("randomization" in cfg and h == config_hash(on))

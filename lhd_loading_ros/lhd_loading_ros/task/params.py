@@ -81,6 +81,7 @@ class TaskParams:
     bottom_tolerance: float
     bucket_repose: float = math.radians(35.0)   # angle of repose of the material (bucket capacity)
     normalisers_from_pile: int = 0              # 1: d_end_max / x_obs derived from the pile family (zones.py)
+    r_success_pitch_margin: float = 0.0         # rad; r_success only when phi^T > phi_thresh_pitch + this (training)
 
     @classmethod
     def from_config(cls, cfg: dict) -> "TaskParams":
@@ -111,6 +112,7 @@ class TaskParams:
             phi_shovel_max=rad(t["phi_shovel_max_deg"]), drift_slip_ratio=t["drift_slip_ratio"],
             drift_min_speed=t["drift_min_speed"], rlc_boom_saturate=t["rlc_boom_saturate"],
             rlc_bucket_saturate=t["rlc_bucket_saturate"], rld_threshold=t["rld_threshold"], r_dump_sign=t["r_dump_sign"], r_weight_increments=t["r_weight_increments"],
-            r_success_requires_sl=t["r_success_requires_sl"], bottom_tolerance=t["bottom_tolerance"],
+            r_success_requires_sl=t["r_success_requires_sl"],
+            r_success_pitch_margin=rad(t.get("r_success_pitch_margin_deg", 0.0)), bottom_tolerance=t["bottom_tolerance"],
             bucket_repose=rad(t["bucket_repose_deg"]), normalisers_from_pile=t["normalisers_from_pile"],
         )

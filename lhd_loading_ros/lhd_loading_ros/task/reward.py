@@ -134,8 +134,9 @@ def success_deltas(W: float, phi: float, p: TaskParams) -> tuple[float, float]:
 def r_success(W: float, phi: float, p: TaskParams) -> float:
     """R_success * (Delta_weight + Delta_pitch) / 2 * max(W^T, W_target), paid when the tip
     reaches the end zone; with r_success_requires_sl (default) only if the attempt also meets
-    the paper's success test, SL >= 1 (W^T >= 20 kg, phi^T > phi_thresh)."""
-    if p.r_success_requires_sl and success_level(W, phi, p.phi_thresh_pitch) < 1:
+    the paper's success test, SL >= 1 (W^T >= 20 kg, phi^T > phi_thresh), with the pitch test
+    raised by the training margin r_success_pitch_margin (the episode's own success test is not)."""
+    if p.r_success_requires_sl and success_level(W, phi, p.phi_thresh_pitch + p.r_success_pitch_margin) < 1:
         return 0.0
     d_w, d_p = success_deltas(W, phi, p)
     return p.R_success * (d_w + d_p) / 2.0 * max(W, p.W_target)
