@@ -91,6 +91,7 @@ class LhdLoadingEnv(gym.Env):
         self.steps = 0
         self.ret = 0.0
         self._front, self._rear = [], []
+        self._max_tilt = abs(self.sim.machine_pitch())
         self._done = False
         self._state = s
         return self._obs(s), self._info(s, "running", {})
@@ -124,6 +125,7 @@ class LhdLoadingEnv(gym.Env):
         self.ret += r
         self._front.append(s.drift_front)
         self._rear.append(s.drift_rear)
+        self._max_tilt = max(self._max_tilt, abs(self.sim.machine_pitch()))   # at the control period's end
         terminated = outcome != "running"
         truncated = (not terminated) and self.steps >= self.p.max_steps
         self._done = terminated or truncated
@@ -162,6 +164,7 @@ class LhdLoadingEnv(gym.Env):
             rear_drift_pct=drift_pct(self._rear),
             success_level=success_level(W, s.phi_shovel, self.p.phi_thresh_pitch),
             alpha_deg=math.degrees(self.sim.pile.alpha), material=self.sim.material,
+            max_tilt_deg=math.degrees(self._max_tilt),
         )
 
     @property

@@ -79,6 +79,7 @@ class LhdSimulator:
         self.nonhomogeneous_probability = pc["nonhomogeneous_probability"]
         # ids
         self.bid_bucket = m.body("bucket").id
+        self.bid_rear = m.body("rear_frame").id
         self.sid_tip = m.site("tip").id
         self.sid_bottom = m.site("bottom").id
         self.tid_fee = m.tendon("fee_x").id
@@ -191,6 +192,14 @@ class LhdSimulator:
         self._drift_from = self._drift_mark()  # drift window: none yet (wheel_drift)
         self._bind_kernel()
         self._body_args = self.body.bind(m, d, self.pile, self._slices, self.bucket_mass0)
+
+    def machine_pitch(self) -> float:
+        """The rear frame's pitch in the world, rad, nose-down positive: the angle its x axis
+        makes with the floor, x_axis = (cos p cos yaw, cos p sin yaw, -sin p), whatever the
+        heading. What a pitch sensor on the machine would read; the task's bucket pitch
+        (phi_shovel) is in the world frame and already includes it."""
+        R = self.data.xmat[self.bid_rear]          # row-major 3x3; its first column is the x axis
+        return math.atan2(-R[6], math.hypot(R[0], R[3]))
 
     def reset(self, rng: np.random.Generator, alpha: float | None = None, material: str | None = None,
               d_attack: float | None = None, attack_speed: float | None = None,

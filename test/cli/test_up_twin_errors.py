@@ -81,7 +81,8 @@ def test_pitch_and_heading_together(kin, heading_deg, theta_deg):
 def test_success_with_the_machine_pitch_rejudges_weighed_attempts_by_the_paper_test():
     """Hand-made records: a success whose corrected pitch falls under 40 deg no longer counts, an
     SL 0 timeout whose corrected pitch rises above it does, a light bucket stays a failure whatever
-    its pitch, aborted and unweighed attempts are not judged; the summary names the turned ones."""
+    its pitch; the denominator is the stack's (aborted and unweighed attempts left out, failures
+    and e-stops in); the summary names the turned ones."""
     from lhd_loading_ros.cli.up_twin import format_errors, error_summary, machine_pitch_success
 
     def rec(n, outcome, mass, phi, corrected):
@@ -93,12 +94,14 @@ def test_success_with_the_machine_pitch_rejudges_weighed_attempts_by_the_paper_t
                rec(3, "timeout", 25.0, 39.8, 40.3),        # SL 0 by the stack, SL 3 with the pitch
                rec(4, "success", 19.0, 45.0, 45.0),        # < 20 kg: not a success either way
                rec(5, "aborted", None, float("nan"), None),
-               rec(6, "success", None, 44.0, 44.0)]        # not weighed: not judged
-    assert machine_pitch_success(records) == (2, 4)
-    assert machine_pitch_success([records[4]]) is None
+               rec(6, "success", None, 44.0, 44.0),        # not weighed: not counted (as by the stack)
+               rec(7, "failure", 12.0, 10.0, None),        # restricted zone: counted, a failure
+               rec(8, "estop", None, float("nan"), None)]  # e-stop: counted, a failure
+    assert machine_pitch_success(records) == (2, 6)
+    assert machine_pitch_success([records[4], records[6]]) is None
     for r in records:
         r.update({"vx_rms": None, "vx_n": 0, "slope_truth_deg": 30.0, "alpha_est_deg": None, "alpha_err_deg": None,
                   "x_max_est_m": None, "x_max_truth_m": None, "x_max_err_m": None, "mass_truth_kg": None,
                   "mass_err_kg": None, "drift_agree_front": None, "drift_agree_rear": None})
     text = format_errors(records, error_summary(records))
-    assert "turns: #1, #3" in text and "2 / 4 = 0.50" in text
+    assert "turns: #1, #3" in text and "2 / 6 = 0.33" in text

@@ -171,3 +171,56 @@ def test_the_training_pitch_margin_is_a_training_only_setting(cfg):
         other = copy.deepcopy(m3)
         other["paper"]["reward"]["R_zone"] = 1000.0
         assert not hash_matches(raw(other), config, trained_margin_deg=3.0)
+
+
+def test_which_cards_count_as_randomised_and_configs_without_the_sections(cfg):
+    """trained_randomized (cards from before `trained_with`): an actor trained on this config with
+    or without the margin is not randomised, one trained with the section on is; a config whose
+    randomisation is on still runs actors trained without it; configs lacking the sections work."""
+    import hashlib
+    import json
+    from lhd_loading_ros.task.config import hash_matches, trained_randomized
+
+    def raw(c):
+        c = {k: v for k, v in c.items() if k != "randomization" or c["randomization"]["enabled"]}
+        if "task" in c and not c["task"].get("r_success_pitch_margin_deg", 0.0):
+            c = {**c, "task": {k: v for k, v in c["task"].items() if k != "r_success_pitch_margin_deg"}}
+        return hashlib.sha256(json.dumps(c, sort_keys=True).encode()).hexdigest()[:16]
+    m0 = copy.deepcopy(cfg)
+    m0["task"]["r_success_pitch_margin_deg"] = 0.0
+    m3 = copy.deepcopy(cfg)
+    m3["task"]["r_success_pitch_margin_deg"] = 3.0
+    dr0 = copy.deepcopy(m0)
+    dr0["randomization"]["enabled"] = 1
+    for config in (m0, m3, dr0):
+        assert not trained_randomized(raw(m0), config)          # e.g. policies/rld_paper, rlc
+        assert not trained_randomized(raw(m3), config, 3.0)
+        assert trained_randomized(raw(dr0), config)             # policies/rld_dr
+        assert hash_matches(raw(m0), config) and hash_matches(raw(dr0), config)
+    no_sections = {k: v for k, v in cfg.items() if k not in ("randomization", "task")}
+    assert hash_matches(raw(no_sections), no_sections) and not trained_randomized(raw(no_sections), no_sections)
+    assert not hash_matches(raw(m0), no_sections)
+
+
+def test_a_card_s_trained_with_margin_is_honoured_by_the_policy_loader(cfg, tmp_path):
+    """Policy.config_matches: an actor trained with a 5 deg margin matches this config only through
+    the margin its card names (trained_with); a card naming nothing, or a wrong type, does not."""
+    import json
+    import shutil
+    from pathlib import Path
+
+    from lhd_loading_ros.policy.actor_file import load_policy
+    m5 = copy.deepcopy(cfg)
+    m5["task"]["r_success_pitch_margin_deg"] = 5.0
+    d = tmp_path / "p"
+    shutil.copytree(Path(__file__).resolve().parents[2] / "policies" / "rld", d)
+    meta = json.loads((d / "policy.json").read_text())
+    for trained_with, expected in (({"r_success_pitch_margin_deg": 5.0, "randomize": False}, True),
+                                   (None, False), ({"r_success_pitch_margin_deg": "5"}, False)):
+        meta["config_hash"] = config_hash(m5)
+        if trained_with is None:
+            meta.pop("trained_with", None)
+        else:
+            meta["trained_with"] = trained_with
+        (d / "policy.json").write_text(json.dumps(meta))
+        assert load_policy(d).config_matches(cfg) is expected, trained_with

@@ -147,18 +147,25 @@ def _fmt(v, spec=".3f") -> str:
 
 
 def machine_pitch_success(records: list[dict]) -> tuple[int, int] | None:
-    """(successes, attempts) of the weighed attempts (ended in success or at the timeout, with a
-    mass) judged again with the machine's true pitch added to the final pitch: the paper's test,
-    >= 20 kg and phi^T > phi_thresh (task.metrics.success_level). None without corrected pitches."""
+    """(successes, attempts) with the machine's true pitch added to the final pitch, over the
+    attempts the stack's success rate counts (task.attempt_record: not aborted; an attempt that
+    ended in success or at the timeout only when weighed): those by the paper's test, >= 20 kg and
+    phi^T > phi_thresh (task.metrics.success_level), the others (failure, e-stop, lost input)
+    as failures. None when no weighed attempt has a corrected pitch."""
+    from lhd_loading_ros.task.attempt_record import NEEDS_MASS
     from lhd_loading_ros.task.metrics import success_level
 
-    judged = [r for r in records if r.get("outcome") in ("success", "timeout")
-              and r.get("phi_final_corrected_deg") is not None and r.get("mass_csv_kg") is not None]
-    if not judged:
+    counted = [r for r in records if r.get("outcome") not in (None, "aborted")
+               and (r["outcome"] not in NEEDS_MASS or r.get("mass_csv_kg") is not None)]
+    if not any(r["outcome"] in NEEDS_MASS and r.get("phi_final_corrected_deg") is not None for r in counted):
         return None
-    ok = sum(success_level(r["mass_csv_kg"], math.radians(r["phi_final_corrected_deg"]),
-                           math.radians(r["phi_thresh_deg"])) >= 1 for r in judged)
-    return ok, len(judged)
+
+    def ok(r) -> bool:
+        if r["outcome"] not in NEEDS_MASS:
+            return False
+        phi = r["phi_final_corrected_deg"] if r.get("phi_final_corrected_deg") is not None else r["phi_final_deg"]
+        return success_level(r["mass_csv_kg"], math.radians(phi), math.radians(r["phi_thresh_deg"])) >= 1
+    return sum(ok(r) for r in counted), len(counted)
 
 
 def error_summary(records: list[dict]) -> dict:
@@ -502,7 +509,6 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                                            f"last answer: {last['msg']}\n{pf}")
                     t_retry = time.monotonic() + ARM_RETRY_S
                     spin(ARM_RETRY_S + 1, lambda: time.monotonic() >= t_retry, "the next arming try")
-                t_armed = now()
                 slope_est, zones_est = w.slope, list(w.zones)
                 slope_truth, zones_truth = w.truth_slope, list(w.truth_zones) if w.truth_zones else None
                 say(f"attempt {k + 1}/{total}: {res.message}")

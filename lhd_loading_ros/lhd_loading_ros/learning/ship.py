@@ -17,7 +17,7 @@ import json
 import shutil
 from pathlib import Path
 
-from lhd_loading_ros.task.config import config_hash, hash_matches, load_config
+from lhd_loading_ros.task.config import load_config, trained_randomized
 from lhd_loading_ros.policy.actor_file import load_policy
 from lhd_loading_ros.learning.evaluate import evaluate, evaluate_under
 from lhd_loading_ros.learning.report import plot_curves, summarize
@@ -34,13 +34,15 @@ def _brief(ev: dict) -> dict:
 
 
 def _table(ev: dict) -> str:
-    head = ("| | episodes | success | ASL | AML [kg] | AFF | AR | elapsed [s] | front drift % | rear drift % | end zone |\n"
-            "|---|---|---|---|---|---|---|---|---|---|---|")
+    head = ("| | episodes | success | ASL | AML [kg] | AFF | AR | elapsed [s] | front drift % | rear drift % | end zone "
+            "| tilt [deg] | tilt > 5 deg |\n"
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|")
 
     def row(name, r):
         return (f"| {name} | {r['episodes']} | {r['success_rate']:.3f} | {r['asl']:.2f} | {r['aml']:.1f} | "
                 f"{r['aff']:.2f} | {r['ar']:.0f} | {r['elapsed_s']:.2f} | {r['front_drift_pct']:.1f} | "
-                f"{r['rear_drift_pct']:.1f} | {r['end_zone_rate']:.2f} |")
+                f"{r['rear_drift_pct']:.1f} | {r['end_zone_rate']:.2f} | {r.get('max_tilt_deg', float('nan')):.2f} | "
+                f"{r.get('tilt_over_5deg_rate', float('nan')):.2f} |")
     lines = [head, row("all", ev)]
     lines += [row(f"{k} deg", v) for k, v in ev["by_slope"].items()]
     lines += [row(k, v) for k, v in ev["by_material"].items()]
@@ -94,11 +96,11 @@ def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=prin
     plot_curves({variant.upper(): runs}, out / "training_curves.png")
     deploy_note = ""
     if variant == "rlc":   # as the policy node runs it: with the deployment filter
-        evd = evaluate(LhdLoadingEnv(variant, cfg, deploy_filter=True), pol.actor, episodes, HELD_OUT_SEED,
+        evd = evaluate(LhdLoadingEnv(variant, cfg, deploy_filter=True), pol.actor, episodes, eval_seed,
                        cfg["task"]["bucket_capacity"])
         ev["with_deployment_filter"] = {k: evd[k] for k in ("success_rate", "asl", "aml", "ar", "elapsed_s")}
         deploy_note = (f"\nWith the deployment filter, as the policy node and the machine run it (`lhd eval --policy "
-                       f"policies/rlc --deploy-filter`): success {evd['success_rate']:.3f}, ASL {evd['asl']:.2f}, "
+                       f"{out.as_posix()} --deploy-filter --seed {eval_seed}`): success {evd['success_rate']:.3f}, ASL {evd['asl']:.2f}, "
                        f"AML {evd['aml']:.1f} kg, {evd['elapsed_s']:.2f} s.\n")
     # what the machine will do differently (docs/training.md "Domain randomisation"): the same
     # held-out piles under drawn conditions and at the placement corners, as the policy node runs it
@@ -110,15 +112,15 @@ def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=prin
     m = pol.meta
     shown = out.as_posix() if not out.is_absolute() else str(out)
     tw = m.get("trained_with")
-    trained_dr = (bool(tw.get("randomize")) if isinstance(tw, dict)
-                  else hash_matches(m.get("config_hash"), cfg) and m.get("config_hash") != config_hash(cfg))
+    trained_dr = (bool(tw.get("randomize")) if isinstance(tw, dict)       # cards from before trained_with:
+                  else trained_randomized(m.get("config_hash"), cfg))     # by their hash
     dr_note = ("Trained with domain randomisation (`lhd train --randomize`, the config's `randomization` section)."
-               if trained_dr else "Trained without domain randomisation (the paper's protocol).")
+               if trained_dr else "Trained without domain randomisation.")
     r, st = ev["randomized"], ev["stress_placement"]
     robust = f"""
-## When the machine differs (`lhd eval --policy {shown} --randomize` / `--stress placement`{' --deploy-filter' if deploy else ''})
+## When the machine differs (`lhd eval --policy {shown} --seed {eval_seed} --randomize` / `--stress placement`{' --deploy-filter' if deploy else ''})
 
-{dr_note} The same held-out piles under drawn conditions (slope-estimate error up to +-15 deg, camera
+{dr_note} The same piles under drawn conditions (slope-estimate error up to +-15 deg, camera
 noise, dropouts and delay, 0-100 ms actuator dead time, gravel of 1,500-2,200 kg/m^3, tyre friction,
 start pose), and with the machine placed by hand (heading +-3 deg, lip +-5 cm, camera errors, 100 ms
 dead time):
@@ -157,7 +159,9 @@ Run it: `lhd up sim --policy {shown}` or `ros2 run lhd_loading_ros policy_node -
 Success: SL >= 1 at the end (>= 20 kg and final pitch > 40 deg), the paper's definition; the
 end-zone column is the share of attempts that reached the end zone. Material, time and drift
 are means over all attempts. {ev['failures']['restricted_zone']} attempts ended in the restricted zone,
-{ev['failures']['timeout']} at the time limit.
+{ev['failures']['timeout']} at the time limit. Tilt: the largest pitch of the machine's rear frame in an
+attempt (the rear lifting in a breakout; docs/modeling.md "The machine's own tilt"), its mean and the
+share of attempts above 5 deg.
 {deploy_note}{robust}
 ## Across seeds
 
@@ -176,7 +180,7 @@ AML {fin['aml']['mean']:.1f} ± {fin['aml']['sd']:.1f} kg, AR {fin['ar']['mean']
 
 ## Limits
 Trained and evaluated in our simulator only (MuJoCo + extended FEE, gravel piles of 15-30
-deg, docs/modeling.md). The reward is the paper's with four documented departures
+deg, docs/modeling.md). The reward is the paper's with {'five' if margin > 0 else 'four'} documented departures
 (docs/training.md): r_success's pitch target 47.5 deg instead of 40 and paid only on a
 successful attempt{margin_note}, r_weight paid on the material entering the bucket, and r_dump fining a
 forward-tilted bucket (the paper's prose).

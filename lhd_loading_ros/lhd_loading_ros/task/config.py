@@ -285,20 +285,22 @@ def load_config(path: str | os.PathLike | None = None) -> dict:
 
 
 # Settings that change what an actor was TRAINED on but not what it sees or commands (the
-# observation, the normalisers, the filters): the nodes may run an actor trained with other values.
-# Each is left out of the hash at its neutral value, so actors trained before it existed keep theirs.
+# observation, the normalisers, the filters): the nodes may run an actor trained with other values
+# (hash_matches). (section, key, neutral value): at its neutral value each is left out of the hash
+# (config_hash), so actors trained before it existed keep theirs; randomization.enabled = 0 drops
+# the whole randomization section, whose ranges mean nothing while it is off.
 TRAINING_ONLY = (("randomization", "enabled", 0), ("task", "r_success_pitch_margin_deg", 0.0))
 
 
-def _neutral(cfg: dict, section: str, key: str, value) -> dict:
-    return {**cfg, section: {**cfg.get(section, {}), key: value}}
+def _with(cfg: dict, section: str, key: str, value) -> dict:
+    return {**cfg, section: {**cfg[section], key: value}} if section in cfg else cfg
 
 
 def config_hash(cfg: dict) -> str:
-    """Stable short hash of a validated config (goes into exported policies). A switched-off
-    `randomization` section changes nothing an actor sees, so it is left out of the hash: actors
-    trained before the section existed keep their hash; a randomised run's hash differs. Likewise
-    task.r_success_pitch_margin_deg at 0 (TRAINING_ONLY)."""
+    """Stable short hash of a validated config (goes into exported policies), with the
+    TRAINING_ONLY settings at their neutral values left out: a switched-off `randomization`
+    section (actors trained before the section existed keep their hash; a randomised run's hash
+    differs), and task.r_success_pitch_margin_deg at 0."""
     if int(cfg.get("randomization", {}).get("enabled", 0)) == 0:
         cfg = {k: v for k, v in cfg.items() if k != "randomization"}
     if "task" in cfg and float(cfg["task"].get("r_success_pitch_margin_deg", 0.0)) == 0.0:
@@ -306,25 +308,39 @@ def config_hash(cfg: dict) -> str:
     return hashlib.sha256(json.dumps(cfg, sort_keys=True).encode()).hexdigest()[:16]
 
 
-def hash_matches(h: str | None, cfg: dict, trained_margin_deg: float | None = None) -> bool:
-    """Whether an actor card's config hash `h` names this config up to its TRAINING_ONLY settings:
-    trained on it as it is, with its domain randomisation switched on (`lhd train --randomize` with
-    this `randomization` section), and/or with r_success's pitch margin at 0 (actors trained before
-    the margin existed) or at `trained_margin_deg` (the card's `trained_with`). These change what
-    the actor was trained on, not what it sees or commands, so the nodes may run it."""
-    if not h:
-        return False
-    margins = {cfg.get("task", {}).get("r_success_pitch_margin_deg", 0.0), 0.0}
+def training_variants(cfg: dict, trained_margin_deg: float | None = None) -> list[dict]:
+    """`cfg` with its TRAINING_ONLY settings at every value an actor that runs on it may have
+    been trained with: randomisation on or off (this config's ranges), and r_success's pitch
+    margin at 0 (actors trained before it existed), at this config's value, or at
+    `trained_margin_deg` (the card's `trained_with`)."""
+    rands = [0, 1] if "randomization" in cfg else [None]
+    margins = {0.0, float(cfg.get("task", {}).get("r_success_pitch_margin_deg", 0.0))}
     if trained_margin_deg is not None:
         margins.add(float(trained_margin_deg))
-    for rand in (None, 1):
-        for margin in margins:
-            c = cfg if rand is None else _neutral(cfg, "randomization", "enabled", 1)
-            if rand is not None and "randomization" not in cfg:
-                continue
-            if "task" in c:
-                c = _neutral(c, "task", "r_success_pitch_margin_deg", margin)
-            if h == config_hash(c):
-                return True
-    return False
-    return h == config_hash(cfg) or ("randomization" in cfg and h == config_hash(on))
+    out = []
+    for rand in rands:
+        c = cfg if rand is None else _with(cfg, "randomization", "enabled", rand)
+        out += [_with(c, "task", "r_success_pitch_margin_deg", m) for m in sorted(margins)]
+    return out
+
+
+def hash_matches(h: str | None, cfg: dict, trained_margin_deg: float | None = None) -> bool:
+    """Whether an actor card's config hash `h` names this config up to its TRAINING_ONLY settings
+    (training_variants): trained on it as it is, with its domain randomisation switched on or off
+    (`lhd train --randomize` with this `randomization` section), and/or with r_success's pitch
+    margin at 0, at this config's or at the card's value. These change what the actor was trained
+    on, not what it sees or commands, so the nodes may run it."""
+    if not h:
+        return False
+    return any(h == config_hash(c) for c in training_variants(cfg, trained_margin_deg))
+
+
+def trained_randomized(h: str | None, cfg: dict, trained_margin_deg: float | None = None) -> bool:
+    """Whether `h` names this config with domain randomisation switched on (and not also with it
+    off: the two hashes differ whenever the section exists)."""
+    if not h or "randomization" not in cfg:
+        return False
+    variants = training_variants(cfg, trained_margin_deg)
+    on = {config_hash(c) for c in variants if int(c["randomization"]["enabled"]) == 1}
+    off = {config_hash(c) for c in variants if int(c["randomization"]["enabled"]) == 0}
+    return h in on and h not in off

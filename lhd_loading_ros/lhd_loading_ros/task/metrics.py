@@ -34,6 +34,8 @@ class EpisodeResult:
     success_level: int
     alpha_deg: float = float("nan")
     material: str = "homogeneous"
+    max_tilt_deg: float = 0.0    # largest |pitch| of the machine's rear frame at the control periods' ends: the
+                                 # rear lifting in a breakout (not in the paper's metrics; docs/modeling.md)
 
     @property
     def success(self) -> bool:
@@ -66,6 +68,8 @@ def aggregate(results: list[EpisodeResult], bucket_capacity: float) -> dict:
         "elapsed_s": mean([e.elapsed_s for e in r]),
         "front_drift_pct": mean([e.front_drift_pct for e in r]),
         "rear_drift_pct": mean([e.rear_drift_pct for e in r]),
+        "max_tilt_deg": mean([e.max_tilt_deg for e in r]),
+        "tilt_over_5deg_rate": mean([1.0 if e.max_tilt_deg > 5.0 else 0.0 for e in r]),
     }
 
 
