@@ -11,13 +11,14 @@ COLCON_STAMP := $(COLCON_VENV)/.installed
 
 .PHONY: install demo test bench clean colcon-build
 
-# --no-compile: byte-compiling every module of torch & co. took 25 of the install's 60 s; the
-# modules a run imports are compiled (and cached) on their first import instead
+# pip byte-compiles at install (not --no-compile): where PYTHONDONTWRITEBYTECODE is set, as on
+# this project's machines, nothing would cache the .pyc later and every node process would compile
+# torch & co. again (the node pass took 708 s instead of 524 s)
 $(STAMP): requirements.txt lhd_loading_ros/setup.py lhd_sim_node/setup.py lhd_hw_bridge/setup.py
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q --no-compile -r requirements.txt
-	$(PY) -m pip install -q --no-compile --no-deps --config-settings editable_mode=compat -e lhd_loading_ros -e lhd_sim_node -e lhd_hw_bridge
+	$(PY) -m pip install -q -r requirements.txt
+	$(PY) -m pip install -q --no-deps --config-settings editable_mode=compat -e lhd_loading_ros -e lhd_sim_node -e lhd_hw_bridge
 	touch $(STAMP)
 
 install: $(STAMP)
@@ -28,7 +29,7 @@ demo: $(STAMP)
 # colcon-common-extensions lives in its own venv: it is a build tool, not a runtime dependency
 $(COLCON_STAMP):
 	test -x $(COLCON_VENV)/bin/python || $(PYTHON) -m venv $(COLCON_VENV)
-	$(COLCON_VENV)/bin/python -m pip install -q --no-compile colcon-common-extensions==0.3.0
+	$(COLCON_VENV)/bin/python -m pip install -q colcon-common-extensions==0.3.0
 	touch $(COLCON_STAMP)
 
 # what a user with a full ROS install does: colcon build of the three ament_python packages
