@@ -137,10 +137,13 @@ def _eval(args) -> int:
 
 
 def format_eval(res: dict) -> str:
-    head = f"{'':>16} {'episodes':>8} {'success':>8} {'ASL':>5} {'AML kg':>7} {'AFF':>5} {'AR':>8} {'time s':>6} {'front %':>7} {'rear %':>6}"
+    # tilt: the mean of the attempts' largest pitch of the machine (rear lifting), and the share above 5 deg
+    head = (f"{'':>16} {'episodes':>8} {'success':>8} {'ASL':>5} {'AML kg':>7} {'AFF':>5} {'AR':>8} {'time s':>6} "
+            f"{'front %':>7} {'rear %':>6} {'tilt deg':>8} {'>5 deg':>6}")
     def row(name, r):
         return (f"{name:>16} {r['episodes']:>8} {r['success_rate']:>8.2f} {r['asl']:>5.2f} {r['aml']:>7.1f} "
-                f"{r['aff']:>5.2f} {r['ar']:>8.1f} {r['elapsed_s']:>6.2f} {r['front_drift_pct']:>7.1f} {r['rear_drift_pct']:>6.1f}")
+                f"{r['aff']:>5.2f} {r['ar']:>8.1f} {r['elapsed_s']:>6.2f} {r['front_drift_pct']:>7.1f} {r['rear_drift_pct']:>6.1f} "
+                f"{r.get('max_tilt_deg', float('nan')):>8.2f} {r.get('tilt_over_5deg_rate', float('nan')):>6.2f}")
     dr = (", domain randomisation" if res.get("randomize") else "") + (f", stress {res['stress']}" if res.get("stress") else "")
     lines = [f"policy {res['policy']} ({res['variant'].upper()}), evaluation seed {res['seed']}{dr}", head, row("all", res)]
     lines += [row(f"{k} deg", v) for k, v in res.get("by_slope", {}).items()]
