@@ -54,7 +54,7 @@ from geometry_msgs.msg import PointStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rclpy.time import Time
-from sensor_msgs.msg import CameraInfo, Image, JointState, LaserScan
+from sensor_msgs.msg import CameraInfo, Image, Imu, JointState, LaserScan
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
@@ -146,6 +146,9 @@ class TwinNode(Node):
                   on_change=self._set_estop),
             Param("load_cell", True, "the device has the bucket's load cell (load-cell frames at 10 Hz)"),
             Param("truth_hz", 50.0, "Hz, ground-truth topics", lo=1.0, hi=100.0),
+            Param("imu_hz", 0.0, "Hz, <prefix>/imu: the rear frame's orientation as an IMU on it would give it "
+                  "(0: none; the paper's machine has none: `lhd up twin --imu`)", lo=0.0, hi=200.0),
+            Param("imu_noise_deg", 0.1, "deg, roll and pitch noise of the IMU (standard deviation)", lo=0.0, hi=10.0),
             Param("markers_hz", 5.0, "Hz, the MarkerArray (0: none)", lo=0.0, hi=30.0),
             Param("command_trace_hz", 10.0, "Hz, <prefix>/twin/device/commands: the command frames read off the "
                   "line (0: none)", lo=0.0, hi=100.0),
@@ -245,6 +248,12 @@ class TwinNode(Node):
 
         # every timer on the steady clock: the twin is the machine, its time is the wall clock's
         steady_timer(self, 1.0 / gp("truth_hz"), self._publish_truth)
+        self.pub_imu = None
+        if gp("imu_hz") > 0:
+            self.pub_imu = self.create_publisher(Imu, f"{ns}/imu", MEASUREMENT_QOS)
+            self._imu_rng = np.random.default_rng()
+            self._imu_noise = math.radians(gp("imu_noise_deg"))
+            steady_timer(self, 1.0 / gp("imu_hz"), self._publish_imu)
         steady_timer(self, RESET_TICK, self._check_reset)
         if gp("markers_hz") > 0:
             steady_timer(self, 1.0 / gp("markers_hz"), self._publish_markers)
@@ -388,6 +397,26 @@ class TwinNode(Node):
         if self._clock_offset_ns is None:
             self._clock_offset_ns = self.get_clock().now().nanoseconds - int(time.monotonic() * 1e9)
         return Time(nanoseconds=self._clock_offset_ns + int(round(t_mono * 1e9))).to_msg()
+
+    def _publish_imu(self) -> None:
+        """The machine's true orientation turned by a small random roll and pitch (the IMU's
+        noise): w, x, y, z of q_true * q_noise."""
+        with self.due.lock:
+            _, quat, _, stamp = self._state_and_stamp()
+        a, b = self._imu_rng.normal(0.0, self._imu_noise, 2) / 2.0 if self._imu_noise > 0 else (0.0, 0.0)
+        nw, nx, ny = math.cos(a) * math.cos(b), math.sin(a) * math.cos(b), math.cos(a) * math.sin(b)
+        nz = math.sin(a) * math.sin(b)                  # Rx(2a) Ry(2b) as a quaternion
+        w, x, y, z = (float(c) for c in quat)
+        m = Imu()
+        m.header.stamp, m.header.frame_id = stamp, self.base_frame_id
+        o = m.orientation
+        o.w = w * nw - x * nx - y * ny - z * nz
+        o.x = w * nx + x * nw + y * nz - z * ny
+        o.y = w * ny - x * nz + y * nw + z * nx
+        o.z = w * nz + x * ny - y * nx + z * nw
+        m.angular_velocity_covariance[0] = -1.0        # orientation only (REP 145: -1 = not provided)
+        m.linear_acceleration_covariance[0] = -1.0
+        self.pub_imu.publish(m)
 
     def _publish_truth(self) -> None:
         sim = self.sim

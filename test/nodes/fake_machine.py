@@ -9,7 +9,7 @@ from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Bool, Float64, Float64MultiArray
 from std_srvs.srv import Trigger
 
@@ -30,6 +30,7 @@ class FakeMachine:
         self.feed = {"joints": True, "odom": True, "drift": True, "hw": True}
         self.front, self.rear = front, rear
         self.load_cell = None              # kg to publish on /lhd/load_cell/mass at 50 Hz, or None
+        self.imu = None                    # (w, x, y, z) to publish on /lhd/imu at 50 Hz, or None
         self.pose_published_at = {}        # pose -> first publish time (monotonic)
         self.last_joints_at = None
         self.statuses = []                 # (arrival, {key: value})
@@ -42,6 +43,7 @@ class FakeMachine:
         self.pub_zones = node.create_publisher(Float64MultiArray, "/lhd/pile/zones", LATCHED)
         self.pub_estop = node.create_publisher(Bool, "/lhd/estop", LATCHED)
         self.pub_cell = node.create_publisher(Float64, "/lhd/load_cell/mass", REL)
+        self.pub_imu = node.create_publisher(Imu, "/lhd/imu", REL)
         node.create_subscription(DiagnosticStatus, "/lhd/episode", self._on_status, STATUS)
         self.arm_client = node.create_client(Trigger, "/lhd/arm")
         self.abort_client = node.create_client(Trigger, "/lhd/abort")
@@ -77,6 +79,11 @@ class FakeMachine:
             self.pub_rear.publish(Bool(data=self.rear))
         if self.load_cell is not None:
             self.pub_cell.publish(Float64(data=self.load_cell))
+        if self.imu is not None:
+            m = Imu()
+            m.header.stamp = stamp
+            m.orientation.w, m.orientation.x, m.orientation.y, m.orientation.z = self.imu
+            self.pub_imu.publish(m)
         if self.feed["hw"]:
             st = DiagnosticStatus(level=DiagnosticStatus.OK, name="/lhd_bridge: device", message="drive enabled")
             st.values = [KeyValue(key="estop", value="False")]

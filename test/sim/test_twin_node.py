@@ -17,7 +17,7 @@ rclpy = pytest.importorskip("rclpy")
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue  # noqa: E402
 from geometry_msgs.msg import PointStamped  # noqa: E402
 from nav_msgs.msg import Odometry  # noqa: E402
-from sensor_msgs.msg import CameraInfo, Image, JointState, LaserScan  # noqa: E402
+from sensor_msgs.msg import CameraInfo, Image, Imu, JointState, LaserScan  # noqa: E402
 from std_msgs.msg import Float64, Float64MultiArray  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 from visualization_msgs.msg import MarkerArray  # noqa: E402
@@ -43,10 +43,11 @@ class Rig:
         self.twin = RosProcess("lhd_sim_node.twin_node", {
             "link": self.link, "start_pose": "approach", "d_attack": 0.8, "seed": 3,
             "slopes_deg": ",".join(f"{s:g}" for s in SLOPES), "material": "homogeneous", "reset_delay": 0.5,
-            "weigh_timeout": 2.5, "camera_fps": 10.0, "lidar_hz": 4.0, "markers_hz": 4.0}, tmp_path / "twin.log")
+            "weigh_timeout": 2.5, "camera_fps": 10.0, "lidar_hz": 4.0, "markers_hz": 4.0, "imu_hz": 20.0,
+            "imu_noise_deg": 0.1}, tmp_path / "twin.log")
         self.node = rclpy.create_node("twin_test")
         self.got = {k: [] for k in ("odom", "mass", "tip", "truth_js", "slope", "zones", "drift", "js", "lc",
-                                    "img", "info", "scan", "markers", "diag")}
+                                    "img", "info", "scan", "markers", "diag", "imu")}
         n, g = self.node, self.got
 
         def rec(key, f=lambda m: m):
@@ -68,6 +69,7 @@ class Rig:
         n.create_subscription(LaserScan, "/scan", rec("scan"), MEASUREMENT_QOS)
         n.create_subscription(MarkerArray, "/lhd/twin/markers", rec("markers"), MEASUREMENT_QOS)
         n.create_subscription(DiagnosticArray, "/diagnostics", rec("diag"), 20)
+        n.create_subscription(Imu, "/lhd/imu", rec("imu"), MEASUREMENT_QOS)
         self.pub_cmd = n.create_publisher(Float64MultiArray, "/lhd/cmd", 1)
         self.pub_episode = n.create_publisher(DiagnosticStatus, "/lhd/episode", STATUS_QOS)
         self.reset_client = n.create_client(Trigger, "/lhd_twin/reset")
@@ -134,6 +136,12 @@ def test_truth_sensors_and_markers_flow(rig):
     # the truth's timing: 50 Hz odometry
     t = [tt for tt, _ in g["odom"][-30:]]
     assert 30.0 < (len(t) - 1) / (t[-1] - t[0]) < 70.0
+    # the IMU (imu_hz 20): the machine's true orientation within its noise (0.1 deg sd): the angle
+    # between the two quaternions, 2 acos |<q1, q2>|, under 0.6 deg (6 sd of each of two axes)
+    assert spin_until(rig.node, lambda: len(g["imu"]) > 3, timeout=5.0)
+    q_imu, q_true = rig.last("imu").orientation, rig.last("odom").pose.pose.orientation
+    dot = abs(sum(a * b for a, b in zip((q_imu.w, q_imu.x, q_imu.y, q_imu.z), (q_true.w, q_true.x, q_true.y, q_true.z))))
+    assert math.degrees(2 * math.acos(min(1.0, dot))) < 0.6
 
 
 def test_wheel_command_drives_the_machine_and_the_command_timeout_stops_it(rig):

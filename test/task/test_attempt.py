@@ -63,6 +63,7 @@ class Rig:
         self.front = self.rear = False
         self.hw = HwStatus(OK, False, "drive enabled")
         self.vel = 0.0
+        self.imu = None                   # (w, x, y, z) of an IMU on the rear frame, when fed
 
     def feed(self, t=None, joints=True, odom=True, drift=True, hw=True):
         if t is not None:
@@ -78,6 +79,8 @@ class Rig:
             i.put("drift_rear", self.rear, self.t)
         if hw:
             i.put("hw", self.hw, self.t)
+        if self.imu is not None:
+            i.put("imu", self.imu, self.t)
         return self
 
     def ready(self, slope_deg=20.0):
@@ -564,3 +567,75 @@ def test_a_new_attempt_timeout_applies_from_the_next_arming(kin):
     r.arm()
     assert r.step(4.98) == "running"
     assert r.step(0.02) == "timeout" and r.sv.attempt.reason == "attempt_timeout 5 s passed"
+
+
+# ---------------------------------------------------------------- the machine's tilt (IMU)
+def quat_zyx(yaw, pitch, roll):
+    """(w, x, y, z) of Rz(yaw) Ry(pitch) Rx(roll), by the half-angle formulas."""
+    cy, sy, cp, sp, cr, sr = (f(a / 2) for a in (yaw, pitch, roll) for f in (math.cos, math.sin))
+    return (cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
+            cr * cp * sy - sr * sp * cy)
+
+
+def test_heading_from_the_odometry_tilt_from_the_imu():
+    """with_tilt keeps the ArUco heading and takes the IMU's roll and pitch (its own heading,
+    which drifts, is dropped): the result is Rz(odom yaw) Ry(pitch) Rx(roll), built by hand."""
+    import numpy as np
+    from lhd_loading_ros.task.kinematics import mat_to_quat, nose_down_pitch, quat_to_mat, with_tilt
+    for yaw_odom, yaw_imu, pitch, roll in ((30.0, 100.0, 6.0, 2.0), (-170.0, 5.0, -3.0, -1.0), (0.0, 0.0, 9.6, 0.0)):
+        q = with_tilt(quat_zyx(DEG(yaw_odom), 0.0, 0.0), quat_zyx(DEG(yaw_imu), DEG(pitch), DEG(roll)))
+        expected = quat_to_mat(*quat_zyx(DEG(yaw_odom), DEG(pitch), DEG(roll)))
+        assert np.allclose(quat_to_mat(*q), expected, atol=1e-12)
+        assert math.degrees(nose_down_pitch(expected)) == pytest.approx(pitch, abs=1e-9)
+    rng = np.random.default_rng(0)
+    for _ in range(50):                   # mat_to_quat inverts quat_to_mat (up to the sign of q)
+        q = rng.normal(size=4)
+        q /= np.linalg.norm(q)
+        assert np.allclose(quat_to_mat(*mat_to_quat(quat_to_mat(*q))), quat_to_mat(*q), atol=1e-12)
+
+
+def test_a_fresh_imu_puts_the_machine_pitch_into_the_final_pitch(kin):
+    """The bucket's pitch in the world is its pitch on the machine minus the machine's nose-down
+    pitch (both about y): 45.84 - 3 deg with the IMU; a stale IMU is ignored (45.84 deg)."""
+    for imu_age, expected in ((0.0, math.degrees(0.8) - 3.0), (0.6, math.degrees(0.8))):
+        r = Rig(kin, arm_delay=0.0).ready()
+        r.arm()
+        r.base_x, (r.boom, r.bucket) = END_X, LIFT
+        r.feed(r.t + 0.1)
+        r.sv.inputs.put("imu", quat_zyx(DEG(50.0), DEG(3.0), 0.0), r.t - imu_age)   # its own heading: ignored
+        r.sv.update(r.t)
+        assert r.sv.state == "success"
+        assert r.sv.attempt.row().phi_final_deg == pytest.approx(expected, abs=1e-9)
+        # the tip's position stays the levelled pose's (what the controllers see): only the pitch changes
+        x, z = tip_hand(END_X, *LIFT)
+        assert (r.sv.tip.x_shovel, r.sv.tip.z_shovel) == (pytest.approx(x, abs=1e-3), pytest.approx(z, abs=1e-3))   # 3 deg about base_link: 9 cm
+
+
+def test_a_tilt_beyond_max_tilt_deg_ends_the_attempt_and_the_imu_becomes_required(kin):
+    r = Rig(kin, arm_delay=0.0, max_tilt_deg=8.0).ready()
+    assert any("no machine orientation received (/lhd/imu" in p for p in r.sv.preflight(r.t))
+    assert r.sv.arm(r.t, "x")[0] is False
+    r.imu = quat_zyx(0.0, DEG(0.5), 0.0)
+    r.feed()
+    r.arm()
+    r.imu = quat_zyx(DEG(20.0), DEG(7.9), DEG(1.0))
+    assert r.step(0.2) == "running"
+    r.imu = quat_zyx(0.0, DEG(9.0), 0.0)
+    assert r.step(0.02) == "failure"
+    row = r.sv.attempt.row()
+    assert "machine tilted +9.0 deg" in row.reason and "max_tilt_deg 8" in row.reason and row.success is False
+    # a silent or broken IMU is a lost input while the limit is on
+    for bad, needle in ((None, "machine orientation"), ((0.0, 0.0, 0.0, 0.0), "IMU orientation is not a finite")):
+        r = Rig(kin, arm_delay=0.0, max_tilt_deg=8.0).ready()
+        r.imu = quat_zyx(0.0, 0.0, 0.0)
+        r.feed()
+        r.arm()
+        if bad is None:
+            r.imu = None
+            r.step(0.6)
+        else:
+            r.imu = bad
+            r.step(0.02)
+        assert r.sv.state == "lost_input" and needle in r.sv.attempt.reason
+    with pytest.raises(ValueError, match="max_tilt_deg"):
+        settings(max_tilt_deg=-1.0)

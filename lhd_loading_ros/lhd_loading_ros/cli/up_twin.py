@@ -414,6 +414,8 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                    "slopes_deg": ",".join(f"{s:g}" for s in slopes), "material": real_args.material,
                    "seed": args.seed, "reset_delay": args.reset_delay, "camera_fps": args.camera_fps,
                    "markers_hz": args.markers_hz}
+    if args.imu is not None:
+        twin_params["imu_hz"] = 50.0
     if real_args.config:
         twin_params["config"] = real_args.config
     for kv in args.twin_param:
@@ -470,6 +472,8 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
             for name, module, params, extra in stack(real_args, run_dir):
                 if stop.is_set():
                     raise Interrupted()
+                if name == "supervisor" and args.imu is not None:
+                    params = {**params, "max_tilt_deg": float(args.imu)}
                 children.append(Child(name, module, params, log_dir, quiet, [*ros_args, *extra]))
             say(f"lhd up twin: twin + {len(children) - 1} nodes of `lhd up real` ({real_args.controller} controller) "
                 f"on {link}; {total} attempt(s) on slopes {', '.join(f'{s:g}' for s in slopes)} deg; run folder "
@@ -561,9 +565,10 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                 rec["phi_final_deg"] = float(kv_end.get("phi_final_deg", "nan"))
                 rec["phi_thresh_deg"] = phi_thresh_deg
                 pose_end, js_end = latest_before(w.truth_pose, t_end), latest_before(w.truth_joints, t_end)
+                # with --imu the supervisor already has the machine's pitch: nothing is dropped
                 rec["phi_dropped_deg"] = (pitch_dropped_deg(kin, pose_end, js_end[1])
-                                          if pose_end is not None and js_end is not None and "boom" in js_end[1]
-                                          else None)
+                                          if args.imu is None and pose_end is not None and js_end is not None
+                                          and "boom" in js_end[1] else None)
                 rec["phi_final_corrected_deg"] = (rec["phi_final_deg"] + rec["phi_dropped_deg"]
                                                   if rec["phi_dropped_deg"] is not None else None)
                 rec["alpha_err_deg"] = (rec["alpha_est_deg"] - rec["slope_truth_deg"]
@@ -646,6 +651,11 @@ def main(argv=None) -> int:
                     help="the simulated camera's frame rate (default 30, the real camera's and the twin node's; at 15 "
                          "the v_x error doubles: docs/twin.md, runs 13-16)")
     ap.add_argument("--markers-hz", type=float, default=2.0, help="the twin's MarkerArray rate (0: none)")
+    ap.add_argument("--imu", type=float, nargs="?", const=0.0, default=None, metavar="MAX_TILT_DEG",
+                    help="give the machine an IMU on its rear frame (/lhd/imu at 50 Hz, 0.1 deg noise): the "
+                         "supervisor puts the machine's pitch into the final pitch; with MAX_TILT_DEG it also ends "
+                         "an attempt whose machine tilts beyond it (supervisor max_tilt_deg). Not on the paper's "
+                         "machine: without --imu the twin runs exactly the stack of `lhd up real`")
     ap.add_argument("--twin-param", action="append", default=[], metavar="NAME=VALUE",
                     help="a parameter of the twin node (lhd_sim_node/twin_node.py), e.g. camera_dropout=0.05; "
                          "repeatable")
@@ -670,6 +680,8 @@ def main(argv=None) -> int:
             ap.error(f"--twin-param {kv!r}: expected NAME=VALUE, e.g. camera_dropout=0.05")
     if args.arm_timeout <= 0:
         ap.error(f"--arm-timeout must be positive, got {args.arm_timeout}")
+    if args.imu is not None and not (math.isfinite(args.imu) and 0.0 <= args.imu <= 45.0):
+        ap.error(f"--imu {args.imu:g}: expected a tilt limit in [0, 45] deg (0 or no value: no limit)")
     # the real stack's options, parsed by `lhd up real`'s own parser: its defaults are the twin's
     rargv = ["--port", "(twin)", "--controller", args.controller, "--material", args.material,
              "--attempt-timeout", str(args.attempt_timeout)]

@@ -40,7 +40,7 @@ from rclpy.duration import Duration
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Bool, Float64, Float64MultiArray
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
@@ -110,6 +110,9 @@ class SupervisorNode(Node):
                   lo=-1.0, hi=10.0, check=lambda v: None if v == -1.0 or v >= 0.0 else
                   "expected -1 (the task's control period) or seconds >= 0"),
             Param("hw_status_timeout", 0.5, "s: the same for the bridge's hw/status", lo=0.01, hi=60.0),
+            Param("max_tilt_deg", 0.0, "deg: a machine tilted beyond this (|pitch| from <prefix>/imu, an IMU on the "
+                  "rear frame) ends the attempt as a failure, and the IMU becomes a required input; 0: no limit "
+                  "(a fresh IMU is still used for the final pitch)", lo=0.0, hi=45.0),
             Param("mass_settle_s", 1.0, "s: after the machine stopped, the median of load_cell/mass over this "
                   "window is the attempt's mass", lo=0.1, hi=60.0),
             Param("namespace_prefix", "/lhd", "topic prefix in the root namespace (under a namespace, the "
@@ -136,7 +139,8 @@ class SupervisorNode(Node):
                             control_dt=p.control_dt, attempt_timeout=gp("attempt_timeout"),
                             arm_delay=gp("arm_delay"), input_timeout=gp("input_timeout"),
                             hw_status_timeout=gp("hw_status_timeout"), mass_settle_s=gp("mass_settle_s"), prefix=ns,
-                            end_check_period=p.control_dt if gp("end_check_period") < 0 else gp("end_check_period"))
+                            end_check_period=p.control_dt if gp("end_check_period") < 0 else gp("end_check_period"),
+                            max_tilt_deg=gp("max_tilt_deg"))
         self.run_dir = Path(gp("run_dir")).expanduser().resolve()
         self.csv = csv_path(self.run_dir)
         try:
@@ -165,6 +169,7 @@ class SupervisorNode(Node):
         sd = qos_profile_sensor_data
         self.create_subscription(JointState, f"{ns}/joint_states", self._on_js, sd)
         self.create_subscription(Odometry, f"{ns}/odom", self._on_odom, sd)
+        self.create_subscription(Imu, f"{ns}/imu", self._on_imu, sd)
         self.create_subscription(Bool, f"{ns}/wheel_drift/front", lambda m: self._put("drift_front", bool(m.data)), sd)
         self.create_subscription(Bool, f"{ns}/wheel_drift/rear", lambda m: self._put("drift_rear", bool(m.data)), sd)
         # a volatile publisher is incompatible with the latched subscription by design (the
@@ -191,6 +196,10 @@ class SupervisorNode(Node):
     # ------------------------------------------------------------------ inputs
     def _put(self, name: str, value) -> None:
         self.core.inputs.put(name, value, time.monotonic())
+
+    def _on_imu(self, msg: Imu) -> None:
+        q = msg.orientation          # a zero or non-finite quaternion is a lost input (max_tilt_deg > 0)
+        self._put("imu", (float(q.w), float(q.x), float(q.y), float(q.z)))
 
     def _on_js(self, msg: JointState) -> None:
         joints = {}

@@ -15,11 +15,17 @@ and while running, checked in this order after those two:
   success     the bucket tip in the end zone (task.zones.classify), judged at the end of each
               control period since running began (`end_check_period`, the task's 0.1 s: the
               POMDP's termination instants; 0: on every update);
-  failure     the tip in the restricted zone (on every update: it protects the machine);
+  failure     the tip in the restricted zone (on every update: it protects the machine), or, with
+              `max_tilt_deg` > 0, the machine tilted beyond it (an IMU on the rear frame, /lhd/imu:
+              the rear lifting in a breakout);
   timeout     attempt_timeout (10 s, the paper's) since running began;
   aborted     the operator's /lhd/abort (any time while armed or running).
 The tip comes from odometry + joint states through the kinematics the policy node uses
-(task.kinematics.state_from_measurements); the zones and the slope are those of the arming
+(task.kinematics.state_from_measurements); with a fresh IMU orientation (optional; required when
+max_tilt_deg > 0) the bucket's pitch is computed with the odometry's heading and the IMU's roll
+and pitch (task.kinematics.with_tilt), so the final pitch includes the machine's own pitch, which
+the ArUco node's levelled pose leaves out (the tip's position stays the levelled pose's, as the
+controllers see it); the zones and the slope are those of the arming
 (the pile of this attempt), so a pile estimate republished mid-attempt cannot move the goal.
 
 The figures: elapsed time from running to the end; front/rear drift % over the drift flags
@@ -36,7 +42,7 @@ from collections import deque
 from dataclasses import dataclass, field, fields, replace
 
 from lhd_loading_ros.task.attempt_record import AttemptRow, bag_name, check_mass, judge
-from lhd_loading_ros.task.kinematics import ArmKinematics, state_from_measurements
+from lhd_loading_ros.task.kinematics import ArmKinematics, nose_down_pitch, quat_to_mat, state_from_measurements, with_tilt
 from lhd_loading_ros.task.metrics import drift_pct
 from lhd_loading_ros.task.state import LhdState
 from lhd_loading_ros.task.zones import Zones, classify
@@ -85,6 +91,9 @@ class Settings:
     # safety ends (e-stop, lost input, restricted zone, timeout) are checked on every update.
     # 0: the end zone on every update too (docs/supervisor.md: why the task's grid is the default)
     end_check_period: float = 0.1
+    # deg: while running, the machine's tilt (|pitch| from the IMU) beyond this ends the attempt
+    # as a failure; 0: no limit, and the IMU is optional (used for the pitch when it is fresh)
+    max_tilt_deg: float = 0.0
 
     def __post_init__(self):
         lo, hi = self.slope_range_deg
@@ -96,6 +105,8 @@ class Settings:
                 raise ValueError(f"{name} = {v!r}: expected a positive number of seconds")
         if not (math.isfinite(self.arm_delay) and self.arm_delay >= 0):
             raise ValueError(f"arm_delay = {self.arm_delay!r}: expected seconds >= 0")
+        if not (math.isfinite(self.max_tilt_deg) and 0.0 <= self.max_tilt_deg <= 45.0):
+            raise ValueError(f"max_tilt_deg = {self.max_tilt_deg!r}: expected degrees in [0, 45] (0: no limit)")
         if not (math.isfinite(self.end_check_period) and self.end_check_period >= 0):
             raise ValueError(f"end_check_period = {self.end_check_period!r}: expected seconds >= 0 (0: every update)")
 
@@ -103,7 +114,7 @@ class Settings:
 @dataclass
 class Inputs:
     """Latest value and arrival time (monotonic s) of each input.
-    joints: {name: (position, velocity)}; odom: ((x, y, z), (w, x, y, z), v_x);
+    joints: {name: (position, velocity)}; odom: ((x, y, z), (w, x, y, z), v_x); imu: (w, x, y, z);
     drift_front / drift_rear: bool; slope: rad; zones: Zones; hw: HwStatus."""
     values: dict = field(default_factory=dict)
     arrival: dict = field(default_factory=dict)
@@ -209,6 +220,9 @@ class Supervisor:
                 ("drift_front", "front drift flag", f"{p}/wheel_drift/front, the bridge", s.input_timeout),
                 ("drift_rear", "rear drift flag", f"{p}/wheel_drift/rear, the bridge", s.input_timeout),
                 ("hw", "bridge status", f"{p}/hw/status", s.hw_status_timeout))
+        if s.max_tilt_deg > 0:            # the tilt limit needs the IMU all the time
+            ages += (("imu", "machine orientation", f"{p}/imu, an IMU on the rear frame (max_tilt_deg > 0)",
+                      s.input_timeout),)
         for name, what, src, timeout in ages:
             if name not in inp.values:
                 out.append(f"no {what} received ({src})")
@@ -227,6 +241,8 @@ class Supervisor:
                 out.append(f"odometry v_x is not finite ({v_x!r})")
             if not _finite(*pos, *quat) or not any(quat):
                 out.append(f"odometry pose is not finite (position {pos}, orientation {quat})")
+        if s.max_tilt_deg > 0 and "imu" in inp.values and self._tilt(now) is None:
+            out.append(f"IMU orientation is not a finite, non-zero quaternion ({inp.values['imu']})")
         hw = inp.values.get("hw")
         if hw is not None and inp.age("hw", now) <= s.hw_status_timeout and not hw.estop:
             if hw.level in (ERROR, STALE):
@@ -254,9 +270,28 @@ class Supervisor:
         try:
             st = state_from_measurements(self.kin, pos, quat, v_x, j, bool(inp.values.get("drift_front")),
                                          bool(inp.values.get("drift_rear")))
+            if self._tilt(now) is not None:
+                # the bucket's pitch with the machine's own roll and pitch (the IMU's); the tip's
+                # POSITION stays the levelled pose's, as the controllers see it: turning the arm
+                # about base_link at its floor height would move the tip where it is not (a machine
+                # tilting nose-down pivots on its front wheels, its rear axle rising), and the end
+                # zone judged there would let a controller go on past its trained end
+                tilted = state_from_measurements(self.kin, pos, with_tilt(quat, inp.values["imu"]), v_x, j,
+                                                 False, False)
+                st = replace(st, phi_shovel=tilted.phi_shovel)
         except ValueError:          # a zero quaternion
             return None
         return st if _finite(st.x_shovel, st.y_shovel, st.z_shovel, st.phi_shovel) else None
+
+    def _tilt(self, now: float) -> float | None:
+        """rad, the machine's nose-down pitch from a fresh, valid IMU orientation; else None."""
+        q = self.inputs.values.get("imu")
+        if q is None or self.inputs.age("imu", now) > self.s.input_timeout or not _finite(*q):
+            return None
+        try:
+            return nose_down_pitch(quat_to_mat(*q))
+        except ValueError:                # a zero quaternion
+            return None
 
     def preflight(self, now: float) -> list[str]:
         """Every reason not to start an attempt now, each a sentence; [] = ready."""
@@ -408,6 +443,9 @@ class Supervisor:
             self._end(now, "success", REASONS["success"])
         elif where == "restricted":
             self._end(now, "failure", REASONS["failure"])
+        elif s.max_tilt_deg > 0 and abs(self._tilt(now)) > math.radians(s.max_tilt_deg):
+            self._end(now, "failure", f"machine tilted {math.degrees(self._tilt(now)):+.1f} deg (nose down +; "
+                                      f"max_tilt_deg {s.max_tilt_deg:g}): the rear lifting; lower the boom")
         elif timed_out:
             self._end(now, "timeout", f"attempt_timeout {a.timeout:g} s passed")
 

@@ -78,6 +78,39 @@ def quat_to_mat(w: float, x: float, y: float, z: float) -> np.ndarray:
     ])
 
 
+def mat_to_quat(R: np.ndarray) -> tuple[float, float, float, float]:
+    """(w, x, y, z) of a rotation matrix (Shepperd's method: the largest of the four squares
+    first, so no division by a small number)."""
+    t = np.trace(R)
+    cands = (t, R[0, 0], R[1, 1], R[2, 2])
+    i = int(np.argmax(cands))
+    if i == 0:
+        w = math.sqrt(1.0 + t) / 2.0
+        return w, (R[2, 1] - R[1, 2]) / (4 * w), (R[0, 2] - R[2, 0]) / (4 * w), (R[1, 0] - R[0, 1]) / (4 * w)
+    if i == 1:
+        x = math.sqrt(1.0 + 2 * R[0, 0] - t) / 2.0
+        return (R[2, 1] - R[1, 2]) / (4 * x), x, (R[0, 1] + R[1, 0]) / (4 * x), (R[0, 2] + R[2, 0]) / (4 * x)
+    if i == 2:
+        y = math.sqrt(1.0 + 2 * R[1, 1] - t) / 2.0
+        return (R[0, 2] - R[2, 0]) / (4 * y), (R[0, 1] + R[1, 0]) / (4 * y), y, (R[1, 2] + R[2, 1]) / (4 * y)
+    z = math.sqrt(1.0 + 2 * R[2, 2] - t) / 2.0
+    return (R[1, 0] - R[0, 1]) / (4 * z), (R[0, 2] + R[2, 0]) / (4 * z), (R[1, 2] + R[2, 1]) / (4 * z), z
+
+
+def nose_down_pitch(R: np.ndarray) -> float:
+    """rad, the angle the machine's x axis (the nose) makes below the floor, whatever its heading."""
+    return math.atan2(-R[2, 0], math.hypot(R[0, 0], R[1, 0]))
+
+
+def with_tilt(heading_quat, tilt_quat) -> tuple[float, float, float, float]:
+    """The machine's orientation from two sensors: the heading of `heading_quat` (the ArUco
+    node's levelled pose) and the roll and pitch of `tilt_quat` (an IMU on the rear frame, whose
+    own heading drifts and is dropped). (w, x, y, z)."""
+    Rh, Rt = quat_to_mat(*heading_quat), quat_to_mat(*tilt_quat)
+    tilt_only = _rot_z(-math.atan2(Rt[1, 0], Rt[0, 0])) @ Rt
+    return mat_to_quat(_rot_z(math.atan2(Rh[1, 0], Rh[0, 0])) @ tilt_only)
+
+
 @dataclass(frozen=True)
 class ArmKinematics:
     front: tuple
