@@ -353,3 +353,14 @@ def fee_arrow(tip_xyz, force, scale: float = 0.0005, min_force: float = 1.0) -> 
     if not (np.isfinite(f).all() and np.isfinite(tip).all()) or np.linalg.norm(f) < min_force:
         return None
     return np.vstack([tip, tip + scale * f])
+
+
+def imu_orientation(true_quat, roll_noise: float, pitch_noise: float) -> tuple[float, float, float, float]:
+    """What an IMU on the rear frame reports (w, x, y, z): the machine's true orientation turned,
+    in its own frame, by a small roll and pitch error (rad): q_true * q(Rx(roll) Ry(pitch))."""
+    a, b = roll_noise / 2.0, pitch_noise / 2.0
+    nw, nx, ny, nz = (math.cos(a) * math.cos(b), math.sin(a) * math.cos(b), math.cos(a) * math.sin(b),
+                      math.sin(a) * math.sin(b))
+    w, x, y, z = (float(c) for c in true_quat)
+    return (w * nw - x * nx - y * ny - z * nz, w * nx + x * nw + y * nz - z * ny,
+            w * ny - x * nz + y * nw + z * nx, w * nz + x * ny - y * nx + z * nw)

@@ -251,7 +251,7 @@ class TwinNode(Node):
         self.pub_imu = None
         if gp("imu_hz") > 0:
             self.pub_imu = self.create_publisher(Imu, f"{ns}/imu", MEASUREMENT_QOS)
-            self._imu_rng = np.random.default_rng()
+            self._imu_rng = np.random.default_rng([gp("seed"), 145])   # reproducible with the twin's seed
             self._imu_noise = math.radians(gp("imu_noise_deg"))
             steady_timer(self, 1.0 / gp("imu_hz"), self._publish_imu)
         steady_timer(self, RESET_TICK, self._check_reset)
@@ -403,17 +403,13 @@ class TwinNode(Node):
         noise): w, x, y, z of q_true * q_noise."""
         with self.due.lock:
             _, quat, _, stamp = self._state_and_stamp()
-        a, b = self._imu_rng.normal(0.0, self._imu_noise, 2) / 2.0 if self._imu_noise > 0 else (0.0, 0.0)
-        nw, nx, ny = math.cos(a) * math.cos(b), math.sin(a) * math.cos(b), math.cos(a) * math.sin(b)
-        nz = math.sin(a) * math.sin(b)                  # Rx(2a) Ry(2b) as a quaternion
-        w, x, y, z = (float(c) for c in quat)
+        roll, pitch = self._imu_rng.normal(0.0, self._imu_noise, 2) if self._imu_noise > 0 else (0.0, 0.0)
         m = Imu()
         m.header.stamp, m.header.frame_id = stamp, self.base_frame_id
         o = m.orientation
-        o.w = w * nw - x * nx - y * ny - z * nz
-        o.x = w * nx + x * nw + y * nz - z * ny
-        o.y = w * ny - x * nz + y * nw + z * nx
-        o.z = w * nz + x * ny - y * nx + z * nw
+        o.w, o.x, o.y, o.z = ss.imu_orientation(quat, roll, pitch)
+        var = self._imu_noise ** 2
+        m.orientation_covariance[0] = m.orientation_covariance[4] = m.orientation_covariance[8] = var
         m.angular_velocity_covariance[0] = -1.0        # orientation only (REP 145: -1 = not provided)
         m.linear_acceleration_covariance[0] = -1.0
         self.pub_imu.publish(m)

@@ -63,4 +63,4 @@ def test_the_imu_is_required_its_pitch_judged_and_a_tilt_ends_the_attempt(rig):
     rig.wait_state("running", 2, since=n1)
     rig.imu = pitch_quat(10.0)
     _, kv = rig.wait_state("failure", 2, since=n1)
-    assert "machine tilted +10.0 deg" in kv["reason"] and "max_tilt_deg 8" in kv["reason"], kv
+    assert "machine tilted 10.0 deg (pitch +10.0 deg" in kv["reason"] and "max_tilt_deg 8" in kv["reason"], kv

@@ -259,3 +259,28 @@ def test_pile_surfaces_zone_boxes_trail_and_arrow(sim):
     tip = sim.data.site_xpos[sim.sid_tip]
     a = fee_arrow(tip, fee.force)
     assert a is not None and a[1, 0] < a[0, 0]                           # the pile pushes the bucket back
+
+
+def test_the_imu_reports_the_true_orientation_turned_by_its_error_in_its_own_frame():
+    """sim_sensors.imu_orientation: q_true * q_err, with the error a roll then a pitch about the
+    machine's own axes: the rotation matrix is R_true Rx(roll) Ry(pitch), built here by hand, for a
+    yawed, pitched and rolled machine; zero error returns the truth."""
+    import numpy as np
+
+    from lhd_loading_ros.task.kinematics import quat_to_mat
+    from lhd_sim_node.sim_sensors import imu_orientation
+
+    def rx(a):
+        return np.array([[1, 0, 0], [0, math.cos(a), -math.sin(a)], [0, math.sin(a), math.cos(a)]])
+
+    def ry(a):
+        return np.array([[math.cos(a), 0, math.sin(a)], [0, 1, 0], [-math.sin(a), 0, math.cos(a)]])
+
+    def rz(a):
+        return np.array([[math.cos(a), -math.sin(a), 0], [math.sin(a), math.cos(a), 0], [0, 0, 1]])
+    R_true = rz(math.radians(70)) @ ry(math.radians(9)) @ rx(math.radians(-3))
+    from lhd_loading_ros.task.kinematics import mat_to_quat
+    q_true = mat_to_quat(R_true)
+    for roll, pitch in ((0.0, 0.0), (0.002, -0.003), (0.05, 0.1)):
+        got = quat_to_mat(*imu_orientation(q_true, roll, pitch))
+        assert np.allclose(got, R_true @ rx(roll) @ ry(pitch), atol=1e-12)

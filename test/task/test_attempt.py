@@ -587,6 +587,9 @@ def test_heading_from_the_odometry_tilt_from_the_imu():
         expected = quat_to_mat(*quat_zyx(DEG(yaw_odom), DEG(pitch), DEG(roll)))
         assert np.allclose(quat_to_mat(*q), expected, atol=1e-12)
         assert math.degrees(nose_down_pitch(expected)) == pytest.approx(pitch, abs=1e-9)
+    # every branch of Shepperd's method: near identity, and half turns about x, y and z
+    for q in ((1.0, 0.0, 0.0, 0.0), (0.01, 1.0, 0.0, 0.0), (0.01, 0.0, 1.0, 0.0), (0.01, 0.0, 0.0, 1.0)):
+        assert np.allclose(quat_to_mat(*mat_to_quat(quat_to_mat(*q))), quat_to_mat(*q), atol=1e-12)
     rng = np.random.default_rng(0)
     for _ in range(50):                   # mat_to_quat inverts quat_to_mat (up to the sign of q)
         q = rng.normal(size=4)
@@ -623,7 +626,33 @@ def test_a_tilt_beyond_max_tilt_deg_ends_the_attempt_and_the_imu_becomes_require
     r.imu = quat_zyx(0.0, DEG(9.0), 0.0)
     assert r.step(0.02) == "failure"
     row = r.sv.attempt.row()
-    assert "machine tilted +9.0 deg" in row.reason and "max_tilt_deg 8" in row.reason and row.success is False
+    assert "machine tilted 9.0 deg (pitch +9.0 deg" in row.reason and "max_tilt_deg 8" in row.reason
+    assert row.success is False
+    # nose up (the front lifted) or on its side counts too: the tilt is the up axis from the vertical
+    for yaw, pitch, roll, tilt in ((0.0, -9.0, 0.0, 9.0), (30.0, 0.0, 8.5, 8.5), (0.0, 6.0, 6.0, None)):
+        r = Rig(kin, arm_delay=0.0, max_tilt_deg=8.0).ready()
+        r.imu = quat_zyx(0.0, 0.0, 0.0)
+        r.feed()
+        r.arm()
+        r.imu = quat_zyx(DEG(yaw), DEG(pitch), DEG(roll))
+        r.step(0.02)
+        # independently: cos(tilt) = cos(pitch) cos(roll), the up axis's vertical component
+        expected = math.degrees(math.acos(math.cos(DEG(pitch)) * math.cos(DEG(roll))))
+        assert r.sv.state == "failure" and f"machine tilted {expected:.1f} deg" in r.sv.attempt.reason
+        assert tilt is None or expected == pytest.approx(tilt)
+    # a tilted machine is not armed; in the end zone while tilted beyond the limit: a failure (safety first)
+    r = Rig(kin, arm_delay=0.0, max_tilt_deg=8.0).ready()
+    r.imu = quat_zyx(0.0, DEG(8.5), 0.0)
+    r.feed()
+    assert any("machine tilted 8.5 deg" in p for p in r.sv.preflight(r.t)) and r.sv.arm(r.t, "x")[0] is False
+    r.imu = quat_zyx(0.0, 0.0, 0.0)
+    r.feed()
+    r.arm()
+    r.base_x, (r.boom, r.bucket) = END_X, LIFT
+    r.imu = quat_zyx(0.0, DEG(8.5), 0.0)
+    r.feed(r.t + 0.1)
+    r.sv.update(r.t)
+    assert r.sv.state == "failure" and "machine tilted" in r.sv.attempt.reason
     # a silent or broken IMU is a lost input while the limit is on
     for bad, needle in ((None, "machine orientation"), ((0.0, 0.0, 0.0, 0.0), "IMU orientation is not a finite")):
         r = Rig(kin, arm_delay=0.0, max_tilt_deg=8.0).ready()

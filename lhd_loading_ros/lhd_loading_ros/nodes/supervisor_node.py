@@ -198,7 +198,14 @@ class SupervisorNode(Node):
         self.core.inputs.put(name, value, time.monotonic())
 
     def _on_imu(self, msg: Imu) -> None:
-        q = msg.orientation          # a zero or non-finite quaternion is a lost input (max_tilt_deg > 0)
+        """REP 145: orientation_covariance[0] = -1 means the driver gives no orientation (a raw
+        imu/data_raw): not an input. The orientation is taken as the machine's (x forward, z up;
+        the IMU mounted level on the rear frame) in a gravity-aligned, z-up world (ENU): remap a
+        driver's imu/data to <prefix>/imu. A zero or non-finite quaternion is a lost input when
+        max_tilt_deg > 0."""
+        if msg.orientation_covariance[0] == -1.0:
+            return
+        q = msg.orientation
         self._put("imu", (float(q.w), float(q.x), float(q.y), float(q.z)))
 
     def _on_js(self, msg: JointState) -> None:

@@ -17,7 +17,7 @@ and while running, checked in this order after those two:
               POMDP's termination instants; 0: on every update);
   failure     the tip in the restricted zone (on every update: it protects the machine), or, with
               `max_tilt_deg` > 0, the machine tilted beyond it (an IMU on the rear frame, /lhd/imu:
-              the rear lifting in a breakout);
+              the rear lifting in a breakout; checked before the end zone, and in the preflight);
   timeout     attempt_timeout (10 s, the paper's) since running began;
   aborted     the operator's /lhd/abort (any time while armed or running).
 The tip comes from odometry + joint states through the kinematics the policy node uses
@@ -283,15 +283,25 @@ class Supervisor:
             return None
         return st if _finite(st.x_shovel, st.y_shovel, st.z_shovel, st.phi_shovel) else None
 
-    def _tilt(self, now: float) -> float | None:
-        """rad, the machine's nose-down pitch from a fresh, valid IMU orientation; else None."""
+    def _tilt(self, now: float) -> tuple[float, float] | None:
+        """(tilt, nose-down pitch), rad, from a fresh, valid IMU orientation, else None. The tilt
+        is the angle of the machine's up axis from the vertical (pitch and roll together)."""
         q = self.inputs.values.get("imu")
         if q is None or self.inputs.age("imu", now) > self.s.input_timeout or not _finite(*q):
             return None
         try:
-            return nose_down_pitch(quat_to_mat(*q))
+            R = quat_to_mat(*q)
         except ValueError:                # a zero quaternion
             return None
+        return math.acos(max(-1.0, min(1.0, R[2, 2]))), nose_down_pitch(R)
+
+    def _tilt_problem(self, now: float) -> str:
+        """With max_tilt_deg > 0: the machine tilted beyond it (the rear lifted, or on its side)."""
+        t = self._tilt(now) if self.s.max_tilt_deg > 0 else None
+        if t is None or t[0] <= math.radians(self.s.max_tilt_deg):
+            return ""
+        return (f"machine tilted {math.degrees(t[0]):.1f} deg (pitch {math.degrees(t[1]):+.1f} deg, nose down +; "
+                f"max_tilt_deg {self.s.max_tilt_deg:g}): the rear lifting; lower the boom")
 
     def preflight(self, now: float) -> list[str]:
         """Every reason not to start an attempt now, each a sentence; [] = ready."""
@@ -300,6 +310,9 @@ class Supervisor:
         if estop:
             out.append(estop + ": release it first")
         out += self._input_problems(now)
+        tilt = self._tilt_problem(now)
+        if tilt:
+            out.append(tilt)
         inp, p = self.inputs, self.s.prefix
         if "slope" not in inp.values:
             out.append(f"no pile slope received ({p}/pile/slope, the LiDAR node)")
@@ -436,6 +449,10 @@ class Supervisor:
                 else:
                     self._start_running(now)
             return
+        tilt = self._tilt_problem(now)    # a safety end: before the end zone
+        if tilt:
+            self._end(now, "failure", tilt)
+            return
         where = classify(tip.x_shovel, tip.y_shovel, tip.z_shovel, a.zones)
         period_end = self._period_ended(now)
         timed_out = now - a.running_at >= a.timeout
@@ -443,9 +460,6 @@ class Supervisor:
             self._end(now, "success", REASONS["success"])
         elif where == "restricted":
             self._end(now, "failure", REASONS["failure"])
-        elif s.max_tilt_deg > 0 and abs(self._tilt(now)) > math.radians(s.max_tilt_deg):
-            self._end(now, "failure", f"machine tilted {math.degrees(self._tilt(now)):+.1f} deg (nose down +; "
-                                      f"max_tilt_deg {s.max_tilt_deg:g}): the rear lifting; lower the boom")
         elif timed_out:
             self._end(now, "timeout", f"attempt_timeout {a.timeout:g} s passed")
 
