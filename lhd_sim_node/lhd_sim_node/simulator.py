@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from lhd_loading_ros.task.kinematics import nose_down_pitch
 from lhd_loading_ros.task.params import TaskParams
 from lhd_loading_ros.task.pile import SoilRanges, VoxelPile
 from lhd_loading_ros.task.randomization import NOMINAL, Conditions, delay_chunks
@@ -198,8 +199,7 @@ class LhdSimulator:
         makes with the floor, x_axis = (cos p cos yaw, cos p sin yaw, -sin p), whatever the
         heading. What a pitch sensor on the machine would read; the task's bucket pitch
         (phi_shovel) is in the world frame and already includes it."""
-        R = self.data.xmat[self.bid_rear]          # row-major 3x3; its first column is the x axis
-        return math.atan2(-R[6], math.hypot(R[0], R[3]))
+        return nose_down_pitch(self.data.xmat[self.bid_rear].reshape(3, 3))
 
     def reset(self, rng: np.random.Generator, alpha: float | None = None, material: str | None = None,
               d_attack: float | None = None, attack_speed: float | None = None,
