@@ -1,10 +1,17 @@
 import copy
 import math
+import os
 
 import pytest
 
 from lhd_loading_ros.task.config import load_config
 from lhd_loading_ros.task.params import TaskParams
+
+
+# the launchers (lhd up sim / real / twin, lhd bench twin) listen this long for a stack already on
+# their domain before starting theirs (ros/params.discovery_wait_s, 3 s for users): one host
+# discovers in well under a second, and the suite starts about twenty of them
+os.environ.setdefault("LHD_DISCOVERY_WAIT_S", "1.0")
 
 
 @pytest.fixture(scope="session")
@@ -49,14 +56,18 @@ _ros_modules: dict = {}
 
 def _talks_to_processes(module) -> bool:
     """The module starts node processes or talks over DDS (rclpy, rosutil, subprocess): its tests
-    depend on timing and run serially (`make test`); the others may run on several workers."""
+    depend on timing and run serially (`make test`); the others may run on several workers.
+    A module that starts processes but whose results do not depend on timing (lockstep sim nodes,
+    command-line runs that only compute) says so with `PARALLEL_SAFE = True` at its top level and
+    runs with the pure tests (each xdist worker has its own DDS domain, test/rosutil.py)."""
     path = getattr(module, "__file__", None)
     if path not in _ros_modules:
         try:
             text = open(path, encoding="utf-8").read() if path else ""
         except OSError:
             text = ""
-        _ros_modules[path] = any(s in text for s in _ROS_SOURCE)
+        safe = getattr(module, "PARALLEL_SAFE", False) is True
+        _ros_modules[path] = any(s in text for s in _ROS_SOURCE) and not safe
     return _ros_modules[path]
 
 

@@ -46,10 +46,12 @@ from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Bool, Float64, Float64MultiArray
+from rclpy.parameter import Parameter
+from std_msgs.msg import Bool, Float64, Float64MultiArray, MultiArrayDimension
 from std_srvs.srv import Trigger
 
-from lhd_loading_ros.task.config import load_config
+from lhd_loading_ros.task import transition
+from lhd_loading_ros.task.config import config_hash, load_config
 from lhd_loading_ros.ros.qos import COMMAND_QOS, LATCHED_QOS, MEASUREMENT_QOS, STATUS_QOS
 from lhd_loading_ros.ros.diagnostics import OK, WARN, Diagnostics
 from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
@@ -106,6 +108,11 @@ class SimNode(Node):
                   "namespace is the prefix)"),
             Param("frame_id", "pile", "frame of /odom's pose"),
             Param("base_frame_id", "base_link", "child frame of /odom"),
+            Param("publish_transitions", True, "publish <prefix>/rl/transition (observation, reward, end flags) "
+                  "after every state, for learners (lhd_sim_node.ros_env)"),
+            Param("next_seed", -1, "seed of the next episode only (a learner's reset(seed=...)); -1: seed + "
+                  "episode index", lo=-1, hi=2**31 - 1, on_change=lambda v: setattr(self, "next_seed", v),
+                  log_change=False),
         ])
         gp = self.params.__getitem__
         self._set_slopes(gp("slopes_deg"))
@@ -121,6 +128,8 @@ class SimNode(Node):
         self.reset_delay = gp("reset_delay")
         self.auto_reset = gp("auto_reset")
         self.frame_id, self.base_frame_id = gp("frame_id"), gp("base_frame_id")
+        self.next_seed = gp("next_seed")
+        self.config_hash = config_hash(cfg)
         ns = topic_prefix(self, gp("namespace_prefix"))
 
         self.env = LhdLoadingEnv("rld", cfg)   # stepped with actuator commands: the variant is not used
@@ -147,6 +156,8 @@ class SimNode(Node):
         self.pub_status = self.create_publisher(DiagnosticStatus, f"{ns}/episode", STATUS_QOS)
         self.pub_odom = self.create_publisher(Odometry, f"{ns}/odom", MEASUREMENT_QOS)
         self.pub_js = self.create_publisher(JointState, f"{ns}/joint_states", MEASUREMENT_QOS)
+        self.pub_transition = (self.create_publisher(Float64MultiArray, f"{ns}/rl/transition", MEASUREMENT_QOS)
+                               if gp("publish_transitions") else None)
         self.create_subscription(Float64MultiArray, f"{ns}/cmd", self._on_cmd, COMMAND_QOS)
         self.create_service(Trigger, "~/reset", self._on_reset)
 
@@ -156,6 +167,8 @@ class SimNode(Node):
         self.episodes_done = 0
         self.outcome = "running"
         self.result = None
+        self.episode_seed = self.seed
+        self._obs, self._reward, self._term, self._trunc = None, 0.0, False, False
         self._cmd = np.zeros(3)
         self._cmd_time = None            # monotonic arrival time of the latest valid command
         self._started = False            # realtime: physics runs from the episode's first command on
@@ -237,7 +250,12 @@ class SimNode(Node):
             opts["slope_deg"] = self.slope_deg
         if self.material is not None:
             opts["material"] = self.material
-        self.env.reset(seed=self.seed + self.episode, options=opts)
+        self.episode_seed = self.seed + self.episode
+        if self.next_seed >= 0:       # a learner's reset(seed=...): this episode only
+            self.episode_seed, self.next_seed = self.next_seed, -1
+            self.set_parameters([Parameter("next_seed", value=-1)])
+        self._obs, _ = self.env.reset(seed=self.episode_seed, options=opts)
+        self._reward, self._term, self._trunc = 0.0, False, False
         self.outcome, self.result, self._ended_at = "running", None, None
         self._cmd[:] = 0.0
         self._cmd_time = None
@@ -252,7 +270,7 @@ class SimNode(Node):
     def _on_reset(self, request, response):
         self._new_episode()
         response.success = True
-        response.message = f"episode {self.episode} started (seed {self.seed + self.episode})"
+        response.message = f"episode {self.episode} started (seed {self.episode_seed})"
         return response
 
     # ------------------------------------------------------------------ commands
@@ -310,7 +328,8 @@ class SimNode(Node):
         self._step(u)
 
     def _step(self, u: np.ndarray) -> None:
-        _, _, term, trunc, info = self.env.step_actuator(u)
+        self._obs, self._reward, term, trunc, info = self.env.step_actuator(u)
+        self._term, self._trunc = bool(term), bool(trunc)
         self.t_ns += self.dt_ns
         if term or trunc:
             self.outcome = info["outcome"] if term else "timeout"
@@ -373,7 +392,8 @@ class SimNode(Node):
         st.level = DiagnosticStatus.OK if self.outcome in ("running", "success") else DiagnosticStatus.WARN
         s = self.env.state
         vals = {
-            "state": self.outcome, "episode": self.episode, "seed": self.seed + self.episode,
+            "state": self.outcome, "episode": self.episode, "seed": self.episode_seed,
+            "config_hash": self.config_hash,
             "step": self.env.steps, "stamp_ns": self.t_ns, "loaded_mass": f"{self.sim.loaded_mass:.4f}",
             "slope_deg": f"{math.degrees(self.sim.pile.alpha):.3f}", "material": self.sim.material,
             "x_shovel": f"{s.x_shovel:.4f}", "z_shovel": f"{s.z_shovel:.4f}",
@@ -389,6 +409,7 @@ class SimNode(Node):
             vals.update({"success": r.success, "success_level": r.success_level, "return": f"{r.ret:.3f}",
                          "elapsed_s": f"{r.elapsed_s:.2f}", "front_drift_pct": f"{r.front_drift_pct:.2f}",
                          "rear_drift_pct": f"{r.rear_drift_pct:.2f}", "phi_final_deg": f"{math.degrees(r.phi_final):.2f}",
+                         "max_tilt_deg": f"{r.max_tilt_deg:.3f}",
                          "reason": {"success": "bucket tip reached the end zone",
                                     "failure": "bucket tip entered the restricted zone",
                                     "timeout": f"{self.env.p.max_steps} control steps passed"}[self.outcome]})
@@ -429,6 +450,11 @@ class SimNode(Node):
         js.velocity = ([float(s.dphi_boom), float(s.dphi_bucket), float(d.qvel[self._art_v])]
                        + [float(d.qvel[i]) for i in self._wheel_v])
         self.pub_js.publish(js)
+        if self.pub_transition is not None:
+            msg = Float64MultiArray(data=transition.encode(self.episode, self.episode_seed, self.env.steps, self.t_ns,
+                                                           self._reward, self._term, self._trunc, self._obs))
+            msg.layout.dim = [MultiArrayDimension(label=transition.LABEL, size=transition.SIZE, stride=transition.SIZE)]
+            self.pub_transition.publish(msg)
 
 
 def main(args=None) -> int:

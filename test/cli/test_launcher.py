@@ -249,8 +249,10 @@ def test_up_sim_refuses_a_domain_where_a_simulator_already_runs():
         seen = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "echo", "/lhd/joint_states", "--count",
                                "1", "--wait", "30"], capture_output=True, text=True, timeout=60, env=env)
         assert seen.returncode == 0, seen.stderr                # another process sees it on the graph
+        # the users' discovery wait (3 s), not the suite's shorter one (test/conftest.py)
         p = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "up", "sim", "--episodes", "1",
-                            "--seed", "454545"], capture_output=True, text=True, timeout=120, env=env)
+                            "--seed", "454545"], capture_output=True, text=True, timeout=120,
+                           env=dict(env, LHD_DISCOVERY_WAIT_S="3"))
         assert p.returncode == 1
         assert "already has publishers" in p.stderr and "/lhd/joint_states" in p.stderr
         assert leftovers("seed:=454545") == []

@@ -1,5 +1,7 @@
 """`lhd experiment paper`: the grid, the told slope, and a small study end to end (a real process
 pool, the real simulator and the shipped actors)."""
+PARALLEL_SAFE = True   # lhd experiment runs that only compute (test/conftest.py)
+
 import csv
 import json
 import math

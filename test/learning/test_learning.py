@@ -1,6 +1,8 @@
 """DDPG pieces checked against PyTorch's own autograd and Adam, the paper's noise schedule,
 replay semantics (truncation is not terminal), export fidelity, and a short real training
 run with checkpoint and resume."""
+PARALLEL_SAFE = True   # command-line runs that only compute (lhd eval, lhd ship) (test/conftest.py)
+
 import csv
 import json
 import math

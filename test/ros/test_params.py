@@ -114,3 +114,18 @@ def test_two_params_groups_on_one_node_set_at_run_time(ros):
         assert node.get_parameter("timeout").type_ == Parameter.Type.DOUBLE
     finally:
         node.destroy_node()
+
+
+def test_discovery_wait_from_the_environment(monkeypatch):
+    from lhd_loading_ros.ros.params import DISCOVERY_WAIT_DEFAULT_S, DISCOVERY_WAIT_ENV, discovery_wait_s
+
+    monkeypatch.delenv(DISCOVERY_WAIT_ENV, raising=False)
+    assert discovery_wait_s() == DISCOVERY_WAIT_DEFAULT_S == 3.0
+    monkeypatch.setenv(DISCOVERY_WAIT_ENV, "0.5")
+    assert discovery_wait_s() == 0.5
+    monkeypatch.setenv(DISCOVERY_WAIT_ENV, " ")
+    assert discovery_wait_s() == 3.0
+    for bad in ("-1", "nan", "soon", "inf"):
+        monkeypatch.setenv(DISCOVERY_WAIT_ENV, bad)
+        with pytest.raises(ValueError, match="LHD_DISCOVERY_WAIT_S.*expected seconds >= 0"):
+            discovery_wait_s()

@@ -152,6 +152,7 @@ def run_bench(args) -> dict:
     from std_msgs.msg import Float64MultiArray
     from std_srvs.srv import Trigger
 
+    from lhd_loading_ros.ros.params import discovery_wait_s
     from lhd_loading_ros.ros.qos import MEASUREMENT_QOS, STATUS_QOS
     from lhd_loading_ros.task.config import load_config
 
@@ -208,7 +209,7 @@ def run_bench(args) -> dict:
         rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
         node = rclpy.create_node("lhd_bench_twin")
         try:
-            t_check = time.monotonic() + 2.0
+            t_check = time.monotonic() + discovery_wait_s()
             busy = {}
             while not busy and time.monotonic() < t_check:
                 rclpy.spin_once(node, timeout_sec=0.1)

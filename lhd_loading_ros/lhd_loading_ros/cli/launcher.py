@@ -20,7 +20,6 @@ from __future__ import annotations
 import argparse
 import ctypes
 import json
-import math
 import os
 import shutil
 import signal
@@ -31,7 +30,7 @@ import threading
 import time
 from pathlib import Path
 
-from lhd_loading_ros.task.metrics import EpisodeResult
+from lhd_loading_ros.task.metrics import EpisodeResult, result_from_status
 
 PR_SET_PDEATHSIG = 1
 
@@ -78,17 +77,6 @@ class Child:
         return self.proc.returncode
 
 
-def result_from_status(kv: dict) -> EpisodeResult:
-    state = kv["state"]
-    return EpisodeResult(
-        ret=float(kv.get("return", "nan")), loaded=float(kv["loaded_mass"]),
-        phi_final=math.radians(float(kv.get("phi_final_deg", "nan"))), reached_end_zone=state == "success",
-        failed=state == "failure", truncated=state == "timeout", steps=int(kv["step"]),
-        elapsed_s=float(kv["elapsed_s"]), front_drift_pct=float(kv["front_drift_pct"]),
-        rear_drift_pct=float(kv["rear_drift_pct"]), success_level=int(kv["success_level"]),
-        alpha_deg=float(kv["slope_deg"]), material=kv["material"])
-
-
 class _StopOnSignals:
     """SIGTERM, and SIGINT unless it was ignored when we started (a script's background job),
     set `event`; the previous handlers come back on exit. Only the flag is touched in the
@@ -132,6 +120,7 @@ def up_sim(policy: str | None, slopes: list[float] | None, episodes: int, materi
     from diagnostic_msgs.msg import DiagnosticStatus
     from rclpy.signals import SignalHandlerOptions
 
+    from lhd_loading_ros.ros.params import discovery_wait_s
     from lhd_loading_ros.ros.qos import STATUS_QOS
 
     keep_logs = log_dir is not None
@@ -182,7 +171,7 @@ def up_sim(policy: str | None, slopes: list[float] | None, episodes: int, materi
         try:
             # another simulator, bridge or policy on this domain and namespace would mix its
             # topics with ours
-            t_check = time.monotonic() + 3.0      # DDS discovery of existing participants
+            t_check = time.monotonic() + discovery_wait_s()      # DDS discovery of existing participants
             busy = {}
             while not busy and time.monotonic() < t_check and not stop.is_set():
                 rclpy.spin_once(node, timeout_sec=0.1)
@@ -227,6 +216,88 @@ def up_sim(policy: str | None, slopes: list[float] | None, episodes: int, materi
     return [seen[k] for k in sorted(seen)]
 
 
+def count_namespaces(count: int, base: str | None) -> list[str]:
+    """The namespaces of `lhd up sim --count N`: <base>0 .. <base>N-1 (base /sim by default)."""
+    if count < 1:
+        raise ValueError(f"--count must be >= 1, got {count}")
+    b = "/" + (base or "/sim").strip("/")
+    return [f"{b}{i}" for i in range(count)]
+
+
+def up_sim_nodes(namespaces: list[str], mode: str, seed: int, config: str | None, quiet: bool = True,
+                 log_dir: Path | None = None, on_ready=None, run_s: float = 0.0) -> int:
+    """N sim nodes, one per namespace, for learners (`lhd train --env ros --namespaces ...`): no
+    policy node, no episode limit; they run until Ctrl-C / SIGTERM (or `run_s` seconds) and are
+    then stopped. A node that exits ends all of them (status 1, its log's tail printed).
+    on_ready(namespaces) once every node's /episode status is heard."""
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticStatus
+    from rclpy.signals import SignalHandlerOptions
+
+    from lhd_loading_ros.ros.params import discovery_wait_s
+    from lhd_loading_ros.ros.qos import STATUS_QOS
+
+    keep_logs = log_dir is not None
+    log_dir = Path(log_dir) if keep_logs else Path(tempfile.mkdtemp(prefix="lhd_up_"))
+    log_dir.mkdir(parents=True, exist_ok=True)
+    common = {"config": config} if config else {}
+    stop = threading.Event()
+    heard: set[str] = set()
+    children: list[Child] = []
+    failed = True
+    with _StopOnSignals(stop):
+        rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+        node = rclpy.create_node("lhd_up_sims")
+        try:
+            t_check = time.monotonic() + discovery_wait_s()      # DDS discovery: a namespace already served is refused
+            busy = {}
+            while not busy and time.monotonic() < t_check and not stop.is_set():
+                rclpy.spin_once(node, timeout_sec=0.1)
+                busy = {f"{ns}/cmd": n for ns in namespaces if (n := node.count_publishers(f"{ns}/episode"))}
+            if busy:
+                raise RuntimeError(f"ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID', '0')}: a sim node already serves "
+                                   f"{sorted(busy)}; stop it or give another --namespace base")
+            for i, ns in enumerate(namespaces):
+                def on_status(msg, ns=ns):
+                    heard.add(ns)
+                node.create_subscription(DiagnosticStatus, f"{ns}/episode", on_status, STATUS_QOS)
+                params = {**common, "mode": mode, "seed": seed + 1_000_000 * i, "auto_reset": "true"}
+                children.append(Child(f"sim_node{i}", "lhd_sim_node.sim_node", params, log_dir, quiet,
+                                      namespace_ros_args(ns, False)))
+            t0 = time.monotonic()
+            ready = False
+            while not stop.is_set():
+                rclpy.spin_once(node, timeout_sec=0.1)
+                for c in children:
+                    if not c.alive():
+                        tail = c.log_path.read_text()[-2000:] if quiet else ""
+                        raise RuntimeError(f"{c.name} exited with status {c.proc.returncode}:\n{tail}")
+                if not ready and len(heard) == len(namespaces):
+                    ready = True
+                    if on_ready:
+                        on_ready(namespaces)
+                if not ready and time.monotonic() - t0 > 120:
+                    raise TimeoutError(f"no episode status after 120 s from {sorted(set(namespaces) - heard)}")
+                if run_s and ready and time.monotonic() - t0 > run_s:
+                    break
+            failed = False
+        except (RuntimeError, TimeoutError) as exc:
+            if children and quiet:
+                raise type(exc)(f"{exc}\n(node logs kept in {log_dir})") from None
+            raise
+        finally:
+            for c in reversed(children):
+                c.stop()
+            node.destroy_node()
+            if rclpy.ok():
+                rclpy.shutdown()
+            if not keep_logs and not (failed and quiet and children):
+                shutil.rmtree(log_dir, ignore_errors=True)
+    if stop.is_set():
+        print("\ninterrupted: sim nodes stopped", file=sys.stderr)
+    return 0
+
+
 def main(argv=None, demo: bool = False) -> int:
     ap = argparse.ArgumentParser(prog="lhd demo" if demo else "lhd up sim",
                                  description="sim node + policy node over DDS" + (" (the main job)" if demo else ""))
@@ -236,10 +307,17 @@ def main(argv=None, demo: bool = False) -> int:
     ap.add_argument("--episodes", type=int, default=12 if demo else 0, help="stop after N episodes (0: until Ctrl-C)")
     ap.add_argument("--material", choices=["homogeneous", "nonhomogeneous", "random"],
                     default="homogeneous" if demo else "random")
-    ap.add_argument("--mode", choices=["realtime", "lockstep"], default="realtime")
+    ap.add_argument("--mode", choices=["realtime", "lockstep"], default=None,
+                    help="sim node mode (default realtime; lockstep with --count)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--config", default=None)
-    ap.add_argument("--namespace", help="run both nodes in this ROS namespace (their topics move from /lhd to it)")
+    ap.add_argument("--namespace", help="run both nodes in this ROS namespace (their topics move from /lhd to it); "
+                    "with --count, the base of the sim nodes' namespaces (default /sim: /sim0, /sim1, ...)")
+    if not demo:
+        ap.add_argument("--count", type=int, default=0, help="start N sim nodes for learners, in namespaces "
+                        "/sim0../simN-1, lockstep unless --mode says otherwise, no policy node; they run until "
+                        "Ctrl-C (then `lhd train --env ros --namespaces /sim0,/sim1,...`)")
+        ap.add_argument("--run-s", type=float, default=0.0, help=argparse.SUPPRESS)
     ap.add_argument("--use-sim-time", action="store_true", help="both nodes on the sim node's /clock")
     ap.add_argument("--log-dir", type=Path, help="keep the nodes' logs here (default: a temporary folder, "
                                                  "removed at exit unless a node failed)")
@@ -254,6 +332,36 @@ def main(argv=None, demo: bool = False) -> int:
         return scripted_main(["--json"] if args.json else [])
     if args.episodes < 0:
         ap.error(f"--episodes must be >= 0, got {args.episodes}")
+    count = getattr(args, "count", 0)
+    if count:
+        if count < 0 or count > 64:
+            ap.error(f"--count must be in 1..64, got {count}")
+        given = [f for f, v in (("--policy", args.policy), ("--slope", args.slope), ("--slopes", args.slopes),
+                                ("--episodes", args.episodes), ("--use-sim-time", args.use_sim_time)) if v]
+        if given:
+            ap.error(f"--count starts sim nodes for learners only; {', '.join(given)} do not apply (the learner "
+                     "sets each episode's seed and slope)")
+        try:
+            namespaces = count_namespaces(count, args.namespace)
+            from rclpy.validate_namespace import validate_namespace
+
+            for ns in namespaces:
+                validate_namespace(ns)
+        except Exception as exc:
+            ap.error(f"--namespace {args.namespace!r}: {str(exc).splitlines()[0]}")
+
+        def ready(nss):
+            print(f"{len(nss)} sim nodes ({args.mode or 'lockstep'}) up in {', '.join(nss)}; train with\n"
+                  f"  lhd train --variant rld --env ros --namespaces {','.join(nss)}\nCtrl-C or SIGTERM stops them",
+                  flush=True)
+
+        try:
+            return up_sim_nodes(namespaces, args.mode or "lockstep", args.seed, args.config, quiet=not args.verbose,
+                                log_dir=args.log_dir, on_ready=ready, run_s=args.run_s)
+        except (RuntimeError, TimeoutError) as exc:
+            print(f"{ap.prog}: {exc}", file=sys.stderr)
+            return 1
+    args.mode = args.mode or "realtime"
     if args.namespace:
         from rclpy.exceptions import InvalidNamespaceException
         from rclpy.validate_namespace import validate_namespace

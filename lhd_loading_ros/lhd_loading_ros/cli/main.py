@@ -4,11 +4,13 @@
   lhd up sim [--policy DIR] [--slope DEG] [--episodes N] [--namespace NS] [--use-sim-time] [--log-dir DIR]
                                            sim node + policy node over DDS until done / Ctrl-C / SIGTERM
   lhd echo TOPIC [--count N]               print a topic's messages as YAML (QoS matched to the publishers)
-  lhd bench sim [--json] [--steps N]       simulator speed
+  lhd bench sim [--json] [--steps N] [--ros]  simulator speed (--ros: through a sim node over DDS)
   lhd bench bridge [--json]                serial parser throughput and frame-to-publish latency
   lhd bench perception [--json]            ArUco frames/s (one core) and slope-fit time
   lhd train --variant rld|rlc --seed N     DDPG with the paper's protocol (resumable; --seeds 0-4 in parallel)
   lhd eval --policy DIR [--json]           the paper's metrics, overall and by slope and material
+  lhd train ... --env ros --namespaces /sim0,/sim1   one learner from several lockstep sim nodes (lhd up sim --count N)
+  lhd sweep STUDY.yaml [--address A]       a study on Ray (local or a cluster), resumable, run folders for lhd report
   lhd report RUNS... [--plot PNG]          final figures across seeds and the training curves
   lhd experiment paper [--episodes N] [--out DIR] [--jobs J]
                                            the paper's real-world tables in simulation: controllers x slopes x
@@ -31,10 +33,16 @@ from pathlib import Path
 
 
 def _bench(args) -> int:
-    if args.what == "sim":
+    if args.what == "sim" and args.ros:
+        from lhd_sim_node.bench_ros import bench_sim_ros
+
+        res = bench_sim_ros(steps=args.steps if args.steps is not None else 1000, seed=args.seed,
+                            config=args.config, rounds=args.rounds)
+    elif args.what == "sim":
         from lhd_sim_node.bench import bench_sim
 
-        res = bench_sim(steps=args.steps, seed=args.seed, config=args.config, rounds=args.rounds)
+        res = bench_sim(steps=args.steps if args.steps is not None else 3000, seed=args.seed, config=args.config,
+                        rounds=args.rounds)
     elif args.what == "perception":
         from lhd_loading_ros.cli.bench_perception import bench_perception
 
@@ -42,7 +50,7 @@ def _bench(args) -> int:
     elif args.what == "train":
         from lhd_loading_ros.cli.bench_train import bench_train
 
-        res = bench_train(steps=args.steps, seed=args.seed, config=args.config, vs_sb3=args.vs_sb3)
+        res = bench_train(steps=args.steps if args.steps is not None else 3000, seed=args.seed, config=args.config, vs_sb3=args.vs_sb3)
     elif args.what == "node":
         from lhd_loading_ros.cli.bench_node import bench_node
 
@@ -74,6 +82,20 @@ def _train(args) -> int:
     if args.steps is not None and args.steps < 1:
         print(f"lhd train: --steps must be >= 1, got {args.steps}", file=sys.stderr)
         return 2
+    namespaces = None
+    if args.env == "ros":
+        namespaces = [n.strip() for n in (args.namespaces or "").split(",") if n.strip()]
+        if not namespaces:
+            print("lhd train: --env ros needs --namespaces, the sim nodes' namespaces (e.g. /sim0,/sim1; start them "
+                  "with `lhd up sim --count 2 --mode lockstep --no-policy`)", file=sys.stderr)
+            return 2
+        if len(seeds) > 1:
+            print("lhd train: --env ros trains one seed (its sim nodes serve one learner); give --seed, not --seeds",
+                  file=sys.stderr)
+            return 2
+    elif args.namespaces:
+        print("lhd train: --namespaces is for --env ros", file=sys.stderr)
+        return 2
     out = Path(args.out) if args.out else Path("runs") / args.variant
     if len(seeds) > 1:
         extra = (["--steps", str(args.steps)] if args.steps else []) + (["--config", args.config] if args.config else [])
@@ -85,9 +107,13 @@ def _train(args) -> int:
     run_dir = out if args.out and not args.seeds else out / f"seed_{seeds[0]}"
     try:
         ev = train(args.variant, seeds[0], run_dir, steps=args.steps, config=args.config, resume=args.resume,
-                   progress=args.progress, randomize=args.randomize)
+                   progress=args.progress, randomize=args.randomize, env_kind=args.env, namespaces=namespaces,
+                   ros_timeout=args.ros_timeout)
     except (ConfigError, ValueError) as exc:
         print(f"lhd train: {exc}", file=sys.stderr)
+        return 1
+    except (TimeoutError, RuntimeError) as exc:      # a sim node missing, refusing or gone (--env ros)
+        print(f"lhd train: {exc}\nthe run resumes from its last checkpoint with the same command", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print(f"\ninterrupted; run the same command again to resume from {run_dir}/checkpoint.pt", file=sys.stderr)
@@ -185,6 +211,22 @@ def _experiment(args) -> int:
         print(f"{res['attempts']} attempts in {res['wall_s']:.0f} s on {res['jobs']} processes; tables, CSV and "
               f"figures in {args.out}")
     return 0
+
+
+def _sweep(args) -> int:
+    from lhd_loading_ros.learning.sweep import StudyError, sweep
+
+    if args.jobs is not None and args.jobs < 1:
+        print(f"lhd sweep: --jobs must be >= 1, got {args.jobs}", file=sys.stderr)
+        return 2
+    try:
+        return sweep(args.study, address=args.address, jobs=args.jobs)
+    except StudyError as exc:
+        print(f"lhd sweep: {exc}", file=sys.stderr)
+        return 2
+    except ConnectionError as exc:
+        print(f"lhd sweep: cannot reach the Ray cluster at {args.address}: {exc}", file=sys.stderr)
+        return 1
 
 
 def _report(args) -> int:
@@ -285,10 +327,18 @@ def main(argv=None) -> int:
     p_bench.add_argument("--vs-sb3", action="store_true", help="train: also time Stable-Baselines3's DDPG")
     p_bench.add_argument("--seconds", type=float, default=4.0, help="bridge: latency measurement time")
     p_bench.add_argument("--json", action="store_true")
-    p_bench.add_argument("--steps", type=int, default=3000)
+    p_bench.add_argument("--steps", type=int, default=None, help="sim, train: steps timed (default 3000; "
+                         "sim --ros 1000)")
+    p_bench.add_argument("--ros", action="store_true", help="sim: also through a lockstep sim node over DDS "
+                         "(LhdLoadingRos-v0), next to the in-process figure")
     p_bench.add_argument("--seed", type=int, default=0)
     p_bench.add_argument("--rounds", type=int, default=3, help="alternating runs; the best of each is reported")
     p_bench.add_argument("--config", default=None, help="parameter file (default: config/lhd_params.yaml)")
+    p_sweep = sub.add_parser("sweep", help="a study (variants x seeds x randomisation x overrides) on Ray; "
+                             "resumable; run folders for lhd report")
+    p_sweep.add_argument("study", help="study file (YAML; lhd_loading_ros/learning/sweep.py, docs/training.md)")
+    p_sweep.add_argument("--address", help="a running Ray cluster (default: a local Ray on this machine)")
+    p_sweep.add_argument("--jobs", type=int, default=None, help="local Ray: trials at once (default: all cores)")
     p_train = sub.add_parser("train", help="train a DDPG loading policy (the paper's protocol)")
     p_train.add_argument("--variant", choices=["rld", "rlc"], required=True)
     p_train.add_argument("--seed", type=int, default=0)
@@ -297,6 +347,11 @@ def main(argv=None) -> int:
     p_train.add_argument("--steps", type=int, default=None, help="environment steps (default: training.total_steps)")
     p_train.add_argument("--out", help="run directory (default runs/<variant>/seed_<N>; with --seeds, the parent)")
     p_train.add_argument("--config", default=None)
+    p_train.add_argument("--env", choices=["local", "ros"], default="local",
+                         help="local: the in-process environment; ros: lockstep sim nodes over DDS (--namespaces)")
+    p_train.add_argument("--namespaces", help="--env ros: the sim nodes' namespaces, comma-separated (e.g. "
+                         "/sim0,/sim1; '/' for the un-namespaced node)")
+    p_train.add_argument("--ros-timeout", type=float, default=30.0, help="--env ros: seconds to wait for a sim node")
     p_train.add_argument("--no-resume", dest="resume", action="store_false", help="start over even if a checkpoint exists")
     p_train.add_argument("--no-progress", dest="progress", action="store_false")
     p_train.add_argument("--randomize", action="store_true",
@@ -428,6 +483,8 @@ def main(argv=None) -> int:
         return _eval(args)
     if args.cmd == "report":
         return _report(args)
+    if args.cmd == "sweep":
+        return _sweep(args)
     if args.cmd == "experiment":
         return _experiment(args)
     if args.cmd == "ship":

@@ -35,6 +35,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from lhd_loading_ros.cli.launcher import Child, _StopOnSignals
+from lhd_loading_ros.ros.params import discovery_wait_s
 
 CONTROLLERS = ("rld", "rlc", "tampier", "teleop")
 ENDED = ("success", "failure", "timeout", "estop", "lost_input", "aborted")
@@ -186,7 +187,7 @@ def up_real(args) -> int:
         rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
         node = rclpy.create_node("lhd_up_real")
         try:
-            t_check = time.monotonic() + 3.0
+            t_check = time.monotonic() + discovery_wait_s()
             busy = {}
             while not busy and time.monotonic() < t_check and not stop.is_set():
                 rclpy.spin_once(node, timeout_sec=0.1)

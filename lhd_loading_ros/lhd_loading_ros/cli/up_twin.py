@@ -53,6 +53,7 @@ from lhd_loading_ros.cli.up_real import ENDED, default_params_file, format_prefl
 from lhd_loading_ros.cli.up_real import parser as real_parser
 from lhd_loading_ros.cli.up_real import check_args as real_check_args
 from lhd_loading_ros.cli.up_real import stack
+from lhd_loading_ros.ros.params import discovery_wait_s
 from lhd_loading_ros.task.config import load_config
 from lhd_loading_ros.task.kinematics import ArmKinematics
 from lhd_loading_ros.task.params import TaskParams
@@ -457,7 +458,7 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                 rclpy.spin_once(node, timeout_sec=0.05)
 
         try:
-            t_check = time.monotonic() + 3.0
+            t_check = time.monotonic() + discovery_wait_s()
             busy = {}
             while not busy and time.monotonic() < t_check and not stop.is_set():
                 rclpy.spin_once(node, timeout_sec=0.1)

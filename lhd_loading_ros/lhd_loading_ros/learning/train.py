@@ -27,6 +27,7 @@ import numpy as np
 import torch
 
 from lhd_loading_ros.task.config import config_hash, load_config
+from lhd_loading_ros.task.metrics import result_from_status
 from lhd_loading_ros.learning.ddpg import DdpgAgent, DdpgConfig, OUNoise, ReplayBuffer, noise_scale
 from lhd_loading_ros.learning.evaluate import evaluate
 from lhd_loading_ros.learning.export import export_actor
@@ -34,7 +35,9 @@ from lhd_loading_ros.learning.export import export_actor
 EVAL_FIELDS = ("step", "ar", "aml", "aff", "asl", "success_rate", "end_zone_rate", "elapsed_s",
                "front_drift_pct", "rear_drift_pct", "noise_scale", "critic_loss", "q_mean", "episodes_done",
                "wall_s", "eval_wall_s")
-EPISODE_FIELDS = ("episode", "step", "return", "loaded", "outcome", "steps", "alpha_deg", "material", "noise_scale")
+EPISODE_FIELDS = ("episode", "step", "return", "loaded", "outcome", "steps", "alpha_deg", "material", "noise_scale",
+                  "source")
+ENV_KINDS = ("local", "ros")
 
 
 def episode_seed(run_seed: int, k: int) -> int:
@@ -110,10 +113,15 @@ def _rank(ev: dict) -> tuple:
 
 def train(variant: str, seed: int, out, steps: int | None = None, config=None, resume: bool = True,
           progress: bool = True, eval_episodes: int | None = None, eval_every: int | None = None,
-          checkpoint_every: int | None = None, log=print, randomize: bool = False) -> dict:
+          checkpoint_every: int | None = None, log=print, randomize: bool = False, env_kind: str = "local",
+          namespaces: list[str] | None = None, ros_timeout: float = 30.0) -> dict:
     """Train one DDPG agent; return the last evaluation (dict). See the module docstring.
     randomize: domain randomisation (config section `randomization`, task/randomization.py) in
-    training and in the periodic evaluations; it enters the config hash of the run and its actor."""
+    training and in the periodic evaluations; it enters the config hash of the run and its actor.
+    env_kind "local": the in-process LhdLoading-v0; "ros": one lockstep sim node per namespace in
+    `namespaces` (lhd_sim_node.ros_env.SimNodePool), stepped together, each transition into the
+    one replay buffer (one update per transition, as with one environment); the evaluations stay
+    in-process. run.json and episodes.csv (`source`) say which node gave what."""
     from lhd_sim_node.env import LhdLoadingEnv   # the simulator is only needed to train
 
     cfg = config if isinstance(config, dict) else load_config(config)
@@ -131,13 +139,51 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
     out.mkdir(parents=True, exist_ok=True)
     chash = config_hash(cfg)
 
-    env = LhdLoadingEnv(variant, cfg)
-    eval_env = LhdLoadingEnv(variant, cfg)
+    if env_kind not in ENV_KINDS:
+        raise ValueError(f"env must be one of {ENV_KINDS}, got {env_kind!r}")
+    eval_env = LhdLoadingEnv(variant, cfg)     # evaluations in-process, on the learner's machine
+    if env_kind == "ros":
+        from lhd_sim_node.ros_env import SimNodePool
+
+        if not namespaces:
+            raise ValueError("env 'ros' needs the sim nodes' namespaces, e.g. ['/sim0', '/sim1']")
+        pool = SimNodePool(list(namespaces), variant, cfg, timeout=ros_timeout)
+        sources = [link.label for link in pool.links]
+
+        def reset_slot(i: int, seed_k: int):
+            return pool.reset(i, seed_k).obs
+
+        def step_slots(actions: dict) -> dict:
+            out_ = {}
+            for i, (t, end) in pool.step(actions).items():
+                info_ = {"outcome": end["state"] if (end is not None and t.terminated) else "running"}
+                if end is not None:
+                    info_["episode_result"] = result_from_status(end)
+                out_[i] = (t.obs, t.reward, t.terminated, t.truncated, info_)
+            return out_
+    else:
+        if namespaces:
+            raise ValueError("namespaces are for env 'ros' (sim nodes); the in-process environment has none")
+        pool = None
+        env = LhdLoadingEnv(variant, cfg)
+        sources = ["local"]
+
+        def reset_slot(i: int, seed_k: int):
+            return env.reset(seed=seed_k)[0]
+
+        def step_slots(actions: dict) -> dict:
+            return {0: env.step(actions[0])}
+
+    slots = range(len(sources))
     agent = DdpgAgent(dc, seed)
     replay = ReplayBuffer(dc.replay_size)
     rng = np.random.default_rng(seed)
     noise = OUNoise(3, dc.ou_mu, dc.ou_sigma, dc.ou_theta, dc.ou_dt, rng)
+    # one OU process per source (the first draws from the run's rng, as with one environment)
+    noises = [noise] + [OUNoise(3, dc.ou_mu, dc.ou_sigma, dc.ou_theta, dc.ou_dt, np.random.default_rng([seed, i]))
+                        for i in slots[1:]]
     step, episode, best, wall_before = 0, 0, None, 0.0
+    contributed = {src: 0 for src in sources}
 
     ckpt = out / "checkpoint.pt"
     if resume and ckpt.exists():
@@ -161,9 +207,13 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
     else:
         for f in ("evals.csv", "episodes.csv"):
             (out / f).unlink(missing_ok=True)
-    (out / "run.json").write_text(json.dumps({
-        "variant": variant, "seed": seed, "config_hash": chash, "ddpg": dc.to_dict(),
-        "torch": torch.__version__, "command": sys.argv}, indent=2) + "\n")
+    def write_run_json() -> None:
+        (out / "run.json").write_text(json.dumps({
+            "variant": variant, "seed": seed, "config_hash": chash, "ddpg": dc.to_dict(),
+            "torch": torch.__version__, "command": sys.argv, "env": env_kind, "sources": sources,
+            "transitions_by_source": contributed}, indent=2) + "\n")
+
+    write_run_json()
 
     meta_base = {"variant": variant, "seed": seed, "config_hash": chash, "ddpg": dc.to_dict()}
 
@@ -182,56 +232,73 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
     tb = _tensorboard(out)
     bar = _Progress(f"{variant} seed {seed}", dc.total_steps, progress)
     t0 = time.perf_counter()
-    obs, info = env.reset(seed=episode_seed(seed, episode))
-    ep_ret, last_eval, closs, qmean = 0.0, None, float("nan"), float("nan")
+    started = episode                   # the next episode index to start (in-progress ones are dropped on resume)
+    obs = {}
+    for i in slots:
+        obs[i] = reset_slot(i, episode_seed(seed, started))
+        started += 1
+    ep_ret = {i: 0.0 for i in slots}
+    last_eval, closs, qmean = None, float("nan"), float("nan")
+    slot_episode = {i: i + episode for i in slots}
     bucket = cfg["task"]["bucket_capacity"]
     try:
         while step < dc.total_steps:
             scale = noise_scale(step, dc.noise_decay_steps, dc.noise_final_scale)
-            a = np.clip(agent.act(obs) + scale * noise.sample(), -1.0, 1.0)
-            obs2, r, term, trunc, info = env.step(a)
-            replay.add(obs, a, r, term, obs2)
-            ep_ret += r
-            step += 1
-            if replay.size >= dc.learning_starts:
-                err, q = agent.update(*replay.sample(dc.batch_size, agent.gen))
-            obs = obs2
-            if term or trunc:
-                res = info["episode_result"]
-                _append_csv(out / "episodes.csv", EPISODE_FIELDS, {
-                    "episode": episode, "step": step, "return": f"{ep_ret:.3f}", "loaded": f"{res.loaded:.3f}",
-                    "outcome": info["outcome"] if term else "timeout", "steps": res.steps,
-                    "alpha_deg": f"{res.alpha_deg:.2f}", "material": res.material, "noise_scale": f"{scale:.4f}"})
-                episode += 1
-                ep_ret = 0.0
-                noise.reset()
-                obs, info = env.reset(seed=episode_seed(seed, episode))
-            if step % dc.eval_every == 0 or step == dc.total_steps:
+            acts = {i: np.clip(agent.act(obs[i]) + scale * noises[i].sample(), -1.0, 1.0)
+                    for i in slots[: dc.total_steps - step]}
+            results = step_slots(acts)
+            for i, a in acts.items():        # each source's transition in turn, as one environment's
+                obs2, r, term, trunc, info = results[i]
+                replay.add(obs[i], a, r, term, obs2)
+                contributed[sources[i]] += 1
+                ep_ret[i] += r
+                step += 1
                 if replay.size >= dc.learning_starts:
-                    closs = float((err * err).mean()) / dc.reward_scale ** 2
-                    qmean = float(q.mean()) / dc.reward_scale
-                ev = evaluate(eval_env, agent.actor_numpy(), dc.eval_episodes, dc.eval_seed, bucket, breakdown=False)
-                row = {"step": step, "noise_scale": scale, "critic_loss": closs, "q_mean": qmean,
-                       "episodes_done": episode, "wall_s": wall_before + time.perf_counter() - t0,
-                       "eval_wall_s": ev["wall_s"], **{k: ev[k] for k in EVAL_FIELDS if k in ev and k != "wall_s"}}
-                _append_csv(out / "evals.csv", EVAL_FIELDS, {k: (f"{v:.6g}" if isinstance(v, float) else v)
-                                                             for k, v in row.items()})
-                if tb is not None:
-                    for k in ("ar", "aml", "aff", "asl", "success_rate", "critic_loss", "q_mean"):
-                        tb.add_scalar(f"eval/{k}", row[k], step)
-                last_eval = {k: row[k] for k in EVAL_FIELDS if k in row}
-                if best is None or _rank(last_eval) > _rank(best):
-                    best = dict(last_eval)
-                    export("best", best)
-                bar.eval_text = (f"eval@{step // 1000}k SR {ev['success_rate']:.2f} ASL {ev['asl']:.2f} "
-                                 f"AML {ev['aml']:.1f} AR {ev['ar']:.0f}")
-                bar.update(step, force=True)
-            if step % dc.checkpoint_every == 0 or step == dc.total_steps:
-                save_checkpoint()
+                    err, q = agent.update(*replay.sample(dc.batch_size, agent.gen))
+                obs[i] = obs2
+                if term or trunc:
+                    res = info["episode_result"]
+                    _append_csv(out / "episodes.csv", EPISODE_FIELDS, {
+                        "episode": slot_episode[i], "step": step, "return": f"{ep_ret[i]:.3f}",
+                        "loaded": f"{res.loaded:.3f}", "outcome": info["outcome"] if term else "timeout",
+                        "steps": res.steps, "alpha_deg": f"{res.alpha_deg:.2f}", "material": res.material,
+                        "noise_scale": f"{scale:.4f}", "source": sources[i]})
+                    episode += 1
+                    ep_ret[i] = 0.0
+                    noises[i].reset()
+                    slot_episode[i] = started
+                    obs[i] = reset_slot(i, episode_seed(seed, started))
+                    started += 1
+                if step % dc.eval_every == 0 or step == dc.total_steps:
+                    if replay.size >= dc.learning_starts:
+                        closs = float((err * err).mean()) / dc.reward_scale ** 2
+                        qmean = float(q.mean()) / dc.reward_scale
+                    ev = evaluate(eval_env, agent.actor_numpy(), dc.eval_episodes, dc.eval_seed, bucket, breakdown=False)
+                    row = {"step": step, "noise_scale": scale, "critic_loss": closs, "q_mean": qmean,
+                           "episodes_done": episode, "wall_s": wall_before + time.perf_counter() - t0,
+                           "eval_wall_s": ev["wall_s"], **{k: ev[k] for k in EVAL_FIELDS if k in ev and k != "wall_s"}}
+                    _append_csv(out / "evals.csv", EVAL_FIELDS, {k: (f"{v:.6g}" if isinstance(v, float) else v)
+                                                                 for k, v in row.items()})
+                    if tb is not None:
+                        for k in ("ar", "aml", "aff", "asl", "success_rate", "critic_loss", "q_mean"):
+                            tb.add_scalar(f"eval/{k}", row[k], step)
+                    last_eval = {k: row[k] for k in EVAL_FIELDS if k in row}
+                    if best is None or _rank(last_eval) > _rank(best):
+                        best = dict(last_eval)
+                        export("best", best)
+                    bar.eval_text = (f"eval@{step // 1000}k SR {ev['success_rate']:.2f} ASL {ev['asl']:.2f} "
+                                     f"AML {ev['aml']:.1f} AR {ev['ar']:.0f}")
+                    bar.update(step, force=True)
+                if step % dc.checkpoint_every == 0 or step == dc.total_steps:
+                    save_checkpoint()
+                    write_run_json()
             bar.update(step)
     finally:
         bar.close()
         if tb is not None:
             tb.close()
+        if pool is not None:
+            pool.close()
+    write_run_json()
     export("final", last_eval)
     return last_eval

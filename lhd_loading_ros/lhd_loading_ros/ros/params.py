@@ -34,6 +34,7 @@ class Param:
     check: Callable[[Any], str | None] | None = None   # extra rule: returns what is wrong, or None
     on_change: Callable[[Any], None] | None = None     # runtime change allowed: how the node applies it
     dynamic_type: bool = False        # several types accepted (e.g. a number or a comma-separated list)
+    log_change: bool = True           # log each runtime change (False: one set per episode would flood the log)
 
     @property
     def kind(self) -> str:
@@ -240,7 +241,8 @@ class _Group:
             value = s.coerce(p.value)
             m.values[p.name] = value
             s.on_change(value)
-            m.node.get_logger().info(f"parameter '{p.name}' set to {value!r}")
+            if s.log_change:
+                m.node.get_logger().info(f"parameter '{p.name}' set to {value!r}")
 
 
 def _as_param_value(s: Param, value):
@@ -268,3 +270,26 @@ def steady_timer(node, period_s: float, callback):
     from rclpy.clock import Clock, ClockType
 
     return node.create_timer(period_s, callback, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+
+DISCOVERY_WAIT_ENV = "LHD_DISCOVERY_WAIT_S"
+DISCOVERY_WAIT_DEFAULT_S = 3.0
+
+
+def discovery_wait_s() -> float:
+    """How long a launcher listens for an LHD stack already running on its domain before it starts
+    its own (DDS discovery of existing participants): LHD_DISCOVERY_WAIT_S, default 3 s. On one
+    host Fast DDS discovers in well under a second; a network with many participants or lossy
+    multicast may need more. A value that is not a number >= 0 is an error naming the variable."""
+    import os
+
+    raw = os.environ.get(DISCOVERY_WAIT_ENV, "")
+    if raw.strip() == "":
+        return DISCOVERY_WAIT_DEFAULT_S
+    try:
+        v = float(raw)
+    except ValueError:
+        v = float("nan")
+    if not (math.isfinite(v) and v >= 0.0):
+        raise ValueError(f"{DISCOVERY_WAIT_ENV}={raw!r}; expected seconds >= 0 (default {DISCOVERY_WAIT_DEFAULT_S:g})")
+    return v

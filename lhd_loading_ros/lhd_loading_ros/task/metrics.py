@@ -2,6 +2,7 @@
 elapsed time, front and rear drift as a percentage of the episode's time."""
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -76,3 +77,17 @@ def aggregate(results: list[EpisodeResult], bucket_capacity: float) -> dict:
 def drift_pct(flags: list[bool]) -> float:
     return 100.0 * (sum(1 for f in flags if f) / len(flags)) if flags else 0.0
 
+
+
+def result_from_status(kv: dict) -> EpisodeResult:
+    """An episode's result from the sim node's /episode status values (DiagnosticStatus key ->
+    string, as the node prints them: mass to 0.1 g, angles to 0.01 deg)."""
+    state = kv["state"]
+    return EpisodeResult(
+        ret=float(kv.get("return", "nan")), loaded=float(kv["loaded_mass"]),
+        phi_final=math.radians(float(kv.get("phi_final_deg", "nan"))), reached_end_zone=state == "success",
+        failed=state == "failure", truncated=state == "timeout", steps=int(kv["step"]),
+        elapsed_s=float(kv["elapsed_s"]), front_drift_pct=float(kv["front_drift_pct"]),
+        rear_drift_pct=float(kv["rear_drift_pct"]), success_level=int(kv["success_level"]),
+        alpha_deg=float(kv["slope_deg"]), material=kv["material"],
+        max_tilt_deg=float(kv.get("max_tilt_deg", "nan")))

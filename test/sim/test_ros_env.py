@@ -1,0 +1,113 @@
+"""LhdLoadingRos-v0 (lhd_sim_node.ros_env) against a real sim node process over DDS:
+
+* Gymnasium's check_env passes;
+* with the same seeds and actions, three episodes give the same transitions as the in-process
+  LhdLoading-v0 (observation, reward, terminated, truncated within 1e-6; the episode's result);
+* a missing sim node, a realtime one and one with another parameter file are refused with a
+  message that says what is wrong and what is expected."""
+PARALLEL_SAFE = True   # a lockstep sim node: the transitions do not depend on timing (test/conftest.py)
+
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from gymnasium.utils.env_checker import check_env
+
+import gymnasium as gym
+import lhd_sim_node  # noqa: F401  (registers the environments)
+from lhd_sim_node.env import LhdLoadingEnv
+from lhd_sim_node.ros_env import LhdLoadingRosEnv
+
+from rosutil import RosProcess, init_ros, shutdown_ros
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def sim_node(tmp_path_factory):
+    init_ros()      # the domain of this test process (the env makes its own context on it)
+    log = tmp_path_factory.mktemp("rosenv") / "sim.log"
+    p = RosProcess("lhd_sim_node.sim_node", {"mode": "lockstep"}, log, remaps={"__ns": "/envtest"})
+    yield p
+    p.stop()
+    shutdown_ros()
+
+
+def test_check_env_passes(sim_node):
+    env = gym.make("LhdLoadingRos-v0", namespace="/envtest", timeout=30.0).unwrapped
+    try:
+        check_env(env, skip_render_check=True)
+    finally:
+        env.close()
+    assert sim_node.alive(), sim_node.log()
+
+
+def test_same_transitions_as_in_process(sim_node):
+    env = LhdLoadingRosEnv("rld", namespace="/envtest", timeout=30.0)
+    ref = LhdLoadingEnv("rld")
+    rng = np.random.default_rng(7)
+    try:
+        for k, (seed, opts) in enumerate([(11, {}), (12, {"slope_deg": 30.0, "material": "nonhomogeneous"}),
+                                          (13, {"slope_deg": 15.0})]):
+            o_ros, info = env.reset(seed=seed, options=opts)
+            o_ref, _ = ref.reset(seed=seed, options=opts)
+            assert info["seed"] == seed
+            assert o_ros.dtype == np.float32 and o_ros.shape == (12,)
+            np.testing.assert_allclose(o_ros, o_ref, atol=1e-6, rtol=0)
+            steps = 0
+            while True:
+                # scripted pushes with noise: long enough episodes that end in the zones or by time
+                a = np.clip(np.array([0.8, 0.2 * (steps > 20), 0.6 * (steps > 25)]) + rng.normal(0, 0.3, 3), -1, 1)
+                o1, r1, te1, tr1, i1 = env.step(a)
+                o2, r2, te2, tr2, i2 = ref.step(a)
+                steps += 1
+                np.testing.assert_allclose(o1, o2, atol=1e-6, rtol=0, err_msg=f"episode {k} step {steps}")
+                assert abs(r1 - r2) <= 1e-6, (k, steps, r1, r2)
+                assert (te1, tr1) == (te2, tr2)
+                if te1 or tr1:
+                    break
+            a, b = i1["episode_result"], i2["episode_result"]
+            assert a.steps == b.steps == steps
+            assert (a.reached_end_zone, a.failed, a.truncated) == (b.reached_end_zone, b.failed, b.truncated)
+            assert a.loaded == pytest.approx(b.loaded, abs=1e-4)       # printed to 0.1 g in /episode
+            assert a.ret == pytest.approx(b.ret, abs=1e-3)
+            assert a.alpha_deg == pytest.approx(b.alpha_deg, abs=1e-3)
+            assert a.material == b.material
+            assert i1["outcome"] == i2["outcome"]
+        with pytest.raises(RuntimeError, match="finished episode"):
+            env.step(np.zeros(3))
+        with pytest.raises(ValueError, match="slope_deg"):
+            env.reset(seed=1, options={"slope_deg": 60.0})     # outside the pile range: the node refuses it
+    finally:
+        env.close()
+
+
+def test_no_sim_node_is_a_clear_timeout(sim_node):
+    t0 = time.monotonic()
+    with pytest.raises(TimeoutError) as exc:
+        LhdLoadingRosEnv("rld", namespace="/nobody_here", timeout=1.0)
+    assert time.monotonic() - t0 < 10.0
+    msg = str(exc.value)
+    assert "/nobody_here/lhd_sim" in msg and "mode:=lockstep" in msg and "__ns:=/nobody_here" in msg
+
+
+def test_realtime_node_and_other_config_are_refused(sim_node, tmp_path):
+    rt = RosProcess("lhd_sim_node.sim_node", {"mode": "realtime"}, tmp_path / "rt.log", remaps={"__ns": "/envrt"})
+    cfg = yaml.safe_load((ROOT / "config" / "lhd_params.yaml").read_text())
+    cfg["paper"]["reward"] = dict(cfg["paper"]["reward"])
+    key = next(iter(cfg["paper"]["reward"]))
+    cfg["paper"]["reward"][key] = float(cfg["paper"]["reward"][key]) * 2 + 1.0
+    other = tmp_path / "other.yaml"
+    other.write_text(yaml.safe_dump(cfg))
+    oc = RosProcess("lhd_sim_node.sim_node", {"mode": "lockstep", "config": str(other)}, tmp_path / "oc.log",
+                    remaps={"__ns": "/envcfg"})
+    try:
+        with pytest.raises(RuntimeError, match="realtime.*mode:=lockstep"):
+            LhdLoadingRosEnv("rld", namespace="/envrt", timeout=30.0)
+        with pytest.raises(RuntimeError, match="another parameter file"):
+            LhdLoadingRosEnv("rld", namespace="/envcfg", timeout=30.0)
+    finally:
+        rt.stop()
+        oc.stop()
