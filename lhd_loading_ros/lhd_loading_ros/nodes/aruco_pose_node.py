@@ -1,7 +1,10 @@
 """`ros2 run lhd_loading_ros aruco_pose_node`: machine pose and forward speed v_x from an
 ArUco marker on the LHD seen by a camera above the draw point (paper: real environment).
 
-In:  sensor_msgs/Image (mono8, bgr8, rgb8, bgra8, rgba8) and sensor_msgs/CameraInfo.
+In:  sensor_msgs/Image (mono8, bgr8, rgb8, bgra8, rgba8) and sensor_msgs/CameraInfo; optionally
+     <prefix>/imu (sensor_msgs/Imu on the rear frame, orientation used): with it, a machine that
+     tilts (its rear lifting as the boom pries at a buried bucket) is placed with its roll and
+     pitch about the wheels on the floor and v_x is base_link's (use_imu; docs/perception.md).
 Out (under /lhd, or the node's namespace):
   aruco/marker_pose  geometry_msgs/PoseStamped  every detection, pile frame, the image's stamp
   odom               nav_msgs/Odometry          base_link pose + twist.linear.x = v_x, ONLY when
@@ -23,6 +26,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections import deque
 
 import cv2
 import numpy as np
@@ -30,12 +34,13 @@ from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-from sensor_msgs.msg import CameraInfo, Image
+from sensor_msgs.msg import CameraInfo, Image, Imu
 from std_msgs.msg import Bool
 
 from lhd_loading_ros.perception.aruco import (CameraModel, ImageEncodingError, MarkerDetector, MountingPrior,
                                               KalmanVelocityEstimator, VelocityEstimator, dictionary, image_to_gray, level,
-                                              marker_centre_ray, opencv_problem, position_on_plane)
+                                              marker_centre_ray, opencv_problem, position_on_plane, roll_pitch,
+                                              tilted_base_position)
 from lhd_loading_ros.perception.geometry import quaternion_xyzw, transform
 from lhd_loading_ros.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
@@ -96,6 +101,21 @@ class ArucoPoseNode(Node):
             Param("camera_info_topic", "/camera/camera_info", "CameraInfo input"),
             Param("image_reliable", False, "subscribe to images reliably (recordings, tests) instead of sensor-data QoS"),
             Param("namespace_prefix", "/lhd", "topic prefix when the node runs in the root namespace"),
+            Param("use_imu", True, "planar_motion: when <prefix>/imu (sensor_msgs/Imu on the rear frame) is fresh, "
+                  "place base_link with its roll and pitch, the machine tilting about the wheels on the floor, "
+                  "and take v_x from base_link (without it: the levelled pose, v_x from the marker)"),
+            Param("imu_timeout", 0.2, "use_imu: an IMU sample older than this (s, from its stamp to the image's) "
+                  "is not used", lo=0.001, hi=10.0, on_change=lambda v: setattr(self, "imu_timeout", v)),
+            Param("imu_window", 0.1, "use_imu: the roll and pitch at an image are the mean of the IMU samples of "
+                  "this long a window ending at its stamp (s; white noise of the IMU would otherwise reach v_x "
+                  "through the 0.5 m/rad lever of the tilt on x); 0: interpolated at the stamp",
+                  lo=0.0, hi=2.0, on_change=lambda v: setattr(self, "imu_window", v)),
+            Param("imu_deadband_deg", 0.3, "use_imu: a roll or pitch this small (deg) is the IMU's noise and "
+                  "mounting error, not the machine's (a machine on its wheels on a flat floor stands level); larger "
+                  "ones count beyond it (soft threshold: no step at the edge)", lo=0.0, hi=10.0,
+                  on_change=lambda v: setattr(self, "imu_deadband", math.radians(v))),
+            Param("wheelbase", 0.80, "use_imu: the front axle's distance ahead of base_link (the rear axle), m: "
+                  "the pivot of a nose-down tilt", lo=0.01, hi=20.0),
         ])
         n_ids = dictionary(p["dictionary"]).bytesList.shape[0]
         if p["marker_id"] >= n_ids:
@@ -112,6 +132,15 @@ class ArucoPoseNode(Node):
         self.marker_height = p["marker_height"]
         self.height_problem: str | None = None  # the marker seen far from marker_height
         self.frame_id, self.child_frame_id = p["frame_id"], p["child_frame_id"]
+        self.use_imu, self.imu_timeout, self.wheelbase = p["use_imu"], p["imu_timeout"], p["wheelbase"]
+        self.imu_window = p["imu_window"]
+        self.imu_deadband = math.radians(p["imu_deadband_deg"])
+        self.marker_in_base = np.linalg.inv(self.T_marker_base)[:3, 3]   # the marker's centre in base_link
+        self.imu: deque = deque(maxlen=32)      # (stamp s, roll, pitch) of recent IMU samples
+        self.imu_problem: str | None = None     # why the last IMU message was not used
+        self.x_source = "marker"                # what v_x is estimated from: marker (levelled) or base_imu
+        self.tilted = 0                         # detections placed with the IMU's tilt
+        self._ray = None
         self.cam: CameraModel | None = None
         self.info_problem: str | None = None    # why the last CameraInfo was rejected
         self.image_problem: str | None = None   # why the last image was rejected
@@ -132,6 +161,8 @@ class ArucoPoseNode(Node):
         img_qos = (QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
                    if p["image_reliable"] else qos_profile_sensor_data)
         self.create_subscription(Image, p["image_topic"], self._on_image, img_qos)
+        if self.use_imu:
+            self.create_subscription(Imu, f"{ns}/imu", self._on_imu, qos_profile_sensor_data)
         steady_timer(self, 0.1, self._check_stale)
         self.diag = Diagnostics(self, {"pose": self._report})
 
@@ -166,6 +197,55 @@ class ArucoPoseNode(Node):
             self.info_problem = f"CameraInfo invalid: {exc}"
             kept = "; keeping the previous one" if self.cam is not None else "; images ignored"
             self.get_logger().warn(self.info_problem + kept, throttle_duration_sec=5.0)
+
+    def _on_imu(self, msg: Imu) -> None:
+        """Keep the IMU's roll and pitch by stamp. An IMU without orientation (REP 145: covariance[0]
+        = -1), a bad quaternion or a zero stamp is not used, and says why in the diagnostics."""
+        if msg.orientation_covariance[0] == -1.0:
+            self.imu_problem = "IMU message has no orientation (orientation_covariance[0] = -1): tilt not used"
+            return
+        o = msg.orientation
+        try:
+            roll, pitch = roll_pitch(o.x, o.y, o.z, o.w)
+        except ValueError as exc:
+            self.imu_problem = f"IMU message rejected: {exc}"
+            return
+        t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        if t <= 0.0:
+            self.imu_problem = "IMU stamp is zero: tilt not used (the driver must stamp its messages)"
+            return
+        if self.imu and t <= self.imu[-1][0]:
+            if t < self.imu[-1][0]:
+                self.imu.clear()            # a bag loop or a restart: the older samples are another time line
+            else:
+                return
+        self.imu.append((t, roll, pitch))
+        self.imu_problem = None
+
+    def _tilt_at(self, t: float) -> tuple[float, float] | None:
+        """The IMU's (roll, pitch) at image time t: the mean of the samples in (t - imu_window, t]
+        when there are any (half a window late: 50 ms, 0.4 deg of an 8 deg/s tilt, 2 mm of x),
+        else interpolated between the samples around t, or the nearest one when it is within
+        imu_timeout of t; None without such a sample."""
+        if not self.imu:
+            return None
+        if self.imu_window > 0.0:
+            win = [s for s in self.imu if t - self.imu_window < s[0] <= t + 1e-6]
+            if win:
+                return (sum(s[1] for s in win) / len(win), sum(s[2] for s in win) / len(win))
+        first, last = self.imu[0], self.imu[-1]
+        if t >= last[0]:
+            return (last[1], last[2]) if t - last[0] <= self.imu_timeout else None
+        if t <= first[0]:
+            return (first[1], first[2]) if first[0] - t <= self.imu_timeout else None
+        for a, b in zip(self.imu, list(self.imu)[1:]):
+            if a[0] <= t <= b[0]:
+                if b[0] - a[0] > 2.0 * self.imu_timeout:       # a gap in the IMU's stream: the nearer, if close
+                    near = a if t - a[0] <= b[0] - t else b
+                    return (near[1], near[2]) if abs(t - near[0]) <= self.imu_timeout else None
+                w = (t - a[0]) / (b[0] - a[0])
+                return (a[1] + w * (b[1] - a[1]), a[2] + w * (b[2] - a[2]))
+        return None
 
     def _reject(self, why: str) -> None:
         """A frame that is not a measurement: no output, and the speed window restarts (the
@@ -211,12 +291,38 @@ class ArucoPoseNode(Node):
             # set there; planar_motion is fixed and a marker_height change clears it)
             if self.marker_height > 0.0 and not self._on_plane(T_pile_marker, corners, cam):
                 return
-        self.detections += 1
         T_base = T_pile_marker @ self.T_marker_base
+        x_speed, source = float(T_pile_marker[0, 3]), "marker"
+        tilt = None
+        if self.planar and self.marker_height > 0.0 and self.use_imu:
+            tilt = self._tilt_at(msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9)
+            if tilt is not None:
+                db = self.imu_deadband
+                tilt = tuple(math.copysign(max(0.0, abs(a) - db), a) for a in tilt)
+        if tilt is not None:
+            # the IMU says how the machine is tilted: base_link from the ray with that tilt; the
+            # published orientation stays levelled (planar_motion: what the controllers expect)
+            yaw = math.atan2(T_base[1, 0], T_base[0, 0])
+            contact_z = -(self.marker_height - float(self.marker_in_base[2]))
+            p_base = tilted_base_position(self._ray, self.T_pile_cam, yaw, tilt[0], tilt[1], self.marker_in_base,
+                                          self.wheelbase, contact_z)
+            if p_base is None:
+                self._reject("the camera ray through the marker does not meet the tilted marker's plane; expected a "
+                             "camera above the marker (check camera_xyz, camera_rpy, marker_height)")
+                return
+            shift = p_base[:2] - T_base[:2, 3]
+            T_base[:2, 3] += shift
+            T_pile_marker[:2, 3] += shift
+            x_speed, source = float(p_base[0]), "base_imu"
+            self.tilted += 1
+        if source != self.x_source:     # marker x and base_link x differ by the lever arm: no step into v_x
+            self.vel.reset()
+            self.x_source = source
+        self.detections += 1
         self.last_seen = now
         self._set_stale(False)
         self._publish_pose(msg.header.stamp, T_pile_marker)
-        v = self._speed(msg.header.stamp, float(T_pile_marker[0, 3]))
+        v = self._speed(msg.header.stamp, x_speed)
         if v is not None:
             self._publish_odom(msg.header.stamp, T_base, v)
 
@@ -227,7 +333,8 @@ class ArucoPoseNode(Node):
         marker_height means the calibration is wrong (diagnostics warn)."""
         h = self.marker_height
         try:
-            pos = position_on_plane(marker_centre_ray(corners, cam), self.T_pile_cam, h)
+            self._ray = marker_centre_ray(corners, cam)
+            pos = position_on_plane(self._ray, self.T_pile_cam, h)
         except (ValueError, cv2.error) as exc:
             self._reject(f"marker not usable: {str(exc).strip().splitlines()[-1]}")
             return False
@@ -243,9 +350,11 @@ class ArucoPoseNode(Node):
         return True
 
     def _speed(self, stamp, x: float) -> float | None:
-        """v_x from the marker's own position: the articulation is locked and the machine drives
-        straight, so every point of the rear frame moves with the same v_x, and the marker origin
-        is free of the lever-arm noise that orientation jitter puts on base_link. None unless
+        """v_x from x: without an IMU the marker's own position (the articulation is locked and the
+        machine drives straight and level, so every point of the rear frame moves with the same
+        v_x, and the marker origin is free of the lever-arm noise that the marker's orientation
+        jitter puts on base_link); with one, base_link's, placed with the IMU's tilt (a tilting
+        machine's marker, 0.21 m above base_link, moves faster than base_link). None unless
         this detection is a new measurement in a run of consecutive ones."""
         if stamp.sec == 0 and stamp.nanosec == 0:
             self.vel.reset()
@@ -311,7 +420,7 @@ class ArucoPoseNode(Node):
     def _report(self):
         now = time.monotonic()
         values = {"frames": self.frames, "detections": self.detections, "odometry": self.odoms,
-                  "stale": self.stale}
+                  "stale": self.stale, "tilted_by_imu": self.tilted, "v_x_from": self.x_source}
         if self.last_v is not None:
             values["last_v_x"] = self.last_v
         if self.last_image is None:
@@ -334,6 +443,8 @@ class ArucoPoseNode(Node):
             return WARN, self.stamp_problem, values
         if self.height_problem is not None:
             return WARN, self.height_problem, values
+        if self.use_imu and self.imu_problem is not None:
+            return WARN, self.imu_problem, values
         if self.lost:
             return WARN, f"marker lost for {lost:.1f} s", values
         return OK, "marker tracked", values

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from lhd_loading_ros.perception.geometry import apply, from_rt
+from lhd_loading_ros.perception.geometry import apply, from_rt, rpy_matrix
 
 MIN_OPENCV_VERSION = "4.7.0"
 ENCODINGS = {"mono8": 1, "bgr8": 3, "rgb8": 3, "bgra8": 4, "rgba8": 4}
@@ -359,3 +359,42 @@ def project(K: np.ndarray, T_cam_obj: np.ndarray, pts: np.ndarray) -> np.ndarray
     pc = apply(T_cam_obj, pts)
     uv = pc[:, :2] / pc[:, 2:3]
     return uv @ K[:2, :2].T + K[:2, 2]
+
+
+def roll_pitch(qx: float, qy: float, qz: float, qw: float) -> tuple[float, float]:
+    """Roll and pitch (rad, REP 103: R = Rz(yaw) Ry(pitch) Rx(roll), positive pitch = nose down) of a
+    unit quaternion, e.g. an IMU's orientation; ValueError for a non-finite or zero quaternion."""
+    q = np.array([qx, qy, qz, qw], dtype=float)
+    n = float(np.linalg.norm(q))
+    if not (np.isfinite(q).all() and n > 1e-9):
+        raise ValueError(f"orientation quaternion {q.tolist()} is not a rotation; expected a finite, non-zero (x, y, z, w)")
+    x, y, z, w = q / n
+    r20 = 2.0 * (x * z - w * y)
+    r21 = 2.0 * (y * z + w * x)
+    r22 = 1.0 - 2.0 * (x * x + y * y)
+    return math.atan2(r21, r22), math.asin(max(-1.0, min(1.0, -r20)))
+
+
+def tilted_base_position(ray_xy: np.ndarray, T_pile_cam: np.ndarray, yaw: float, roll: float, pitch: float,
+                         marker_in_base: np.ndarray, pivot_front_x: float, contact_z: float) -> np.ndarray | None:
+    """base_link's position (pile frame) from the camera ray through the marker's centre when the
+    machine is tilted by `roll` and `pitch` (an IMU on the rear frame) and heads `yaw` (the marker).
+
+    A machine on a flat floor tilts about the wheels that stay on it: nose down (pitch > 0: the
+    rear lifts when the boom pries at a buried bucket) about the front axle's floor contact at
+    (pivot_front_x, 0, contact_z) in base_link, nose up about the rear axle's, (0, 0, contact_z)
+    (base_link is the rear axle's centre; contact_z = -wheel radius). With that contact on the
+    floor (z = 0) the tilt fixes base_link's height, hence the marker's (`marker_in_base`: the
+    marker's centre in base_link), and the ray meets the marker's horizontal plane there.
+    Levelled (position_on_plane at the upright height), a marker 0.21 m above base_link on a
+    machine tilted 10 deg about a front axle 0.8 m ahead is placed 6 cm short and its lever arm
+    moves it 4 cm more: the speed of that tilting is what the camera alone mistakes for driving.
+    None when the ray misses the plane."""
+    R = rpy_matrix(roll, pitch, yaw)
+    contact = np.array([pivot_front_x if pitch >= 0.0 else 0.0, 0.0, contact_z])
+    z_base = -float((R @ contact)[2])
+    m = R @ np.asarray(marker_in_base, dtype=float)
+    p_marker = position_on_plane(ray_xy, T_pile_cam, z_base + float(m[2]))
+    if p_marker is None:
+        return None
+    return p_marker - m
