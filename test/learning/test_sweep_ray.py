@@ -1,5 +1,6 @@
 """`lhd sweep` on a local Ray: a two-trial study runs (two `lhd train` runs as Ray tasks), writes the
-run folders `lhd report` reads, records its progress, and a second run skips what is done."""
+run folders `lhd report` reads and records its progress; the same study with more steps resumes
+both trials from their checkpoints (what happens after a crash), and a last run skips what is done."""
 PARALLEL_SAFE = True   # Ray tasks that train: no timing in the results (test/conftest.py)
 
 import json
@@ -16,11 +17,22 @@ def lhd(*args, timeout=300):
 
 def test_two_trial_sweep_on_local_ray_and_report(tmp_path):
     study = tmp_path / "study.yaml"
-    study.write_text(yaml.safe_dump({"out": "runs", "variants": ["rld"], "seeds": [0, 1], "steps": 150,
-                                     "overrides": {"training.eval_episodes": 2, "training.eval_every": 75}}))
+
+    def write(steps):
+        study.write_text(yaml.safe_dump({"out": "runs", "variants": ["rld"], "seeds": [0, 1], "steps": steps,
+                                         "overrides": {"training.eval_episodes": 2, "training.eval_every": 75,
+                                                       "training.checkpoint_every": 75}}))
+
+    write(75)                       # a first, shorter study: both trials stop at step 75 with a checkpoint
     p = lhd("sweep", str(study), "--jobs", "2")
     assert p.returncode == 0, p.stdout + p.stderr
-    assert "2 trials" in p.stdout and "[2/2]" in p.stdout
+    write(150)                      # the same trials longer: not done, resumed from their checkpoints
+    p = lhd("sweep", str(study), "--jobs", "2")
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert "2 trials" in p.stdout and "0 already done, 2 to run" in p.stdout and "[2/2]" in p.stdout
+    for s in (0, 1):
+        log = (tmp_path / "runs" / "rld" / f"seed_{s}.log").read_text()
+        assert "resumed" in log and "at step 75" in log, log
     status = json.loads((tmp_path / "runs" / "sweep_status.json").read_text())
     assert sorted(e["trial"] for e in status["finished"]) == ["rld/seed_0", "rld/seed_1"]
     assert not status["failed"] and not status["running"]
