@@ -73,10 +73,12 @@ def _talks_to_processes(module) -> bool:
 
 def pytest_configure(config):
     config.addinivalue_line("markers", "ros: starts node processes or talks over DDS (timing-sensitive: run serially)")
+    config.addinivalue_line("markers", "parallel_safe: starts processes, but its results do not depend on timing "
+                                       "(lockstep, generous waits): runs with the pure tests")
 
 
 def pytest_collection_modifyitems(config, items):
     for item in items:
         module = getattr(item, "module", None)
-        if module is not None and _talks_to_processes(module):
+        if module is not None and _talks_to_processes(module) and item.get_closest_marker("parallel_safe") is None:
             item.add_marker(pytest.mark.ros)

@@ -136,6 +136,7 @@ def ros_node():
     shutdown_ros()
 
 
+@pytest.mark.parallel_safe     # waits up to 90 s for each publication: not timing-sensitive (test/conftest.py)
 def test_installed_sim_policy_and_perception_nodes_run_and_publish(ros_node, tmp_path):
     """`ros2 run`'s view: install/<pkg>/lib/<pkg>/<exe> in a sourced workspace. Before the
     shebang fix these started the build tool's Python (.venv-colcon: no rclpy, no numpy)."""
@@ -229,6 +230,7 @@ UNDECLARED = {
     ("lhd_loading_ros", "lhd_hw_bridge"): "lhd bench bridge; it depends on us (no cycle)",
     ("lhd_loading_ros", "stable_baselines3"): "optional: lhd bench train --vs-sb3 only",
     ("lhd_loading_ros", "imageio_ffmpeg"): "optional: lhd replay --video OUT.mp4 only (GIF needs only Pillow)",
+    ("lhd_loading_ros", "ray"): "optional: lhd sweep only (requirements.txt installs it; no rosdep key)",
 }
 PACKAGES = ("lhd_loading_ros", "lhd_sim_node", "lhd_hw_bridge")
 # ROS packages a launch file starts (not imported): (package, key) -> the launch file that needs it

@@ -17,22 +17,26 @@ def lhd(*args, timeout=300):
 
 def test_two_trial_sweep_on_local_ray_and_report(tmp_path):
     study = tmp_path / "study.yaml"
+    study.write_text(yaml.safe_dump({"out": "runs", "variants": ["rld"], "seeds": [0, 1], "steps": 150,
+                                     "overrides": {"training.eval_episodes": 2, "training.eval_every": 75,
+                                                   "training.checkpoint_every": 75}}))
+    # a crash left trial seed_1 at its step-75 checkpoint: `lhd train` of that trial stopped there (the
+    # study's own parameter file, as `lhd sweep` writes it for the overrides)
+    from lhd_loading_ros.learning.sweep import _write_configs, load_study
 
-    def write(steps):
-        study.write_text(yaml.safe_dump({"out": "runs", "variants": ["rld"], "seeds": [0, 1], "steps": steps,
-                                         "overrides": {"training.eval_episodes": 2, "training.eval_every": 75,
-                                                       "training.checkpoint_every": 75}}))
-
-    write(75)                       # a first, shorter study: both trials stop at step 75 with a checkpoint
-    p = lhd("sweep", str(study), "--jobs", "2")
-    assert p.returncode == 0, p.stdout + p.stderr
-    write(150)                      # the same trials longer: not done, resumed from their checkpoints
+    _, trials = load_study(study)
+    _write_configs(trials)
+    t1 = next(t for t in trials if t.seed == 1)
+    cmd = t1.command()
+    cmd[cmd.index("--steps") + 1] = "75"
+    first = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert first.returncode == 0 and (t1.run_dir / "checkpoint.pt").exists(), first.stderr
     p = lhd("sweep", str(study), "--jobs", "2")
     assert p.returncode == 0, p.stdout + p.stderr
     assert "2 trials" in p.stdout and "0 already done, 2 to run" in p.stdout and "[2/2]" in p.stdout
-    for s in (0, 1):
-        log = (tmp_path / "runs" / "rld" / f"seed_{s}.log").read_text()
-        assert "resumed" in log and "at step 75" in log, log
+    log1 = (tmp_path / "runs" / "rld" / "seed_1.log").read_text()
+    assert "resumed" in log1 and "at step 75" in log1, log1          # seed_1 went on from its checkpoint
+    assert "resumed" not in (tmp_path / "runs" / "rld" / "seed_0.log").read_text()
     status = json.loads((tmp_path / "runs" / "sweep_status.json").read_text())
     assert sorted(e["trial"] for e in status["finished"]) == ["rld/seed_0", "rld/seed_1"]
     assert not status["failed"] and not status["running"]

@@ -74,3 +74,22 @@ def test_unreadable_study(tmp_path):
     p.write_text("out: [unclosed")
     with pytest.raises(StudyError, match="not valid YAML"):
         load_study(p)
+
+
+def test_cluster_address_is_checked_before_ray_joins_it():
+    import socket
+
+    from lhd_loading_ros.learning.sweep import check_address
+
+    with socket.socket() as s:              # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    with pytest.raises(ConnectionError, match="ray start --head"):
+        check_address(f"127.0.0.1:{port}", timeout=2.0)
+    with pytest.raises(StudyError, match="expected HOST:PORT"):
+        check_address("nonsense")
+    with socket.socket() as srv:            # a listening port is accepted (ray://HOST:PORT too)
+        srv.bind(("127.0.0.1", 0))
+        srv.listen()
+        check_address(f"ray://127.0.0.1:{srv.getsockname()[1]}")
+    check_address("auto")

@@ -193,6 +193,7 @@ def run_lockstep_episode(ros, tmp_path, policy_dir, slope, material, seed):
     return obs_log, statuses[-1]
 
 
+@pytest.mark.parallel_safe     # lockstep: the same observations whatever the load (test/conftest.py)
 @pytest.mark.parametrize("variant,slope,material", [("rld", 25.0, "homogeneous"), ("rlc", 20.0, "nonhomogeneous")])
 def test_lockstep_parity_with_the_environment(ros, tmp_path, variant, slope, material):
     from lhd_sim_node.env import LhdLoadingEnv

@@ -198,6 +198,27 @@ def run_trial(cmd: list[str], log_path: str) -> dict:
     return {"exit": rc, "wall_s": time.time() - t0, "host": os.uname().nodename}
 
 
+def check_address(address: str, timeout: float = 5.0) -> None:
+    """A cluster address (HOST:PORT or ray://HOST:PORT) must accept a TCP connection before Ray is
+    asked to join it: ray.init retries an unreachable one for minutes. ConnectionError saying
+    what to do; 'auto' (Ray finds a local cluster) is left to Ray."""
+    import socket
+
+    if address == "auto":
+        return
+    rest = address.split("://", 1)[-1]
+    host, sep, port = rest.rpartition(":")
+    if not sep or not host or not port.isdigit():
+        raise StudyError(f"--address {address!r}: expected HOST:PORT (the head node's GCS port, e.g. 10.0.0.5:6379), "
+                         "ray://HOST:PORT or auto")
+    try:
+        with socket.create_connection((host, int(port)), timeout=timeout):
+            pass
+    except OSError as exc:
+        raise ConnectionError(f"{exc.strerror or exc}; start the cluster's head with `ray start --head` (port 6379 by "
+                              "default) or give its address") from None
+
+
 def sweep(study_path, address: str | None = None, jobs: int | None = None, log=print) -> int:
     out, trials = load_study(study_path)
     out.mkdir(parents=True, exist_ok=True)
@@ -224,6 +245,7 @@ def sweep(study_path, address: str | None = None, jobs: int | None = None, log=p
     t0 = time.time()
     kw = {"include_dashboard": False, "log_to_driver": False, "configure_logging": False}
     if address:
+        check_address(address)
         ray.init(address=address, **kw)
     else:
         ray.init(num_cpus=jobs or os.cpu_count() or 1, object_store_memory=100 * 1024 * 1024, **kw)
