@@ -9,7 +9,7 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
-        ("share/" + package_name + "/launch", ["launch/sim_loading.launch.py"]),
+        ("share/" + package_name + "/launch", ["launch/sim_loading.launch.py", "launch/sim_nodes.launch.py"]),
     ],
     install_requires=["setuptools", "numpy", "mujoco", "gymnasium"],
     zip_safe=True,

@@ -39,6 +39,20 @@ def test_launch_file_describes_both_nodes():
     assert {"sim_node", "policy_node"} <= execs
 
 
+def test_sim_nodes_launch_file_declares_its_arguments():
+    pytest.importorskip("launch")
+    pytest.importorskip("launch_ros")
+    from launch.actions import DeclareLaunchArgument, OpaqueFunction
+
+    spec = importlib.util.spec_from_file_location("sim_nodes", ROOT / "lhd_sim_node/launch/sim_nodes.launch.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    ld = mod.generate_launch_description()
+    names = {e.name for e in ld.entities if isinstance(e, DeclareLaunchArgument)}
+    assert {"count", "namespace_base", "config", "seed"} <= names
+    assert any(isinstance(e, OpaqueFunction) for e in ld.entities)
+
+
 def test_real_machine_launch_file_describes_the_stack():
     pytest.importorskip("launch")
     pytest.importorskip("launch_ros")
@@ -64,6 +78,7 @@ def test_colcon_install_has_ros2_run_entry_points():
         path = install / pkg / "lib" / pkg / exe
         assert path.is_file() and os.access(path, os.X_OK), path
     assert (install / "lhd_sim_node/share/lhd_sim_node/launch/sim_loading.launch.py").is_file()
+    assert (install / "lhd_sim_node/share/lhd_sim_node/launch/sim_nodes.launch.py").is_file()
     assert (install / "lhd_loading_ros/share/lhd_loading_ros/config/lhd_params.yaml").is_file()
     assert (install / "lhd_loading_ros/share/lhd_loading_ros/config/real_machine.yaml").is_file()
     assert (install / "lhd_loading_ros/share/lhd_loading_ros/config/teleop/xbox.yaml").is_file()
