@@ -44,7 +44,7 @@ def bench_sim_ros(steps: int = 1000, seed: int = 0, config=None, rounds: int = 3
         args[-4:-4] = ["-p", f"config:={os.path.abspath(config)}"]
     node = subprocess.Popen(args, stdout=log, stderr=subprocess.STDOUT, start_new_session=True,
                             env=dict(os.environ, PYTHONUNBUFFERED="1"))
-    ros = None
+    ros, ok = None, False
     try:
         ros = LhdLoadingRosEnv("rld", config=config, namespace=ns, timeout=timeout)
         local = LhdLoadingEnv("rld", config=config)
@@ -55,6 +55,7 @@ def bench_sim_ros(steps: int = 1000, seed: int = 0, config=None, rounds: int = 3
             t, resets = _loop(ros, actions, seed)
             ros_t.append(t)
             loc_t.append(_loop(local, actions, seed)[0])
+        ok = True
     except BaseException:
         if node.poll() is not None:
             log.flush()
@@ -71,6 +72,8 @@ def bench_sim_ros(steps: int = 1000, seed: int = 0, config=None, rounds: int = 3
                 os.killpg(node.pid, signal.SIGKILL)
                 node.wait()
         log.close()
+        if ok:
+            os.unlink(log.name)         # kept (and named) only when something failed
     ros_sps, loc_sps = steps / min(ros_t), steps / min(loc_t)
     return {
         "ros_env_steps_per_s": round(ros_sps, 1),

@@ -55,7 +55,8 @@ NODE_NAME = "lhd_sim"
 def start_hint(namespace: str | None) -> str:
     ns = f" -r __ns:={namespace}" if namespace else ""
     return (f"start one with `ros2 run lhd_sim_node sim_node --ros-args -p mode:=lockstep{ns}` "
-            f"(or `lhd up sim --count N --mode lockstep --no-policy`) on the same ROS_DOMAIN_ID "
+            f"(or `lhd up sim --count N`; add -p config:=FILE / --config FILE for another parameter file) on the "
+            f"same ROS_DOMAIN_ID "
             f"(here {os.environ.get('ROS_DOMAIN_ID', '0')})")
 
 
@@ -195,6 +196,21 @@ class SimNodePool:
             if time.monotonic() > t_end:
                 raise TimeoutError(f"no sim node answers at {link.fqn} (its reset service {link.fqn}/reset did not "
                                    f"appear within {self.timeout:g} s); " + start_hint(link.namespace))
+        # one sim node serves one learner: another publisher on its /cmd (a learner, a policy node,
+        # teleop) would step it between our commands (caught later too: every transition names
+        # the command it was taken with)
+        t_pub = time.monotonic() + 0.3
+        while time.monotonic() < t_pub:
+            self.executor.spin_once(timeout_sec=0.05)
+        # (another environment of this same process is let through: gymnasium's check_env makes a
+        # second one only to close it; one that steps is still caught by the command check)
+        mine = f"lhd_ros_env_{os.getpid()}_"
+        others = [f"{i.node_namespace.rstrip('/')}/{i.node_name}"
+                  for i in self.node.get_publishers_info_by_topic(f"{link.prefix}/cmd") if not i.node_name.startswith(mine)]
+        if others:
+            raise RuntimeError(f"sim node {link.fqn} already has other publishers on {link.prefix}/cmd ({', '.join(others)}: "
+                               "another learner, a policy node or teleop): one sim node serves one learner; start "
+                               "another sim node (lhd up sim --count N) or stop the other publisher")
         if not link.params.wait_for_services(timeout_sec=self.timeout):
             raise TimeoutError(f"sim node {link.fqn}: its parameter services did not answer within {self.timeout:g} s")
         res = self._future(link.params.get_parameters(["mode", "publish_transitions", "slopes_deg"]),
@@ -223,11 +239,16 @@ class SimNodePool:
                                "lhd_sim_node?); update it")
 
     # the task -------------------------------------------------------------------------------
+    def _check_open(self) -> None:
+        if self._closed:
+            raise RuntimeError("this ROS environment is closed (close() was called); make a new one")
+
     def reset(self, i: int, seed: int, slope_deg: float | None = None, material: str | None = None) -> tr.Transition:
         """Start a new episode on sim node i with `seed` (and a slope in degrees / a material; None:
         drawn by the simulator, as LhdLoading-v0 does); returns its step-0 transition."""
         from rclpy.parameter import Parameter
 
+        self._check_open()
         link = self.links[i]
         seed = int(seed)
         if not 0 <= seed < 2**31:
@@ -268,12 +289,14 @@ class SimNodePool:
         """One control period on each sim node i in `actions` (i -> action in [-1, 1]^3), all sent
         before any answer is awaited (the simulators step in parallel). Returns i -> (transition,
         the /episode values at the episode's end or None)."""
-        sent = {}
+        self._check_open()
+        sent, sent_u = {}, {}
         for i, a in actions.items():
             link = self.links[i]
             if link.done:
                 raise RuntimeError(f"sim node {link.label}: step on a finished episode; reset first")
             u = self.actuator(a)
+            sent_u[i] = u
             link.pub.publish(link._msg(data=[float(v) for v in u]))
             sent[i] = (link.episode, link.steps + 1)
         out = {}
@@ -288,6 +311,12 @@ class SimNodePool:
                 return t
 
             t = self._spin_until(arrived, f"the state after step {key[1]} of episode {key[0]}", link)
+            if not np.allclose(t.command, sent_u[i], rtol=0.0, atol=1e-9):
+                link.done = True
+                raise RuntimeError(f"sim node {link.label} took step {key[1]} of episode {key[0]} with command "
+                                   f"{t.command.tolist()}, not this learner's {sent_u[i].tolist()}: another node publishes "
+                                   f"on {link.prefix}/cmd (a second learner, a policy node, teleop). One sim node "
+                                   "serves one learner; the transitions from here on would not be ours")
             end = None
             if t.terminated or t.truncated:
                 end = self._spin_until(lambda link=link, key=key: link.statuses.get(key),

@@ -169,6 +169,7 @@ class SimNode(Node):
         self.result = None
         self.episode_seed = self.seed
         self._obs, self._reward, self._term, self._trunc = None, 0.0, False, False
+        self._applied = np.zeros(3)      # the command the last step was taken with (for learners)
         self._cmd = np.zeros(3)
         self._cmd_time = None            # monotonic arrival time of the latest valid command
         self._started = False            # realtime: physics runs from the episode's first command on
@@ -256,6 +257,7 @@ class SimNode(Node):
             self.set_parameters([Parameter("next_seed", value=-1)])
         self._obs, _ = self.env.reset(seed=self.episode_seed, options=opts)
         self._reward, self._term, self._trunc = 0.0, False, False
+        self._applied = np.zeros(3)
         self.outcome, self.result, self._ended_at = "running", None, None
         self._cmd[:] = 0.0
         self._cmd_time = None
@@ -329,6 +331,7 @@ class SimNode(Node):
 
     def _step(self, u: np.ndarray) -> None:
         self._obs, self._reward, term, trunc, info = self.env.step_actuator(u)
+        self._applied = np.array(u, dtype=np.float64)
         self._term, self._trunc = bool(term), bool(trunc)
         self.t_ns += self.dt_ns
         if term or trunc:
@@ -452,7 +455,8 @@ class SimNode(Node):
         self.pub_js.publish(js)
         if self.pub_transition is not None:
             msg = Float64MultiArray(data=transition.encode(self.episode, self.episode_seed, self.env.steps, self.t_ns,
-                                                           self._reward, self._term, self._trunc, self._obs))
+                                                           self._reward, self._term, self._trunc, self._obs,
+                                                           self._applied))
             msg.layout.dim = [MultiArrayDimension(label=transition.LABEL, size=transition.SIZE, stride=transition.SIZE)]
             self.pub_transition.publish(msg)
 

@@ -223,6 +223,15 @@ def test_short_training_run_logs_exports_and_resumes(cfg, tmp_path):
     assert st["step"] == 450 and st["agent"]["updates"] == 450 - 256 + 1
     with pytest.raises(ValueError, match="seed"):
         train("rld", 8, out, steps=500, config=cfg, progress=False)
+    # fewer steps than the run has: refused, the final actor untouched; the same steps: complete
+    final = (out / "final" / "policy.json").read_text()
+    with pytest.raises(ValueError, match="already has 450 steps, more than the 300 asked"):
+        train("rld", 7, out, steps=300, config=cfg, progress=False, log=lambda *a: None)
+    logs = []
+    again = train("rld", 7, out, steps=450, config=cfg, progress=False, log=logs.append)
+    assert any("is complete" in m for m in logs) and again["step"] == 450
+    assert (out / "final" / "policy.json").read_text() == final
+    assert [int(r["step"]) for r in read_csv(out / "evals.csv")] == [150, 300, 450]
 
 
 def test_training_is_deterministic_for_a_seed(cfg, tmp_path):

@@ -93,3 +93,20 @@ def test_cluster_address_is_checked_before_ray_joins_it():
         srv.listen()
         check_address(f"ray://127.0.0.1:{srv.getsockname()[1]}")
     check_address("auto")
+
+
+@pytest.mark.parametrize("study", [
+    {"out": "r", "variants": ["rld", "rld"]},
+    {"out": "r", "randomize": [True, True]},
+    {"out": "r", "overrides": {"training.eval_episodes": [2, 2]}},
+])
+def test_a_value_given_twice_is_refused(tmp_path, study):
+    with pytest.raises(StudyError, match="several trials"):
+        load_study(write(tmp_path, study))
+
+
+def test_close_values_get_their_own_folders_and_randomize_must_be_booleans(tmp_path):
+    _, trials = load_study(write(tmp_path, {"out": "r", "overrides": {"paper.ddpg.actor_lr": [1.0e-4, 1.0000001e-4]}}))
+    assert len({t.run_dir for t in trials}) == 2
+    with pytest.raises(StudyError, match="randomize"):
+        load_study(write(tmp_path, {"out": "r", "randomize": "true"}))

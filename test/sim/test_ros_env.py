@@ -84,6 +84,39 @@ def test_same_transitions_as_in_process(sim_node):
         env.close()
 
 
+def test_a_second_learner_or_a_stray_command_is_refused(sim_node):
+    """One sim node serves one learner: a second one is refused at connection, and a command from
+    another publisher between two of ours (which would shift every later transition by a step) ends
+    the episode with an error instead of returning the other command's result."""
+    import rclpy
+    from std_msgs.msg import Float64MultiArray
+
+    env = LhdLoadingRosEnv("rld", namespace="/envtest", timeout=30.0)
+    try:
+        env.reset(seed=21)
+        env.step(np.array([1.0, 0.0, 0.0]))
+        node = rclpy.create_node("stray_commander")
+        pub = node.create_publisher(Float64MultiArray, "/envtest/cmd", 10)
+        t_end = time.monotonic() + 10.0
+        while pub.get_subscription_count() < 1 and time.monotonic() < t_end:
+            time.sleep(0.05)
+        # a learner in another process is refused while this publisher is there (the stray
+        # publisher stands in for it: a node of another process on the sim node's /cmd)
+        env2 = None
+        with pytest.raises(RuntimeError, match="stray_commander.*one sim node serves one learner"):
+            env2 = LhdLoadingRosEnv("rld", namespace="/envtest", timeout=30.0)
+        assert env2 is None
+        pub.publish(Float64MultiArray(data=[0.5, 0.0, 0.0]))
+        time.sleep(0.5)
+        with pytest.raises(RuntimeError, match="another node publishes on /envtest/cmd"):
+            env.step(np.array([1.0, 0.0, 0.0]))
+        node.destroy_node()
+    finally:
+        env.close()
+    with pytest.raises(RuntimeError, match="closed"):
+        env.reset(seed=1)
+
+
 def test_no_sim_node_is_a_clear_timeout(sim_node):
     t0 = time.monotonic()
     with pytest.raises(TimeoutError) as exc:

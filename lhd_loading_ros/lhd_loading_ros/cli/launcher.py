@@ -351,8 +351,11 @@ def main(argv=None, demo: bool = False) -> int:
             ap.error(f"--namespace {args.namespace!r}: {str(exc).splitlines()[0]}")
 
         def ready(nss):
-            print(f"{len(nss)} sim nodes ({args.mode or 'lockstep'}) up in {', '.join(nss)}; train with\n"
-                  f"  lhd train --variant rld --env ros --namespaces {','.join(nss)}\nCtrl-C or SIGTERM stops them",
+            mode = args.mode or "lockstep"
+            cfg = f" --config {args.config}" if args.config else ""
+            hint = (f"train with\n  lhd train --variant rld --env ros --namespaces {','.join(nss)}{cfg}" if mode == "lockstep"
+                    else "(realtime: for controllers on the wall clock; a learner needs --mode lockstep)")
+            print(f"{len(nss)} sim nodes ({mode}) up in {', '.join(nss)}; {hint}\nCtrl-C or SIGTERM stops them",
                   flush=True)
 
         try:

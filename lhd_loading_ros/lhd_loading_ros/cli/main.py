@@ -34,10 +34,18 @@ from pathlib import Path
 
 def _bench(args) -> int:
     if args.what == "sim" and args.ros:
+        from lhd_loading_ros.task.config import ConfigError
         from lhd_sim_node.bench_ros import bench_sim_ros
 
-        res = bench_sim_ros(steps=args.steps if args.steps is not None else 1000, seed=args.seed,
-                            config=args.config, rounds=args.rounds)
+        try:
+            res = bench_sim_ros(steps=args.steps if args.steps is not None else 1000, seed=args.seed,
+                                config=args.config, rounds=args.rounds)
+        except (ConfigError, ValueError, TimeoutError, RuntimeError) as exc:
+            print(f"lhd bench sim --ros: {exc}", file=sys.stderr)
+            return 1
+        except KeyboardInterrupt:
+            print("\nlhd bench sim --ros: interrupted (the sim node was stopped)", file=sys.stderr)
+            return 130
     elif args.what == "sim":
         from lhd_sim_node.bench import bench_sim
 
@@ -87,7 +95,7 @@ def _train(args) -> int:
         namespaces = [n.strip() for n in (args.namespaces or "").split(",") if n.strip()]
         if not namespaces:
             print("lhd train: --env ros needs --namespaces, the sim nodes' namespaces (e.g. /sim0,/sim1; start them "
-                  "with `lhd up sim --count 2 --mode lockstep --no-policy`)", file=sys.stderr)
+                  "with `lhd up sim --count 2`)", file=sys.stderr)
             return 2
         if len(seeds) > 1:
             print("lhd train: --env ros trains one seed (its sim nodes serve one learner); give --seed, not --seeds",
@@ -113,7 +121,9 @@ def _train(args) -> int:
         print(f"lhd train: {exc}", file=sys.stderr)
         return 1
     except (TimeoutError, RuntimeError) as exc:      # a sim node missing, refusing or gone (--env ros)
-        print(f"lhd train: {exc}\nthe run resumes from its last checkpoint with the same command", file=sys.stderr)
+        again = ("\nthe run resumes from its last checkpoint with the same command"
+                 if (run_dir / "checkpoint.pt").exists() else "")
+        print(f"lhd train: {exc}{again}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print(f"\ninterrupted; run the same command again to resume from {run_dir}/checkpoint.pt", file=sys.stderr)

@@ -15,8 +15,9 @@ same run folders as `lhd train --seeds` and `lhd report` / `lhd experiment` / `l
 
 Run folders: <out>/<group>/seed_<N>, group = variant, "_dr" with randomisation, and
 "_<key>=<value>" for each grid axis with several values (lhd report <out>/<group>). A trial
-with overrides gets its own parameter file, <out>/configs/<group>.yaml (its config hash is in
-the run's run.json, as for any run).
+with overrides gets its own parameter file, <out>/configs/grid_<key>=<value>....yaml
+(grid_fixed.yaml when no axis varies; its config hash is in the run's run.json, as for any run).
+A value given twice (which would put two trials in one folder) is refused.
 
 Each trial is a Ray task (num_cpus=1) that runs `lhd train ... --out <run folder>` as a child
 process, its log in <out>/<group>/seed_<N>.log. Resumable: a trial whose final actor has the
@@ -105,7 +106,7 @@ def _set_key(cfg: dict, dotted: str, value) -> None:
 
 
 def _tag(value) -> str:
-    text = f"{value:g}" if isinstance(value, float) else str(value)
+    text = repr(value) if isinstance(value, float) else str(value)     # repr: two values never print alike
     return "".join(c if (c.isalnum() or c in ".-+") else "-" for c in text)
 
 
@@ -139,7 +140,7 @@ def load_study(path) -> tuple[Path, list[Trial]]:
     except ValueError as exc:
         raise StudyError(f"{path}: {exc}") from None
     rand = study.get("randomize", [False])
-    rand = [rand] if isinstance(rand, bool) else list(rand)
+    rand = [rand] if isinstance(rand, bool) else (list(rand) if isinstance(rand, list) else [rand])
     if not rand or any(not isinstance(r, bool) for r in rand):
         raise StudyError(f"{path}: randomize {rand}; expected true, false or a list of them")
     steps = study.get("steps")
@@ -179,6 +180,15 @@ def load_study(path) -> tuple[Path, list[Trial]]:
             group = f"{variant}{'_dr' if r else ''}{suffix}"
             for s in seeds:
                 trials.append(Trial(group, variant, s, r, cfg_file, out / group / f"seed_{s}", steps, settings))
+    seen: dict = {}
+    for t in trials:
+        seen.setdefault(t.run_dir, []).append(t)
+    clash = {d: ts for d, ts in seen.items() if len(ts) > 1}
+    if clash:
+        d, ts = next(iter(clash.items()))
+        raise StudyError(f"{path}: {len(clash)} run folder(s) would hold several trials, e.g. {d.relative_to(out)} for "
+                         f"{len(ts)} trials: a variant, a randomize value or an override value given twice; expected "
+                         "each value once")
     return out, trials
 
 
@@ -188,6 +198,14 @@ def _write_configs(trials: list[Trial]) -> None:
         if cfg is not None and t.config_path is not None:
             t.config_path.parent.mkdir(parents=True, exist_ok=True)
             t.config_path.write_text(yaml.safe_dump(cfg, sort_keys=False))
+
+
+def _last_line(path: Path) -> str:
+    try:
+        lines = [ln for ln in path.read_text(errors="replace").splitlines() if ln.strip()]
+    except OSError:
+        return "no log"
+    return lines[-1][-300:] if lines else "empty log"
 
 
 def run_trial(cmd: list[str], log_path: str) -> dict:
@@ -264,10 +282,12 @@ def sweep(study_path, address: str | None = None, jobs: int | None = None, log=p
                 status["running"].remove(t.name)
                 entry = {"trial": t.name, **res}
                 ok = res["exit"] == 0 and t.done()
+                if not ok:
+                    entry["reason"] = res.get("error") or _last_line(t.run_dir.parent / f"seed_{t.seed}.log")
                 (status["finished"] if ok else status["failed"]).append(entry)
                 n = len(status["finished"]) + len(status["failed"])
-                log(f"[{n}/{len(todo)}] {t.name}: {'done' if ok else 'FAILED (exit %s)' % res['exit']} in "
-                    f"{res['wall_s']:.0f} s on {res['host']} ({time.time() - t0:.0f} s since the start)")
+                log(f"[{n}/{len(todo)}] {t.name}: {'done' if ok else 'FAILED (exit %s): %s' % (res['exit'], entry['reason'])}"
+                    f" in {res['wall_s']:.0f} s on {res['host']} ({time.time() - t0:.0f} s since the start)")
                 save()
     except KeyboardInterrupt:
         log("interrupted; run the same command again to resume (finished trials are skipped, the others "

@@ -10,8 +10,10 @@ A run directory holds
   best/             exported actor with the best evaluation so far (ASL, then success, then AR)
   final/            exported actor at the end of training
 Interrupted runs resume from checkpoint.pt: the agent, replay and noise continue exactly; the
-episode in progress is dropped and the next one starts (training episode k always uses the
-pile of seed (run seed, k), so the sequence of piles is the same with or without a resume).
+episode in progress is dropped and starts again (training episode k always uses the pile of
+seed (run seed, k), so with one environment the sequence of piles is the same with or without a
+resume; with several sim nodes the episodes in progress start again first, each index once).
+A run resumed with fewer steps than it has is refused; with as many, it is complete.
 """
 from __future__ import annotations
 
@@ -198,15 +200,29 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
         replay.load_state_dict(st["replay"])
         rng.bit_generator.state = json.loads(st["rng"])
         noise.x[:] = st["noise_x"].numpy()
+        more = st.get("noise_more")
+        if more is not None:           # the other sources' OU processes (several sim nodes)
+            for i, x in zip(slots[1:], more.numpy()):
+                noises[i].x[:] = x
         step, episode = int(st["step"]), int(st["episode"])
+        # episodes in progress at the checkpoint start again first, on their piles; then new ones
+        pending = json.loads(st["pending"]) if st.get("pending") else [episode]
+        next_episode = int(st["next_episode"]) if "next_episode" in st else episode + 1
+        for k, v in (json.loads(st["contributed"]) if st.get("contributed") else {}).items():
+            contributed[k] = contributed.get(k, 0) + int(v)
+        if step > dc.total_steps:
+            raise ValueError(f"{out} already has {step:,} steps, more than the {dc.total_steps:,} asked; give --steps "
+                             f">= {step:,} to go on, or another --out")
         best = json.loads(st["best"]) if st["best"] else None
         wall_before = float(st["wall_s"])
         _truncate_csv(out / "evals.csv", "step", step)
         _truncate_csv(out / "episodes.csv", "step", step)
         log(f"resumed {out} at step {step:,} (episode {episode})")
     else:
+        pending, next_episode = [], 0
         for f in ("evals.csv", "episodes.csv"):
             (out / f).unlink(missing_ok=True)
+
     def write_run_json() -> None:
         (out / "run.json").write_text(json.dumps({
             "variant": variant, "seed": seed, "config_hash": chash, "ddpg": dc.to_dict(),
@@ -224,6 +240,9 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
         st = {"variant": variant, "seed": seed, "config_hash": chash, "step": step, "episode": episode,
               "agent": agent.state_dict(), "replay": replay.state_dict(),
               "rng": json.dumps(rng.bit_generator.state), "noise_x": torch.from_numpy(noise.x.copy()),
+              "noise_more": torch.from_numpy(np.array([noises[i].x for i in slots[1:]], dtype=np.float64).reshape(-1, 3)),
+              "pending": json.dumps([slot_episode[i] for i in slots] + queue), "next_episode": started,
+              "contributed": json.dumps(contributed),
               "best": json.dumps(best) if best else "", "wall_s": wall_before + time.perf_counter() - t0}
         tmp = out / "checkpoint.pt.tmp"
         torch.save(st, tmp)
@@ -232,14 +251,35 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
     tb = _tensorboard(out)
     bar = _Progress(f"{variant} seed {seed}", dc.total_steps, progress)
     t0 = time.perf_counter()
-    started = episode                   # the next episode index to start (in-progress ones are dropped on resume)
-    obs = {}
-    for i in slots:
-        obs[i] = reset_slot(i, episode_seed(seed, started))
+    # episode indices: those in progress at a checkpoint start again first (with one source, the
+    # one dropped by an interruption: the same pile), then new ones from next_episode on; every
+    # index is used once, whatever order the sources finish in
+    queue, started = list(pending), next_episode
+
+    def next_index() -> int:
+        nonlocal started
+        if queue:
+            return queue.pop(0)
         started += 1
+        return started - 1
+
+    obs, slot_episode = {}, {}
+    for i in slots:
+        slot_episode[i] = next_index()
+        obs[i] = reset_slot(i, episode_seed(seed, slot_episode[i]))
     ep_ret = {i: 0.0 for i in slots}
     last_eval, closs, qmean = None, float("nan"), float("nan")
-    slot_episode = {i: i + episode for i in slots}
+    if step >= dc.total_steps:         # resumed at the end: the run is complete
+        meta = out / "final" / "policy.json"
+        if meta.is_file() and json.loads(meta.read_text()).get("evaluation"):
+            log(f"{out} is complete ({step:,} steps); nothing to do")
+            if pool is not None:
+                pool.close()
+            return json.loads(meta.read_text())["evaluation"]
+        ev = evaluate(eval_env, agent.actor_numpy(), dc.eval_episodes, dc.eval_seed, cfg["task"]["bucket_capacity"],
+                      breakdown=False)
+        last_eval = {k: ev[k] for k in EVAL_FIELDS if k in ev}
+        last_eval["step"] = step
     bucket = cfg["task"]["bucket_capacity"]
     try:
         while step < dc.total_steps:
@@ -266,9 +306,8 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
                     episode += 1
                     ep_ret[i] = 0.0
                     noises[i].reset()
-                    slot_episode[i] = started
-                    obs[i] = reset_slot(i, episode_seed(seed, started))
-                    started += 1
+                    slot_episode[i] = next_index()
+                    obs[i] = reset_slot(i, episode_seed(seed, slot_episode[i]))
                 if step % dc.eval_every == 0 or step == dc.total_steps:
                     if replay.size >= dc.learning_starts:
                         closs = float((err * err).mean()) / dc.reward_scale ** 2

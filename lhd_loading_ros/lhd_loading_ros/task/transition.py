@@ -17,6 +17,9 @@ Layout (data[i]), also named in the message's layout.dim[0].label:
   5 terminated   1: success or failure (a terminal state)
   6 truncated    1: max_steps reached without a terminal state
   7..18          the 12-dim observation (task/observation.py), as the policy sees it
+  19..21         the actuator command [u_wheels, u_boom, u_bucket] (rad/s) the step was taken with (zeros at
+                 step 0): a learner checks it is the one it sent, so a second publisher on <prefix>/cmd
+                 (another learner, a policy node) cannot shift its transitions unnoticed
 """
 from __future__ import annotations
 
@@ -28,8 +31,9 @@ import numpy as np
 from lhd_loading_ros.task.observation import OBS_DIM
 
 HEAD = ("episode", "seed", "step", "stamp_ns", "reward", "terminated", "truncated")
-SIZE = len(HEAD) + OBS_DIM
-LABEL = ",".join(HEAD) + f",obs[{OBS_DIM}]"
+CMD_DIM = 3
+SIZE = len(HEAD) + OBS_DIM + CMD_DIM
+LABEL = ",".join(HEAD) + f",obs[{OBS_DIM}],command[{CMD_DIM}]"
 
 
 @dataclass(frozen=True)
@@ -42,20 +46,24 @@ class Transition:
     terminated: bool
     truncated: bool
     obs: np.ndarray          # float32 (OBS_DIM,)
+    command: np.ndarray      # float64 (3,), the actuator command of the step
 
 
 def encode(episode: int, seed: int, step: int, stamp_ns: int, reward: float, terminated: bool, truncated: bool,
-           obs) -> list[float]:
+           obs, command=(0.0, 0.0, 0.0)) -> list[float]:
     obs = np.asarray(obs, dtype=np.float64).ravel()
     if obs.shape != (OBS_DIM,):
         raise ValueError(f"observation has {obs.size} values; expected {OBS_DIM}")
+    cmd = np.asarray(command, dtype=np.float64).ravel()
+    if cmd.shape != (CMD_DIM,) or not np.isfinite(cmd).all():
+        raise ValueError(f"command {cmd.tolist()}; expected {CMD_DIM} finite values")
     for name, v in (("episode", episode), ("seed", seed), ("step", step), ("stamp_ns", stamp_ns)):
         if not (0 <= int(v) < 2**53):
             raise ValueError(f"{name} = {v} cannot be carried exactly in a float64; expected 0 <= {name} < 2^53")
     if not (math.isfinite(reward) and np.isfinite(obs).all()):
         raise ValueError(f"reward {reward} or observation {obs.tolist()} is not finite; nothing non-finite is published")
     return [float(episode), float(seed), float(step), float(stamp_ns), float(reward),
-            1.0 if terminated else 0.0, 1.0 if truncated else 0.0, *obs.tolist()]
+            1.0 if terminated else 0.0, 1.0 if truncated else 0.0, *obs.tolist(), *cmd.tolist()]
 
 
 def decode(data) -> Transition:
@@ -73,4 +81,4 @@ def decode(data) -> Transition:
     if not np.isin(flags, (0.0, 1.0)).all():
         raise ValueError(f"transition's terminated, truncated = {flags.tolist()}; expected 0 or 1")
     return Transition(int(d[0]), int(d[1]), int(d[2]), int(d[3]), float(d[4]), bool(d[5]), bool(d[6]),
-                      d[len(HEAD):].astype(np.float32))
+                      d[len(HEAD):len(HEAD) + OBS_DIM].astype(np.float32), d[len(HEAD) + OBS_DIM:].copy())
