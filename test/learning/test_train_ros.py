@@ -45,8 +45,14 @@ def test_train_from_two_sim_nodes_and_run_the_actor(domain, tmp_path):
                 break
         assert any("up in /trn0, /trn1" in ln for ln in lines), "".join(lines)
         out = tmp_path / "run"
+        train("rld", 3, out, steps=STEPS - 600, progress=False, eval_episodes=2, eval_every=1000,
+              checkpoint_every=700, env_kind="ros", namespaces=["/trn0", "/trn1"], log=lambda *a: None)
+        # the same run longer: resumed from the checkpoint at 1,400 (every source's noise, its counts,
+        # the episodes in progress started again first)
+        logs = []
         ev = train("rld", 3, out, steps=STEPS, progress=False, eval_episodes=2, eval_every=1000,
-                   checkpoint_every=1000, env_kind="ros", namespaces=["/trn0", "/trn1"], log=lambda *a: None)
+                   checkpoint_every=700, env_kind="ros", namespaces=["/trn0", "/trn1"], log=logs.append)
+        assert any("resumed" in m and "1,400" in m for m in logs), logs
         assert sims.poll() is None, "the sim nodes must still run"
     finally:
         os.killpg(sims.pid, signal.SIGTERM)
@@ -65,7 +71,7 @@ def test_train_from_two_sim_nodes_and_run_the_actor(domain, tmp_path):
     # every episode's seed index is used once: the episode numbers are distinct
     assert len({int(e["episode"]) for e in eps}) == len(eps)
     with open(out / "evals.csv") as f:
-        assert [int(r["step"]) for r in csv.DictReader(f)] == [1000, 2000]
+        assert [int(r["step"]) for r in csv.DictReader(f)] == [1000, 1400, 2000]
     assert ev["step"] == STEPS
     meta = json.loads((out / "final" / "policy.json").read_text())
     assert meta["variant"] == "rld" and meta["steps"] == STEPS, meta
