@@ -253,18 +253,20 @@ class SimNodePool:
         seed = int(seed)
         if not 0 <= seed < 2**31:
             raise ValueError(f"seed {seed} out of range; expected 0 <= seed < 2^31 (the sim node's next_seed)")
-        params = [Parameter("next_seed", value=seed)]
-        # slope and material only when they change (the sim node logs each change)
+        # slope and material first, and only when they change (the sim node logs each change); the
+        # seed last, so a refused slope leaves no seed set for someone else's next episode
+        changes = []
         for name, value in (("slope_deg", -1.0 if slope_deg is None else float(slope_deg)),
                             ("material", "random" if material is None else str(material))):
             if link.set_values.get(name) != value:
-                params.append(Parameter(name, value=value))
-        res = self._future(link.params.set_parameters(params), "next_seed / slope_deg / material", link)
-        for p, r in zip(params, res.results):
-            if not r.successful:
-                link.set_values.clear()
-                raise ValueError(f"sim node {link.fqn} refused {p.name} = {p.value!r}: {r.reason}")
-            link.set_values[p.name] = p.value
+                changes.append(Parameter(name, value=value))
+        for params in ([changes] if changes else []) + [[Parameter("next_seed", value=seed)]]:
+            res = self._future(link.params.set_parameters(params), ", ".join(p.name for p in params), link)
+            for p, r in zip(params, res.results):
+                if not r.successful:
+                    link.set_values.clear()
+                    raise ValueError(f"sim node {link.fqn} refused {p.name} = {p.value!r}: {r.reason}")
+                link.set_values[p.name] = p.value
         before = link.episode
         self._future(link.reset_client.call_async(self._trigger_request(link)), "its reset service", link)
 

@@ -267,6 +267,12 @@ def sweep(study_path, address: str | None = None, jobs: int | None = None, log=p
         ray.init(address=address, **kw)
     else:
         ray.init(num_cpus=jobs or os.cpu_count() or 1, object_store_memory=100 * 1024 * 1024, **kw)
+    import signal
+
+    def on_term(*_):                 # SIGTERM as Ctrl-C: the same orderly stop (Ray's handler dumps a stack)
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, on_term)
     try:
         task = ray.remote(num_cpus=1, max_retries=2)(run_trial)
         pending = {task.remote(t.command(), str(t.run_dir.parent / f"seed_{t.seed}.log")): t for t in todo}
@@ -294,6 +300,7 @@ def sweep(study_path, address: str | None = None, jobs: int | None = None, log=p
             "resume from their checkpoints)")
         return 130
     finally:
+        signal.signal(signal.SIGTERM, previous)
         ray.shutdown()
     status["wall_s"] = time.time() - t0
     save()
