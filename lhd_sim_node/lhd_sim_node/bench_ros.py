@@ -17,19 +17,15 @@ import time
 
 import numpy as np
 
+from .bench import _episode_loop
 from .env import LhdLoadingEnv
 from .ros_env import LhdLoadingRosEnv
 
 
 def _loop(env, actions: np.ndarray, seed: int) -> tuple[float, int]:
+    """bench_sim's episode loop (the same actions and resets), timed."""
     t0 = time.perf_counter()
-    env.reset(seed=seed)
-    resets = 0
-    for a in actions:
-        _, _, term, trunc, _ = env.step(a)
-        if term or trunc:
-            env.reset()
-            resets += 1
+    resets = _episode_loop(env, actions, seed)
     return time.perf_counter() - t0, resets
 
 
