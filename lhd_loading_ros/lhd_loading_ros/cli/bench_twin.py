@@ -49,7 +49,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lhd_loading_ros.cli.launcher import Child, _StopOnSignals
+from lhd_loading_ros.cli.launcher import Child, _StopOnSignals, check_children, stop_stack
 
 WHEEL_SCALE = 1e-3      # rad/s per count of the wheel set-point on the wire (docs/serial_protocol.md)
 MATCH_WINDOW_S = 0.5    # s: a decision's frame must be read within this after the decision
@@ -233,10 +233,7 @@ def run_bench(args) -> dict:
                 if now > deadline:
                     raise RuntimeError(f"only {running_s():.1f} s of attempts in {args.timeout:g} s (wanted "
                                        f"{args.duration:g} s); last arming refusals: {refusals[-3:]}")
-                for c in children:
-                    if not c.alive():
-                        tail = c.log_path.read_text()[-2000:]
-                        raise RuntimeError(f"{c.name} exited with status {c.proc.returncode}:\n{tail}")
+                check_children(children)
                 if pending is not None and pending.done():
                     res = pending.result()
                     if not res.success:
@@ -252,11 +249,7 @@ def run_bench(args) -> dict:
         except RuntimeError as exc:
             error = str(exc)
         finally:
-            for c in reversed(children):
-                c.stop()
-            node.destroy_node()
-            if rclpy.ok():
-                rclpy.shutdown()
+            stop_stack(children, node)
     if error:
         raise RuntimeError(f"{error}\n(node logs in {log_dir})")
     result = summary(match_decisions(decisions, frames, wheels_max))

@@ -77,6 +77,27 @@ class Child:
         return self.proc.returncode
 
 
+def check_children(children: list, quiet: bool = True) -> None:
+    """RuntimeError naming the first node process that has exited, with its log's tail (when its
+    output went to a log file, `quiet`)."""
+    for c in children:
+        if not c.alive():
+            tail = c.log_path.read_text()[-2000:] if quiet else ""
+            raise RuntimeError(f"{c.name} exited with status {c.proc.returncode}:\n{tail}")
+
+
+def stop_stack(children: list, node) -> None:
+    """Stop the node processes in reverse start order (what commands the machine before what it
+    commands), then the launcher's own node and its ROS context."""
+    import rclpy
+
+    for c in reversed(children):
+        c.stop()
+    node.destroy_node()
+    if rclpy.ok():
+        rclpy.shutdown()
+
+
 class _StopOnSignals:
     """SIGTERM, and SIGINT unless it was ignored when we started (a script's background job),
     set `event`; the previous handlers come back on exit. Only the flag is touched in the
@@ -156,10 +177,7 @@ def up_sim(policy: str | None, slopes: list[float] | None, episodes: int, materi
 
     def spin_checked(children, t0):
         rclpy.spin_once(node, timeout_sec=0.1)
-        for c in children:
-            if not c.alive():
-                tail = c.log_path.read_text()[-2000:] if quiet else ""
-                raise RuntimeError(f"{c.name} exited with status {c.proc.returncode}:\n{tail}")
+        check_children(children, quiet)
         if timeout_s and time.monotonic() - t0 > timeout_s:
             raise TimeoutError(f"episodes not done after {timeout_s:.0f} s")
 
@@ -204,11 +222,7 @@ def up_sim(policy: str | None, slopes: list[float] | None, episodes: int, materi
                 raise type(exc)(f"{exc}\n(node logs kept in {log_dir})") from None
             raise
         finally:
-            for c in reversed(children):     # the policy first: the machine gets no command after the sim stops
-                c.stop()
-            node.destroy_node()
-            if rclpy.ok():
-                rclpy.shutdown()
+            stop_stack(children, node)       # the policy first: the machine gets no command after the sim stops
             if not keep_logs and not (failed and quiet and children):
                 shutil.rmtree(log_dir, ignore_errors=True)
     if stop.is_set():
@@ -268,10 +282,7 @@ def up_sim_nodes(namespaces: list[str], mode: str, seed: int, config: str | None
             ready = False
             while not stop.is_set():
                 rclpy.spin_once(node, timeout_sec=0.1)
-                for c in children:
-                    if not c.alive():
-                        tail = c.log_path.read_text()[-2000:] if quiet else ""
-                        raise RuntimeError(f"{c.name} exited with status {c.proc.returncode}:\n{tail}")
+                check_children(children, quiet)
                 if not ready and len(heard) == len(namespaces):
                     ready = True
                     if on_ready:
@@ -286,11 +297,7 @@ def up_sim_nodes(namespaces: list[str], mode: str, seed: int, config: str | None
                 raise type(exc)(f"{exc}\n(node logs kept in {log_dir})") from None
             raise
         finally:
-            for c in reversed(children):
-                c.stop()
-            node.destroy_node()
-            if rclpy.ok():
-                rclpy.shutdown()
+            stop_stack(children, node)
             if not keep_logs and not (failed and quiet and children):
                 shutil.rmtree(log_dir, ignore_errors=True)
     if stop.is_set():

@@ -34,7 +34,7 @@ import time
 from datetime import datetime, timezone
 from pathlib import Path
 
-from lhd_loading_ros.cli.launcher import Child, _StopOnSignals
+from lhd_loading_ros.cli.launcher import Child, _StopOnSignals, check_children, stop_stack
 from lhd_loading_ros.ros.params import discovery_wait_s
 
 CONTROLLERS = ("rld", "rlc", "tampier", "teleop")
@@ -211,10 +211,7 @@ def up_real(args) -> int:
             pending = None
             while not stop.is_set():
                 rclpy.spin_once(node, timeout_sec=0.05)
-                for c in children:
-                    if not c.alive():
-                        tail = c.log_path.read_text()[-2000:] if quiet else ""
-                        raise RuntimeError(f"{c.name} exited with status {c.proc.returncode}:\n{tail}")
+                check_children(children, quiet)
                 pf = state["preflight"]
                 if pf is not None and time.monotonic() - t0 > args.settle and pf.message != state["printed_preflight"]:
                     # the checklist once the nodes settled, and again whenever it changes
@@ -253,11 +250,7 @@ def up_real(args) -> int:
             return 1
         finally:
             # controller and teleop first, the bridge last: its shutdown sends a stop frame
-            for c in reversed(children):
-                c.stop()
-            node.destroy_node()
-            if rclpy.ok():
-                rclpy.shutdown()
+            stop_stack(children, node)
             if not keep_logs and not failed and args.remove_logs:
                 shutil.rmtree(log_dir, ignore_errors=True)
     print(f"lhd up real: stopped; attempts in {run_dir / 'attempts.csv'} (`lhd attempts {run_dir}`)", flush=True)

@@ -48,7 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lhd_loading_ros.cli.launcher import Child, _StopOnSignals
+from lhd_loading_ros.cli.launcher import Child, _StopOnSignals, stop_stack
 from lhd_loading_ros.cli.up_real import ENDED, default_params_file, format_preflight, make_run_dir
 from lhd_loading_ros.cli.up_real import parser as real_parser
 from lhd_loading_ros.cli.up_real import check_args as real_check_args
@@ -591,11 +591,7 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
             rc = 1
         finally:
             # the recorder and controller first, the bridge then the twin last
-            for c in reversed(children):
-                c.stop()
-            node.destroy_node()
-            if rclpy.ok():
-                rclpy.shutdown()
+            stop_stack(children, node)
             shutil.rmtree(link_dir, ignore_errors=True)
 
     # the record as written by the supervisor
