@@ -305,9 +305,11 @@ class SimDue:
         self._skip = True
         self._span = None
 
-    def _base_state(self) -> tuple[np.ndarray, np.ndarray, float]:
+    def _base_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """base_link's position, orientation (w, x, y, z) and linear velocity, world frame (the
+        free joint's qpos[:7] and qvel[:3])."""
         d = self.sim.data
-        return d.qpos[:3].copy(), d.qpos[3:7].copy(), float(d.qvel[0])
+        return d.qpos[:3].copy(), d.qpos[3:7].copy(), d.qvel[:3].copy()
 
     def base_state_at(self, now: float) -> tuple[np.ndarray, np.ndarray, float, float]:
         """base_link's position, orientation (w, x, y, z) and v_x at monotonic time `now`, and the
@@ -326,6 +328,12 @@ class SimDue:
         instant returned is that end, not `now`: a sensor stamps its message with it (a frame
         that shows the machine as it was, delivered late), so pose and speed stay consistent
         over the stamps. Before the span's start (or with no span) the instant is `now`."""
+        p, q, v, t = self.base_motion_at(now)
+        return p, q, float(v[0]), t
+
+    def base_motion_at(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """As base_state_at, with base_link's whole linear velocity (world frame, m/s) instead of
+        v_x: what the twin's accelerometer differentiates."""
         with self.lock:
             span = self._span
             if span is None:

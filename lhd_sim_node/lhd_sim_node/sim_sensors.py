@@ -355,6 +355,19 @@ def fee_arrow(tip_xyz, force, scale: float = 0.0005, min_force: float = 1.0) -> 
     return np.vstack([tip, tip + scale * f])
 
 
+def imu_specific_force(true_quat, a_world, g: float = 9.81) -> np.ndarray:
+    """What an IMU's accelerometer on the rear frame measures (m/s^2, its own axes = base_link's):
+    the specific force R^T (a + (0, 0, g)), a the frame's acceleration in the world (m/s^2) and R
+    its orientation (w, x, y, z). At rest on a level floor: (0, 0, +g), as sensor_msgs/Imu has it."""
+    w, x, y, z = (float(c) for c in true_quat)
+    n = math.sqrt(w * w + x * x + y * y + z * z)
+    w, x, y, z = w / n, x / n, y / n, z / n
+    R = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                  [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                  [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    return R.T @ (np.asarray(a_world, dtype=float) + np.array([0.0, 0.0, g]))
+
+
 def imu_orientation(true_quat, roll_noise: float, pitch_noise: float) -> tuple[float, float, float, float]:
     """What an IMU on the rear frame reports (w, x, y, z): the machine's true orientation turned,
     in its own frame, by a small roll and pitch error (rad): q_true * q(Rx(roll) Ry(pitch))."""

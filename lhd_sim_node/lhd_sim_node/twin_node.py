@@ -149,6 +149,10 @@ class TwinNode(Node):
             Param("imu_hz", 0.0, "Hz, <prefix>/imu: the rear frame's orientation as an IMU on it would give it "
                   "(0: none; the paper's machine has none: `lhd up twin --imu`)", lo=0.0, hi=200.0),
             Param("imu_noise_deg", 0.1, "deg, roll and pitch noise of the IMU (standard deviation)", lo=0.0, hi=10.0),
+            Param("imu_accel_noise", 0.05, "m/s^2, white noise of each accelerometer sample (standard deviation; "
+                  "a MEMS IMU's 150-300 ug/sqrt(Hz) over its 25 Hz band is 0.007-0.015: a margin)", lo=0.0, hi=10.0),
+            Param("imu_accel_bias", 0.1, "m/s^2, the accelerometer's bias on each axis is drawn once from "
+                  "U(-b, b) (a calibrated MEMS IMU's residual bias: tens of mg)", lo=0.0, hi=10.0),
             Param("markers_hz", 5.0, "Hz, the MarkerArray (0: none)", lo=0.0, hi=30.0),
             Param("command_trace_hz", 10.0, "Hz, <prefix>/twin/device/commands: the command frames read off the "
                   "line (0: none)", lo=0.0, hi=100.0),
@@ -253,6 +257,9 @@ class TwinNode(Node):
             self.pub_imu = self.create_publisher(Imu, f"{ns}/imu", MEASUREMENT_QOS)
             self._imu_rng = np.random.default_rng([gp("seed"), 145])   # reproducible with the twin's seed
             self._imu_noise = math.radians(gp("imu_noise_deg"))
+            self._accel_noise = gp("imu_accel_noise")
+            self._accel_bias = self._imu_rng.uniform(-1.0, 1.0, 3) * gp("imu_accel_bias")
+            self._imu_prev = None           # (pile, instant, world velocity) of the previous sample
             steady_timer(self, 1.0 / gp("imu_hz"), self._publish_imu)
         steady_timer(self, RESET_TICK, self._check_reset)
         if gp("markers_hz") > 0:
@@ -318,10 +325,10 @@ class TwinNode(Node):
             self.pile_slope_deg = math.degrees(self.sim.pile.alpha)
             if lock is not None:
                 self.due.skip_backlog()     # the chunks due while the pile was made are not simulated
+            self.piles += 1                 # under the lock: a sensor that reads the state reads its pile
         finally:
             if lock is not None:
                 lock.release()
-        self.piles += 1
         self.reset_reason = why
 
     def _publish_pile(self) -> None:
@@ -399,10 +406,16 @@ class TwinNode(Node):
         return Time(nanoseconds=self._clock_offset_ns + int(round(t_mono * 1e9))).to_msg()
 
     def _publish_imu(self) -> None:
-        """The machine's true orientation turned by a small random roll and pitch (the IMU's
-        noise): w, x, y, z of q_true * q_noise."""
+        """Orientation: the machine's true orientation turned by a small random roll and pitch (the
+        IMU's noise): w, x, y, z of q_true * q_noise. Linear acceleration: the specific force of
+        base_link's MEAN acceleration since the previous sample (the change of its world velocity
+        over the interval: an IMU's anti-aliased output, not the contact chatter of one 4 ms step),
+        in its own axes, plus a fixed bias and white noise; none (covariance -1) for the first
+        sample of a pile (the machine was put there, not driven)."""
         with self.due.lock:
-            _, quat, _, stamp = self._state_and_stamp()
+            _, quat, v3, t_state = self.due.base_motion_at(time.monotonic())
+            pile = self.piles
+        stamp = self._stamp_of(t_state)
         roll, pitch = self._imu_rng.normal(0.0, self._imu_noise, 2) if self._imu_noise > 0 else (0.0, 0.0)
         m = Imu()
         m.header.stamp, m.header.frame_id = stamp, self.base_frame_id
@@ -410,8 +423,20 @@ class TwinNode(Node):
         o.w, o.x, o.y, o.z = ss.imu_orientation(quat, roll, pitch)
         var = self._imu_noise ** 2
         m.orientation_covariance[0] = m.orientation_covariance[4] = m.orientation_covariance[8] = var
-        m.angular_velocity_covariance[0] = -1.0        # orientation only (REP 145: -1 = not provided)
-        m.linear_acceleration_covariance[0] = -1.0
+        m.angular_velocity_covariance[0] = -1.0        # REP 145: -1 = not provided
+        prev, self._imu_prev = self._imu_prev, (pile, t_state, v3)
+        if prev is not None and prev[0] == pile and t_state - prev[1] > 1e-4:
+            a_world = (v3 - prev[2]) / (t_state - prev[1])
+            f = ss.imu_specific_force(quat, a_world) + self._accel_bias
+            if self._accel_noise > 0:
+                f = f + self._imu_rng.normal(0.0, self._accel_noise, 3)
+            la = m.linear_acceleration
+            la.x, la.y, la.z = (float(c) for c in f)
+            acc_var = self._accel_noise ** 2
+            m.linear_acceleration_covariance[0] = m.linear_acceleration_covariance[4] = acc_var
+            m.linear_acceleration_covariance[8] = acc_var
+        else:
+            m.linear_acceleration_covariance[0] = -1.0
         self.pub_imu.publish(m)
 
     def _publish_truth(self) -> None:

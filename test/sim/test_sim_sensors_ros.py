@@ -364,3 +364,120 @@ def test_aruco_node_with_an_imu_follows_a_tilting_machine(ros, sim, tmp_path):
     assert rms <= 0.02 and exm <= 0.01, res
     # what the IMU removes: the levelled estimate is several times worse in speed and place
     assert res["lvl"][1] > 2.0 * rms and res["lvl"][3] > 0.03, res
+
+
+def _stopping_machine(t: float):
+    """Forward displacement and speed of a machine at 0.30 m/s that meets the pile at t = 1 s and
+    stops in 0.1 s (3 m/s^2), stands 0.4 s, then pushes on at 1 m/s^2 for 0.3 s and holds 0.3 m/s."""
+    v0, dec, acc = 0.30, 3.0, 1.0
+    if t <= 1.0:
+        return v0 * t, v0
+    if t <= 1.1:
+        s = t - 1.0
+        return v0 + v0 * s - 0.5 * dec * s * s, v0 - dec * s
+    x_stop = v0 + v0 * v0 / (2 * dec)
+    if t <= 1.5:
+        return x_stop, 0.0
+    s = min(t - 1.5, 0.3)
+    return x_stop + 0.5 * acc * s * s + 0.3 * max(0.0, t - 1.8), acc * s
+
+
+def test_aruco_node_with_the_imu_acceleration_follows_a_stop_at_the_pile(ros, sim, tmp_path):
+    """The camera (30 fps) and a 50 Hz IMU whose accelerometer gives each 20 ms interval's mean
+    acceleration (gravity included, a 0.1 m/s^2 bias, 0.05 m/s^2 noise: the twin's model), a machine
+    that stops against the pile in 0.1 s: the node that integrates the acceleration (imu_acceleration,
+    the default) follows the stop; a second node given the same IMU without it
+    (imu_acceleration:=false, the constant-velocity filter) lags it by frames."""
+    from sensor_msgs.msg import Imu
+
+    from lhd_sim_node.sim_sensors import imu_orientation, imu_specific_force
+
+    aided = RosProcess("lhd_loading_ros.nodes.aruco_pose_node", ros_params("aruco_pose_node", image_reliable=True),
+                       tmp_path / "aruco_acc.log")
+    plain = RosProcess("lhd_loading_ros.nodes.aruco_pose_node",
+                       ros_params("aruco_pose_node", image_reliable=True, imu_acceleration=False),
+                       tmp_path / "aruco_cv.log", remaps={"__ns": "/cv"})
+    cam = CameraModel.from_params(MACHINE["aruco_pose_node"], noise=2.0, blur=1.0)
+    sim.reset(np.random.default_rng(5), alpha=math.radians(20.0), material="homogeneous")
+    p0, q0 = sim.data.qpos[:3].copy(), sim.data.qpos[3:7].copy()
+    odoms = {"acc": [], "cv": []}
+    subs = [ros.create_subscription(Odometry, "/lhd/odom", odoms["acc"].append, REL),
+            ros.create_subscription(Odometry, "/cv/odom", odoms["cv"].append, REL)]
+    pub_img = ros.create_publisher(Image, "/camera/image_raw", REL)
+    pub_info = ros.create_publisher(CameraInfo, "/camera/camera_info", qos_profile_sensor_data)
+    pub_imu = ros.create_publisher(Imu, "/lhd/imu", REL)
+    pub_imu_cv = ros.create_publisher(Imu, "/cv/imu", REL)
+    info = CameraInfo()
+    for k, v in cam.camera_info().items():
+        setattr(info, k, v)
+    rng = np.random.default_rng(3)
+    bias = np.array([0.1, -0.05, 0.08])
+    truth = {}
+    t0, dur = 400.0, 2.5
+
+    def pose(t):
+        return p0 + np.array([_stopping_machine(t)[0] - 0.3, 0.0, 0.0]), q0
+
+    try:
+        assert spin_until(ros, lambda: ros.count_subscribers("/camera/image_raw") >= 2 and
+                          ros.count_subscribers("/lhd/imu") >= 1 and ros.count_subscribers("/cv/imu") >= 1, 30.0), \
+            (aided.log(), plain.log())
+        for _ in range(5):
+            pub_info.publish(info)
+            spin_until(ros, lambda: False, 0.1)
+        k_img = 0
+        for k in range(int(dur * 50) + 1):
+            t_next = time.monotonic() + 1.0 / 50.0
+            t = k / 50.0
+            m = Imu()
+            stamp(m, t0 + t)
+            m.header.frame_id = "base_link"
+            q = imu_orientation(q0, *rng.normal(0.0, math.radians(0.1), 2))
+            m.orientation.w, m.orientation.x, m.orientation.y, m.orientation.z = (float(c) for c in q)
+            m.orientation_covariance[0] = m.orientation_covariance[4] = m.orientation_covariance[8] = 3e-6
+            m.angular_velocity_covariance[0] = -1.0
+            if k > 0:
+                a = (_stopping_machine(t)[1] - _stopping_machine(t - 0.02)[1]) / 0.02
+                f = imu_specific_force(q0, (a, 0.0, 0.0)) + bias + rng.normal(0.0, 0.05, 3)
+                m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z = (float(c) for c in f)
+                m.linear_acceleration_covariance[0] = m.linear_acceleration_covariance[4] = 0.0025
+                m.linear_acceleration_covariance[8] = 0.0025
+            else:
+                m.linear_acceleration_covariance[0] = -1.0
+            pub_imu.publish(m)
+            pub_imu_cv.publish(m)
+            while k_img / FPS <= t:
+                ti = k_img / FPS
+                p, qq = pose(ti)
+                img = camera_image(cam, p, qq, rng)
+                pub_info.publish(info)
+                im = Image()
+                stamp(im, t0 + ti)
+                im.header.frame_id = "camera"
+                im.height, im.width, im.encoding, im.step = img.shape[0], img.shape[1], "mono8", img.shape[1]
+                im.data = img.tobytes()
+                truth[im.header.stamp.sec * 10**9 + im.header.stamp.nanosec] = (_stopping_machine(ti)[1], ti)
+                pub_img.publish(im)
+                k_img += 1
+            spin_until(ros, lambda: False, max(0.0, t_next - time.monotonic()), step=0.005)
+        last = max(truth)
+        spin_until(ros, lambda: all(o and o[-1].header.stamp.sec * 10**9 + o[-1].header.stamp.nanosec == last
+                                    for o in odoms.values()), 10.0)
+    finally:
+        rcs = (aided.stop(), plain.stop())
+        for s in subs:
+            ros.destroy_subscription(s)
+    assert rcs == (0, 0), (aided.log(), plain.log())
+    res = {}
+    for name, msgs in odoms.items():
+        ev = [o.twist.twist.linear.x - truth[o.header.stamp.sec * 10**9 + o.header.stamp.nanosec][0] for o in msgs
+              if 0.95 <= truth[o.header.stamp.sec * 10**9 + o.header.stamp.nanosec][1] <= 2.0]
+        res[name] = (len(ev), math.sqrt(np.mean(np.square(ev))), float(np.max(np.abs(ev))))
+    print("\nArUco node, machine stopping against the pile in 0.1 s (v_x error from 50 ms before to 1 s after):")
+    for name, (n, r, mx) in res.items():
+        print(f"  {'camera + accelerometer' if name == 'acc' else 'camera alone          '}: {n} speeds, "
+              f"RMS {r:.4f} m/s, max {mx:.4f}")
+    n, r, mx = res["acc"]
+    assert n >= 0.75 * 1.05 * FPS
+    assert r <= 0.012, res
+    assert res["cv"][1] >= 2.0 * r, res

@@ -22,6 +22,7 @@ from std_msgs.msg import Float64, Float64MultiArray  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 from visualization_msgs.msg import MarkerArray  # noqa: E402
 
+from lhd_loading_ros.perception.aruco import forward_acceleration, roll_pitch  # noqa: E402
 from lhd_loading_ros.ros.qos import LATCHED_QOS, MEASUREMENT_QOS, STATUS_QOS  # noqa: E402
 from lhd_loading_ros.task.zones import Zones  # noqa: E402
 from rosutil import RosProcess, init_ros, shutdown_ros, spin_until  # noqa: E402
@@ -142,14 +143,43 @@ def test_truth_sensors_and_markers_flow(rig):
     q_imu, q_true = rig.last("imu").orientation, rig.last("odom").pose.pose.orientation
     dot = abs(sum(a * b for a, b in zip((q_imu.w, q_imu.x, q_imu.y, q_imu.z), (q_true.w, q_true.x, q_true.y, q_true.z))))
     assert math.degrees(2 * math.acos(min(1.0, dot))) < 0.6
+    # its accelerometer at rest on the level floor: the specific force (0, 0, +g), within the
+    # bias (<= 0.1 m/s^2 an axis) and 6 sd of its 0.05 m/s^2 noise
+    la = rig.last("imu").linear_acceleration
+    assert rig.last("imu").linear_acceleration_covariance[0] == pytest.approx(0.05 ** 2)
+    assert (la.x, la.y, la.z) == (pytest.approx(0.0, abs=0.4), pytest.approx(0.0, abs=0.4), pytest.approx(9.81, abs=0.4))
+
+
+def _stamp(m) -> float:
+    return m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec
 
 
 def test_wheel_command_drives_the_machine_and_the_command_timeout_stops_it(rig):
     g = rig.got
     x0 = rig.last("odom").pose.pose.position.x
+    n_imu0 = len(g["imu"])
+
+    def fwd(m):     # the acceleration along the floor, gravity removed with the IMU's own roll and pitch
+        o, la = m.orientation, m.linear_acceleration
+        return forward_acceleration((la.x, la.y, la.z), *roll_pitch(o.x, o.y, o.z, o.w), 0.0)
+
+    bias_x = float(np.mean([fwd(m) for _, m in g["imu"][-20:]]))      # at rest: the bias
     t0 = time.monotonic()
     rig.drive([1.0, 0.0, 0.0], 2.0)                 # 1 rad/s at the wheels, arm held
     t_last = time.monotonic()
+    # the accelerometer saw the start: each sample (the mean over the interval since the previous
+    # one), less the bias read at rest, is the truth's change of speed over that interval divided by
+    # it, within its noise (0.05 m/s^2 sd; the start peaks at several times that)
+    tv = sorted((_stamp(m), m.twist.twist.linear.x) for _, m in g["odom"])
+    tt, vv = np.array([a for a, _ in tv]), np.array([b for _, b in tv])
+    imu = sorted((m for _, m in g["imu"][n_imu0:] if m.linear_acceleration_covariance[0] != -1.0), key=_stamp)
+    ti = np.array([_stamp(m) for m in imu])
+    a_truth = np.diff(np.interp(ti, tt, vv)) / np.diff(ti)
+    a_imu = np.array([fwd(m) for m in imu[1:]]) - bias_x
+    assert len(imu) > 20 and np.max(a_truth) > 0.3, (len(imu), np.max(a_truth))
+    err = a_imu - a_truth
+    print(f"\ntwin accelerometer: RMS {math.sqrt(float(np.mean(err ** 2))):.3f} m/s^2 against the truth, peak {np.max(a_truth):.2f}")
+    assert math.sqrt(float(np.mean(err ** 2))) < 0.1, (a_imu.round(3).tolist(), a_truth.round(3).tolist())
     steady = [s for s in g["odom"] if t0 + 0.8 <= s[0] <= t_last]
     vx = [m.twist.twist.linear.x for _, m in steady]
     # on the flat before the pile the machine rolls at set-point x wheel radius: 1.0 x 0.137 m/s

@@ -649,8 +649,9 @@ def main(argv=None) -> int:
                          "the v_x error doubles: docs/twin.md, runs 13-16)")
     ap.add_argument("--markers-hz", type=float, default=2.0, help="the twin's MarkerArray rate (0: none)")
     ap.add_argument("--imu", type=float, nargs="?", const=0.0, default=None, metavar="MAX_TILT_DEG",
-                    help="give the machine an IMU on its rear frame (/lhd/imu at 50 Hz, 0.1 deg noise): the ArUco "
-                         "node places the tilting machine with it (v_x), the "
+                    help="give the machine an IMU on its rear frame (/lhd/imu at 50 Hz: orientation with 0.1 deg "
+                         "noise, accelerometer with 0.05 m/s^2 noise and a bias of up to 0.1 m/s^2): the ArUco "
+                         "node places the tilting machine with it and integrates its acceleration (v_x), the "
                          "supervisor puts the machine's pitch into the final pitch; with MAX_TILT_DEG it also ends "
                          "an attempt whose machine tilts beyond it (supervisor max_tilt_deg). Not on the paper's "
                          "machine: without --imu the twin runs exactly the stack of `lhd up real`")

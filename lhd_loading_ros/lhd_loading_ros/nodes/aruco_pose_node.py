@@ -2,9 +2,11 @@
 ArUco marker on the LHD seen by a camera above the draw point (paper: real environment).
 
 In:  sensor_msgs/Image (mono8, bgr8, rgb8, bgra8, rgba8) and sensor_msgs/CameraInfo; optionally
-     <prefix>/imu (sensor_msgs/Imu on the rear frame, orientation used): with it, a machine that
-     tilts (its rear lifting as the boom pries at a buried bucket) is placed with its roll and
-     pitch about the wheels on the floor and v_x is base_link's (use_imu; docs/perception.md).
+     <prefix>/imu (sensor_msgs/Imu on the rear frame, axes = base_link's): with its orientation, a
+     machine that tilts (its rear lifting as the boom pries at a buried bucket) is placed with its
+     roll and pitch about the wheels on the floor and v_x is base_link's (use_imu); with its linear
+     acceleration too, the speed filter integrates it between images (imu_acceleration;
+     docs/perception.md "Camera and accelerometer").
 Out (under /lhd, or the node's namespace):
   aruco/marker_pose  geometry_msgs/PoseStamped  every detection, pile frame, the image's stamp
   odom               nav_msgs/Odometry          base_link pose + twist.linear.x = v_x, ONLY when
@@ -37,10 +39,10 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_
 from sensor_msgs.msg import CameraInfo, Image, Imu
 from std_msgs.msg import Bool
 
-from lhd_loading_ros.perception.aruco import (CameraModel, ImageEncodingError, MarkerDetector, MountingPrior,
-                                              KalmanVelocityEstimator, VelocityEstimator, dictionary, image_to_gray, level,
-                                              marker_centre_ray, opencv_problem, position_on_plane, roll_pitch,
-                                              tilted_base_position)
+from lhd_loading_ros.perception.aruco import (CameraModel, ImageEncodingError, InertialVelocityEstimator,
+                                              KalmanVelocityEstimator, MarkerDetector, MountingPrior, VelocityEstimator,
+                                              dictionary, forward_acceleration, image_to_gray, level, marker_centre_ray,
+                                              opencv_problem, position_on_plane, roll_pitch, tilted_base_position)
 from lhd_loading_ros.perception.geometry import quaternion_xyzw, transform
 from lhd_loading_ros.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
@@ -105,7 +107,7 @@ class ArucoPoseNode(Node):
                   "place base_link with its roll and pitch, the machine tilting about the wheels on the floor, "
                   "and take v_x from base_link (without it: the levelled pose, v_x from the marker)"),
             Param("imu_timeout", 0.2, "use_imu: an IMU sample older than this (s, from its stamp to the image's) "
-                  "is not used", lo=0.001, hi=10.0, on_change=lambda v: setattr(self, "imu_timeout", v)),
+                  "is not used (nor its acceleration held longer)", lo=0.001, hi=10.0, on_change=self._set_imu_timeout),
             Param("imu_window", 0.1, "use_imu: the roll and pitch at an image are the mean of the IMU samples of "
                   "this long a window ending at its stamp (s; white noise of the IMU would otherwise reach v_x "
                   "through the 0.5 m/rad lever of the tilt on x); 0: interpolated at the stamp",
@@ -114,6 +116,17 @@ class ArucoPoseNode(Node):
                   "mounting error, not the machine's (a machine on its wheels on a flat floor stands level); larger "
                   "ones count beyond it (soft threshold: no step at the edge)", lo=0.0, hi=10.0,
                   on_change=lambda v: setattr(self, "imu_deadband", math.radians(v))),
+            Param("imu_acceleration", True, "use_imu, velocity_filter kalman: when the IMU gives its linear "
+                  "acceleration (linear_acceleration_covariance[0] != -1), the speed filter integrates it between "
+                  "images and the images correct it (InertialVelocityEstimator; the IMU's axes are base_link's): "
+                  "an abrupt stop at the pile is seen as it happens instead of 2-3 frames late"),
+            Param("imu_accel_noise", 0.01, "imu_acceleration: spectral density of the integrated acceleration's "
+                  "error (m^2/s^3: the sensor's noise and what the model leaves out)", lo=1e-6, hi=100.0,
+                  on_change=lambda v: self._set_filter(imu_accel_noise=v)),
+            Param("imu_accel_hold", 0.02, "imu_acceleration: how long past its stamp the newest acceleration sample "
+                  "stands for the acceleration (s; one IMU period): an image whose instant the IMU has not covered yet "
+                  "is predicted with it that far, beyond with the constant-velocity model; the late sample corrects the "
+                  "next images", lo=0.0, hi=1.0, on_change=lambda v: self._set_filter(hold=v)),
             Param("wheelbase", 0.80, "use_imu: the front axle's distance ahead of base_link (the rear axle), m: "
                   "the pivot of a nose-down tilt", lo=0.01, hi=20.0),
         ])
@@ -124,8 +137,12 @@ class ArucoPoseNode(Node):
         self.T_pile_cam = transform(p["camera_xyz"], p["camera_rpy"])
         self.T_marker_base = transform(p["marker_to_base_xyz"], p["marker_to_base_rpy"])
         self.prior = MountingPrior(self.T_pile_cam, self.T_marker_base)
+        self.imu_accel = bool(p["use_imu"] and p["imu_acceleration"])
         self._vel_params = {"filter": p["velocity_filter"], "accel_noise": p["velocity_accel_noise"],
-                            "position_noise": p["velocity_position_noise"], "window": p["velocity_window"], "max_gap": p["stale_timeout"]}
+                            "position_noise": p["velocity_position_noise"], "window": p["velocity_window"],
+                            "max_gap": p["stale_timeout"], "imu_accel_noise": p["imu_accel_noise"],
+                            "hold": p["imu_accel_hold"]}
+        self.imu_timeout = p["imu_timeout"]
         self.vel = self._make_velocity()
         self.stale_timeout = p["stale_timeout"]
         self.planar = p["planar_motion"]
@@ -137,6 +154,8 @@ class ArucoPoseNode(Node):
         self.imu_deadband = math.radians(p["imu_deadband_deg"])
         self.marker_in_base = np.linalg.inv(self.T_marker_base)[:3, 3]   # the marker's centre in base_link
         self.imu: deque = deque(maxlen=32)      # (stamp s, roll, pitch) of recent IMU samples
+        self.yaw = 0.0                          # the machine's heading from the last detection (rad)
+        self.accel_samples = 0                  # IMU accelerations given to the speed filter
         self.imu_problem: str | None = None     # why the last IMU message was not used
         self.x_source = "marker"                # what v_x is estimated from: marker (levelled) or base_imu
         self.tilted = 0                         # detections placed with the IMU's tilt
@@ -155,14 +174,14 @@ class ArucoPoseNode(Node):
         self.pub_pose = self.create_publisher(PoseStamped, f"{ns}/aruco/marker_pose", MEASUREMENT_QOS)
         self.pub_odom = self.create_publisher(Odometry, f"{ns}/odom", MEASUREMENT_QOS)
         self.pub_stale = self.create_publisher(Bool, f"{ns}/aruco/stale", MEASUREMENT_QOS)
+        if self.use_imu:    # first: with an IMU sample and an image both waiting, the executor serves the IMU first
+            self.create_subscription(Imu, f"{ns}/imu", self._on_imu, qos_profile_sensor_data)
         self.create_subscription(CameraInfo, p["camera_info_topic"], self._on_info, qos_profile_sensor_data)
         # sensor-data QoS by default (best effort: matches any camera driver, late frames are
         # worthless); image_reliable=true for lossless links such as recorded data or tests
         img_qos = (QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
                    if p["image_reliable"] else qos_profile_sensor_data)
         self.create_subscription(Image, p["image_topic"], self._on_image, img_qos)
-        if self.use_imu:
-            self.create_subscription(Imu, f"{ns}/imu", self._on_imu, qos_profile_sensor_data)
         steady_timer(self, 0.1, self._check_stale)
         self.diag = Diagnostics(self, {"pose": self._report})
 
@@ -173,6 +192,10 @@ class ArucoPoseNode(Node):
         self.height_problem = None
         self.vel.reset()
 
+    def _set_imu_timeout(self, v: float) -> None:
+        self.imu_timeout = v
+        self._set_filter()
+
     def _set_stale_timeout(self, v: float) -> None:
         self.stale_timeout = v
         self._set_filter(max_gap=v)
@@ -181,6 +204,10 @@ class ArucoPoseNode(Node):
         v = self._vel_params
         if v["filter"] == "window":
             return VelocityEstimator(v["window"])
+        if self.imu_accel:      # without acceleration samples it is exactly the constant-velocity filter
+            return InertialVelocityEstimator(v["accel_noise"], v["position_noise"], max_gap=v["max_gap"],
+                                             imu_accel_noise=v["imu_accel_noise"], accel_timeout=self.imu_timeout,
+                                             hold=v["hold"])
         return KalmanVelocityEstimator(v["accel_noise"], v["position_noise"], max_gap=v["max_gap"])
 
     def _set_filter(self, **changes) -> None:
@@ -221,6 +248,15 @@ class ArucoPoseNode(Node):
                 return
         self.imu.append((t, roll, pitch))
         self.imu_problem = None
+        if self.imu_accel and msg.linear_acceleration_covariance[0] != -1.0 and hasattr(self.vel, "add_accel"):
+            la = msg.linear_acceleration
+            try:
+                a_x = forward_acceleration((la.x, la.y, la.z), roll, pitch, self.yaw)
+            except ValueError as exc:
+                self.imu_problem = f"IMU acceleration rejected: {exc}"
+                return
+            if self.vel.add_accel(t, a_x):
+                self.accel_samples += 1
 
     def _tilt_at(self, t: float) -> tuple[float, float] | None:
         """The IMU's (roll, pitch) at image time t: the mean of the samples in (t - imu_window, t]
@@ -292,6 +328,7 @@ class ArucoPoseNode(Node):
             if self.marker_height > 0.0 and not self._on_plane(T_pile_marker, corners, cam):
                 return
         T_base = T_pile_marker @ self.T_marker_base
+        self.yaw = math.atan2(T_base[1, 0], T_base[0, 0])
         x_speed, source = float(T_pile_marker[0, 3]), "marker"
         tilt = None
         if self.planar and self.marker_height > 0.0 and self.use_imu:
@@ -420,7 +457,10 @@ class ArucoPoseNode(Node):
     def _report(self):
         now = time.monotonic()
         values = {"frames": self.frames, "detections": self.detections, "odometry": self.odoms,
-                  "stale": self.stale, "tilted_by_imu": self.tilted, "v_x_from": self.x_source}
+                  "stale": self.stale, "tilted_by_imu": self.tilted, "v_x_from": self.x_source,
+                  "imu_accelerations": self.accel_samples}
+        if isinstance(self.vel, InertialVelocityEstimator):
+            values["accel_bias"] = self.vel.bias_estimate()
         if self.last_v is not None:
             values["last_v_x"] = self.last_v
         if self.last_image is None:

@@ -291,6 +291,205 @@ class KalmanVelocityEstimator:
         return None if self.P is None else float(math.sqrt(max(self.P[1, 1], 0.0)))
 
 
+class InertialVelocityEstimator:
+    """v_x from the camera's x(t) and an accelerometer's acceleration along x, a(t): a Kalman
+    filter on [x, v, b] (b: the accelerometer's bias along x) that integrates the measured
+    acceleration between two images and corrects with each image's x. A constant-velocity filter
+    must infer a speed change from 30 positions a second and lags an abrupt one (the bucket
+    meeting the pile: 0.3 m/s lost in 0.1 s); an accelerometer measures it as it happens.
+
+    Acceleration samples (`add_accel(t, a)`, a in m/s^2, gravity already removed and turned into
+    the x direction of the position) are each the mean over the interval since the previous one,
+    as an IMU's filtered output is: sample i holds over (max(t_{i-1}, t_i - accel_timeout), t_i],
+    and the newest one is held for `hold` past its stamp (one period of a 50 Hz IMU by default,
+    20 ms: longer holds spread a contact's one-sample spike). An interval no sample
+    covers (an IMU that stopped, a gap in its stream) falls back to the constant-velocity model
+    of KalmanVelocityEstimator with `accel_noise`; with no acceleration at all the [x, v] part is
+    exactly that filter (the bias is then neither used nor changed).
+
+    Noises: `imu_accel_noise`, the spectral density (m^2/s^3) of the error of the integrated
+    acceleration (the sensor's white noise, about sigma^2 / rate, plus what the model leaves out:
+    the lever arm between the IMU and the tracked point, vibration); `bias_walk` (m^2/s^5), the
+    bias's random walk; the bias's prior sd BIAS0_SD covers a few degrees of mounting error
+    (g sin 3 deg = 0.5 m/s^2). The bias estimate survives a reset (a lost marker does not change
+    the sensor), with its variance grown back to the prior's.
+
+    Samples that arrive after an image they should have served (the image was processed first:
+    the IMU's next sample is up to 20 ms after the image's instant and the two travel separately)
+    are not lost: the filter keeps its states of the last HISTORY_S seconds and, at the next image,
+    runs again from the last state before the late sample's interval with every sample now known.
+    Only the image nearest the newest samples is served by a held sample.
+
+    Same interface as KalmanVelocityEstimator (add, velocity, speed_sd, reset, last_t)."""
+
+    V0_SD = KalmanVelocityEstimator.V0_SD
+    BIAS0_SD = 0.5          # m/s^2
+    MAX_SAMPLES = 512       # accelerometer samples kept (10 s at 50 Hz)
+    HISTORY_S = 0.5         # s of filter states kept for late samples
+
+    def __init__(self, accel_noise: float = 1.0, position_noise: float = 0.001, max_gap: float = 0.5,
+                 imu_accel_noise: float = 0.01, bias_walk: float = 1e-3, accel_timeout: float = 0.1,
+                 min_samples: int = 3, hold: float = 0.02):
+        for name, v in (("accel_noise", accel_noise), ("position_noise", position_noise), ("max_gap", max_gap),
+                        ("imu_accel_noise", imu_accel_noise), ("bias_walk", bias_walk),
+                        ("accel_timeout", accel_timeout)):
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"inertial velocity filter: {name} must be a finite number > 0, got {v}")
+        self.q, self.r, self.max_gap = float(accel_noise), float(position_noise) ** 2, float(max_gap)
+        self.qa, self.qb, self.accel_timeout = float(imu_accel_noise), float(bias_walk), float(accel_timeout)
+        self.min_samples = max(2, int(min_samples))
+        self.hold = float(hold)
+        self.accel: deque = deque(maxlen=self.MAX_SAMPLES)      # (t, a)
+        self.bias, self.bias_var = 0.0, self.BIAS0_SD ** 2
+        self.inertial_s = self.blind_s = 0.0    # time integrated with / without the accelerometer
+        self.reset()
+
+    def reset(self) -> None:
+        if getattr(self, "x", None) is not None:
+            self.bias = float(self.x[2])
+        self.x: np.ndarray | None = None      # [x, v, b]
+        self.P: np.ndarray | None = None
+        self.last_t: float | None = None
+        self.n = 0
+        self.hist: deque = deque()            # (t, x measured, state, covariance, n) after each image
+        self._dirty_from: float | None = None  # a late sample covers time after this: run again from it
+        self.reruns = 0
+
+    def add_accel(self, t: float, a: float) -> bool:
+        """One accelerometer sample; False (not kept) for a non-finite value or a repeated stamp.
+        A stamp that goes back clears the older samples (a bag loop, a restart: another time line)."""
+        if not (math.isfinite(t) and math.isfinite(a)):
+            return False
+        if self.accel and t <= self.accel[-1][0]:
+            if t == self.accel[-1][0]:
+                return False
+            self.accel.clear()
+        start = max(t - self.accel_timeout, self.accel[-1][0]) if self.accel else t - self.accel_timeout
+        self.accel.append((float(t), float(a)))
+        if self.last_t is not None and start < self.last_t:     # an image already used this interval
+            self._dirty_from = start if self._dirty_from is None else min(self._dirty_from, start)
+        return True
+
+    def _segments(self, t0: float, t1: float):
+        """(dt, a or None) pieces of (t0, t1]: a where a sample covers the piece, None where none does."""
+        out, edge = [], t0
+        prev_t = None
+        for ts, a in self.accel:
+            if ts <= t0:
+                prev_t = ts
+                continue
+            start = max(ts - self.accel_timeout, prev_t if prev_t is not None else -math.inf)
+            if start > edge:                       # a gap before this sample's interval
+                out.append((min(start, t1) - edge, None))
+                edge = min(start, t1)
+            end = min(ts, t1)
+            if end > edge:
+                out.append((end - edge, a))
+                edge = end
+            prev_t = ts
+            if edge >= t1:
+                return out
+        if self.accel and edge < t1 and self.hold > 0.0:      # the newest sample, held for `hold`
+            ts, a = self.accel[-1]
+            end = min(t1, ts + min(self.hold, self.accel_timeout))
+            if ts <= edge < end:
+                out.append((end - edge, a))
+                edge = end
+        if edge < t1:
+            out.append((t1 - edge, None))
+        return out
+
+    def _predict(self, dt: float, a: float | None) -> None:
+        if dt <= 0.0:
+            return
+        if a is None:           # no accelerometer here: the constant-velocity model, the bias untouched
+            F = np.array([[1.0, dt, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+            Q = np.zeros((3, 3))
+            Q[:2, :2] = self.q * np.array([[dt ** 3 / 3.0, dt ** 2 / 2.0], [dt ** 2 / 2.0, dt]])
+            self.x = F @ self.x
+            self.blind_s += dt
+        else:
+            F = np.array([[1.0, dt, -0.5 * dt * dt], [0.0, 1.0, -dt], [0.0, 0.0, 1.0]])
+            Q = np.zeros((3, 3))
+            Q[:2, :2] = self.qa * np.array([[dt ** 3 / 3.0, dt ** 2 / 2.0], [dt ** 2 / 2.0, dt]])
+            Q[2, 2] = self.qb * dt
+            self.x = F @ self.x + np.array([0.5 * dt * dt * a, dt * a, 0.0])
+            self.inertial_s += dt
+        self.P = F @ self.P @ F.T + Q
+
+    def add(self, t: float, x: float) -> bool:
+        if self.last_t is not None and t <= self.last_t:
+            if t == self.last_t:
+                return False
+            self.reset()
+            self._start(t, x)
+            return False
+        if self.last_t is not None and t - self.last_t > self.max_gap:
+            self.reset()
+        if self.x is None:
+            self._start(t, x)
+            return True
+        if self._dirty_from is not None:
+            self._rerun(self._dirty_from)
+        self._step(t, x)
+        self._remember(t, x)
+        while self.hist and self.hist[0][0] < t - self.HISTORY_S and len(self.hist) > 1:
+            self.hist.popleft()
+        keep_from = self.hist[0][0] - self.accel_timeout
+        while self.accel and self.accel[0][0] < keep_from and len(self.accel) > 1:
+            self.accel.popleft()
+        return True
+
+    def _step(self, t: float, x: float) -> None:
+        """Predict from last_t to t with the samples known now, correct with x."""
+        for dt, a in self._segments(self.last_t, t):
+            self._predict(dt, a)
+        s = self.P[0, 0] + self.r
+        k = self.P[:, 0] / s
+        self.x = self.x + k * (x - self.x[0])
+        self.P = self.P - np.outer(k, self.P[0])
+        self.P = 0.5 * (self.P + self.P.T)
+        self.bias_var = float(self.P[2, 2])
+        self.last_t = t
+        self.n += 1
+
+    def _remember(self, t: float, x: float) -> None:
+        self.hist.append((t, x, self.x.copy(), self.P.copy(), self.n))
+
+    def _rerun(self, t_from: float) -> None:
+        """Late samples cover time after t_from: go back to the last kept state at or before it
+        and filter the images since then again with every sample known now."""
+        self._dirty_from = None
+        hist = list(self.hist)
+        k = max((i for i, h in enumerate(hist) if h[0] <= t_from), default=0)
+        t0, _, X, P, n = hist[k]
+        self.x, self.P, self.last_t, self.n = X.copy(), P.copy(), t0, n
+        ins, blind = self.inertial_s, self.blind_s      # the time counters count each interval once
+        self.hist = deque(hist[:k + 1])
+        for t, x, _, _, _ in hist[k + 1:]:
+            self._step(t, x)
+            self._remember(t, x)
+        self.inertial_s, self.blind_s = ins, blind
+        self.reruns += 1
+
+    def _start(self, t: float, x: float) -> None:
+        self.x = np.array([x, 0.0, self.bias])
+        self.P = np.diag([self.r, self.V0_SD ** 2, max(self.bias_var, self.BIAS0_SD ** 2)])
+        self.last_t, self.n = t, 1
+        self.hist.clear()
+        self._dirty_from = None
+        self._remember(t, x)
+
+    def velocity(self) -> float | None:
+        return None if self.x is None or self.n < self.min_samples else float(self.x[1])
+
+    def speed_sd(self) -> float | None:
+        return None if self.P is None else float(math.sqrt(max(self.P[1, 1], 0.0)))
+
+    def bias_estimate(self) -> float:
+        return float(self.x[2]) if self.x is not None else self.bias
+
+
 def level(T: np.ndarray) -> np.ndarray:
     """Keep the position and the heading (yaw) of a pose, drop roll and pitch. For a machine
     on a flat floor: a small marker seen nearly face-on has a few degrees of tilt ambiguity,
@@ -373,6 +572,19 @@ def roll_pitch(qx: float, qy: float, qz: float, qw: float) -> tuple[float, float
     r21 = 2.0 * (y * z + w * x)
     r22 = 1.0 - 2.0 * (x * x + y * y)
     return math.atan2(r21, r22), math.asin(max(-1.0, min(1.0, -r20)))
+
+
+def forward_acceleration(f_body, roll: float, pitch: float, yaw: float) -> float:
+    """The acceleration along the pile frame's x (m/s^2) of an accelerometer whose specific force
+    is f_body (m/s^2, its own axes; sensor_msgs/Imu linear_acceleration: gravity included, +9.81
+    on z at rest) and whose orientation is roll, pitch, yaw (REP 103). The world acceleration is
+    R f + g with g = (0, 0, -9.81): gravity has no x component, so it is row x of R times f.
+    A pitch error e leaks g sin(e) into it (0.17 m/s^2 per degree): the velocity filter's bias
+    state takes up a constant one."""
+    f = np.asarray(f_body, dtype=float).reshape(3)
+    if not np.isfinite(f).all():
+        raise ValueError(f"linear acceleration {f.tolist()} is not finite")
+    return float(rpy_matrix(roll, pitch, yaw)[0] @ f)
 
 
 def tilted_base_position(ray_xy: np.ndarray, T_pile_cam: np.ndarray, yaw: float, roll: float, pitch: float,
