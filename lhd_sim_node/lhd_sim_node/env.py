@@ -120,12 +120,13 @@ class LhdLoadingEnv(gym.Env):
         pile = self.sim.pile
         inside = 0.0 <= s.x_shovel < pile.L and s.z_shovel < pile.surface_height(s.x_shovel)
         W = self.sim.loaded_mass
-        terms = self.tracker.step(s, u[1], u[2], W, inside, pile.surface_height(s.x_bottom), outcome)
+        tilt = self.sim.machine_pitch()
+        terms = self.tracker.step(s, u[1], u[2], W, inside, pile.surface_height(s.x_bottom), outcome, tilt)
         r = float(sum(terms.values()))
         self.ret += r
         self._front.append(s.drift_front)
         self._rear.append(s.drift_rear)
-        self._max_tilt = max(self._max_tilt, abs(self.sim.machine_pitch()))   # at the control period's end
+        self._max_tilt = max(self._max_tilt, abs(tilt))   # at the control period's end
         terminated = outcome != "running"
         truncated = (not terminated) and self.steps >= self.p.max_steps
         self._done = terminated or truncated

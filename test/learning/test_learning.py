@@ -362,7 +362,8 @@ def test_ship_picks_a_seed_and_writes_the_model_card(cfg, tmp_path):
     assert ev2["aml"] == pytest.approx(by_hand2["aml"]) and ev2["success_rate"] == by_hand2["success_rate"]
     # the training-only settings are on the card: the pitch margin of the config it was trained with
     meta = load_policy(res2["shipped_from"]).meta
-    assert meta["trained_with"] == {"randomize": False, "r_success_pitch_margin_deg": 3.0}
+    assert meta["trained_with"] == {"randomize": False, "r_success_pitch_margin_deg": 3.0, "r_tilt_per_deg": 0.0,
+                                    "r_tilt_free_deg": 3.0}
     assert "paid only above 43 deg" in card2 and "five documented departures" in card2
     assert "and a 3 deg pitch margin" in card2 and "Trained without domain randomisation." in card2
     assert "--seed 3000000 --randomize" in card2

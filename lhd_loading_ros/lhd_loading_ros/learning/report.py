@@ -61,7 +61,8 @@ def summarize(run_dirs: list) -> dict:
     return out
 
 
-HELD_OUT_METRICS = ("success_rate", "asl", "aml", "elapsed_s", "front_drift_pct", "rear_drift_pct", "max_tilt_deg")
+HELD_OUT_METRICS = ("success_rate", "asl", "aml", "elapsed_s", "front_drift_pct", "rear_drift_pct", "max_tilt_deg",
+                    "tilt_over_5deg_rate")
 
 
 def _stats(vals) -> dict:

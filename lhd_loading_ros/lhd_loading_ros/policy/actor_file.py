@@ -105,9 +105,14 @@ class LoadedPolicy:
     def config_matches(self, cfg: dict) -> bool:
         """The card's config hash names `cfg` up to training-only settings (task.config.hash_matches;
         the card's `trained_with` gives the pitch margin the actor was trained with)."""
-        margin = (self.meta.get("trained_with") or {}).get("r_success_pitch_margin_deg")
-        return hash_matches(self.meta.get("config_hash"), cfg,
-                            margin if isinstance(margin, (int, float)) and not isinstance(margin, bool) else None)
+        tw = self.meta.get("trained_with") or {}
+
+        def num(v):
+            return v if isinstance(v, (int, float)) and not isinstance(v, bool) else None
+        margin, per_deg, free = (num(tw.get(k)) for k in ("r_success_pitch_margin_deg", "r_tilt_per_deg",
+                                                          "r_tilt_free_deg"))
+        tilt = (per_deg, free) if per_deg is not None and free is not None else None
+        return hash_matches(self.meta.get("config_hash"), cfg, margin, tilt)
 
 
 def _sha256(path: Path) -> str:

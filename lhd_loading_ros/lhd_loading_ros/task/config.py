@@ -79,7 +79,7 @@ SCHEMA: dict[str, Any] = {
         "rlc_boom_saturate": _f(-1.0, 1.0), "rlc_bucket_saturate": _f(-1.0, 1.0), "rld_threshold": _f(-1.0, 1.0),
         "r_dump_sign": _i(-1, 1), "r_weight_increments": _i(0, 1),
         "r_success_requires_sl": _i(0, 1), "success_pitch_margin_deg": _f(-45.0, 45.0),
-        "r_success_pitch_margin_deg": _f(0.0, 20.0),
+        "r_success_pitch_margin_deg": _f(0.0, 20.0), "r_tilt_per_deg": _f(0.0, 1e4), "r_tilt_free_deg": _f(0.0, 45.0),
         "bottom_tolerance": _f(0.0, 0.5),
         "bucket_repose_deg": _f(5.0, 60.0), "normalisers_from_pile": _i(0, 1),  # H4: capacity, derived normalisers
     },
@@ -289,7 +289,9 @@ def load_config(path: str | os.PathLike | None = None) -> dict:
 # (hash_matches). (section, key, neutral value): at its neutral value each is left out of the hash
 # (config_hash), so actors trained before it existed keep theirs; randomization.enabled = 0 drops
 # the whole randomization section, whose ranges mean nothing while it is off.
-TRAINING_ONLY = (("randomization", "enabled", 0), ("task", "r_success_pitch_margin_deg", 0.0))
+TRAINING_ONLY = (("randomization", "enabled", 0), ("task", "r_success_pitch_margin_deg", 0.0),
+                 ("task", "r_tilt_per_deg", 0.0))
+TILT_KEYS = ("r_tilt_per_deg", "r_tilt_free_deg")     # the tilt penalty; both left out of the hash while it is off
 
 
 def _with(cfg: dict, section: str, key: str, value) -> dict:
@@ -300,31 +302,44 @@ def config_hash(cfg: dict) -> str:
     """Stable short hash of a validated config (goes into exported policies), with the
     TRAINING_ONLY settings at their neutral values left out: a switched-off `randomization`
     section (actors trained before the section existed keep their hash; a randomised run's hash
-    differs), and task.r_success_pitch_margin_deg at 0."""
+    differs), task.r_success_pitch_margin_deg at 0, and the tilt penalty's keys while
+    task.r_tilt_per_deg is 0."""
     if int(cfg.get("randomization", {}).get("enabled", 0)) == 0:
         cfg = {k: v for k, v in cfg.items() if k != "randomization"}
     if "task" in cfg and float(cfg["task"].get("r_success_pitch_margin_deg", 0.0)) == 0.0:
         cfg = {**cfg, "task": {k: v for k, v in cfg["task"].items() if k != "r_success_pitch_margin_deg"}}
+    if "task" in cfg and float(cfg["task"].get("r_tilt_per_deg", 0.0)) == 0.0:
+        cfg = {**cfg, "task": {k: v for k, v in cfg["task"].items() if k not in TILT_KEYS}}
     return hashlib.sha256(json.dumps(cfg, sort_keys=True).encode()).hexdigest()[:16]
 
 
-def training_variants(cfg: dict, trained_margin_deg: float | None = None) -> list[dict]:
+def training_variants(cfg: dict, trained_margin_deg: float | None = None,
+                      trained_tilt: tuple[float, float] | None = None) -> list[dict]:
     """`cfg` with its TRAINING_ONLY settings at every value an actor that runs on it may have
-    been trained with: randomisation on or off (this config's ranges), and r_success's pitch
+    been trained with: randomisation on or off (this config's ranges), r_success's pitch
     margin at 0 (actors trained before it existed), at this config's value, or at
-    `trained_margin_deg` (the card's `trained_with`)."""
+    `trained_margin_deg` (the card's `trained_with`), and the tilt penalty off, at this
+    config's (r_tilt_per_deg, r_tilt_free_deg) or at `trained_tilt` (the card's)."""
     rands = [0, 1] if "randomization" in cfg else [None]
-    margins = {0.0, float(cfg.get("task", {}).get("r_success_pitch_margin_deg", 0.0))}
+    task = cfg.get("task", {})
+    margins = {0.0, float(task.get("r_success_pitch_margin_deg", 0.0))}
     if trained_margin_deg is not None:
         margins.add(float(trained_margin_deg))
+    tilts = {(0.0, 0.0), (float(task.get("r_tilt_per_deg", 0.0)), float(task.get("r_tilt_free_deg", 0.0)))}
+    if trained_tilt is not None:
+        tilts.add((float(trained_tilt[0]), float(trained_tilt[1])))
     out = []
     for rand in rands:
         c = cfg if rand is None else _with(cfg, "randomization", "enabled", rand)
-        out += [_with(c, "task", "r_success_pitch_margin_deg", m) for m in sorted(margins)]
+        for m in sorted(margins):
+            cm = _with(c, "task", "r_success_pitch_margin_deg", m)
+            for per_deg, free in sorted(tilts):
+                out.append(_with(_with(cm, "task", "r_tilt_per_deg", per_deg), "task", "r_tilt_free_deg", free))
     return out
 
 
-def hash_matches(h: str | None, cfg: dict, trained_margin_deg: float | None = None) -> bool:
+def hash_matches(h: str | None, cfg: dict, trained_margin_deg: float | None = None,
+                 trained_tilt: tuple[float, float] | None = None) -> bool:
     """Whether an actor card's config hash `h` names this config up to its TRAINING_ONLY settings
     (training_variants): trained on it as it is, with its domain randomisation switched on or off
     (`lhd train --randomize` with this `randomization` section), and/or with r_success's pitch
@@ -332,7 +347,7 @@ def hash_matches(h: str | None, cfg: dict, trained_margin_deg: float | None = No
     on, not what it sees or commands, so the nodes may run it."""
     if not h:
         return False
-    return any(h == config_hash(c) for c in training_variants(cfg, trained_margin_deg))
+    return any(h == config_hash(c) for c in training_variants(cfg, trained_margin_deg, trained_tilt))
 
 
 def trained_randomized(h: str | None, cfg: dict, trained_margin_deg: float | None = None) -> bool:

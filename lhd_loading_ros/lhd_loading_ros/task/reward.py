@@ -147,6 +147,16 @@ def r_zone(restricted: bool, p: TaskParams) -> float:
     return -p.R_zone if restricted else 0.0
 
 
+def r_tilt(machine_pitch: float, p: TaskParams) -> float:
+    """Not in the paper (task.r_tilt_per_deg, a training-only setting; 0 = off): a cost for tipping
+    the machine, -r_tilt_per_deg per degree of the rear frame's |pitch| beyond r_tilt_free_deg, at
+    each control period's end. The paper's reward has no term for it, and actors trained on it
+    learned to pry the rear off the floor with the boom on steep piles (up to 28 deg in the
+    simulator; docs/real_machine.md), which the real machine's supervisor must then stop."""
+    excess = math.degrees(abs(machine_pitch) - p.r_tilt_free)
+    return -p.r_tilt_per_deg * excess if excess > 0.0 else 0.0
+
+
 # ------------------------------------------------------------------ one step
 @dataclass
 class RewardTracker:
@@ -165,8 +175,9 @@ class RewardTracker:
         self.recent_dx = deque(maxlen=self.p.T_stuck + 1)
 
     def step(self, s: LhdState, u_boom: float, u_bucket: float, W: float, inside_pile: bool,
-             z_pile_at_bottom: float, outcome: str) -> dict[str, float]:
-        """Reward terms for the transition into state s. outcome: 'success', 'failure' or 'running'."""
+             z_pile_at_bottom: float, outcome: str, machine_pitch: float = 0.0) -> dict[str, float]:
+        """Reward terms for the transition into state s. outcome: 'success', 'failure' or 'running'.
+        machine_pitch: the rear frame's pitch (rad) for r_tilt, a term only while it is on."""
         p = self.p
         self.recent_dx.append(s.x_shovel - self.x_prev)
         a_s, a_lo, a_up = traj_angles(s.x_shovel, s.z_shovel, self.x_prev, self.z_prev, self.zones, self.h_pile, p)
@@ -182,6 +193,8 @@ class RewardTracker:
             "success": r_success(W, s.phi_shovel, p) if outcome == "success" else 0.0,
             "zone": r_zone(outcome == "failure", p),
         }
+        if p.r_tilt_per_deg > 0.0:
+            terms["tilt"] = r_tilt(machine_pitch, p)
         self.x_prev, self.z_prev = s.x_shovel, s.z_shovel
         self.W_prev = W
         return terms
