@@ -142,10 +142,17 @@ dead time):
     margin = float(tw.get("r_success_pitch_margin_deg", 0.0) or 0.0)
     margin_note = (f", and paid only above {40 + margin:g} deg (the training's pitch margin over the success test)"
                    if margin > 0 else "")
+    tilt_per_deg = float(tw.get("r_tilt_per_deg", 0.0) or 0.0)
+    tilt_free = float(tw.get("r_tilt_free_deg", 0.0) or 0.0)
+    tilt_name = (f" and a tilt penalty ({tilt_per_deg:g} per degree of the machine's pitch beyond {tilt_free:g} deg, "
+                 f"every step)" if tilt_per_deg > 0 else "")
+    tilt_note = (f"; and, not in the paper at all, r_tilt: -{tilt_per_deg:g} per degree of the machine's pitch "
+                 f"beyond {tilt_free:g} deg at every step" if tilt_per_deg > 0 else "")
+    n_departures = 4 + (margin > 0)
     fin = summary["metrics"]
     card = f"""# {variant.upper()} loading policy ({'hybrid: continuous wheels, ternary arm' if variant == 'rld' else 'continuous actions, deployment filter on the machine'})
 
-Actor exported from `{best_dir}/{sub}` (seed {m['seed']}, {why}), DDPG with the paper's protocol{' and domain randomisation' if trained_dr else ''}{f' and a {margin:g} deg pitch margin' if margin > 0 else ''} (docs/training.md). Files: `actor.npz`
+Actor exported from `{best_dir}/{sub}` (seed {m['seed']}, {why}), DDPG with the paper's protocol{' and domain randomisation' if trained_dr else ''}{f' and a {margin:g} deg pitch margin' if margin > 0 else ''}{tilt_name} (docs/training.md). Files: `actor.npz`
 (float32 weights), `policy.json` (architecture {m['architecture']['sizes']}, observation and action
 normalisation, filter thresholds, config hash `{m['config_hash']}`, training evaluation),
 `evaluation.json` (the table below), `training_curves.png`.
@@ -180,10 +187,10 @@ AML {fin['aml']['mean']:.1f} ± {fin['aml']['sd']:.1f} kg, AR {fin['ar']['mean']
 
 ## Limits
 Trained and evaluated in our simulator only (MuJoCo + extended FEE, gravel piles of 15-30
-deg, docs/modeling.md). The reward is the paper's with {'five' if margin > 0 else 'four'} documented departures
+deg, docs/modeling.md). The reward is the paper's with {'five' if n_departures == 5 else 'four'} documented departures
 (docs/training.md): r_success's pitch target 47.5 deg instead of 40 and paid only on a
 successful attempt{margin_note}, r_weight paid on the material entering the bucket, and r_dump fining a
-forward-tilted bucket (the paper's prose).
+forward-tilted bucket (the paper's prose){tilt_note}.
 Not yet run on the scaled machine.
 """
     (out / "README.md").write_text(card)
