@@ -58,6 +58,20 @@ def stamp(msg, t: float) -> None:
     msg.header.stamp.sec, msg.header.stamp.nanosec = int(t), int(round((t % 1.0) * 1e9))
 
 
+def _image_msg(img: np.ndarray, t: float) -> Image:
+    """A mono8 camera frame stamped t."""
+    im = Image()
+    stamp(im, t)
+    im.header.frame_id = "camera"
+    im.height, im.width, im.encoding, im.step = img.shape[0], img.shape[1], "mono8", img.shape[1]
+    im.data = img.tobytes()
+    return im
+
+
+def _stamp_ns(msg) -> int:
+    return msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+
+
 @pytest.fixture(scope="module")
 def ros():
     init_ros()
@@ -105,23 +119,18 @@ def test_aruco_node_measures_the_simulated_machine(ros, sim, tmp_path):
                 img = camera_image(cam, pos, quat, rng)
                 pub_info.publish(info)
                 if img is not None:
-                    m = Image()
-                    stamp(m, t)
-                    m.header.frame_id = "camera"
-                    m.height, m.width, m.encoding, m.step = img.shape[0], img.shape[1], "mono8", img.shape[1]
-                    m.data = img.tobytes()
-                    truth[m.header.stamp.sec * 10**9 + m.header.stamp.nanosec] = (v, float(pos[0]))
+                    m = _image_msg(img, t)
+                    truth[_stamp_ns(m)] = (v, float(pos[0]))
                     pub_img.publish(m)
                 spin_until(ros, lambda: False, max(0.0, t_next - time.monotonic()), step=0.005)
         last = max(truth)
-        spin_until(ros, lambda: odoms and odoms[-1].header.stamp.sec * 10**9 + odoms[-1].header.stamp.nanosec == last,
-                   10.0)
+        spin_until(ros, lambda: odoms and _stamp_ns(odoms[-1]) == last, 10.0)
     finally:
         rc = node.stop()
     assert rc == 0, node.log()
     err_v, err_x, n_moving = [], [], 0
     for o in odoms:
-        v_true, x_true = truth[o.header.stamp.sec * 10**9 + o.header.stamp.nanosec]
+        v_true, x_true = truth[_stamp_ns(o)]
         err_v.append(o.twist.twist.linear.x - v_true)
         err_x.append(o.pose.pose.position.x - x_true)
         n_moving += v_true > 0
@@ -327,20 +336,15 @@ def test_aruco_node_with_an_imu_follows_a_tilting_machine(ros, sim, tmp_path):
                 p, q, _ = state(ti)
                 img = camera_image(cam, p, q, rng)
                 pub_info.publish(info)
-                im = Image()
-                stamp(im, t0 + ti)
-                im.header.frame_id = "camera"
-                im.height, im.width, im.encoding, im.step = img.shape[0], img.shape[1], "mono8", img.shape[1]
-                im.data = img.tobytes()
+                im = _image_msg(img, t0 + ti)
                 dt = 1e-4
                 v_true = (state(ti + dt)[0][0] - state(ti - dt)[0][0]) / (2 * dt)
-                truth[im.header.stamp.sec * 10**9 + im.header.stamp.nanosec] = (v_true, float(p[0]), ti)
+                truth[_stamp_ns(im)] = (v_true, float(p[0]), ti)
                 pub_img.publish(im)
                 k_img += 1
             spin_until(ros, lambda: False, max(0.0, t_next - time.monotonic()), step=0.005)
         last = max(truth)
-        spin_until(ros, lambda: all(o and o[-1].header.stamp.sec * 10**9 + o[-1].header.stamp.nanosec == last
-                                    for o in odoms.values()), 10.0)
+        spin_until(ros, lambda: all(o and _stamp_ns(o[-1]) == last for o in odoms.values()), 10.0)
     finally:
         rcs = (with_imu.stop(), level.stop())
         for s in subs:
@@ -350,7 +354,7 @@ def test_aruco_node_with_an_imu_follows_a_tilting_machine(ros, sim, tmp_path):
     for name, msgs in odoms.items():
         ev, ex = [], []
         for o in msgs:
-            v_true, x_true, ti = truth[o.header.stamp.sec * 10**9 + o.header.stamp.nanosec]
+            v_true, x_true, ti = truth[_stamp_ns(o)]
             if ti >= 0.3:                       # past the filter's start
                 ev.append(o.twist.twist.linear.x - v_true)
                 ex.append(o.pose.pose.position.x - x_true)
@@ -451,18 +455,13 @@ def test_aruco_node_with_the_imu_acceleration_follows_a_stop_at_the_pile(ros, si
                 p, qq = pose(ti)
                 img = camera_image(cam, p, qq, rng)
                 pub_info.publish(info)
-                im = Image()
-                stamp(im, t0 + ti)
-                im.header.frame_id = "camera"
-                im.height, im.width, im.encoding, im.step = img.shape[0], img.shape[1], "mono8", img.shape[1]
-                im.data = img.tobytes()
-                truth[im.header.stamp.sec * 10**9 + im.header.stamp.nanosec] = (_stopping_machine(ti)[1], ti)
+                im = _image_msg(img, t0 + ti)
+                truth[_stamp_ns(im)] = (_stopping_machine(ti)[1], ti)
                 pub_img.publish(im)
                 k_img += 1
             spin_until(ros, lambda: False, max(0.0, t_next - time.monotonic()), step=0.005)
         last = max(truth)
-        spin_until(ros, lambda: all(o and o[-1].header.stamp.sec * 10**9 + o[-1].header.stamp.nanosec == last
-                                    for o in odoms.values()), 10.0)
+        spin_until(ros, lambda: all(o and _stamp_ns(o[-1]) == last for o in odoms.values()), 10.0)
     finally:
         rcs = (aided.stop(), plain.stop())
         for s in subs:
@@ -470,8 +469,8 @@ def test_aruco_node_with_the_imu_acceleration_follows_a_stop_at_the_pile(ros, si
     assert rcs == (0, 0), (aided.log(), plain.log())
     res = {}
     for name, msgs in odoms.items():
-        ev = [o.twist.twist.linear.x - truth[o.header.stamp.sec * 10**9 + o.header.stamp.nanosec][0] for o in msgs
-              if 0.95 <= truth[o.header.stamp.sec * 10**9 + o.header.stamp.nanosec][1] <= 2.0]
+        ev = [o.twist.twist.linear.x - truth[_stamp_ns(o)][0] for o in msgs
+              if 0.95 <= truth[_stamp_ns(o)][1] <= 2.0]
         res[name] = (len(ev), math.sqrt(np.mean(np.square(ev))), float(np.max(np.abs(ev))))
     print("\nArUco node, machine stopping against the pile in 0.1 s (v_x error from 50 ms before to 1 s after):")
     for name, (n, r, mx) in res.items():

@@ -262,6 +262,11 @@ class KalmanVelocityEstimator:
         if self.x is None:
             self._start(t, x)
             return True
+        self._correct(t, x)
+        return True
+
+    def _correct(self, t: float, x: float) -> None:
+        """A measurement after the last one (the stamp checks are done): predict, correct."""
         dt = t - self.last_t
         F = np.array([[1.0, dt], [0.0, 1.0]])
         Q = self.q * np.array([[dt ** 3 / 3.0, dt ** 2 / 2.0], [dt ** 2 / 2.0, dt]])
@@ -274,7 +279,6 @@ class KalmanVelocityEstimator:
         self.P = 0.5 * (self.P + self.P.T)
         self.last_t = t
         self.n += 1
-        return True
 
     def _start(self, t: float, x: float) -> None:
         """The first measurement: x known to the measurement noise, the speed unknown (a
@@ -291,7 +295,7 @@ class KalmanVelocityEstimator:
         return None if self.P is None else float(math.sqrt(max(self.P[1, 1], 0.0)))
 
 
-class InertialVelocityEstimator:
+class InertialVelocityEstimator(KalmanVelocityEstimator):
     """v_x from the camera's x(t) and an accelerometer's acceleration along x, a(t): a Kalman
     filter on [x, v, b] (b: the accelerometer's bias along x) that integrates the measured
     acceleration between two images and corrects with each image's x. A constant-velocity filter
@@ -320,9 +324,9 @@ class InertialVelocityEstimator:
     runs again from the last state before the late sample's interval with every sample now known.
     Only the image nearest the newest samples is served by a held sample.
 
-    Same interface as KalmanVelocityEstimator (add, velocity, speed_sd, reset, last_t)."""
+    A KalmanVelocityEstimator (its add(): the same stamp checks, its velocity() and speed_sd())
+    with the accelerometer in the prediction."""
 
-    V0_SD = KalmanVelocityEstimator.V0_SD
     BIAS0_SD = 0.5          # m/s^2
     MAX_SAMPLES = 512       # accelerometer samples kept (10 s at 50 Hz)
     HISTORY_S = 0.5         # s of filter states kept for late samples
@@ -417,18 +421,7 @@ class InertialVelocityEstimator:
             self.inertial_s += dt
         self.P = F @ self.P @ F.T + Q
 
-    def add(self, t: float, x: float) -> bool:
-        if self.last_t is not None and t <= self.last_t:
-            if t == self.last_t:
-                return False
-            self.reset()
-            self._start(t, x)
-            return False
-        if self.last_t is not None and t - self.last_t > self.max_gap:
-            self.reset()
-        if self.x is None:
-            self._start(t, x)
-            return True
+    def _correct(self, t: float, x: float) -> None:
         if self._dirty_from is not None:
             self._rerun(self._dirty_from)
         self._step(t, x)
@@ -438,7 +431,6 @@ class InertialVelocityEstimator:
         keep_from = self.hist[0][0] - self.accel_timeout
         while self.accel and self.accel[0][0] < keep_from and len(self.accel) > 1:
             self.accel.popleft()
-        return True
 
     def _step(self, t: float, x: float) -> None:
         """Predict from last_t to t with the samples known now, correct with x."""
@@ -479,12 +471,6 @@ class InertialVelocityEstimator:
         self.hist.clear()
         self._dirty_from = None
         self._remember(t, x)
-
-    def velocity(self) -> float | None:
-        return None if self.x is None or self.n < self.min_samples else float(self.x[1])
-
-    def speed_sd(self) -> float | None:
-        return None if self.P is None else float(math.sqrt(max(self.P[1, 1], 0.0)))
 
     def bias_estimate(self) -> float:
         return float(self.x[2]) if self.x is not None else self.bias
