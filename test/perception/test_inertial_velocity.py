@@ -206,3 +206,69 @@ def test_samples_that_arrive_after_the_image_are_not_lost():
     assert e_on <= 0.01
     assert e_late < e_lost
     assert e_late <= e_cv
+
+
+def test_an_image_that_waits_for_its_covering_sample_is_filtered_as_if_in_time():
+    """The ArUco node's imu_accel_wait, played offline: each image is processed 5 ms after its
+    instant, each IMU sample arrives 15 ms after its stamp (its interval's end), so an image's
+    covering sample comes after it. Held back until that sample has come (awaits_sample: the stream
+    is live but has not covered the image's instant), an image is filtered exactly as when every
+    sample came first; filtered at once it is not, and is worse around the stop."""
+    rng = np.random.default_rng(12)
+    imu = imu_samples(3.0, bias=0.1, noise=0.05, rng=rng)
+
+    def feed(wait, late=0.015, proc=0.005):
+        est = InertialVelocityEstimator(1.0, 0.0005, max_gap=0.5, imu_accel_noise=0.01)
+        cam_rng = np.random.default_rng(1)
+        events = [(t + late, 0, t, a) for t, a in imu]
+        events += [(k / FPS + proc, 1, k / FPS, None) for k in range(int(3.0 * FPS) + 1)]
+        rows, waits, pending = [], 0, None     # pending: (deadline, t, x, v) of the image held back
+
+        def finish(t, x, v):
+            est.add(t, x)
+            if est.velocity() is not None:
+                rows.append((t, est.velocity(), v))
+
+        for now, kind, t, a in sorted(events):
+            if pending is not None and now >= pending[0]:     # the one-shot timer
+                finish(*pending[1:])
+                pending = None
+            if kind == 0:
+                est.add_accel(t, a)
+                if pending is not None and t >= pending[1]:   # the covering sample came
+                    finish(*pending[1:])
+                    pending = None
+                continue
+            if pending is not None:                           # the previous image first
+                finish(*pending[1:])
+                pending = None
+            x, v = stop_profile(t)
+            x += cam_rng.normal(0.0, 0.0005)
+            if wait > 0.0 and est.last_t is not None and est.awaits_sample(t, 0.2):
+                pending = (now + wait, t, x, v)
+                waits += 1
+            else:
+                finish(t, x, v)
+        if pending is not None:
+            finish(*pending[1:])
+        return rows, waits
+
+    ideal, _ = feed(0.0, late=-0.1)            # every sample before its image
+    waited, n_waits = feed(0.025)
+    at_once, _ = feed(0.0)
+    assert n_waits > 0.9 * 3.0 * FPS - 5      # nearly every image waits (the sample is always 15 ms behind)
+    assert [r[0] for r in waited] == [r[0] for r in ideal]
+    assert max(abs(a[1] - b[1]) for a, b in zip(waited, ideal)) < 1e-12
+    e_ideal, e_now = rms(ideal, 0.95, 1.5), rms(at_once, 0.95, 1.5)
+    print(f"\nspeed RMS around the stop: waiting for the covering sample {e_ideal:.4f}, filtered at once {e_now:.4f}")
+    assert e_now > 1.2 * e_ideal
+
+
+def test_awaits_sample_only_for_a_live_stream_that_has_not_covered_the_instant():
+    est = InertialVelocityEstimator(1.0, 0.0005)
+    assert not est.awaits_sample(1.0, 0.2)               # no accelerometer at all
+    est.add_accel(1.00, 0.0)
+    assert est.awaits_sample(1.01, 0.2)                  # live, 10 ms not covered yet
+    assert not est.awaits_sample(1.00, 0.2)              # covered up to its stamp
+    assert not est.awaits_sample(0.99, 0.2)
+    assert not est.awaits_sample(1.25, 0.2)              # newest sample 0.25 s old: the stream stopped

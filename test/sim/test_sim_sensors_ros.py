@@ -391,7 +391,11 @@ def test_aruco_node_with_the_imu_acceleration_follows_a_stop_at_the_pile(ros, si
     acceleration (gravity included, a 0.1 m/s^2 bias, 0.05 m/s^2 noise: the twin's model), a machine
     that stops against the pile in 0.1 s: the node that integrates the acceleration (imu_acceleration,
     the default) follows the stop; a second node given the same IMU without it
-    (imu_acceleration:=false, the constant-velocity filter) lags it by frames."""
+    (imu_acceleration:=false, the constant-velocity filter) lags it by frames. Each IMU sample is
+    published 10 ms after the images of its interval (the order on a loaded machine: the sample
+    covering an image's instant comes after the image): the node holds each image back until it
+    has come (imu_accel_wait), and says so in its diagnostics."""
+    from diagnostic_msgs.msg import DiagnosticArray
     from sensor_msgs.msg import Imu
 
     from lhd_sim_node.sim_sensors import imu_orientation, imu_specific_force
@@ -405,8 +409,16 @@ def test_aruco_node_with_the_imu_acceleration_follows_a_stop_at_the_pile(ros, si
     sim.reset(np.random.default_rng(5), alpha=math.radians(20.0), material="homogeneous")
     p0, q0 = sim.data.qpos[:3].copy(), sim.data.qpos[3:7].copy()
     odoms = {"acc": [], "cv": []}
+    diag = {}
+
+    def on_diag(msg):
+        for st in msg.status:
+            if st.name.startswith("/aruco_pose_node:"):
+                diag.update({kv.key: kv.value for kv in st.values})
+
     subs = [ros.create_subscription(Odometry, "/lhd/odom", odoms["acc"].append, REL),
-            ros.create_subscription(Odometry, "/cv/odom", odoms["cv"].append, REL)]
+            ros.create_subscription(Odometry, "/cv/odom", odoms["cv"].append, REL),
+            ros.create_subscription(DiagnosticArray, "/diagnostics", on_diag, 20)]
     pub_img = ros.create_publisher(Image, "/camera/image_raw", REL)
     pub_info = ros.create_publisher(CameraInfo, "/camera/camera_info", qos_profile_sensor_data)
     pub_imu = ros.create_publisher(Imu, "/lhd/imu", REL)
@@ -448,8 +460,6 @@ def test_aruco_node_with_the_imu_acceleration_follows_a_stop_at_the_pile(ros, si
                 m.linear_acceleration_covariance[8] = 0.0025
             else:
                 m.linear_acceleration_covariance[0] = -1.0
-            pub_imu.publish(m)
-            pub_imu_cv.publish(m)
             while k_img / FPS <= t:
                 ti = k_img / FPS
                 p, qq = pose(ti)
@@ -459,9 +469,13 @@ def test_aruco_node_with_the_imu_acceleration_follows_a_stop_at_the_pile(ros, si
                 truth[_stamp_ns(im)] = (_stopping_machine(ti)[1], ti)
                 pub_img.publish(im)
                 k_img += 1
+            spin_until(ros, lambda: False, 0.010, step=0.005)
+            pub_imu.publish(m)
+            pub_imu_cv.publish(m)
             spin_until(ros, lambda: False, max(0.0, t_next - time.monotonic()), step=0.005)
         last = max(truth)
         spin_until(ros, lambda: all(o and _stamp_ns(o[-1]) == last for o in odoms.values()), 10.0)
+        spin_until(ros, lambda: int(diag.get("imu_waits", "0")) > 0, 5.0)
     finally:
         rcs = (aided.stop(), plain.stop())
         for s in subs:
@@ -480,3 +494,6 @@ def test_aruco_node_with_the_imu_acceleration_follows_a_stop_at_the_pile(ros, si
     assert n >= 0.75 * 1.05 * FPS
     assert r <= 0.012, res
     assert res["cv"][1] >= 2.0 * r, res
+    waits, timeouts = int(diag["imu_waits"]), int(diag["imu_wait_timeouts"])
+    print(f"  images held back for the accelerometer: {waits}, of which timed out: {timeouts}")
+    assert waits >= 0.5 * dur * FPS and timeouts <= 0.2 * waits, diag

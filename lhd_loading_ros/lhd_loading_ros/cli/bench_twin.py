@@ -130,7 +130,7 @@ def stack(args, run_dir: Path, link: str, params_file: Path | None) -> list[tupl
         ("twin", "lhd_sim_node.twin_node",
          {**common, "link": link, "machine_params": str(params_file or ""), "slopes_deg": args.slopes,
           "seed": args.seed, "camera_fps": args.camera_fps, "reset_delay": args.reset_delay,
-          "markers_hz": 0.0}, []),
+          "markers_hz": 0.0, **({"imu_hz": args.imu_hz} if args.imu_hz > 0 else {})}, []),
         ("bridge", "lhd_hw_bridge.bridge_node", {**common, "port": link}, []),
         ("aruco", "lhd_loading_ros.nodes.aruco_pose_node",
          {"image_topic": "/camera/image_raw", "camera_info_topic": "/camera/camera_info"}, []),
@@ -254,7 +254,7 @@ def run_bench(args) -> dict:
         raise RuntimeError(f"{error}\n(node logs in {log_dir})")
     result = summary(match_decisions(decisions, frames, wheels_max))
     result.update(trigger=args.trigger, attempts=st["attempts"], running_s=round(running_s(), 2),
-                  ended=[s for s, _ in st["ended"]], camera_fps=args.camera_fps)
+                  ended=[s for s, _ in st["ended"]], camera_fps=args.camera_fps, imu_hz=args.imu_hz)
     if not args.log_dir and not args.keep:
         shutil.rmtree(work, ignore_errors=True)
     return result
@@ -271,6 +271,10 @@ def main(argv=None) -> int:
     ap.add_argument("--trigger", choices=("odom", "timer"), default="odom",
                     help="the policy node's trigger (timer: the 10 Hz steady timer, for comparison)")
     ap.add_argument("--camera-fps", type=float, default=30.0, help="the simulated camera's frame rate")
+    ap.add_argument("--imu", dest="imu_hz", type=float, nargs="?", const=50.0, default=0.0, metavar="HZ",
+                    help="give the twin's machine an IMU on its rear frame (/lhd/imu at HZ, default 50, as `lhd up twin "
+                         "--imu`): the ArUco node then places the machine with its tilt and integrates its acceleration, "
+                         "holding each image's odometry back for the sample that covers it (imu_accel_wait)")
     ap.add_argument("--attempt-timeout", type=float, default=10.0, help="s, the supervisor's (the paper: 10)")
     ap.add_argument("--reset-delay", type=float, default=1.5, help="s from an ended attempt to the twin's new pile")
     ap.add_argument("--policy", help="exported actor (default: the shipped policies/rld)")
@@ -285,6 +289,8 @@ def main(argv=None) -> int:
         ap.error(f"--duration must be positive, got {args.duration}")
     if args.camera_fps <= 0:
         ap.error(f"--camera-fps must be positive, got {args.camera_fps}")
+    if not (args.imu_hz == 0.0 or 1.0 <= args.imu_hz <= 1000.0):
+        ap.error(f"--imu {args.imu_hz:g}: expected an IMU rate in [1, 1000] Hz")
     if args.params_file and not Path(args.params_file).is_file():
         ap.error(f"--params-file {args.params_file!r} does not exist")
     args.timeout = args.timeout or 60.0 + 3.0 * args.duration
@@ -295,7 +301,7 @@ def main(argv=None) -> int:
         return 1
     print(f"lhd bench twin: camera frame -> command frame on the serial line, {r['n']} decisions of "
           f"{r['attempts']} attempt(s), {r['running_s']:g} s running (camera {args.camera_fps:g} fps, "
-          f"policy trigger {args.trigger})")
+          f"policy trigger {args.trigger}{f', IMU {args.imu_hz:g} Hz' if args.imu_hz else ', no IMU'})")
     print(f"  latency   p50 {r['latency_p50_ms']:.1f} ms   p99 {r['latency_p99_ms']:.1f} ms   max "
           f"{r['latency_max_ms']:.1f} ms   (target p99 <= 60 ms)")
     print(f"  camera -> decision  p50 {r['camera_to_decision_p50_ms']:.1f} ms  p99 "

@@ -127,6 +127,11 @@ class ArucoPoseNode(Node):
                   "stands for the acceleration (s; one IMU period): an image whose instant the IMU has not covered yet "
                   "is predicted with it that far, beyond with the constant-velocity model; the late sample corrects the "
                   "next images", lo=0.0, hi=1.0, on_change=lambda v: self._set_filter(hold=v)),
+            Param("imu_accel_wait", 0.025, "imu_acceleration: an image whose instant the live accelerometer has not "
+                  "covered yet waits at most this long (s, wall time) for the sample that covers it before its v_x is "
+                  "filtered and its odometry published (the pose is published at once); 0: never wait, the newest "
+                  "sample is held (imu_accel_hold). Adds up to one IMU period to the camera-to-command latency",
+                  lo=0.0, hi=0.5, on_change=self._set_imu_accel_wait),
             Param("wheelbase", 0.80, "use_imu: the front axle's distance ahead of base_link (the rear axle), m: "
                   "the pivot of a nose-down tilt", lo=0.01, hi=20.0),
         ])
@@ -151,6 +156,10 @@ class ArucoPoseNode(Node):
         self.frame_id, self.child_frame_id = p["frame_id"], p["child_frame_id"]
         self.use_imu, self.imu_timeout, self.wheelbase = p["use_imu"], p["imu_timeout"], p["wheelbase"]
         self.imu_window = p["imu_window"]
+        self.imu_accel_wait = p["imu_accel_wait"]
+        self.pending = None                     # (stamp, x, T_base) of an image waiting for the accelerometer
+        self.imu_waits = self.imu_wait_timeouts = 0
+        self._wait_timer = None                 # one-shot (steady clock) ending such a wait
         self.imu_deadband = math.radians(p["imu_deadband_deg"])
         self.marker_in_base = np.linalg.inv(self.T_marker_base)[:3, 3]   # the marker's centre in base_link
         self.imu: deque = deque(maxlen=32)      # (stamp s, roll, pitch) of recent IMU samples
@@ -190,7 +199,15 @@ class ArucoPoseNode(Node):
         v_x), and the height check is redone on the next frame."""
         self.marker_height = v
         self.height_problem = None
+        self.pending = None     # its x was placed with the old height
         self.vel.reset()
+
+    def _set_imu_accel_wait(self, v: float) -> None:
+        self._finish_pending()
+        self.imu_accel_wait = v
+        if self._wait_timer is not None:     # made again with the new period at the next wait
+            self.destroy_timer(self._wait_timer)
+            self._wait_timer = None
 
     def _set_imu_timeout(self, v: float) -> None:
         self.imu_timeout = v
@@ -213,6 +230,7 @@ class ArucoPoseNode(Node):
     def _set_filter(self, **changes) -> None:
         """A velocity parameter changed: a new estimator (samples of the old one are not mixed in)."""
         self._vel_params.update(changes)
+        self.pending = None
         self.vel = self._make_velocity()
 
     # ------------------------------------------------------------------ inputs
@@ -257,6 +275,8 @@ class ArucoPoseNode(Node):
                 return
             if self.vel.add_accel(t, a_x):
                 self.accel_samples += 1
+            if self.pending is not None and t >= self._stamp_s(self.pending[0]):
+                self._finish_pending()
 
     def _tilt_at(self, t: float) -> tuple[float, float] | None:
         """The IMU's (roll, pitch) at image time t: the mean of the samples in (t - imu_window, t]
@@ -290,7 +310,46 @@ class ArucoPoseNode(Node):
         self.vel.reset()
         self.get_logger().error(why, throttle_duration_sec=5.0)
 
+    @staticmethod
+    def _stamp_s(stamp) -> float:
+        return stamp.sec + stamp.nanosec * 1e-9
+
+    def _finish_pending(self, timed_out: bool = False) -> None:
+        """The image held back for the accelerometer: its v_x and odometry now, with every sample
+        that came (after the wait, the newest one held, as without waiting)."""
+        if self._wait_timer is not None:
+            self._wait_timer.cancel()
+        if self.pending is None:
+            return
+        stamp, x, T_base = self.pending
+        self.pending = None
+        self.imu_wait_timeouts += int(timed_out)
+        v = self._speed(stamp, x)
+        if v is not None:
+            self._publish_odom(stamp, T_base, v)
+
+    def _on_wait_timeout(self) -> None:
+        self._finish_pending(timed_out=True)
+
+    def _speed_and_odom(self, stamp, x: float, T_base: np.ndarray) -> None:
+        """v_x and the odometry of a detection, or, when the accelerometer is live and its sample
+        covering the image's instant has not come yet, the same after at most imu_accel_wait."""
+        if (self.imu_accel_wait > 0.0 and isinstance(self.vel, InertialVelocityEstimator)
+                and self.vel.last_t is not None and self.vel.awaits_sample(self._stamp_s(stamp), self.imu_timeout)):
+            self.pending = (stamp, x, T_base.copy())
+            self.imu_waits += 1
+            if self._wait_timer is None:
+                self._wait_timer = steady_timer(self, self.imu_accel_wait, self._on_wait_timeout)
+            else:
+                self._wait_timer.reset()
+            return
+        v = self._speed(stamp, x)
+        if v is not None:
+            self._publish_odom(stamp, T_base, v)
+
     def _on_image(self, msg: Image) -> None:
+        if self.pending is not None:    # the previous image's odometry first, in order
+            self._finish_pending(timed_out=True)
         now = time.monotonic()
         self.last_image = now
         if self.cam is None:
@@ -359,9 +418,7 @@ class ArucoPoseNode(Node):
         self.last_seen = now
         self._set_stale(False)
         self._publish_pose(msg.header.stamp, T_pile_marker)
-        v = self._speed(msg.header.stamp, x_speed)
-        if v is not None:
-            self._publish_odom(msg.header.stamp, T_base, v)
+        self._speed_and_odom(msg.header.stamp, x_speed, T_base)
 
     def _on_plane(self, T_pile_marker: np.ndarray, corners: np.ndarray, cam: CameraModel) -> bool:
         """Replace the marker's position (in place) by the camera ray through its centre met with the
@@ -441,6 +498,7 @@ class ArucoPoseNode(Node):
         if s != self.stale:
             self.stale = s
             if s:
+                self.pending = None
                 self.vel.reset()
                 self.get_logger().warn("marker lost: odometry stale", throttle_duration_sec=2.0)
             self.pub_stale.publish(Bool(data=s))
@@ -458,7 +516,8 @@ class ArucoPoseNode(Node):
         now = time.monotonic()
         values = {"frames": self.frames, "detections": self.detections, "odometry": self.odoms,
                   "stale": self.stale, "tilted_by_imu": self.tilted, "v_x_from": self.x_source,
-                  "imu_accelerations": self.accel_samples}
+                  "imu_accelerations": self.accel_samples, "imu_waits": self.imu_waits,
+                  "imu_wait_timeouts": self.imu_wait_timeouts}
         if isinstance(self.vel, InertialVelocityEstimator):
             values["accel_bias"] = self.vel.bias_estimate()
         if self.last_v is not None:

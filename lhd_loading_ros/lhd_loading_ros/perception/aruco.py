@@ -322,7 +322,9 @@ class InertialVelocityEstimator(KalmanVelocityEstimator):
     the IMU's next sample is up to 20 ms after the image's instant and the two travel separately)
     are not lost: the filter keeps its states of the last HISTORY_S seconds and, at the next image,
     runs again from the last state before the late sample's interval with every sample now known.
-    Only the image nearest the newest samples is served by a held sample.
+    Only the image nearest the newest samples is served by a held sample, and a node can avoid even
+    that by holding the image back until the covering sample has come (`awaits_sample`; the ArUco
+    node's imu_accel_wait).
 
     A KalmanVelocityEstimator (its add(): the same stamp checks, its velocity() and speed_sd())
     with the accelerometer in the prediction."""
@@ -373,6 +375,15 @@ class InertialVelocityEstimator(KalmanVelocityEstimator):
         if self.last_t is not None and start < self.last_t:     # an image already used this interval
             self._dirty_from = start if self._dirty_from is None else min(self._dirty_from, start)
         return True
+
+    def awaits_sample(self, t: float, live: float) -> bool:
+        """True when an image at t should wait for the accelerometer: the stream is live (its
+        newest sample is at most `live` seconds before t) but has not covered t yet. The sample
+        that covers t comes up to one IMU period after it; the hold only predicts that interval."""
+        if not self.accel:
+            return False
+        last = self.accel[-1][0]
+        return last < t <= last + live
 
     def _segments(self, t0: float, t1: float):
         """(dt, a or None) pieces of (t0, t1]: a where a sample covers the piece, None where none does."""
