@@ -38,18 +38,21 @@ colcon-build: $(COLCON_STAMP)
 	$(COLCON_VENV)/bin/colcon --log-base log build --base-paths lhd_loading_ros lhd_sim_node lhd_hw_bridge \
 		--build-base build --install-base install --event-handlers console_cohesion- summary+
 
-# Two passes. Tests of the pure core (simulator, task math, learning, perception on arrays; no
+# Three passes. Tests of the pure core (simulator, task math, learning, perception on arrays; no
 # node processes, no DDS) run on CPU_JOBS pytest-xdist workers. Tests that start node processes or
-# talk over DDS (marked `ros` by test/conftest.py) depend on timing and run serially: on 2 cores,
-# two workers' nodes starved each other's timing-sensitive tests (2 of 5 runs failed).
-# TEST_JOBS=2 puts the ROS tests on two workers too (faster, not reliable on 2 cores).
+# talk over DDS (marked `ros` by test/conftest.py) run on TEST_JOBS workers, one test file per
+# worker (each worker has its own DDS domain, test/rosutil.py). The tests that run a whole stack in
+# real time (the twin, `lhd bench twin`, `lhd up real`, sensor streams at their rates; marked
+# `serial` by a module-level SERIAL = True) starved each other on two workers of a 2-core machine
+# (2 of 5 runs failed), so they run last, alone. TEST_JOBS=1 runs every process test serially.
 CPU_JOBS ?= 2
-TEST_JOBS ?= 1
+TEST_JOBS ?= 2
 XDIST := $(if $(filter-out 1,$(TEST_JOBS)),-n $(TEST_JOBS) --dist loadfile,)
 CPU_XDIST := $(if $(filter-out 1,$(CPU_JOBS)),-n $(CPU_JOBS) --dist load,)
 test: $(STAMP) colcon-build
 	$(PY) -m pytest -q --durations=10 -m "not ros" $(CPU_XDIST) test
-	$(PY) -m pytest -q --durations=25 -m ros $(XDIST) test
+	$(PY) -m pytest -q --durations=15 -m "ros and not serial" $(XDIST) test
+	$(PY) -m pytest -q --durations=10 -m "ros and serial" test
 
 bench: $(STAMP)
 	$(VENV)/bin/lhd bench sim --json

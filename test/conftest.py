@@ -72,7 +72,11 @@ def _talks_to_processes(module) -> bool:
 
 
 def pytest_configure(config):
-    config.addinivalue_line("markers", "ros: starts node processes or talks over DDS (timing-sensitive: run serially)")
+    config.addinivalue_line("markers", "ros: starts node processes or talks over DDS (depends on timing: `make test` "
+                                       "runs these on TEST_JOBS workers, one test file per worker)")
+    config.addinivalue_line("markers", "serial: a whole stack in real time (twin, real-machine launcher, sensor "
+                                       "streams at their rates): on 2 cores it starves beside another such test, so "
+                                       "`make test` runs these alone, after the others (module-level SERIAL = True)")
     config.addinivalue_line("markers", "parallel_safe: starts processes, but its results do not depend on timing "
                                        "(lockstep, generous waits): runs with the pure tests")
 
@@ -82,3 +86,5 @@ def pytest_collection_modifyitems(config, items):
         module = getattr(item, "module", None)
         if module is not None and _talks_to_processes(module) and item.get_closest_marker("parallel_safe") is None:
             item.add_marker(pytest.mark.ros)
+            if getattr(module, "SERIAL", False) is True:
+                item.add_marker(pytest.mark.serial)

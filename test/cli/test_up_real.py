@@ -45,6 +45,9 @@ from lhd_loading_ros.task.kinematics import ArmKinematics, state_from_measuremen
 
 from rosutil import init_ros, shutdown_ros, spin_until
 
+# a whole stack in real time: alone, after the other process tests (test/conftest.py, `make test`)
+SERIAL = True
+
 ROOT = Path(__file__).resolve().parents[2]
 ENDED = ("success", "failure", "timeout", "estop", "lost_input", "aborted")
 CAMERA_XYZ = (-1.3, 0.0, 2.0)      # above the marker's path (it rides 1.8 m behind the tip): x -1.96..-0.64 in view

@@ -25,6 +25,9 @@ pytest.importorskip("rclpy")
 
 from rosutil import unique_domain_id  # noqa: E402
 
+# a whole stack in real time: alone, after the other process tests (test/conftest.py, `make test`)
+SERIAL = True
+
 ALPHA_BOUND_DEG = 1.5
 X_MAX_BOUND_M = 0.05
 VX_BOUND = 0.02

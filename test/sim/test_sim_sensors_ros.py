@@ -36,6 +36,9 @@ from lhd_sim_node.twin_markers import marker_array
 
 from rosutil import RosProcess, init_ros, shutdown_ros, spin_until
 
+# a whole stack in real time: alone, after the other process tests (test/conftest.py, `make test`)
+SERIAL = True
+
 ROOT = Path(__file__).resolve().parents[2]
 MACHINE = yaml.safe_load((ROOT / "config" / "real_machine.yaml").read_text())
 REL = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
