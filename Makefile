@@ -49,10 +49,13 @@ CPU_JOBS ?= 2
 TEST_JOBS ?= 2
 XDIST := $(if $(filter-out 1,$(TEST_JOBS)),-n $(TEST_JOBS) --dist loadfile,)
 CPU_XDIST := $(if $(filter-out 1,$(CPU_JOBS)),-n $(CPU_JOBS) --dist load,)
+# every pass runs even when one before it failed; make test fails when any did
 test: $(STAMP) colcon-build
-	$(PY) -m pytest -q --durations=10 -m "not ros" $(CPU_XDIST) test
-	$(PY) -m pytest -q --durations=15 -m "ros and not serial" $(XDIST) test
-	$(PY) -m pytest -q --durations=10 -m "ros and serial" test
+	@status=0; \
+	$(PY) -m pytest -q --durations=10 -m "not ros" $(CPU_XDIST) test || status=1; \
+	$(PY) -m pytest -q --durations=15 -m "ros and not serial" $(XDIST) test || status=1; \
+	$(PY) -m pytest -q --durations=10 -m "ros and serial" test || status=1; \
+	exit $$status
 
 bench: $(STAMP)
 	$(VENV)/bin/lhd bench sim --json

@@ -56,7 +56,8 @@ _ros_modules: dict = {}
 
 def _talks_to_processes(module) -> bool:
     """The module starts node processes or talks over DDS (rclpy, rosutil, subprocess): its tests
-    depend on timing and run serially (`make test`); the others may run on several workers.
+    depend on timing and run in `make test`'s second pass (one file per worker) or, with
+    SERIAL = True, alone in its third; the others run in the first, on several workers.
     A module that starts processes but whose results do not depend on timing (lockstep sim nodes,
     command-line runs that only compute) says so with `PARALLEL_SAFE = True` at its top level and
     runs with the pure tests (each xdist worker has its own DDS domain, test/rosutil.py)."""

@@ -13,12 +13,14 @@ from rclpy.executors import SingleThreadedExecutor
 
 def unique_domain_id() -> int:
     """A ROS_DOMAIN_ID for this test process (1..100, the range safe on Linux), so parallel
-    test runs and a user's other ROS work do not hear each other. Under pytest-xdist the workers
-    of one run take neighbouring domains from their common parent's pid (gw0 even, gw1 odd), so
-    they can never share one."""
+    test runs and a user's other ROS work do not hear each other. Under pytest-xdist the n workers
+    of one run take n neighbouring domains from a block chosen by their common parent's pid, so
+    they can never share one (up to 100 workers)."""
     worker = os.environ.get("PYTEST_XDIST_WORKER", "")
     if worker.startswith("gw") and worker[2:].isdigit():
-        return 1 + 2 * (os.getppid() % 50) + int(worker[2:]) % 2
+        n = max(1, min(100, int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "2") or 2)))
+        blocks = 100 // n
+        return 1 + n * (os.getppid() % blocks) + int(worker[2:]) % n
     return 1 + 2 * (os.getpid() % 50)
 
 

@@ -18,6 +18,20 @@ KEYS = ("latency_p50_ms", "latency_p99_ms", "latency_max_ms", "camera_to_decisio
         "decision_to_serial_p50_ms", "decision_to_serial_p99_ms")
 
 
+@pytest.mark.parametrize("argv, expected", [
+    (["--imu", "500"], "--imu 500: expected an IMU rate in [1, 200] Hz"),
+    (["--imu", "0.5"], "--imu 0.5: expected an IMU rate in [1, 200] Hz"),
+    (["--duration", "0"], "--duration must be positive"),
+])
+def test_bad_arguments_are_refused_before_anything_starts(argv, expected, capsys):
+    from lhd_loading_ros.cli.bench_twin import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    assert expected in capsys.readouterr().err
+
+
 def test_wheel_key_clamps_and_rounds_like_the_wire():
     assert wheel_key(1.23449, 2.7) == 1234            # 1 mrad/s counts
     assert wheel_key(-0.4, 2.7) == 0                  # no reverse

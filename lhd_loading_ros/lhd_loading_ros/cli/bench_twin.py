@@ -289,8 +289,8 @@ def main(argv=None) -> int:
         ap.error(f"--duration must be positive, got {args.duration}")
     if args.camera_fps <= 0:
         ap.error(f"--camera-fps must be positive, got {args.camera_fps}")
-    if not (args.imu_hz == 0.0 or 1.0 <= args.imu_hz <= 1000.0):
-        ap.error(f"--imu {args.imu_hz:g}: expected an IMU rate in [1, 1000] Hz")
+    if not (args.imu_hz == 0.0 or 1.0 <= args.imu_hz <= 200.0):
+        ap.error(f"--imu {args.imu_hz:g}: expected an IMU rate in [1, 200] Hz (the twin's imu_hz)")
     if args.params_file and not Path(args.params_file).is_file():
         ap.error(f"--params-file {args.params_file!r} does not exist")
     args.timeout = args.timeout or 60.0 + 3.0 * args.duration

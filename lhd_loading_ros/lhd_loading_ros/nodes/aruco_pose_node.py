@@ -130,7 +130,8 @@ class ArucoPoseNode(Node):
             Param("imu_accel_wait", 0.025, "imu_acceleration: an image whose instant the live accelerometer has not "
                   "covered yet waits at most this long (s, wall time) for the sample that covers it before its v_x is "
                   "filtered and its odometry published (the pose is published at once); 0: never wait, the newest "
-                  "sample is held (imu_accel_hold). Adds up to one IMU period to the camera-to-command latency",
+                  "sample is held (imu_accel_hold). Counted from the end of the image's detection; adds at most "
+                  "this to the camera-to-command latency (about one IMU period where the IMU is live)",
                   lo=0.0, hi=0.5, on_change=self._set_imu_accel_wait),
             Param("wheelbase", 0.80, "use_imu: the front axle's distance ahead of base_link (the rear axle), m: "
                   "the pivot of a nose-down tilt", lo=0.01, hi=20.0),
@@ -197,9 +198,9 @@ class ArucoPoseNode(Node):
     def _set_marker_height(self, v: float) -> None:
         """A new height moves every position: the speed estimate restarts (no step in x reaches
         v_x), and the height check is redone on the next frame."""
+        self._finish_pending()  # placed with the old height: out as it would have gone without the wait
         self.marker_height = v
         self.height_problem = None
-        self.pending = None     # its x was placed with the old height
         self.vel.reset()
 
     def _set_imu_accel_wait(self, v: float) -> None:
@@ -229,8 +230,8 @@ class ArucoPoseNode(Node):
 
     def _set_filter(self, **changes) -> None:
         """A velocity parameter changed: a new estimator (samples of the old one are not mixed in)."""
+        self._finish_pending()  # with the filter it was measured for
         self._vel_params.update(changes)
-        self.pending = None
         self.vel = self._make_velocity()
 
     # ------------------------------------------------------------------ inputs
@@ -323,7 +324,7 @@ class ArucoPoseNode(Node):
             return
         stamp, x, T_base = self.pending
         self.pending = None
-        self.imu_wait_timeouts += int(timed_out)
+        self.imu_wait_timeouts += int(timed_out)     # ended without the covering sample
         v = self._speed(stamp, x)
         if v is not None:
             self._publish_odom(stamp, T_base, v)
@@ -498,7 +499,7 @@ class ArucoPoseNode(Node):
         if s != self.stale:
             self.stale = s
             if s:
-                self.pending = None
+                self._finish_pending()
                 self.vel.reset()
                 self.get_logger().warn("marker lost: odometry stale", throttle_duration_sec=2.0)
             self.pub_stale.publish(Bool(data=s))
