@@ -7,8 +7,8 @@ Checked from the JSON (its last stdout line) and the run folder:
   weighed mass, which is the twin's load cell: within 0.5 kg of the simulator's loaded mass;
 * the attempt's rosbag2 exists (metadata.yaml);
 * the stack's estimates against the simulator's ground truth within the issue's bounds:
-  alpha within 1.5 deg, end zone x_max within 5 cm; v_x RMS below 0.04 m/s (a regression guard:
-  the issue's 0.02 m/s is met on average over attempts, not by every one: docs/twin.md);
+  alpha within 1.5 deg, end zone x_max within 5 cm, v_x RMS within 0.02 m/s (the twin's machine has
+  its IMU by default: 20 deg attempts 0.006-0.012 m/s in runs 33-35 of docs/twin.md);
 * the twin's truth slope is the asked 20 deg and the JSON's success_rate agrees with the CSV row.
 """
 import csv
@@ -31,7 +31,6 @@ SERIAL = True
 ALPHA_BOUND_DEG = 1.5
 X_MAX_BOUND_M = 0.05
 VX_BOUND = 0.02
-VX_REGRESSION = 0.04
 
 
 def test_one_twin_attempt_end_to_end(tmp_path):
@@ -62,16 +61,11 @@ def test_one_twin_attempt_end_to_end(tmp_path):
     assert abs(rec["alpha_err_deg"]) <= ALPHA_BOUND_DEG, rec
     assert abs(rec["alpha_est_deg"] - 20.0) <= ALPHA_BOUND_DEG
     assert abs(rec["x_max_err_m"]) <= X_MAX_BOUND_M, rec
-    # v_x: measured over the running phase, the truth interpolated at each estimate's stamp
-    # (an attempt that ends early, e.g. lost_input on a machine busy with another test worker,
-    # has only a few estimates; the figure is printed, the issue's bound is not met: docs/twin.md)
-    if rec["outcome"] == "lost_input" and rec["vx_n"] == 0:      # ended before any estimate: say so
-        print(f"attempt ended at once: {rec['reason']} (known: issue 16, starved camera chain)")
-    else:
-        assert rec["vx_n"] >= 1 and math.isfinite(rec["vx_rms"]), rec
-        # a gross regression of the camera chain (the issue's 0.02 is met on average, not on every
-        # attempt: docs/twin.md; 0.01-0.02 on a 20 deg attempt, 2x margin for a loaded machine)
-        assert rec["vx_rms"] < VX_REGRESSION, rec
+    # v_x: measured over the running phase, the truth interpolated at each estimate's stamp; the
+    # camera and the IMU's accelerometer (the twin's default machine), the issue's bound
+    assert rec["outcome"] != "lost_input", rec
+    assert rec["vx_n"] >= 10 and math.isfinite(rec["vx_rms"]), rec
+    assert rec["vx_rms"] <= VX_BOUND, rec
     print(f"v_x RMS {rec['vx_rms']} m/s (bound {VX_BOUND}), best-fitting lag {rec['vx_best_lag_s']} s -> "
           f"{rec['vx_rms_at_best_lag']} m/s; alpha {rec['alpha_err_deg']} deg; x_max "
           f"{rec['x_max_err_m']} m; mass {mass:.2f} vs {rec['mass_truth_kg']} kg")

@@ -272,3 +272,63 @@ def test_awaits_sample_only_for_a_live_stream_that_has_not_covered_the_instant()
     assert not est.awaits_sample(1.00, 0.2)              # covered up to its stamp
     assert not est.awaits_sample(0.99, 0.2)
     assert not est.awaits_sample(1.25, 0.2)              # newest sample 0.25 s old: the stream stopped
+
+
+def test_a_sample_after_lost_ones_stands_for_its_own_period_only():
+    """A 50 Hz stream that loses four samples (a node too busy to take them): the sample after
+    the gap is the mean over ITS 20 ms, not over the 100 ms since the last one received, so it
+    covers at most 1.5 periods (30 ms) back; the rest of the gap runs as the constant-velocity
+    filter. Without the stream's period (fewer than 4 intervals) the old rule, accel_timeout."""
+    est = InertialVelocityEstimator(accel_timeout=0.2, hold=0.0)
+    for k in range(1, 11):
+        est.add_accel(k * 0.02, 0.0)                  # 0.02 .. 0.20
+    est.add_accel(0.30, 5.0)                          # 0.22 .. 0.28 lost; a 5 m/s^2 push in (0.28, 0.30]
+    seg = [(round(dt, 9), a) for dt, a in est._segments(0.20, 0.30)]
+    assert seg == [(0.07, None), (0.03, 5.0)]
+    dv = sum(dt * a for dt, a in est._segments(0.20, 0.30) if a is not None)
+    assert dv == pytest.approx(0.15)                  # not 0.5: the push is spread over 30 ms, not 100
+    few = InertialVelocityEstimator(accel_timeout=0.2, hold=0.0)
+    for t, a in ((0.02, 0.0), (0.04, 0.0), (0.14, 5.0)):
+        few.add_accel(t, a)
+    assert [(round(dt, 9), a) for dt, a in few._segments(0.04, 0.14)] == [(0.1, 5.0)]
+
+
+def test_a_machine_put_elsewhere_restarts_the_filter_and_keeps_its_bias():
+    """Between attempts the machine is put back by hand (the twin: in one step) while the camera
+    and the IMU run: x jumps 1.1 m in one frame and the accelerometer feels nothing. Read as
+    motion, the jump would be 33 m/s and, with the accelerometer vouching that the machine did
+    not accelerate, be learned as a bias of metres per second squared (twin run 37). The filter
+    starts again at the new x: no speed for two frames, then 0, and the bias is the one it had."""
+    bias = 0.1
+    est = InertialVelocityEstimator(1.0, 0.0005, max_gap=0.5, imu_accel_noise=0.01)
+    rng = np.random.default_rng(4)
+    x, out = -0.5, []
+    for k in range(1, 241):                      # 8 s at rest, the bias learned; the jump at 4 s
+        t = k / FPS
+        while est.accel and est.accel[-1][0] < t or not est.accel:
+            ta = (est.accel[-1][0] if est.accel else 0.0) + 0.02
+            est.add_accel(ta, bias + rng.normal(0.0, 0.05))
+        if k == 120:
+            x = -1.6
+        est.add(t, x + rng.normal(0.0, 0.0005))
+        out.append((t, est.velocity(), est.bias_estimate()))
+    assert est.jumps == 1
+    assert out[119][1] is None and out[120][1] is None       # the jump's frame and the next: no speed
+    assert max(abs(v) for t, v, b in out[121:]) < 0.05      # at rest: the noise of the filter at rest (0.03)
+    assert all(abs(b - bias) < 0.05 for t, v, b in out[200:])
+    plain = InertialVelocityEstimator(1.0, 0.0005, max_gap=0.5, imu_accel_noise=0.01)
+    plain.JUMP_M = math.inf                      # without the restart: the jump read as motion
+    rng = np.random.default_rng(4)
+    x, after = -0.5, []
+    for k in range(1, 131):
+        t = k / FPS
+        while plain.accel and plain.accel[-1][0] < t or not plain.accel:
+            ta = (plain.accel[-1][0] if plain.accel else 0.0) + 0.02
+            plain.add_accel(ta, bias + rng.normal(0.0, 0.05))
+        if k == 120:
+            x = -1.6
+        plain.add(t, x + rng.normal(0.0, 0.0005))
+        if k >= 120:
+            after.append((plain.velocity(), plain.bias_estimate()))
+    assert max(abs(v) for v, b in after) > 5.0                # metres per second of a machine at rest
+    assert max(abs(b - bias) for v, b in after) > 2.0         # and a bias of metres per second squared

@@ -271,10 +271,13 @@ def main(argv=None) -> int:
     ap.add_argument("--trigger", choices=("odom", "timer"), default="odom",
                     help="the policy node's trigger (timer: the 10 Hz steady timer, for comparison)")
     ap.add_argument("--camera-fps", type=float, default=30.0, help="the simulated camera's frame rate")
-    ap.add_argument("--imu", dest="imu_hz", type=float, nargs="?", const=50.0, default=0.0, metavar="HZ",
-                    help="give the twin's machine an IMU on its rear frame (/lhd/imu at HZ, default 50, as `lhd up twin "
-                         "--imu`): the ArUco node then places the machine with its tilt and integrates its acceleration, "
-                         "holding each image's odometry back for the sample that covers it (imu_accel_wait)")
+    ap.add_argument("--imu", dest="imu_hz", type=float, nargs="?", const=50.0, default=50.0, metavar="HZ",
+                    help="the default: the twin's machine has an IMU on its rear frame (/lhd/imu at HZ, 50 by default, "
+                         "as in `lhd up twin`): the ArUco node places the machine with its tilt and integrates its "
+                         "acceleration, holding each image's odometry back for the sample that covers it "
+                         "(imu_accel_wait)")
+    ap.add_argument("--no-imu", dest="imu_hz", action="store_const", const=0.0,
+                    help="the paper's machine, without an IMU (`lhd up twin --no-imu`)")
     ap.add_argument("--attempt-timeout", type=float, default=10.0, help="s, the supervisor's (the paper: 10)")
     ap.add_argument("--reset-delay", type=float, default=1.5, help="s from an ended attempt to the twin's new pile")
     ap.add_argument("--policy", help="exported actor (default: the shipped policies/rld)")

@@ -185,7 +185,11 @@ class ArucoPoseNode(Node):
         self.pub_odom = self.create_publisher(Odometry, f"{ns}/odom", MEASUREMENT_QOS)
         self.pub_stale = self.create_publisher(Bool, f"{ns}/aruco/stale", MEASUREMENT_QOS)
         if self.use_imu:    # first: with an IMU sample and an image both waiting, the executor serves the IMU first
-            self.create_subscription(Imu, f"{ns}/imu", self._on_imu, qos_profile_sensor_data)
+            # best effort (matches any IMU driver) but 50 deep: while an image is being processed the
+            # samples wait instead of being dropped (sensor-data QoS keeps 5: 0.1 s at 50 Hz; a busy
+            # 2-core twin lost a quarter of them, docs/twin.md runs 36-)
+            imu_qos = QoSProfile(depth=50, reliability=ReliabilityPolicy.BEST_EFFORT, history=HistoryPolicy.KEEP_LAST)
+            self.create_subscription(Imu, f"{ns}/imu", self._on_imu, imu_qos)
         self.create_subscription(CameraInfo, p["camera_info_topic"], self._on_info, qos_profile_sensor_data)
         # sensor-data QoS by default (best effort: matches any camera driver, late frames are
         # worthless); image_reliable=true for lossless links such as recorded data or tests
@@ -521,6 +525,7 @@ class ArucoPoseNode(Node):
                   "imu_wait_timeouts": self.imu_wait_timeouts}
         if isinstance(self.vel, InertialVelocityEstimator):
             values["accel_bias"] = self.vel.bias_estimate()
+            values["position_jumps"] = self.vel.jumps     # displacements the filter started again after
         if self.last_v is not None:
             values["last_v_x"] = self.last_v
         if self.last_image is None:

@@ -304,8 +304,9 @@ class InertialVelocityEstimator(KalmanVelocityEstimator):
 
     Acceleration samples (`add_accel(t, a)`, a in m/s^2, gravity already removed and turned into
     the x direction of the position) are each the mean over the interval since the previous one,
-    as an IMU's filtered output is: sample i holds over (max(t_{i-1}, t_i - accel_timeout), t_i],
-    and the newest one is held for `hold` past its stamp (one period of a 50 Hz IMU by default,
+    as an IMU's filtered output is: sample i holds over (max(t_{i-1}, t_i - span), t_i], span =
+    accel_timeout or, once the stream's period is known, 1.5 periods (a sample after lost ones
+    stands for its own period, not the gap's), and the newest one is held for `hold` past its stamp (one period of a 50 Hz IMU by default,
     20 ms: longer holds spread a contact's one-sample spike). An interval no sample
     covers (an IMU that stopped, a gap in its stream) falls back to the constant-velocity model
     of KalmanVelocityEstimator with `accel_noise`; with no acceleration at all the [x, v] part is
@@ -332,6 +333,7 @@ class InertialVelocityEstimator(KalmanVelocityEstimator):
     BIAS0_SD = 0.5          # m/s^2
     MAX_SAMPLES = 512       # accelerometer samples kept (10 s at 50 Hz)
     HISTORY_S = 0.5         # s of filter states kept for late samples
+    JUMP_M = 0.10           # m: a larger innovation is a displacement; the filter starts again there
 
     def __init__(self, accel_noise: float = 1.0, position_noise: float = 0.001, max_gap: float = 0.5,
                  imu_accel_noise: float = 0.01, bias_walk: float = 1e-3, accel_timeout: float = 0.1,
@@ -346,8 +348,10 @@ class InertialVelocityEstimator(KalmanVelocityEstimator):
         self.min_samples = max(2, int(min_samples))
         self.hold = float(hold)
         self.accel: deque = deque(maxlen=self.MAX_SAMPLES)      # (t, a)
+        self._intervals: deque = deque(maxlen=16)               # the last intervals between samples (s)
         self.bias, self.bias_var = 0.0, self.BIAS0_SD ** 2
         self.inertial_s = self.blind_s = 0.0    # time integrated with / without the accelerometer
+        self.jumps = 0                          # displacements the filter started again after
         self.reset()
 
     def reset(self) -> None:
@@ -370,8 +374,11 @@ class InertialVelocityEstimator(KalmanVelocityEstimator):
             if t == self.accel[-1][0]:
                 return False
             self.accel.clear()
-        start = max(t - self.accel_timeout, self.accel[-1][0]) if self.accel else t - self.accel_timeout
+            self._intervals.clear()
+        start = max(t - self._span(), self.accel[-1][0]) if self.accel else t - self._span()
         self.accel.append((float(t), float(a)))
+        if len(self.accel) >= 2:
+            self._intervals.append(self.accel[-1][0] - self.accel[-2][0])
         if self.last_t is not None and start < self.last_t:     # an image already used this interval
             self._dirty_from = start if self._dirty_from is None else min(self._dirty_from, start)
         return True
@@ -385,15 +392,25 @@ class InertialVelocityEstimator(KalmanVelocityEstimator):
         last = self.accel[-1][0]
         return last < t <= last + live
 
+    def _span(self) -> float:
+        """How far back from its stamp a sample may cover: accel_timeout, or, once the stream's
+        period is known (the median of its last intervals), 1.5 periods when that is shorter. A
+        sample after a gap (samples lost on the way, a node too busy to take them) then stands for
+        its own period, not for the whole gap: the gap runs as the constant-velocity filter."""
+        if len(self._intervals) >= 4:
+            return min(self.accel_timeout, 1.5 * float(np.median(self._intervals)))
+        return self.accel_timeout
+
     def _segments(self, t0: float, t1: float):
         """(dt, a or None) pieces of (t0, t1]: a where a sample covers the piece, None where none does."""
         out, edge = [], t0
         prev_t = None
+        span = self._span()
         for ts, a in self.accel:
             if ts <= t0:
                 prev_t = ts
                 continue
-            start = max(ts - self.accel_timeout, prev_t if prev_t is not None else -math.inf)
+            start = max(ts - span, prev_t if prev_t is not None else -math.inf)
             if start > edge:                       # a gap before this sample's interval
                 out.append((min(start, t1) - edge, None))
                 edge = min(start, t1)
@@ -444,9 +461,19 @@ class InertialVelocityEstimator(KalmanVelocityEstimator):
             self.accel.popleft()
 
     def _step(self, t: float, x: float) -> None:
-        """Predict from last_t to t with the samples known now, correct with x."""
+        """Predict from last_t to t with the samples known now, correct with x. An innovation over
+        JUMP_M is a displacement, not motion (the machine placed by hand, a twin that puts it back
+        for the next attempt; at 0.5 m/s a frame moves 2 cm): the filter starts again at x, with the
+        bias it had, instead of reading the jump as acceleration and learning it as bias."""
         for dt, a in self._segments(self.last_t, t):
             self._predict(dt, a)
+        if abs(x - self.x[0]) > self.JUMP_M:
+            self.jumps += 1
+            bias, bias_var = float(self.x[2]), float(self.P[2, 2])
+            self.x = np.array([x, 0.0, bias])
+            self.P = np.diag([self.r, self.V0_SD ** 2, bias_var])
+            self.last_t, self.n = t, 1
+            return
         s = self.P[0, 0] + self.r
         k = self.P[:, 0] / s
         self.x = self.x + k * (x - self.x[0])
