@@ -21,7 +21,12 @@ KEYS = ("latency_p50_ms", "latency_p99_ms", "latency_max_ms", "camera_to_decisio
 @pytest.mark.parametrize("argv, expected", [
     (["--imu", "500"], "--imu 500: expected an IMU rate in [1, 200] Hz"),
     (["--imu", "0.5"], "--imu 0.5: expected an IMU rate in [1, 200] Hz"),
-    (["--duration", "0"], "--duration must be positive"),
+    (["--duration", "0"], "--duration must be a positive number of seconds"),
+    (["--duration", "nan"], "--duration must be a positive number of seconds"),
+    (["--duration", "inf"], "--duration must be a positive number of seconds"),
+    (["--timeout", "-5"], "--timeout must be a positive number of seconds"),
+    (["--slopes", "100"], "--slopes '100': expected degrees in the config's pile range [15, 30]"),
+    (["--no-imu", "--imu", "100"], "not allowed with argument"),
 ])
 def test_bad_arguments_are_refused_before_anything_starts(argv, expected, capsys):
     from lhd_loading_ros.cli.bench_twin import main

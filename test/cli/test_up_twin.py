@@ -45,6 +45,8 @@ def test_one_twin_attempt_end_to_end(tmp_path):
     assert proc.returncode == 0, proc.stderr[-3000:]
     out = json.loads(proc.stdout.strip().splitlines()[-1])
     assert len(out["attempts"]) == 1
+    # the machine it was: the twin's default has the IMU (50 Hz), no tilt limit asked for
+    assert (out["imu"], out["imu_hz"], out["max_tilt_deg"]) == (True, 50.0, None), out
     rec = out["attempts"][0]
     assert rec["outcome"] in ("success", "failure", "timeout", "estop", "lost_input", "aborted")
     assert rec["slope_truth_deg"] == pytest.approx(20.0, abs=1e-6)
@@ -70,3 +72,22 @@ def test_one_twin_attempt_end_to_end(tmp_path):
           f"{rec['vx_rms_at_best_lag']} m/s; alpha {rec['alpha_err_deg']} deg; x_max "
           f"{rec['x_max_err_m']} m; mass {mass:.2f} vs {rec['mass_truth_kg']} kg")
     assert wall < 120.0
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["--slopes", "100"], "--slopes 100: outside the config's pile range [15, 30] deg"),
+    (["--slopes", "20", "nan"], "--slopes nan: outside the config's pile range"),
+    (["--imu", "90"], "--imu 90: expected a tilt limit in [0, 45] deg"),
+    (["--imu", "nan"], "--imu nan: expected a tilt limit in [0, 45] deg"),
+    (["--no-imu", "--imu", "5"], "not allowed with argument"),
+    (["--episodes", "0"], "--episodes must be >= 1"),
+])
+def test_bad_arguments_are_refused_before_anything_starts(argv, expected, capsys):
+    """Refused by the parser (exit 2, the reason on stderr) before any node, pty or run folder."""
+    from lhd_loading_ros.cli.up_twin import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    assert expected in capsys.readouterr().err
+

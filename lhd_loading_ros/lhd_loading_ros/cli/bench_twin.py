@@ -271,12 +271,13 @@ def main(argv=None) -> int:
     ap.add_argument("--trigger", choices=("odom", "timer"), default="odom",
                     help="the policy node's trigger (timer: the 10 Hz steady timer, for comparison)")
     ap.add_argument("--camera-fps", type=float, default=30.0, help="the simulated camera's frame rate")
-    ap.add_argument("--imu", dest="imu_hz", type=float, nargs="?", const=50.0, default=50.0, metavar="HZ",
+    imu = ap.add_mutually_exclusive_group()
+    imu.add_argument("--imu", dest="imu_hz", type=float, nargs="?", const=50.0, default=50.0, metavar="HZ",
                     help="the default: the twin's machine has an IMU on its rear frame (/lhd/imu at HZ, 50 by default, "
                          "as in `lhd up twin`): the ArUco node places the machine with its tilt and integrates its "
                          "acceleration, holding each image's odometry back for the sample that covers it "
                          "(imu_accel_wait)")
-    ap.add_argument("--no-imu", dest="imu_hz", action="store_const", const=0.0,
+    imu.add_argument("--no-imu", dest="imu_hz", action="store_const", const=0.0,
                     help="the paper's machine, without an IMU (`lhd up twin --no-imu`)")
     ap.add_argument("--attempt-timeout", type=float, default=10.0, help="s, the supervisor's (the paper: 10)")
     ap.add_argument("--reset-delay", type=float, default=1.5, help="s from an ended attempt to the twin's new pile")
@@ -288,12 +289,25 @@ def main(argv=None) -> int:
     ap.add_argument("--verbose", action="store_true", help="node logs on this terminal")
     ap.add_argument("--json", action="store_true", help="last line: the figures as one JSON object")
     args = ap.parse_args(argv)
-    if args.duration <= 0:
-        ap.error(f"--duration must be positive, got {args.duration}")
+    if not (math.isfinite(args.duration) and args.duration > 0):
+        ap.error(f"--duration must be a positive number of seconds, got {args.duration}")
+    if args.timeout and not (math.isfinite(args.timeout) and args.timeout > 0):
+        ap.error(f"--timeout must be a positive number of seconds (0: the default), got {args.timeout}")
     if args.camera_fps <= 0:
         ap.error(f"--camera-fps must be positive, got {args.camera_fps}")
+    from lhd_loading_ros.cli.up_twin import slope_range_deg
+
+    try:
+        slopes = [float(v) for v in str(args.slopes).replace(",", " ").split()]
+    except ValueError:
+        slopes = []
+    lo, hi = slope_range_deg(args.config)
+    if not slopes or not all(math.isfinite(v) and lo <= v <= hi for v in slopes):
+        ap.error(f"--slopes {args.slopes!r}: expected degrees in the config's pile range [{lo:g}, {hi:g}], e.g. 20 "
+                 "or '15,30'")
+    args.slopes = ",".join(f"{v:g}" for v in slopes)
     if not (args.imu_hz == 0.0 or 1.0 <= args.imu_hz <= 200.0):
-        ap.error(f"--imu {args.imu_hz:g}: expected an IMU rate in [1, 200] Hz (the twin's imu_hz)")
+        ap.error(f"--imu {args.imu_hz:g}: expected an IMU rate in [1, 200] Hz (the twin's imu_hz; --no-imu: none)")
     if args.params_file and not Path(args.params_file).is_file():
         ap.error(f"--params-file {args.params_file!r} does not exist")
     args.timeout = args.timeout or 60.0 + 3.0 * args.duration
