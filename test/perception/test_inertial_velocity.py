@@ -293,6 +293,23 @@ def test_a_sample_after_lost_ones_stands_for_its_own_period_only():
     assert [(round(dt, 9), a) for dt, a in few._segments(0.04, 0.14)] == [(0.1, 5.0)]
 
 
+def rest_and_jump(est, frames, bias, jump_at=120, seed=4):
+    """A machine at rest at x = -0.5, put to x = -1.6 at frame `jump_at` (30 fps), a 50 Hz
+    accelerometer reading only its bias and noise; (velocity, bias estimate) after each frame."""
+    rng = np.random.default_rng(seed)
+    x, out = -0.5, []
+    for k in range(1, frames + 1):
+        t = k / FPS
+        while not est.accel or est.accel[-1][0] < t:
+            ta = (est.accel[-1][0] if est.accel else 0.0) + 0.02
+            est.add_accel(ta, bias + rng.normal(0.0, 0.05))
+        if k == jump_at:
+            x = -1.6
+        est.add(t, x + rng.normal(0.0, 0.0005))
+        out.append((est.velocity(), est.bias_estimate()))
+    return out
+
+
 def test_a_machine_put_elsewhere_restarts_the_filter_and_keeps_its_bias():
     """Between attempts the machine is put back by hand (the twin: in one step) while the camera
     and the IMU run: x jumps 1.1 m in one frame and the accelerometer feels nothing. Read as
@@ -301,34 +318,13 @@ def test_a_machine_put_elsewhere_restarts_the_filter_and_keeps_its_bias():
     starts again at the new x: no speed for two frames, then 0, and the bias is the one it had."""
     bias = 0.1
     est = InertialVelocityEstimator(1.0, 0.0005, max_gap=0.5, imu_accel_noise=0.01)
-    rng = np.random.default_rng(4)
-    x, out = -0.5, []
-    for k in range(1, 241):                      # 8 s at rest, the bias learned; the jump at 4 s
-        t = k / FPS
-        while est.accel and est.accel[-1][0] < t or not est.accel:
-            ta = (est.accel[-1][0] if est.accel else 0.0) + 0.02
-            est.add_accel(ta, bias + rng.normal(0.0, 0.05))
-        if k == 120:
-            x = -1.6
-        est.add(t, x + rng.normal(0.0, 0.0005))
-        out.append((t, est.velocity(), est.bias_estimate()))
+    out = rest_and_jump(est, 240, bias)          # 8 s at rest, the bias learned; the jump at 4 s
     assert est.jumps == 1
-    assert out[119][1] is None and out[120][1] is None       # the jump's frame and the next: no speed
-    assert max(abs(v) for t, v, b in out[121:]) < 0.05      # at rest: the noise of the filter at rest (0.03)
-    assert all(abs(b - bias) < 0.05 for t, v, b in out[200:])
+    assert out[119][0] is None and out[120][0] is None       # the jump's frame and the next: no speed
+    assert max(abs(v) for v, b in out[121:]) < 0.05          # at rest: the noise of the filter at rest (0.03)
+    assert all(abs(b - bias) < 0.05 for v, b in out[200:])
     plain = InertialVelocityEstimator(1.0, 0.0005, max_gap=0.5, imu_accel_noise=0.01)
     plain.JUMP_M = math.inf                      # without the restart: the jump read as motion
-    rng = np.random.default_rng(4)
-    x, after = -0.5, []
-    for k in range(1, 131):
-        t = k / FPS
-        while plain.accel and plain.accel[-1][0] < t or not plain.accel:
-            ta = (plain.accel[-1][0] if plain.accel else 0.0) + 0.02
-            plain.add_accel(ta, bias + rng.normal(0.0, 0.05))
-        if k == 120:
-            x = -1.6
-        plain.add(t, x + rng.normal(0.0, 0.0005))
-        if k >= 120:
-            after.append((plain.velocity(), plain.bias_estimate()))
+    after = rest_and_jump(plain, 130, bias)[119:]
     assert max(abs(v) for v, b in after) > 5.0                # metres per second of a machine at rest
     assert max(abs(b - bias) for v, b in after) > 2.0         # and a bias of metres per second squared
