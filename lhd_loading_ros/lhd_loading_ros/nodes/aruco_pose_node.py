@@ -187,7 +187,7 @@ class ArucoPoseNode(Node):
         if self.use_imu:    # first: with an IMU sample and an image both waiting, the executor serves the IMU first
             # best effort (matches any IMU driver) but 50 deep: while an image is being processed the
             # samples wait instead of being dropped (sensor-data QoS keeps 5: 0.1 s at 50 Hz; a busy
-            # 2-core twin lost a quarter of them, docs/twin.md runs 36-)
+            # 2-core twin lost a quarter of them, docs/twin.md runs 36-38)
             imu_qos = QoSProfile(depth=50, reliability=ReliabilityPolicy.BEST_EFFORT, history=HistoryPolicy.KEEP_LAST)
             self.create_subscription(Imu, f"{ns}/imu", self._on_imu, imu_qos)
         self.create_subscription(CameraInfo, p["camera_info_topic"], self._on_info, qos_profile_sensor_data)
