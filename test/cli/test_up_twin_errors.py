@@ -105,3 +105,13 @@ def test_success_with_the_machine_pitch_rejudges_weighed_attempts_by_the_paper_t
                   "mass_err_kg": None, "drift_agree_front": None, "drift_agree_rear": None})
     text = format_errors(records, error_summary(records))
     assert "turns: #1, #3" in text and "2 / 6 = 0.33" in text
+
+
+def test_odometry_age_by_hand():
+    """The median and the oldest age (ms) of the odometry stamped within the attempt only."""
+    from lhd_loading_ros.cli.up_twin import odom_age_ms
+
+    ages = [(0.9, 0.500), (1.0, 0.020), (1.1, 0.030), (1.2, 0.160), (2.1, 0.900)]
+    p50, mx = odom_age_ms(ages, 1.0, 2.0)
+    assert p50 == pytest.approx(30.0) and mx == pytest.approx(160.0)
+    assert odom_age_ms(ages, 3.0, 4.0) == (None, None)

@@ -77,6 +77,16 @@ def rms(xs) -> float:
     return float(np.sqrt(np.mean(xs ** 2))) if xs.size else float("nan")
 
 
+def odom_age_ms(ages: list[tuple[float, float]], t0: float, t1: float) -> tuple[float | None, float | None]:
+    """(median, max) in ms of the odometry's age when it reached this process (arrival minus the
+    image's stamp) for the images stamped in [t0, t1]: how old the v_x was that the policy acted on.
+    The v_x error is scored at each estimate's stamp and cannot show it."""
+    a = [age for t, age in ages if t0 <= t <= t1]
+    if not a:
+        return None, None
+    return float(np.median(a)) * 1e3, float(max(a)) * 1e3
+
+
 def vx_errors(est: list[tuple[float, float]], truth: list[tuple[float, float]], t0: float, t1: float,
               lag: float = 0.0) -> np.ndarray:
     """v_x estimate minus truth for each estimate stamped in [t0, t1], the truth (stamp, v_x)
@@ -218,6 +228,11 @@ def format_errors(records: list[dict], summary: dict) -> str:
     if lags:
         lines.append(f"  (the ArUco v_x lags the truth: best-fitting delay {np.mean([a for a, _ in lags]):.2f} s "
                      f"mean; RMS at that delay worst {max(b for _, b in lags):.3f} m/s)")
+    ages = [(r["odom_age_p50_ms"], r["odom_age_max_ms"]) for r in records if r.get("odom_age_p50_ms") is not None]
+    if ages:
+        worst = max(ages, key=lambda a: a[0])
+        lines.append(f"  (odometry age on arrival, image stamp to here: median per attempt {min(a for a, _ in ages):.0f}-"
+                     f"{worst[0]:.0f} ms, oldest {max(b for _, b in ages):.0f} ms)")
     lines.append(bound("alpha_err_deg", "deg"))
     lines.append(bound("x_max_err_m", "m"))
     m = s["mass_err_kg"]
@@ -270,6 +285,7 @@ class Watch:
         self.recording = False
         self.odom: list[tuple[float, float]] = []
         self.odom_arrivals: list[float] = []
+        self.odom_age: list[tuple[float, float]] = []   # (image stamp, arrival here - stamp), s
         self.truth_odom: list[tuple[float, float]] = []
         self.truth_pose: list[tuple[float, tuple, tuple]] = []      # (stamp, position, quaternion w x y z)
         self.truth_joints: list[tuple[float, dict]] = []           # (stamp, {name: (position, velocity)})
@@ -293,10 +309,12 @@ class Watch:
                     self.preflight = st
 
         def on_odom(m):
-            self.odom_arrivals.append(now())
+            t = now()
+            self.odom_arrivals.append(t)
             del self.odom_arrivals[:-50]
             if self.recording:
                 self.odom.append((stamp(m.header), float(m.twist.twist.linear.x)))
+                self.odom_age.append((stamp(m.header), t - stamp(m.header)))
 
         def on_truth_odom(m):
             if self.recording:
@@ -372,7 +390,7 @@ class Watch:
         return len(recent) >= STEADY_N and t - recent[-1] <= STEADY_GAP_S
 
     def start_recording(self):
-        self.odom, self.truth_odom, self.truth_drift = [], [], []
+        self.odom, self.odom_age, self.truth_odom, self.truth_drift = [], [], [], []
         self.truth_pose, self.truth_joints = [], []
         self.flags = {"front": [], "rear": []}
         self.recording = True
@@ -549,6 +567,8 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                        "alpha_est_deg": math.degrees(slope_est) if slope_est is not None else None,
                        "vx_rms": rms(errs) if errs.size else None, "vx_bias": float(np.mean(errs)) if errs.size else None,
                        "vx_n": int(errs.size),
+                       "odom_age_p50_ms": odom_age_ms(w.odom_age, t_run, t_end)[0],
+                       "odom_age_max_ms": odom_age_ms(w.odom_age, t_run, t_end)[1],
                        "vx_best_lag_s": best_lag(w.odom, w.truth_odom, t_run, t_end)[0],
                        "vx_rms_at_best_lag": best_lag(w.odom, w.truth_odom, t_run, t_end)[1],
                        "x_max_est_m": zones_est[1], "x_max_truth_m": zones_truth[1] if zones_truth else None,

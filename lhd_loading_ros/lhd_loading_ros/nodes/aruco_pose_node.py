@@ -130,8 +130,9 @@ class ArucoPoseNode(Node):
             Param("imu_accel_wait", 0.025, "imu_acceleration: an image whose instant the live accelerometer has not "
                   "covered yet waits at most this long (s, wall time) for the sample that covers it before its v_x is "
                   "filtered and its odometry published (the pose is published at once); 0: never wait, the newest "
-                  "sample is held (imu_accel_hold). Counted from the end of the image's detection; adds at most "
-                  "this to the camera-to-command latency (about one IMU period where the IMU is live)",
+                  "sample is held (imu_accel_hold). Counted from the end of the image's detection; a node behind its "
+                  "inputs first takes the IMU samples already queued, so a wait that finds none covering ends one "
+                  "period later (at most twice this)",
                   lo=0.0, hi=0.5, on_change=self._set_imu_accel_wait),
             Param("wheelbase", 0.80, "use_imu: the front axle's distance ahead of base_link (the rear axle), m: "
                   "the pivot of a nose-down tilt", lo=0.01, hi=20.0),
@@ -161,6 +162,7 @@ class ArucoPoseNode(Node):
         self.pending = None                     # (stamp, x, T_base) of an image waiting for the accelerometer
         self.imu_waits = self.imu_wait_timeouts = 0
         self._wait_timer = None                 # one-shot (steady clock) ending such a wait
+        self._deadline_passed = False           # its first expiry came (queued IMU samples may still end it)
         self.imu_deadband = math.radians(p["imu_deadband_deg"])
         self.marker_in_base = np.linalg.inv(self.T_marker_base)[:3, 3]   # the marker's centre in base_link
         self.imu: deque = deque(maxlen=32)      # (stamp s, roll, pitch) of recent IMU samples
@@ -324,6 +326,7 @@ class ArucoPoseNode(Node):
         that came (after the wait, the newest one held, as without waiting)."""
         if self._wait_timer is not None:
             self._wait_timer.cancel()
+        self._deadline_passed = False
         if self.pending is None:
             return
         stamp, x, T_base = self.pending
@@ -334,6 +337,13 @@ class ArucoPoseNode(Node):
             self._publish_odom(stamp, T_base, v)
 
     def _on_wait_timeout(self) -> None:
+        """The wait's deadline. rclpy runs a ready timer before the subscriptions of the same
+        wake-up, so IMU samples already queued (a node behind its inputs) have not been taken yet:
+        the first expiry only marks the deadline, and those samples, taken right after it, may
+        still end the wait; the next expiry (a period later: the IMU stopped) ends it regardless."""
+        if self.pending is not None and not self._deadline_passed:
+            self._deadline_passed = True
+            return
         self._finish_pending(timed_out=True)
 
     def _speed_and_odom(self, stamp, x: float, T_base: np.ndarray) -> None:
