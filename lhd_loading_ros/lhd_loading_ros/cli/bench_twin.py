@@ -272,7 +272,9 @@ def main(argv=None) -> int:
                     help="the policy node's trigger (timer: the 10 Hz steady timer, for comparison)")
     ap.add_argument("--camera-fps", type=float, default=30.0, help="the simulated camera's frame rate")
     imu = ap.add_mutually_exclusive_group()
-    imu.add_argument("--imu", dest="imu_hz", type=float, nargs="?", const=50.0, default=50.0, metavar="HZ",
+    from lhd_loading_ros.cli.up_twin import TWIN_IMU_HZ
+
+    imu.add_argument("--imu", dest="imu_hz", type=float, nargs="?", const=TWIN_IMU_HZ, default=TWIN_IMU_HZ, metavar="HZ",
                     help="the default: the twin's machine has an IMU on its rear frame (/lhd/imu at HZ, 50 by default, "
                          "as in `lhd up twin`): the ArUco node places the machine with its tilt and integrates its "
                          "acceleration, holding each image's odometry back for the sample that covers it "

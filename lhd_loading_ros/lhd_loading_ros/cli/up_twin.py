@@ -66,6 +66,7 @@ ARM_RETRY_S = 1.0          # s between /lhd/arm calls while the preflight refuse
 STEADY_S, STEADY_N, STEADY_GAP_S = 1.0, 5, 0.25
 ZONES_CAUGHT_UP_M = 0.08            # m: the stack's zones are the current pile's (Watch.zones_caught_up)
 EPISODE_SUBSCRIBERS = 5
+TWIN_IMU_HZ = 50.0                  # the twin machine's IMU rate (`lhd up twin`, `lhd bench twin`)
 
 
 class Interrupted(Exception):
@@ -434,7 +435,7 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                    "seed": args.seed, "reset_delay": args.reset_delay, "camera_fps": args.camera_fps,
                    "markers_hz": args.markers_hz}
     if args.imu is not None:
-        twin_params["imu_hz"] = 50.0
+        twin_params["imu_hz"] = TWIN_IMU_HZ
     if real_args.config:
         twin_params["config"] = real_args.config
     for kv in args.twin_param:
@@ -494,8 +495,10 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                 if name == "supervisor" and args.imu:     # a tilt limit asked for; else the parameter file's
                     params = {**params, "max_tilt_deg": float(args.imu)}
                 children.append(Child(name, module, params, log_dir, quiet, [*ros_args, *extra]))
+            machine = (f"with an IMU ({float(twin_params['imu_hz']):g} Hz)" if args.imu is not None
+                       else "without an IMU (--no-imu)")
             say(f"lhd up twin: twin + {len(children) - 1} nodes of `lhd up real` ({real_args.controller} controller) "
-                f"on {link}; machine {'with an IMU (50 Hz)' if args.imu is not None else 'without an IMU (--no-imu)'}; "
+                f"on {link}; machine {machine}; "
                 f"{total} attempt(s) on slopes {', '.join(f'{s:g}' for s in slopes)} deg; run folder "
                 f"{run_dir}; logs in {log_dir}")
 
@@ -560,15 +563,14 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                 say(f"attempt {number}: weighed {float(weighed['loaded_mass']):.2f} kg (twin {truth_mass:.2f} kg), "
                     f"SL {weighed.get('success_level', '?')}, success {weighed.get('success', '?')}")
                 errs = vx_errors(w.odom, w.truth_odom, t_run, t_end)
+                age_p50, age_max = odom_age_ms(w.odom_age, t_run, t_end)
                 truth_flags = w.truth_drift
                 rec = {"attempt": int(number), "outcome": kv_end.get("state"), "reason": kv_end.get("reason", ""),
                        "elapsed_s": float(kv_end.get("elapsed_s", "nan")),
                        "slope_truth_deg": math.degrees(slope_truth) if slope_truth is not None else None,
                        "alpha_est_deg": math.degrees(slope_est) if slope_est is not None else None,
                        "vx_rms": rms(errs) if errs.size else None, "vx_bias": float(np.mean(errs)) if errs.size else None,
-                       "vx_n": int(errs.size),
-                       "odom_age_p50_ms": odom_age_ms(w.odom_age, t_run, t_end)[0],
-                       "odom_age_max_ms": odom_age_ms(w.odom_age, t_run, t_end)[1],
+                       "vx_n": int(errs.size), "odom_age_p50_ms": age_p50, "odom_age_max_ms": age_max,
                        "vx_best_lag_s": best_lag(w.odom, w.truth_odom, t_run, t_end)[0],
                        "vx_rms_at_best_lag": best_lag(w.odom, w.truth_odom, t_run, t_end)[1],
                        "x_max_est_m": zones_est[1], "x_max_truth_m": zones_truth[1] if zones_truth else None,

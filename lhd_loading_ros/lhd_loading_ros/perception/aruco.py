@@ -375,7 +375,8 @@ class InertialVelocityEstimator(KalmanVelocityEstimator):
                 return False
             self.accel.clear()
             self._intervals.clear()
-        start = max(t - self._span(), self.accel[-1][0]) if self.accel else t - self._span()
+        span = self._span()
+        start = max(t - span, self.accel[-1][0]) if self.accel else t - span
         self.accel.append((float(t), float(a)))
         if len(self.accel) >= 2:
             self._intervals.append(self.accel[-1][0] - self.accel[-2][0])
