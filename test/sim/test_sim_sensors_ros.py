@@ -444,8 +444,17 @@ def test_aruco_node_with_the_imu_acceleration_follows_a_stop_at_the_pile(ros, si
         assert spin_until(ros, lambda: ros.count_subscribers("/camera/image_raw") >= 2 and
                           ros.count_subscribers("/lhd/imu") >= 1 and ros.count_subscribers("/cv/imu") >= 1, 30.0), \
             (aided.log(), plain.log())
+        # one orientation before the first image, so both nodes place the machine with the IMU's
+        # tilt from their first image on (a node that sees the IMU only from its second image
+        # switches v_x's source and restarts it: which image that is would depend on the arrival order)
+        first = Imu()
+        stamp(first, t0 - 0.02)
+        first.orientation.w = 1.0
+        first.linear_acceleration_covariance[0] = first.angular_velocity_covariance[0] = -1.0
         for _ in range(5):
             pub_info.publish(info)
+            pub_imu.publish(first)
+            pub_imu_cv.publish(first)
             spin_until(ros, lambda: False, 0.1)
         k_img = 0
         for k in range(int(dur * 50) + 1):
