@@ -260,14 +260,36 @@ def payload_update(st_v, st_m, add_v, add_m, cap):
 
 # layout of the per-episode state vector used by fee_update
 (ST_CUT_X, ST_CUT_Z, ST_NEXT_CENTER, ST_TIP_PREV_X, ST_W_IDEAL, ST_FH, ST_FZ, ST_RAKE, ST_ENGAGED, ST_V_CUT,
- ST_V_BUCKET, ST_M_BUCKET, ST_SPILLED, ST_ALPHA_S) = range(14)
-ST_SIZE = 14
+ ST_V_BUCKET, ST_M_BUCKET, ST_SPILLED, ST_ALPHA_S, ST_TIP_PREV_Z, ST_MOBILISED) = range(16)
+ST_SIZE = 16
 
 
 # layout of the parameter vector of fee_update (scalars packed to keep the call cheap)
 (P_SID_TIP, P_BID_BUCKET, P_TID_FEE, P_BUCKET_MASS0, P_LOADED_FRACTION, P_FEE_DT, P_FEE_MIN_SPEED, P_DX, P_DZ, P_L,
- P_H, P_W, P_Q, P_CA, P_RAKE_ATTACK, P_RAKE_LO, P_RAKE_HI) = range(17)
-P_SIZE = 17
+ P_H, P_W, P_Q, P_CA, P_RAKE_ATTACK, P_RAKE_LO, P_RAKE_HI, P_BY_MOTION) = range(18)
+P_SIZE = 18
+
+
+@njit(cache=True)
+def wedge_mobilisation(dx_tip, dz_tip, alpha, fee_dt, v_min):
+    """Share (0-1) of the lip's passive wedge that the tip's last motion (dx_tip, dz_tip over
+    fee_dt) mobilises. The wedge of the FEE lies ahead of the lip ALONG the face (direction
+    t = (cos alpha, sin alpha) in the x-z plane, alpha the face's slope): a passive wedge resists
+    only a motion that pushes it, i.e. the component of the motion along t. A tip at rest (or
+    creeping, speed below v_min) keeps the whole wedge, so a stalled bucket is held without creep;
+    above v_min the share is the motion's direction cosine along t, clipped at 0: pushing along the
+    face 1, lifting straight up out of a 30 deg face sin(30) = 0.5, lifting out of level ground,
+    curling the lip up and back or reversing 0. Blended linearly in the speed between the two."""
+    sp = math.sqrt(dx_tip * dx_tip + dz_tip * dz_tip) / fee_dt
+    if sp <= 0.0:
+        return 1.0
+    w = sp / v_min
+    if w > 1.0:
+        w = 1.0
+    c = (dx_tip * math.cos(alpha) + dz_tip * math.sin(alpha)) / (sp * fee_dt)
+    if c < 0.0:
+        c = 0.0
+    return 1.0 - w + w * c
 
 
 @njit(cache=True)
@@ -309,8 +331,11 @@ def fee_update(site_xpos, site_xmat, xipos, xfrc, tendon_fl, body_mass, st, par,
             body_mass[bid_bucket] = bucket_mass0 + m
     st[ST_CUT_X] = x
     st[ST_CUT_Z] = z
-    v_tip = (x - st[ST_TIP_PREV_X]) / fee_dt
+    dx_tip = x - st[ST_TIP_PREV_X]
+    dz_tip = z - st[ST_TIP_PREV_Z]
+    v_tip = dx_tip / fee_dt
     st[ST_TIP_PREV_X] = x
+    st[ST_TIP_PREV_Z] = z
     st[ST_RAKE] = out[OUT_RAKE]
     st[ST_ENGAGED] = out[OUT_ENGAGED]
     st[ST_ALPHA_S] = out[OUT_ALPHA_S]
@@ -321,7 +346,11 @@ def fee_update(site_xpos, site_xmat, xipos, xfrc, tendon_fl, body_mass, st, par,
         st[ST_FH] = 0.0
         st[ST_FZ] = 0.0
         return
-    tendon_fl[tid_fee] = out[OUT_FH]
+    mob = 1.0
+    if par[P_BY_MOTION] != 0.0:
+        mob = wedge_mobilisation(dx_tip, dz_tip, out[OUT_ALPHA_S], fee_dt, fee_min_speed)
+    st[ST_MOBILISED] = mob
+    tendon_fl[tid_fee] = mob * out[OUT_FH]
     ramp = v_tip / fee_min_speed
     if ramp < 0.0:
         ramp = 0.0
@@ -334,5 +363,5 @@ def fee_update(site_xpos, site_xmat, xipos, xfrc, tendon_fl, body_mass, st, par,
     xfrc[bid_bucket, 3] = -ramp * out[OUT_MOMENT_X]
     xfrc[bid_bucket, 4] = -(x - xipos[bid_bucket, 0]) * fz
     xfrc[bid_bucket, 5] = 0.0
-    st[ST_FH] = out[OUT_FH]
+    st[ST_FH] = mob * out[OUT_FH]
     st[ST_FZ] = fz

@@ -29,7 +29,8 @@ from .fee import BETA_GRID, slice_force
 from .fee_kernel import (OUT_SIZE, P_BID_BUCKET, P_BUCKET_MASS0, P_CA, P_DX, P_DZ, P_FEE_DT, P_FEE_MIN_SPEED, P_H, P_L,
                          P_LOADED_FRACTION, P_Q, P_RAKE_ATTACK, P_RAKE_HI, P_RAKE_LO, P_SID_TIP, P_SIZE, P_TID_FEE, P_W,
                          ST_ALPHA_S, ST_CUT_X, ST_CUT_Z, ST_ENGAGED, ST_FH, ST_FZ, ST_M_BUCKET, ST_NEXT_CENTER, ST_RAKE,
-                         ST_SIZE, ST_SPILLED, ST_TIP_PREV_X, ST_V_BUCKET, ST_V_CUT, ST_W_IDEAL, beta_tables, fee_update)
+                         ST_SIZE, ST_SPILLED, ST_TIP_PREV_X, ST_TIP_PREV_Z, ST_V_BUCKET, ST_V_CUT, ST_W_IDEAL, P_BY_MOTION,
+                         ST_MOBILISED, beta_tables, fee_update, wedge_mobilisation)
 from .mjcf import attack_geometry, build_mjcf
 from .bucket_body import BucketBody, bucket_body_update
 
@@ -74,6 +75,7 @@ class LhdSimulator:
         self.rake_lo = math.radians(pc["rake_min_deg"])
         self.rake_hi = math.radians(pc["rake_max_deg"])
         self.fee_min_speed = pc["fee_min_speed"]
+        self.fee_by_motion = int(pc.get("fee_wedge_by_motion", 0))
         self.attack_timeout = sc["attack_timeout"]
         self.bucket_width = cfg["machine"]["bucket_width"]
         self.wheel_radius = cfg["machine"]["wheel_radius"]
@@ -183,8 +185,10 @@ class LhdSimulator:
         y_lip = float(d.site_xpos[self.sid_tip][1])
         self._slices = self.pile.slices_in(y_lip - self.bucket_width / 2, y_lip + self.bucket_width / 2)
         self._tip_prev_x = float(d.site_xpos[self.sid_tip][0])
+        self._tip_prev_z = float(d.site_xpos[self.sid_tip][2])
         self._cut_prev_x = self._tip_prev_x
-        self._cut_prev_z = float(d.site_xpos[self.sid_tip][2])
+        self._cut_prev_z = self._tip_prev_z
+        self._mobilised = 1.0
         self._next_center = (math.floor(self._cut_prev_x / self.pile.dx - 0.5) + 1.5) * self.pile.dx
         self._n_slices = len(self._slices)
         self._fee_h = self._fee_v = 0.0
@@ -342,8 +346,9 @@ class LhdSimulator:
             if add_v > 0.0:
                 self._v_bucket, self._m_bucket = v, m
                 self.model.body_mass[self.bid_bucket] = self.bucket_mass0 + m
-        v_tip = (x - self._tip_prev_x) / self.fee_dt
-        self._tip_prev_x = x
+        dx_tip, dz_tip = x - self._tip_prev_x, z - self._tip_prev_z
+        v_tip = dx_tip / self.fee_dt
+        self._tip_prev_x, self._tip_prev_z = x, z
         xfrc = d.xfrc_applied[self.bid_bucket]
         xa = x + 0.5 * pile.dx
         if x < 0.0 or xa >= pile.L or self._n_slices == 0:
@@ -369,7 +374,11 @@ class LhdSimulator:
             return
         fv = np.array(fv)
         # Horizontal: dry friction on the x-tendon (resists motion up to sum F sin(rho_w+delta), no creep).
-        fh_sum = float(np.sum(fh))
+        mob = 1.0
+        if self.fee_by_motion:  # the wedge resists only what pushes it along the face (fee_kernel.wedge_mobilisation)
+            mob = wedge_mobilisation(dx_tip, dz_tip, float(np.mean(alphas)), self.fee_dt, self.fee_min_speed)
+        self._mobilised = mob
+        fh_sum = mob * float(np.sum(fh))
         self.model.tendon_frictionloss[self.tid_fee] = fh_sum
         # Vertical: F cos(rho_w+delta) downward, mobilised while the tip advances into the pile.
         ramp = min(max(v_tip / self.fee_min_speed, 0.0), 1.0)
@@ -393,7 +402,8 @@ class LhdSimulator:
         m, d, pile = self.model, self.data, self.pile
         st = np.zeros(ST_SIZE)
         st[ST_CUT_X], st[ST_CUT_Z] = self._cut_prev_x, self._cut_prev_z
-        st[ST_NEXT_CENTER], st[ST_TIP_PREV_X] = self._next_center, self._tip_prev_x
+        st[ST_NEXT_CENTER], st[ST_TIP_PREV_X], st[ST_TIP_PREV_Z] = self._next_center, self._tip_prev_x, self._tip_prev_z
+        st[ST_MOBILISED] = self._mobilised
         st[ST_RAKE] = self.rake_attack
         self._kst = st
         par = np.zeros(P_SIZE)
@@ -403,6 +413,7 @@ class LhdSimulator:
         par[[P_DX, P_DZ, P_L, P_H, P_W, P_Q, P_CA]] = (
             pile.dx, pile.dz, pile.L, pile.h, pile.dy, pile.surcharge, pile.adhesion)
         par[[P_RAKE_ATTACK, P_RAKE_LO, P_RAKE_HI]] = self.rake_attack, self.rake_lo, self.rake_hi
+        par[P_BY_MOTION] = self.fee_by_motion
         self._kargs = (d.site_xpos, d.site_xmat, d.xipos, d.xfrc_applied, m.tendon_frictionloss, m.body_mass, st, par,
                        self._slices, pile.top, pile._cum, pile._voxel_mass, pile.density, pile.cohesion, pile.klass,
                        pile.x_centers, pile.y_centers, self._tabs, self._phis, self._deltas, self._cap_pitch,
@@ -413,7 +424,8 @@ class LhdSimulator:
         self.W_ideal = st[ST_W_IDEAL]
         self.pile.removed_mass = st[ST_W_IDEAL]
         self._cut_prev_x, self._cut_prev_z = st[ST_CUT_X], st[ST_CUT_Z]
-        self._next_center, self._tip_prev_x = st[ST_NEXT_CENTER], st[ST_TIP_PREV_X]
+        self._next_center, self._tip_prev_x, self._tip_prev_z = st[ST_NEXT_CENTER], st[ST_TIP_PREV_X], st[ST_TIP_PREV_Z]
+        self._mobilised = st[ST_MOBILISED]
         self._fee_h, self._fee_v, self._fee_rake = st[ST_FH], st[ST_FZ], st[ST_RAKE]
         self._fee_depth = self._kdepth[self._kdepth > 0.0].copy() if st[ST_ENGAGED] else ()
         self.V_cut, self._v_bucket, self._m_bucket = st[ST_V_CUT], st[ST_V_BUCKET], st[ST_M_BUCKET]

@@ -19,7 +19,7 @@ import pytest
 from lhd_loading_ros.task.bucket_capacity import capacity_table
 from lhd_loading_ros.task.config import load_config
 from lhd_sim_node.fee import BETA_GRID, face_rake, fee_min, tool_force_components
-from lhd_sim_node.fee_kernel import beta_tables, face_fee, interp_clamped, payload_update
+from lhd_sim_node.fee_kernel import beta_tables, face_fee, interp_clamped, payload_update, wedge_mobilisation
 from lhd_sim_node.simulator import LhdSimulator
 
 r = math.radians
@@ -191,7 +191,9 @@ def test_simulator_resistance_grows_with_slope(sim):
 
 def test_small_roll_back_keeps_the_resistance(sim):
     """Push in, stop, roll back 6 mm: the lip must not read the column it cut as the
-    material ahead (issue 13: the resistance fell to zero)."""
+    material ahead (issue 13: the resistance fell to zero). While the tip moves back the wedge
+    is not mobilised (it resists only a motion into the face: fee_kernel.wedge_mobilisation);
+    once the tip is at rest again, the whole wedge is there."""
     skipped_a_cut_column = 0
     for alpha, target in ((20.0, 0.25), (25.0, 0.2), (30.0, 0.25)):
         _uniform_pile(sim, alpha)
@@ -204,7 +206,9 @@ def test_small_roll_back_keeps_the_resistance(sim):
         before = sim.model.tendon_frictionloss[sim.tid_fee]
         sim.data.qpos[0] -= 0.006
         mujoco.mj_forward(sim.model, sim.data)
-        sim._update_fee()
+        sim._update_fee()  # the update that sees the tip move back (6 mm in one FEE period)
+        assert sim.model.tendon_frictionloss[sim.tid_fee] == 0.0
+        sim._update_fee()  # at rest at the rolled-back pose
         after = sim.model.tendon_frictionloss[sim.tid_fee]
         x, z = sim.data.site_xpos[sim.sid_tip][[0, 2]]
         p = sim.pile
@@ -280,3 +284,24 @@ def test_simulator_payload_is_two_thirds_of_the_cut_within_the_capacity(sim):
     if before / (sim.W_ideal / sim.V_cut) > cap:
         assert sim.loaded_mass < before
     assert sim.loaded_volume <= cap * (1 + 1e-9)
+
+
+def test_wedge_mobilisation_by_hand():
+    """The share of the lip's wedge a motion mobilises (fee_kernel.wedge_mobilisation): the
+    direction cosine of the tip's motion along the face, 1 at rest, blended below v_min."""
+    dt, vmin = 0.02, 0.02
+    a30 = math.radians(30.0)
+    assert wedge_mobilisation(0.0, 0.0, a30, dt, vmin) == 1.0            # at rest: holds the bucket
+    assert wedge_mobilisation(0.002, 0.0, 0.0, dt, vmin) == pytest.approx(1.0)   # pushing level ground
+    assert wedge_mobilisation(0.0, 0.002, 0.0, dt, vmin) == pytest.approx(0.0)   # lifting out of level ground
+    assert wedge_mobilisation(0.0, 0.002, a30, dt, vmin) == pytest.approx(0.5)   # lifting on a 30 deg face
+    assert wedge_mobilisation(-0.002, 0.0, a30, dt, vmin) == 0.0          # reversing
+    # along the 30 deg face, up it: all of it; pushing level into it: cos 30
+    assert wedge_mobilisation(0.002 * math.cos(a30), 0.002 * math.sin(a30), a30, dt, vmin) == pytest.approx(1.0)
+    assert wedge_mobilisation(0.002, 0.0, a30, dt, vmin) == pytest.approx(math.cos(a30))
+    # lifting out of level ground at half of v_min: half the wedge (linear blend)
+    assert wedge_mobilisation(0.0, 0.5 * vmin * dt, 0.0, dt, vmin) == pytest.approx(0.5)
+    rng = np.random.default_rng(0)
+    for dxz in rng.normal(0.0, 0.003, (200, 2)):
+        m = wedge_mobilisation(dxz[0], dxz[1], rng.uniform(0.0, 0.7), dt, vmin)
+        assert 0.0 <= m <= 1.0
