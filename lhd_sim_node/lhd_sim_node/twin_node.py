@@ -20,6 +20,10 @@ period) by the device loop of sim_due.SimDue (a thread on the steady clock), and
   loaded_mass (Float64 kg), tip (geometry_msgs/PointStamped, the bucket tip), joint_states
   (sensor_msgs/JointState: boom, bucket and the four wheels as the simulator has them); once per
   pile (latched): slope (Float64 rad) and zones (Float64MultiArray, task.zones.Zones.as_list());
+* <prefix>/twin/truth/camera_lag (std_msgs/Float64MultiArray [stamp s, lag s], one per image
+  published): how long after the instant its stamp names the image left the twin (rendering, and
+  the twin's own lateness when the simulation runs behind the wall clock): `lhd up twin`
+  subtracts it from the odometry's age to give the stack's own latency;
 * <prefix>/twin/device/commands (std_msgs/Float64MultiArray at `command_trace_hz`): every valid
   command frame the device read off the serial line since the last message, one row each
   [wall time s, monotonic time s, wheel_setpoint rad/s, valve_boom, valve_bucket, enable 0/1]
@@ -243,6 +247,7 @@ class TwinNode(Node):
         # reliable keep-last 5 (MEASUREMENT_QOS): each message holds the frames since the last one
         self.pub_device_cmds = self.create_publisher(Float64MultiArray, f"{ns}/twin/device/commands", MEASUREMENT_QOS)
         self.pub_img = self.create_publisher(Image, gp("image_topic"), MEASUREMENT_QOS)
+        self.pub_camera_lag = self.create_publisher(Float64MultiArray, f"{ns}/twin/truth/camera_lag", MEASUREMENT_QOS)
         self.pub_info = self.create_publisher(CameraInfo, gp("camera_info_topic"), MEASUREMENT_QOS)
         self.pub_scan = self.create_publisher(LaserScan, gp("scan_topic"), MEASUREMENT_QOS)
         self.camera_frame_id, self.lidar_frame_id = gp("camera_frame_id"), gp("lidar_frame_id")
@@ -520,6 +525,9 @@ class TwinNode(Node):
         self.pub_info.publish(self._info)
         self.pub_img.publish(m)
         self.camera_frames += 1
+        t_stamp = stamp.sec + 1e-9 * stamp.nanosec
+        lag = (self._clock_offset_ns + time.monotonic() * 1e9) * 1e-9 - t_stamp   # on the stamps' clock
+        self.pub_camera_lag.publish(Float64MultiArray(data=[t_stamp, lag]))
 
     def _publish_scan(self) -> None:
         with self.due.lock:

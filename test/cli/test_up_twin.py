@@ -71,6 +71,10 @@ def test_one_twin_attempt_end_to_end(tmp_path):
     # how old the odometry was when it arrived (image stamp to here): measured, and within the
     # supervisor's 0.5 s input timeout, which would have ended the attempt otherwise
     assert 0.0 < rec["odom_age_p50_ms"] <= rec["odom_age_max_ms"] < 500.0, rec
+    # split with the twin's camera lag per image: the stack's part is positive and at most the whole
+    assert rec["twin_camera_lag_p50_ms"] is not None and rec["twin_camera_lag_p50_ms"] >= 0.0, rec
+    assert 0.0 < rec["stack_age_p50_ms"] <= rec["odom_age_max_ms"], rec
+    assert rec["stack_age_p50_ms"] <= rec["stack_age_max_ms"] <= rec["odom_age_max_ms"], rec
     print(f"v_x RMS {rec['vx_rms']} m/s (bound {VX_BOUND}), best-fitting lag {rec['vx_best_lag_s']} s -> "
           f"{rec['vx_rms_at_best_lag']} m/s; alpha {rec['alpha_err_deg']} deg; x_max "
           f"{rec['x_max_err_m']} m; mass {mass:.2f} vs {rec['mass_truth_kg']} kg")

@@ -115,3 +115,17 @@ def test_odometry_age_by_hand():
     p50, mx = odom_age_ms(ages, 1.0, 2.0)
     assert p50 == pytest.approx(30.0) and mx == pytest.approx(160.0)
     assert odom_age_ms(ages, 3.0, 4.0) == (None, None)
+
+
+def test_stack_age_by_hand():
+    """The stack's part of the odometry's age: the age less the twin's camera lag of the same image
+    (matched by stamp), over the attempt's images that have a lag message."""
+    from lhd_loading_ros.cli.up_twin import stack_age_ms
+
+    ages = [(0.9, 0.500), (1.0, 0.020), (1.1, 0.030), (1.2, 0.160), (1.3, 0.050), (2.1, 0.900)]
+    lag = {0.9: 0.4, 1.0: 0.005, 1.1: 0.010, 1.2: 0.120}    # none for 1.3 (its lag message was lost)
+    p50, mx, cam = stack_age_ms(ages, lag, 1.0, 2.0)
+    # stack parts 15, 20, 40 ms; camera lags 5, 10, 120 ms
+    assert p50 == pytest.approx(20.0) and mx == pytest.approx(40.0) and cam == pytest.approx(10.0)
+    assert stack_age_ms(ages, {}, 1.0, 2.0) == (None, None, None)
+    assert stack_age_ms(ages, lag, 3.0, 4.0) == (None, None, None)

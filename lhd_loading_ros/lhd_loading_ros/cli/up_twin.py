@@ -88,6 +88,24 @@ def odom_age_ms(ages: list[tuple[float, float]], t0: float, t1: float) -> tuple[
     return float(np.median(a)) * 1e3, float(max(a)) * 1e3
 
 
+def stack_age_ms(ages: list[tuple[float, float]], camera_lag: dict, t0: float, t1: float
+                 ) -> tuple[float | None, float | None, float | None]:
+    """(median, max) in ms of the stack's own part of the odometry's age for the images stamped in
+    [t0, t1] (the age less the twin's camera lag for that image: the time from the image leaving
+    the twin to its odometry arriving here), and the median camera lag itself; images without a
+    lag message are left out. None where there is nothing to measure."""
+    a, lag = [], []
+    for t, age in ages:
+        if t0 <= t <= t1:
+            c = camera_lag.get(round(t, 6))
+            if c is not None:
+                a.append(age - c)
+                lag.append(c)
+    if not a:
+        return None, None, None
+    return float(np.median(a)) * 1e3, float(max(a)) * 1e3, float(np.median(lag)) * 1e3
+
+
 def vx_errors(est: list[tuple[float, float]], truth: list[tuple[float, float]], t0: float, t1: float,
               lag: float = 0.0) -> np.ndarray:
     """v_x estimate minus truth for each estimate stamped in [t0, t1], the truth (stamp, v_x)
@@ -234,6 +252,13 @@ def format_errors(records: list[dict], summary: dict) -> str:
         worst = max(ages, key=lambda a: a[0])
         lines.append(f"  (odometry age on arrival, image stamp to here: median per attempt {min(a for a, _ in ages):.0f}-"
                      f"{worst[0]:.0f} ms, oldest {max(b for _, b in ages):.0f} ms)")
+    split = [(r["stack_age_p50_ms"], r["stack_age_max_ms"], r["twin_camera_lag_p50_ms"]) for r in records
+             if r.get("stack_age_p50_ms") is not None]
+    if split:
+        lines.append(f"  (of which the twin's camera lag, image stamp to leaving the twin: median per attempt "
+                     f"{min(c for _, _, c in split):.0f}-{max(c for _, _, c in split):.0f} ms; the stack's own part, "
+                     f"image leaving the twin to odometry here: median per attempt {min(a for a, _, _ in split):.0f}-"
+                     f"{max(a for a, _, _ in split):.0f} ms, oldest {max(b for _, b, _ in split):.0f} ms)")
     lines.append(bound("alpha_err_deg", "deg"))
     lines.append(bound("x_max_err_m", "m"))
     m = s["mass_err_kg"]
@@ -287,6 +312,7 @@ class Watch:
         self.odom: list[tuple[float, float]] = []
         self.odom_arrivals: list[float] = []
         self.odom_age: list[tuple[float, float]] = []   # (image stamp, arrival here - stamp), s
+        self.camera_lag: dict[float, float] = {}        # image stamp (rounded to 1 us) -> the twin's lag, s
         self.truth_odom: list[tuple[float, float]] = []
         self.truth_pose: list[tuple[float, tuple, tuple]] = []      # (stamp, position, quaternion w x y z)
         self.truth_joints: list[tuple[float, dict]] = []           # (stamp, {name: (position, velocity)})
@@ -316,6 +342,10 @@ class Watch:
             if self.recording:
                 self.odom.append((stamp(m.header), float(m.twist.twist.linear.x)))
                 self.odom_age.append((stamp(m.header), t - stamp(m.header)))
+
+        def on_camera_lag(m):
+            if self.recording and len(m.data) == 2:
+                self.camera_lag[round(float(m.data[0]), 6)] = float(m.data[1])
 
         def on_truth_odom(m):
             if self.recording:
@@ -356,6 +386,7 @@ class Watch:
         node.create_subscription(DiagnosticArray, "/diagnostics", on_diag, 50)
         node.create_subscription(Odometry, "/lhd/odom", on_odom, sd)
         node.create_subscription(Odometry, "/lhd/twin/truth/odom", on_truth_odom, sd)
+        node.create_subscription(Float64MultiArray, "/lhd/twin/truth/camera_lag", on_camera_lag, sd)
         node.create_subscription(JointState, "/lhd/twin/truth/joint_states", on_truth_js, sd)
         node.create_subscription(Bool, "/lhd/wheel_drift/front", on_flag("front"), sd)
         node.create_subscription(Bool, "/lhd/wheel_drift/rear", on_flag("rear"), sd)
@@ -392,6 +423,7 @@ class Watch:
 
     def start_recording(self):
         self.odom, self.odom_age, self.truth_odom, self.truth_drift = [], [], [], []
+        self.camera_lag = {}
         self.truth_pose, self.truth_joints = [], []
         self.flags = {"front": [], "rear": []}
         self.recording = True
@@ -564,6 +596,7 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                     f"SL {weighed.get('success_level', '?')}, success {weighed.get('success', '?')}")
                 errs = vx_errors(w.odom, w.truth_odom, t_run, t_end)
                 age_p50, age_max = odom_age_ms(w.odom_age, t_run, t_end)
+                stack_p50, stack_max, cam_lag_p50 = stack_age_ms(w.odom_age, w.camera_lag, t_run, t_end)
                 truth_flags = w.truth_drift
                 rec = {"attempt": int(number), "outcome": kv_end.get("state"), "reason": kv_end.get("reason", ""),
                        "elapsed_s": float(kv_end.get("elapsed_s", "nan")),
@@ -571,6 +604,8 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                        "alpha_est_deg": math.degrees(slope_est) if slope_est is not None else None,
                        "vx_rms": rms(errs) if errs.size else None, "vx_bias": float(np.mean(errs)) if errs.size else None,
                        "vx_n": int(errs.size), "odom_age_p50_ms": age_p50, "odom_age_max_ms": age_max,
+                       "stack_age_p50_ms": stack_p50, "stack_age_max_ms": stack_max,
+                       "twin_camera_lag_p50_ms": cam_lag_p50,
                        "vx_best_lag_s": best_lag(w.odom, w.truth_odom, t_run, t_end)[0],
                        "vx_rms_at_best_lag": best_lag(w.odom, w.truth_odom, t_run, t_end)[1],
                        "x_max_est_m": zones_est[1], "x_max_truth_m": zones_truth[1] if zones_truth else None,
