@@ -266,30 +266,52 @@ ST_SIZE = 16
 
 # layout of the parameter vector of fee_update (scalars packed to keep the call cheap)
 (P_SID_TIP, P_BID_BUCKET, P_TID_FEE, P_BUCKET_MASS0, P_LOADED_FRACTION, P_FEE_DT, P_FEE_MIN_SPEED, P_DX, P_DZ, P_L,
- P_H, P_W, P_Q, P_CA, P_RAKE_ATTACK, P_RAKE_LO, P_RAKE_HI, P_BY_MOTION) = range(18)
-P_SIZE = 18
+ P_H, P_W, P_Q, P_CA, P_RAKE_ATTACK, P_RAKE_LO, P_RAKE_HI, P_BY_MOTION, P_WEDGE_TAU) = range(19)
+P_SIZE = 19
 
 
 @njit(cache=True)
-def wedge_mobilisation(dx_tip, dz_tip, alpha, fee_dt, v_min):
+def wedge_share(dx_tip, dz_tip, alpha, fee_dt, v_min):
     """Share (0-1) of the lip's passive wedge that the tip's last motion (dx_tip, dz_tip over
-    fee_dt) mobilises. The wedge of the FEE lies ahead of the lip ALONG the face (direction
-    t = (cos alpha, sin alpha) in the x-z plane, alpha the face's slope): a passive wedge resists
-    only a motion that pushes it, i.e. the component of the motion along t. A tip at rest (or
-    creeping, speed below v_min) keeps the whole wedge, so a stalled bucket is held without creep;
-    above v_min the share is the motion's direction cosine along t, clipped at 0: pushing along the
-    face 1, lifting straight up out of a 30 deg face sin(30) = 0.5, lifting out of level ground,
-    curling the lip up and back or reversing 0. Blended linearly in the speed between the two."""
+    fee_dt) mobilises, before the low-pass of `wedge_mobilisation`. A passive wedge resists the
+    part of a motion that pushes into the material ahead of the lip: along the face ahead of it
+    (t = (cos alpha, sin alpha), alpha the face's slope) or into the face (the inward normal
+    n = (sin alpha, -cos alpha)); the part that leaves the face (-n: breakout, the bucket body's)
+    or goes back (-t) pushes nothing. With u the motion's direction:
+    share = min(1, max(u.t, 0) + max(u.n, 0)). Pushing along the face or level into a slope: 1
+    (35 deg: 0.82 + 0.57); diving straight down into a 30 deg face: cos 30 = 0.87; lifting straight
+    up out of it: sin 30 = 0.5; lifting out of level ground, curling the lip up and back, reversing:
+    0. A tip at rest (speed below v_min, blended linearly) keeps the whole wedge: a stalled bucket
+    is held without creep."""
     sp = math.sqrt(dx_tip * dx_tip + dz_tip * dz_tip) / fee_dt
     if sp <= 0.0:
         return 1.0
     w = sp / v_min
     if w > 1.0:
         w = 1.0
-    c = (dx_tip * math.cos(alpha) + dz_tip * math.sin(alpha)) / (sp * fee_dt)
-    if c < 0.0:
-        c = 0.0
+    ca = math.cos(alpha)
+    sa = math.sin(alpha)
+    inv = 1.0 / (sp * fee_dt)
+    c_t = (dx_tip * ca + dz_tip * sa) * inv
+    c_n = (dx_tip * sa - dz_tip * ca) * inv
+    c = (c_t if c_t > 0.0 else 0.0) + (c_n if c_n > 0.0 else 0.0)
+    if c > 1.0:
+        c = 1.0
     return 1.0 - w + w * c
+
+
+@njit(cache=True)
+def wedge_mobilisation(prev, dx_tip, dz_tip, alpha, fee_dt, v_min, tau):
+    """The wedge's mobilised share after one FEE period: `wedge_share` of the period's motion
+    through a first-order low-pass of time constant tau (s) from the previous share `prev`. The
+    share is computed from the motion the share itself allows, so without the low-pass a
+    partly released wedge lets the tip move, which changes the share at the next update: the
+    limit then chattered between periods (1,022 -> 481 -> 837 -> 145 -> 973 N pushing while
+    lifting slowly into a 30 deg face). The material also takes time to build or lose its wedge."""
+    s = wedge_share(dx_tip, dz_tip, alpha, fee_dt, v_min)
+    if tau <= 0.0:
+        return s
+    return prev + (s - prev) * (fee_dt / (tau + fee_dt))
 
 
 @njit(cache=True)
@@ -340,6 +362,7 @@ def fee_update(site_xpos, site_xmat, xipos, xfrc, tendon_fl, body_mass, st, par,
     st[ST_ENGAGED] = out[OUT_ENGAGED]
     st[ST_ALPHA_S] = out[OUT_ALPHA_S]
     if out[OUT_ENGAGED] == 0.0:
+        st[ST_MOBILISED] = 1.0      # the next contact starts with the whole wedge
         tendon_fl[tid_fee] = 0.0
         for c in range(6):
             xfrc[bid_bucket, c] = 0.0
@@ -348,7 +371,8 @@ def fee_update(site_xpos, site_xmat, xipos, xfrc, tendon_fl, body_mass, st, par,
         return
     mob = 1.0
     if par[P_BY_MOTION] != 0.0:
-        mob = wedge_mobilisation(dx_tip, dz_tip, out[OUT_ALPHA_S], fee_dt, fee_min_speed)
+        mob = wedge_mobilisation(st[ST_MOBILISED], dx_tip, dz_tip, out[OUT_ALPHA_S], fee_dt, fee_min_speed,
+                                 par[P_WEDGE_TAU])
     st[ST_MOBILISED] = mob
     tendon_fl[tid_fee] = mob * out[OUT_FH]
     ramp = v_tip / fee_min_speed

@@ -30,7 +30,7 @@ from .fee_kernel import (OUT_SIZE, P_BID_BUCKET, P_BUCKET_MASS0, P_CA, P_DX, P_D
                          P_LOADED_FRACTION, P_Q, P_RAKE_ATTACK, P_RAKE_HI, P_RAKE_LO, P_SID_TIP, P_SIZE, P_TID_FEE, P_W,
                          ST_ALPHA_S, ST_CUT_X, ST_CUT_Z, ST_ENGAGED, ST_FH, ST_FZ, ST_M_BUCKET, ST_NEXT_CENTER, ST_RAKE,
                          ST_SIZE, ST_SPILLED, ST_TIP_PREV_X, ST_TIP_PREV_Z, ST_V_BUCKET, ST_V_CUT, ST_W_IDEAL, P_BY_MOTION,
-                         ST_MOBILISED, beta_tables, fee_update, wedge_mobilisation)
+                         ST_MOBILISED, P_WEDGE_TAU, beta_tables, fee_update, wedge_mobilisation)
 from .mjcf import attack_geometry, build_mjcf
 from .bucket_body import BucketBody, bucket_body_update
 
@@ -75,7 +75,8 @@ class LhdSimulator:
         self.rake_lo = math.radians(pc["rake_min_deg"])
         self.rake_hi = math.radians(pc["rake_max_deg"])
         self.fee_min_speed = pc["fee_min_speed"]
-        self.fee_by_motion = int(pc.get("fee_wedge_by_motion", 0))
+        self.fee_by_motion = int(pc["fee_wedge_by_motion"])
+        self.fee_wedge_tau = float(pc["fee_wedge_tau"])
         self.attack_timeout = sc["attack_timeout"]
         self.bucket_width = cfg["machine"]["bucket_width"]
         self.wheel_radius = cfg["machine"]["wheel_radius"]
@@ -376,7 +377,8 @@ class LhdSimulator:
         # Horizontal: dry friction on the x-tendon (resists motion up to sum F sin(rho_w+delta), no creep).
         mob = 1.0
         if self.fee_by_motion:  # the wedge resists only what pushes it along the face (fee_kernel.wedge_mobilisation)
-            mob = wedge_mobilisation(dx_tip, dz_tip, float(np.mean(alphas)), self.fee_dt, self.fee_min_speed)
+            mob = wedge_mobilisation(self._mobilised, dx_tip, dz_tip, float(np.mean(alphas)), self.fee_dt,
+                                     self.fee_min_speed, self.fee_wedge_tau)
         self._mobilised = mob
         fh_sum = mob * float(np.sum(fh))
         self.model.tendon_frictionloss[self.tid_fee] = fh_sum
@@ -413,7 +415,7 @@ class LhdSimulator:
         par[[P_DX, P_DZ, P_L, P_H, P_W, P_Q, P_CA]] = (
             pile.dx, pile.dz, pile.L, pile.h, pile.dy, pile.surcharge, pile.adhesion)
         par[[P_RAKE_ATTACK, P_RAKE_LO, P_RAKE_HI]] = self.rake_attack, self.rake_lo, self.rake_hi
-        par[P_BY_MOTION] = self.fee_by_motion
+        par[P_BY_MOTION], par[P_WEDGE_TAU] = self.fee_by_motion, self.fee_wedge_tau
         self._kargs = (d.site_xpos, d.site_xmat, d.xipos, d.xfrc_applied, m.tendon_frictionloss, m.body_mass, st, par,
                        self._slices, pile.top, pile._cum, pile._voxel_mass, pile.density, pile.cohesion, pile.klass,
                        pile.x_centers, pile.y_centers, self._tabs, self._phis, self._deltas, self._cap_pitch,
@@ -442,6 +444,7 @@ class LhdSimulator:
             xfrc[:] = 0.0
             self.model.tendon_frictionloss[self.tid_fee] = 0.0
         self._fee_h, self._fee_v, self._fee_depth = 0.0, 0.0, ()
+        self._mobilised = 1.0   # the next contact starts with the whole wedge (as the kernel)
 
     # ------------------------------------------------------------------ readings
     @property

@@ -104,7 +104,7 @@ SCHEMA: dict[str, Any] = {
         "rock_size_min": _f(0.001, 2.0), "rock_size_max": _f(0.001, 2.0),
         "rocks_min": _i(0, 1000), "rocks_max": _i(0, 1000), "nonhomogeneous_probability": _f(0.0, 1.0),
         "rake_attack_deg": _f(1, 179), "rake_min_deg": _f(1, 179), "rake_max_deg": _f(1, 179),
-        "fee_min_speed": _f(1e-4, 1.0), "fee_wedge_by_motion": _i(0, 1),
+        "fee_min_speed": _f(1e-4, 1.0), "fee_wedge_by_motion": _i(0, 1), "fee_wedge_tau": _f(0.0, 10.0),
     },
     "hardware": {
         "valve_deadband": _f(0.0, 1.0), "cmd_timeout": _f(0.01, 10.0), "command_rate_hz": _f(1.0, 1000.0),
