@@ -52,6 +52,7 @@ class FeeReport:
     magnitude: float       # sum of F over slices before the speed ramp, N
     rake: float            # rad, world rake of the bucket (rake_attack - pitch, clipped)
     alpha_s: float = 0.0   # rad, mean slope of the local surface ahead of the lip over the engaged slices
+    mobilised: float = 1.0  # share of the lip's wedge the tip's motion mobilises (fee_kernel.wedge_mobilisation)
 
 
 class LhdSimulator:
@@ -437,7 +438,7 @@ class LhdSimulator:
     def last_fee(self) -> FeeReport:
         xf = self.data.xfrc_applied[self.bid_bucket]
         return FeeReport(np.array([-self._fee_h, 0.0, self._fee_v]), xf[3:].copy(), np.asarray(self._fee_depth),
-                         math.hypot(self._fee_h, self._fee_v), self._fee_rake, float(self._alpha_s))
+                         math.hypot(self._fee_h, self._fee_v), self._fee_rake, float(self._alpha_s), float(self._mobilised))
 
     def _no_fee(self, xfrc) -> None:
         if self._fee_h != 0.0 or self._fee_v != 0.0:

@@ -239,7 +239,7 @@ def test_kernel_and_numpy_updates_agree(sim):
                 u = np.array([2.7, -0.19 if k > lift_from else 0.0, 0.15 if k > 40 else 0.0])
                 sim.step(u * (1.0 if prng.random() > 0.1 else -0.3))
                 f = sim.last_fee
-                rows.append([f.force[0], f.force[2], sim.loaded_mass, sim.spilled_mass, sim.W_ideal])
+                rows.append([f.force[0], f.force[2], sim.loaded_mass, sim.spilled_mass, sim.W_ideal, f.mobilised])
             outs.append(np.array(rows))
         sim.use_kernel = True
         print(f"\n{alpha} deg: loaded {outs[0][-1, 2]:.2f} kg, spilled {outs[0][-1, 3]:.2f} kg")
