@@ -178,6 +178,8 @@ class PolicyNode(Node):
                 if pol.meta.get("config_hash") not in (None, "") and not pol.config_matches(cfg):
                     self.get_logger().warn(f"policy {path} was trained with another parameter file "
                                            f"(config hash {pol.meta['config_hash']}); check the filters and ranges")
+                elif (note := pol.sim_change_note(cfg)) is not None:
+                    self.get_logger().info(f"policy {path}: {note}")
                 self.get_logger().info(f"loaded {variant.upper()} actor from {path} (sizes {pol.actor.sizes}); "
                                        f"trained on slopes {lo:g}-{hi:g} deg ({source})")
             except PolicyFileError as exc:

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lhd_loading_ros.task.config import hash_matches
+from lhd_loading_ros.task.config import hash_matches, sim_change_note
 
 FORMAT = "lhd-actor/1"
 ACTOR_FILE = "actor.npz"
@@ -102,9 +102,7 @@ class LoadedPolicy:
                         "and was trained with another config")
 
 
-    def config_matches(self, cfg: dict) -> bool:
-        """The card's config hash names `cfg` up to training-only settings (task.config.hash_matches;
-        the card's `trained_with` gives the pitch margin the actor was trained with)."""
+    def _trained_with(self):
         tw = self.meta.get("trained_with") or {}
 
         def num(v):
@@ -112,7 +110,20 @@ class LoadedPolicy:
         margin, per_deg, free = (num(tw.get(k)) for k in ("r_success_pitch_margin_deg", "r_tilt_per_deg",
                                                           "r_tilt_free_deg"))
         tilt = (per_deg, free) if per_deg is not None and free is not None else None
-        return hash_matches(self.meta.get("config_hash"), cfg, margin, tilt)
+        return margin, tilt
+
+    def config_matches(self, cfg: dict) -> bool:
+        """The card's config hash names `cfg` up to training-only settings (task.config.hash_matches;
+        the card's `trained_with` gives the pitch margin the actor was trained with), or names it as
+        it was before a later simulator change (task.config.sim_change_note)."""
+        margin, tilt = self._trained_with()
+        h = self.meta.get("config_hash")
+        return hash_matches(h, cfg, margin, tilt) or sim_change_note(h, cfg, margin, tilt) is not None
+
+    def sim_change_note(self, cfg: dict) -> str | None:
+        """task.config.sim_change_note for this card: trained on the simulator before a change."""
+        margin, tilt = self._trained_with()
+        return sim_change_note(self.meta.get("config_hash"), cfg, margin, tilt)
 
 
 def _sha256(path: Path) -> str:

@@ -350,6 +350,35 @@ def hash_matches(h: str | None, cfg: dict, trained_margin_deg: float | None = No
     return any(h == config_hash(c) for c in training_variants(cfg, trained_margin_deg, trained_tilt))
 
 
+# Keys added to the SIMULATOR's physics after actors were exported: (section, keys, date, what the simulator did
+# before). They do not change what an actor sees or commands (observation, normalisers, actions, filters), so an
+# actor trained before they existed still runs on this config; its card's hash is this config's with the keys
+# removed. `sim_change_note` recognises it and says so, instead of the "another parameter file" warning.
+SIM_CHANGES = (
+    ("pile", ("fee_wedge_by_motion", "fee_wedge_tau"), "2026-11-26",
+     "the lip's FEE wedge resisted any horizontal tip motion, also lifting and curling out of the face"),
+)
+
+
+def sim_change_note(h: str | None, cfg: dict, trained_margin_deg: float | None = None,
+                    trained_tilt: tuple[float, float] | None = None) -> str | None:
+    """Why a card's hash `h` that does not name `cfg` (hash_matches) is still this config: it names
+    `cfg` without the simulator keys of SIM_CHANGES added since (the first change, then the first
+    two, ...), i.e. the actor was trained on the simulator as it was before them. None otherwise."""
+    if not h or hash_matches(h, cfg, trained_margin_deg, trained_tilt):
+        return None
+    older, done = cfg, []
+    for section, keys, date, before in SIM_CHANGES:
+        if section not in older or not any(k in older[section] for k in keys):
+            continue
+        older = {**older, section: {k: v for k, v in older[section].items() if k not in keys}}
+        done.append(f"{section}.{'/'.join(keys)} ({date}; before: {before})")
+        if hash_matches(h, older, trained_margin_deg, trained_tilt):
+            return ("trained on the simulator before " + "; ".join(done) +
+                    ": the observation, actions and ranges are this config's; its card's evaluation says how it does now")
+    return None
+
+
 def trained_randomized(h: str | None, cfg: dict, trained_margin_deg: float | None = None) -> bool:
     """Whether `h` names this config with domain randomisation switched on (and not also with it
     off: the two hashes differ whenever the section exists)."""
