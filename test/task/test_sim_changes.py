@@ -8,7 +8,9 @@ import json
 import pytest
 
 from lhd_loading_ros.policy.actor_file import default_policy_dir, load_policy
-from lhd_loading_ros.task.config import config_hash, hash_matches, load_config, sim_change_note
+from lhd_loading_ros.task import config as config_mod
+from lhd_loading_ros.task.config import (config_hash, hash_matches, load_config, sim_change_note,
+                                       trained_randomized)
 
 
 @pytest.fixture(scope="module")
@@ -41,8 +43,37 @@ def test_an_actor_from_before_the_wedge_change_is_recognised(cfg):
     assert sim_change_note(_raw(half), cfg) is None
 
 
-def test_the_shipped_main_actor_runs_on_the_config_with_the_note(cfg):
-    pol = load_policy(default_policy_dir("rld"))
-    assert pol.config_matches(cfg)
-    note = pol.sim_change_note(cfg)
-    assert note is not None and "2026-11-26" in note
+def test_an_actor_between_two_changes_is_recognised(cfg, monkeypatch):
+    """With a second, later change listed, an actor trained between the two (its config lacks only
+    the later change's key) and one trained before both are each recognised, naming what changed
+    since: the changes are undone newest first."""
+    cfg2 = copy.deepcopy(cfg)
+    cfg2["pile"]["later_key"] = 1
+    monkeypatch.setattr(config_mod, "SIM_CHANGES", config_mod.SIM_CHANGES + (
+        ("pile", ("later_key",), "2099-01-01", "no later key"),))
+    between = copy.deepcopy(cfg)                                 # trained after the first change
+    before = copy.deepcopy(cfg)
+    del before["pile"]["fee_wedge_by_motion"], before["pile"]["fee_wedge_tau"]
+    n_between, n_before = config_mod.sim_change_note(_raw(between), cfg2), config_mod.sim_change_note(_raw(before), cfg2)
+    assert n_between is not None and "later_key" in n_between and "fee_wedge" not in n_between
+    assert n_before is not None and "later_key" in n_before and "fee_wedge" in n_before
+
+
+def test_a_randomised_card_from_before_the_change_is_still_randomised(cfg):
+    """lhd ship writes whether an actor was trained with domain randomisation from its hash: an
+    actor trained randomised before the change keeps that reading (policies/rld_dr)."""
+    pol = load_policy(default_policy_dir("rld_dr"))
+    assert trained_randomized(pol.meta["config_hash"], cfg)
+    assert not trained_randomized(load_policy(default_policy_dir("rld")).meta["config_hash"], cfg)
+
+
+def test_the_shipped_actors_run_on_the_config(cfg):
+    """Every shipped card names this config, either as it is or as it was before a listed
+    simulator change (then with the note)."""
+    for v in ("rld", "rlc", "rld_paper", "rld_dr", "rld_margin"):
+        pol = load_policy(default_policy_dir(v))
+        assert pol.config_matches(cfg), v
+        margin, tilt = pol._trained_with()
+        if not hash_matches(pol.meta["config_hash"], cfg, margin, tilt):
+            note = pol.sim_change_note(cfg)
+            assert note is not None and "2026-11-26" in note, v

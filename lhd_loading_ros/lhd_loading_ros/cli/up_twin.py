@@ -345,7 +345,8 @@ class Watch:
 
         def on_camera_lag(m):
             if self.recording and len(m.data) == 2:
-                self.camera_lag[round(float(m.data[0]), 6)] = float(m.data[1])
+                # two frames of a late simulation can share a stamp; the ArUco node uses the first
+                self.camera_lag.setdefault(round(float(m.data[0]), 6), float(m.data[1]))
 
         def on_truth_odom(m):
             if self.recording:

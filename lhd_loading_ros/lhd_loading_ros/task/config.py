@@ -360,19 +360,28 @@ SIM_CHANGES = (
 )
 
 
-def sim_change_note(h: str | None, cfg: dict, trained_margin_deg: float | None = None,
-                    trained_tilt: tuple[float, float] | None = None) -> str | None:
-    """Why a card's hash `h` that does not name `cfg` (hash_matches) is still this config: it names
-    `cfg` without the simulator keys of SIM_CHANGES added since (the first change, then the first
-    two, ...), i.e. the actor was trained on the simulator as it was before them. None otherwise."""
-    if not h or hash_matches(h, cfg, trained_margin_deg, trained_tilt):
-        return None
-    older, done = cfg, []
-    for section, keys, date, before in SIM_CHANGES:
+def older_configs(cfg: dict) -> list[tuple[dict, list[str]]]:
+    """`cfg` as it was before the newest k simulator changes of SIM_CHANGES (k = 1, 2, ...; the
+    list is in date order), each with the changes undone, newest first described: what an actor
+    trained between two changes had as its config."""
+    out, older, done = [], cfg, []
+    for section, keys, date, before in reversed(SIM_CHANGES):
         if section not in older or not any(k in older[section] for k in keys):
             continue
         older = {**older, section: {k: v for k, v in older[section].items() if k not in keys}}
-        done.append(f"{section}.{'/'.join(keys)} ({date}; before: {before})")
+        done = [f"{section}.{'/'.join(keys)} ({date}; before: {before})"] + done
+        out.append((older, list(done)))
+    return out
+
+
+def sim_change_note(h: str | None, cfg: dict, trained_margin_deg: float | None = None,
+                    trained_tilt: tuple[float, float] | None = None) -> str | None:
+    """Why a card's hash `h` that does not name `cfg` (hash_matches) is still this config: it names
+    `cfg` as it was before the latest simulator changes of SIM_CHANGES (older_configs), i.e. the
+    actor was trained on the simulator before them. None otherwise."""
+    if not h or hash_matches(h, cfg, trained_margin_deg, trained_tilt):
+        return None
+    for older, done in older_configs(cfg):
         if hash_matches(h, older, trained_margin_deg, trained_tilt):
             return ("trained on the simulator before " + "; ".join(done) +
                     ": the observation, actions and ranges are this config's; its card's evaluation says how it does now")
@@ -384,7 +393,10 @@ def trained_randomized(h: str | None, cfg: dict, trained_margin_deg: float | Non
     off: the two hashes differ whenever the section exists)."""
     if not h or "randomization" not in cfg:
         return False
-    variants = training_variants(cfg, trained_margin_deg)
-    on = {config_hash(c) for c in variants if int(c["randomization"]["enabled"]) == 1}
-    off = {config_hash(c) for c in variants if int(c["randomization"]["enabled"]) == 0}
-    return h in on and h not in off
+    for c in [cfg] + [older for older, _ in older_configs(cfg)]:   # also before later simulator changes
+        variants = training_variants(c, trained_margin_deg)
+        on = {config_hash(v) for v in variants if int(v["randomization"]["enabled"]) == 1}
+        off = {config_hash(v) for v in variants if int(v["randomization"]["enabled"]) == 0}
+        if h in on and h not in off:
+            return True
+    return False
