@@ -206,6 +206,49 @@ def test_each_preflight_problem_is_named(kin, case, expected):
     assert not ok and expected in msg and r.sv.state == "idle"
 
 
+@pytest.mark.parametrize("name, what", [("odom", "odometry v_x"), ("joints", "joint states"),
+                                        ("drift_rear", "rear drift flag"), ("hw", "bridge status")])
+def test_arming_needs_inputs_fresher_than_half_their_timeout(kin, name, what):
+    """An input 0.30 s old passes the running check (0.5 s timeout) but not the arming one
+    (0.5 x 0.5 = 0.25 s): armed on it, one more late message would end the attempt (lost_input)
+    before it ran. 0.20 s old arms."""
+    r = Rig(kin).ready()
+    t = r.t
+    r.feed(t + 0.30)
+    r.sv.inputs.arrival[name] = t
+    problems = r.sv.preflight(r.t)
+    assert problems == [f"{what} 0.30 s old: to arm, at most 0.25 s (0.5 of its 0.5 s timeout: an input this "
+                        f"late would end the attempt; " + problems[0].split("; ", 1)[1]], problems
+    ok, msg = r.sv.arm(r.t, "x")
+    assert not ok and "to arm, at most 0.25 s" in msg and r.sv.state == "idle"
+    # the running check keeps the whole timeout: an armed attempt is not ended by the same age
+    r.feed(t + 1.0)
+    r.arm()
+    silent = {"odom": "odom", "joints": "joints", "drift_rear": "drift", "hw": "hw"}[name]
+    r.feed(r.t + 0.30, **{silent: False})        # every input but that one
+    r.sv.update(r.t)
+    assert r.sv.state == "armed", r.sv.attempt.reason
+    r.sv.update(r.t + 0.25)       # 0.55 s: past the timeout
+    assert r.sv.state == "lost_input" and f"{what} 0.55 s old (timeout 0.5 s" in r.sv.attempt.reason
+    # 0.20 s old: armed
+    r2 = Rig(kin).ready()
+    t = r2.t
+    r2.feed(t + 0.20)
+    r2.sv.inputs.arrival[name] = t
+    assert r2.sv.preflight(r2.t) == []
+
+
+def test_arm_fresh_fraction_is_checked(kin):
+    for bad in (0.0, 1.5, math.nan):
+        with pytest.raises(ValueError, match="arm_fresh_fraction"):
+            settings(arm_fresh_fraction=bad)
+    r = Rig(kin, arm_fresh_fraction=1.0).ready()      # 1: the running timeout alone, as before
+    t = r.t
+    r.feed(t + 0.45)
+    r.sv.inputs.arrival["odom"] = t
+    assert r.sv.preflight(r.t) == []
+
+
 def test_a_slope_at_the_range_end_in_radians_is_inside(kin):
     r = Rig(kin).ready(slope_deg=30.0)
     assert r.sv.preflight(r.t) == []

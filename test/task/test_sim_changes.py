@@ -19,9 +19,11 @@ def cfg():
 
 
 def _raw(c):
-    """The hash by its definition, written out here (randomisation off, margin 3 kept, tilt off)."""
+    """The hash by its definition, written out here (randomisation off, margin 3 kept, tilt off,
+    the tilt penalty's training schedule never in it)."""
     c = {k: v for k, v in c.items() if k != "randomization"}
-    c["task"] = {k: v for k, v in c["task"].items() if k not in ("r_tilt_per_deg", "r_tilt_free_deg")}
+    c["task"] = {k: v for k, v in c["task"].items() if k not in ("r_tilt_per_deg", "r_tilt_free_deg",
+                                                                 "r_tilt_ramp_after_success", "r_tilt_ramp_steps")}
     return hashlib.sha256(json.dumps(c, sort_keys=True).encode()).hexdigest()[:16]
 
 

@@ -90,20 +90,25 @@ def noise_scale(step: int, decay_steps: int, final: float) -> float:
 # ---------------------------------------------------------------------- replay
 class ReplayBuffer:
     """Ring buffer of transitions in one float32 tensor per row:
-    [o (12) | a (3) | r | not_terminal | o' (12)], sampled uniformly with replacement."""
+    [o (12) | a (3) | r | not_terminal | o' (12)], sampled uniformly with replacement.
+    aux=True adds a last column, a reward term stored apart (the tilt penalty under a training
+    schedule, TiltRamp): a sample's reward is then r + aux_weight * aux, with the weight of the
+    moment, so every transition in the buffer is relabelled when the weight changes."""
 
-    def __init__(self, capacity: int, obs_dim: int = OBS_DIM, act_dim: int = ACT_DIM):
+    def __init__(self, capacity: int, obs_dim: int = OBS_DIM, act_dim: int = ACT_DIM, aux: bool = False):
         if capacity < 1:
             raise ValueError(f"replay capacity must be >= 1, got {capacity}")
         self.obs_dim, self.act_dim = obs_dim, act_dim
-        self.width = 2 * obs_dim + act_dim + 2
+        self.aux = bool(aux)
+        self.width = 2 * obs_dim + act_dim + 2 + int(self.aux)
         self.data = torch.zeros(capacity, self.width, dtype=torch.float32)
         self._np = self.data.numpy()      # shares memory: writes without torch overhead
         self.capacity = capacity
         self.size = 0
         self.pos = 0
+        self.aux_weight = 0.0
 
-    def add(self, o, a, r: float, terminated: bool, o2) -> None:
+    def add(self, o, a, r: float, terminated: bool, o2, aux: float = 0.0) -> None:
         row = self._np[self.pos]
         k = self.obs_dim
         row[:k] = o
@@ -111,7 +116,11 @@ class ReplayBuffer:
         k += self.act_dim
         row[k] = r
         row[k + 1] = 0.0 if terminated else 1.0
-        row[k + 2:] = o2
+        row[k + 2:k + 2 + self.obs_dim] = o2
+        if self.aux:
+            row[-1] = aux
+        elif aux != 0.0:
+            raise ValueError("this replay buffer stores no aux reward term (ReplayBuffer(aux=True))")
         self.pos = (self.pos + 1) % self.capacity
         self.size = min(self.size + 1, self.capacity)
 
@@ -119,7 +128,10 @@ class ReplayBuffer:
         idx = torch.randint(self.size, (batch,), generator=generator)
         b = self.data.index_select(0, idx)
         k = self.obs_dim + self.act_dim
-        return b[:, :k], b[:, k:k + 1], b[:, k + 1:k + 2], b[:, k + 2:]   # (o|a), r, not_terminal, o'
+        r = b[:, k:k + 1]
+        if self.aux and self.aux_weight != 0.0:
+            r = r + self.aux_weight * b[:, -1:]
+        return b[:, :k], r, b[:, k + 1:k + 2], b[:, k + 2:k + 2 + self.obs_dim]   # (o|a), r, not_terminal, o'
 
     def state_dict(self) -> dict:
         return {"data": self.data[: self.size].clone(), "pos": self.pos, "size": self.size}
@@ -127,9 +139,57 @@ class ReplayBuffer:
     def load_state_dict(self, d: dict) -> None:
         n = int(d["size"])
         if d["data"].shape[1] != self.width or n > self.capacity:
-            raise ValueError("replay checkpoint does not match this buffer's layout or capacity")
+            raise ValueError("replay checkpoint does not match this buffer's layout or capacity (a run with the tilt "
+                             "penalty's ramp stores one more column: resume it with the same task.r_tilt_ramp_* "
+                             "settings)")
         self.data[:n].copy_(d["data"])
         self.size, self.pos = n, int(d["pos"])
+
+
+class TiltRamp:
+    """The tilt penalty's training schedule (task.r_tilt_ramp_after_success R,
+    r_tilt_ramp_steps S): weight 0 until a periodic evaluation of the noise-free actor succeeds
+    in at least a fraction R of its episodes, then rising linearly to 1 over S steps (S = 0: at
+    once). Why: with the whole penalty from the first step, 2 of 9 RLD seeds never found loading
+    (docs/training.md "Tilt penalty"); the evaluation, not a training episode, says the actor
+    has found it (a random actor's episode meets the success test now and then). R = 0: off,
+    the weight is 1 throughout."""
+
+    def __init__(self, after_success: float, steps: int):
+        if not (0.0 <= after_success <= 1.0) or steps < 0:
+            raise ValueError(f"tilt ramp: after_success {after_success} must be in [0, 1] and steps {steps} >= 0")
+        self.after_success, self.steps = float(after_success), int(steps)
+        self.start_step: int | None = None
+
+    @property
+    def enabled(self) -> bool:
+        return self.after_success > 0.0
+
+    def evaluated(self, success_rate: float, step: int) -> bool:
+        """A periodic evaluation's success rate at `step`; True when it starts the ramp."""
+        if not self.enabled or self.start_step is not None or success_rate < self.after_success:
+            return False
+        self.start_step = int(step)
+        return True
+
+    def weight(self, step: int) -> float:
+        if not self.enabled:
+            return 1.0
+        if self.start_step is None:
+            return 0.0
+        if self.steps == 0:
+            return 1.0
+        return min(1.0, max(0.0, (step - self.start_step) / self.steps))
+
+    def state_dict(self) -> dict:
+        return {"after_success": self.after_success, "steps": self.steps, "start_step": self.start_step}
+
+    def load_state_dict(self, d: dict) -> None:
+        if (float(d["after_success"]), int(d["steps"])) != (self.after_success, self.steps):
+            raise ValueError(f"the checkpoint's tilt ramp (after an evaluation with success >= {d['after_success']}, "
+                             f"over {d['steps']} steps) is not this config's ({self.after_success}, {self.steps}): "
+                             "resume with the same task.r_tilt_ramp_* settings or use another --out")
+        self.start_step = None if d["start_step"] is None else int(d["start_step"])
 
 
 # ---------------------------------------------------------------------- agent

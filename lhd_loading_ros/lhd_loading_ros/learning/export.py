@@ -27,7 +27,11 @@ def export_actor(directory, actor: FlatMlp, cfg: dict, meta: dict):
         "trained_with": {"randomize": bool(int(cfg.get("randomization", {}).get("enabled", 0))),
                          "r_success_pitch_margin_deg": float(cfg["task"].get("r_success_pitch_margin_deg", 0.0)),
                          "r_tilt_per_deg": float(cfg["task"].get("r_tilt_per_deg", 0.0)),
-                         "r_tilt_free_deg": float(cfg["task"].get("r_tilt_free_deg", 0.0))},
+                         "r_tilt_free_deg": float(cfg["task"].get("r_tilt_free_deg", 0.0)),
+                         **({"r_tilt_ramp_after_success": float(cfg["task"]["r_tilt_ramp_after_success"]),
+                             "r_tilt_ramp_steps": int(cfg["task"].get("r_tilt_ramp_steps", 0))}
+                            if float(cfg["task"].get("r_tilt_per_deg", 0.0)) > 0
+                            and float(cfg["task"].get("r_tilt_ramp_after_success", 0.0)) > 0 else {})},
         **meta,
     }
     return save_policy(directory, actor.numpy_weights(), full)

@@ -9,6 +9,8 @@ A run directory holds
                     checkpoint_every steps, atomically
   best/             exported actor with the best evaluation so far (ASL, then success, then AR)
   final/            exported actor at the end of training
+With the tilt penalty ramped in (task.r_tilt_ramp_after_success > 0, TiltRamp), the replay keeps the
+penalty apart and weights it when sampled; run.json and the checkpoint hold the ramp's state.
 Interrupted runs resume from checkpoint.pt: the agent, replay and noise continue exactly; the
 episode in progress is dropped and starts again (training episode k always uses the pile of
 seed (run seed, k), so with one environment the sequence of piles is the same with or without a
@@ -30,7 +32,7 @@ import torch
 
 from lhd_loading_ros.task.config import config_hash, load_config
 from lhd_loading_ros.task.metrics import result_from_status
-from lhd_loading_ros.learning.ddpg import DdpgAgent, DdpgConfig, OUNoise, ReplayBuffer, noise_scale
+from lhd_loading_ros.learning.ddpg import DdpgAgent, DdpgConfig, OUNoise, ReplayBuffer, TiltRamp, noise_scale
 from lhd_loading_ros.learning.evaluate import evaluate
 from lhd_loading_ros.learning.export import export_actor
 
@@ -143,6 +145,13 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
 
     if env_kind not in ENV_KINDS:
         raise ValueError(f"env must be one of {ENV_KINDS}, got {env_kind!r}")
+    task_cfg = cfg["task"]
+    ramp = TiltRamp(float(task_cfg.get("r_tilt_ramp_after_success", 0.0)) if float(task_cfg.get("r_tilt_per_deg", 0.0)) > 0
+                    else 0.0, int(task_cfg.get("r_tilt_ramp_steps", 0)))
+    if ramp.enabled and env_kind != "local":
+        raise ValueError("task.r_tilt_ramp_after_success > 0 (the tilt penalty ramped in) needs the in-process "
+                         "environment: the sim nodes' transitions do not give the reward's terms apart; set it "
+                         "to 0 or train with --env local")
     eval_env = LhdLoadingEnv(variant, cfg)     # evaluations in-process, on the learner's machine
     if env_kind == "ros":
         from lhd_sim_node.ros_env import SimNodePool
@@ -178,7 +187,7 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
 
     slots = range(len(sources))
     agent = DdpgAgent(dc, seed)
-    replay = ReplayBuffer(dc.replay_size)
+    replay = ReplayBuffer(dc.replay_size, aux=ramp.enabled)   # the tilt term apart while it is ramped in
     rng = np.random.default_rng(seed)
     noise = OUNoise(3, dc.ou_mu, dc.ou_sigma, dc.ou_theta, dc.ou_dt, rng)
     # one OU process per source (the first draws from the run's rng, as with one environment)
@@ -198,6 +207,8 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
                              f"!= {chash[:12]}); use another --out or the same config")
         agent.load_state_dict(st["agent"])
         replay.load_state_dict(st["replay"])
+        if st.get("tilt_ramp"):
+            ramp.load_state_dict(json.loads(st["tilt_ramp"]))
         rng.bit_generator.state = json.loads(st["rng"])
         noise.x[:] = st["noise_x"].numpy()
         more = st.get("noise_more")
@@ -227,7 +238,8 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
         (out / "run.json").write_text(json.dumps({
             "variant": variant, "seed": seed, "config_hash": chash, "ddpg": dc.to_dict(),
             "torch": torch.__version__, "command": sys.argv, "env": env_kind, "sources": sources,
-            "transitions_by_source": contributed}, indent=2) + "\n")
+            "transitions_by_source": contributed,
+            **({"tilt_ramp": ramp.state_dict()} if ramp.enabled else {})}, indent=2) + "\n")
 
     write_run_json()
 
@@ -242,7 +254,7 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
               "rng": json.dumps(rng.bit_generator.state), "noise_x": torch.from_numpy(noise.x.copy()),
               "noise_more": torch.from_numpy(np.array([noises[i].x for i in slots[1:]], dtype=np.float64).reshape(-1, 3)),
               "pending": json.dumps([slot_episode[i] for i in slots] + queue), "next_episode": started,
-              "contributed": json.dumps(contributed),
+              "contributed": json.dumps(contributed), "tilt_ramp": json.dumps(ramp.state_dict()),
               "best": json.dumps(best) if best else "", "wall_s": wall_before + time.perf_counter() - t0}
         tmp = out / "checkpoint.pt.tmp"
         torch.save(st, tmp)
@@ -289,7 +301,12 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
             results = step_slots(acts)
             for i, a in acts.items():        # each source's transition in turn, as one environment's
                 obs2, r, term, trunc, info = results[i]
-                replay.add(obs[i], a, r, term, obs2)
+                if ramp.enabled:             # the tilt term apart, weighted when sampled
+                    tilt = float(info["terms"].get("tilt", 0.0))
+                    replay.add(obs[i], a, r - tilt, term, obs2, aux=tilt)
+                    replay.aux_weight = ramp.weight(step)
+                else:
+                    replay.add(obs[i], a, r, term, obs2)
                 contributed[sources[i]] += 1
                 ep_ret[i] += r
                 step += 1
@@ -322,6 +339,10 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
                         for k in ("ar", "aml", "aff", "asl", "success_rate", "critic_loss", "q_mean"):
                             tb.add_scalar(f"eval/{k}", row[k], step)
                     last_eval = {k: row[k] for k in EVAL_FIELDS if k in row}
+                    if ramp.evaluated(ev["success_rate"], step):
+                        log(f"{variant} seed {seed}: evaluation success {ev['success_rate']:.2f} at step {step:,}: the "
+                            f"tilt penalty is ramped in over {ramp.steps:,} steps")
+                        write_run_json()
                     if best is None or _rank(last_eval) > _rank(best):
                         best = dict(last_eval)
                         export("best", best)

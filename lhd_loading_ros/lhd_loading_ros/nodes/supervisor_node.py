@@ -110,6 +110,9 @@ class SupervisorNode(Node):
                   lo=-1.0, hi=10.0, check=lambda v: None if v == -1.0 or v >= 0.0 else
                   "expected -1 (the task's control period) or seconds >= 0"),
             Param("hw_status_timeout", 0.5, "s: the same for the bridge's hw/status", lo=0.01, hi=60.0),
+            Param("arm_fresh_fraction", 0.5, "to arm, every input must be younger than this fraction of its timeout "
+                  "(an input nearly as old as its timeout would end the armed attempt one late message later)",
+                  lo=0.05, hi=1.0),
             Param("max_tilt_deg", 0.0, "deg: a machine tilted beyond this (|pitch| from <prefix>/imu, an IMU on the "
                   "rear frame) ends the attempt as a failure, and the IMU becomes a required input; 0: no limit "
                   "(a fresh IMU is still used for the final pitch)", lo=0.0, hi=45.0),
@@ -140,7 +143,7 @@ class SupervisorNode(Node):
                             arm_delay=gp("arm_delay"), input_timeout=gp("input_timeout"),
                             hw_status_timeout=gp("hw_status_timeout"), mass_settle_s=gp("mass_settle_s"), prefix=ns,
                             end_check_period=p.control_dt if gp("end_check_period") < 0 else gp("end_check_period"),
-                            max_tilt_deg=gp("max_tilt_deg"))
+                            max_tilt_deg=gp("max_tilt_deg"), arm_fresh_fraction=gp("arm_fresh_fraction"))
         self.run_dir = Path(gp("run_dir")).expanduser().resolve()
         self.csv = csv_path(self.run_dir)
         try:

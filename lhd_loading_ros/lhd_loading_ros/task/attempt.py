@@ -94,6 +94,11 @@ class Settings:
     # deg: while running, the machine's tilt (|pitch| from the IMU) beyond this ends the attempt
     # as a failure; 0: no limit, and the IMU is optional (used for the pitch when it is fresh)
     max_tilt_deg: float = 0.0
+    # to ARM, each input must be younger than this fraction of its timeout: an input 0.49 s old
+    # passes a 0.5 s timeout but ends the armed attempt (lost_input) one late message later.
+    # Half leaves room for several messages of every input (10-30 Hz) and still refuses a stalling
+    # one; the running checks keep the whole timeout
+    arm_fresh_fraction: float = 0.5
 
     def __post_init__(self):
         lo, hi = self.slope_range_deg
@@ -107,6 +112,9 @@ class Settings:
             raise ValueError(f"arm_delay = {self.arm_delay!r}: expected seconds >= 0")
         if not (math.isfinite(self.max_tilt_deg) and 0.0 <= self.max_tilt_deg <= 45.0):
             raise ValueError(f"max_tilt_deg = {self.max_tilt_deg!r}: expected degrees in [0, 45] (0: no limit)")
+        if not (math.isfinite(self.arm_fresh_fraction) and 0.0 < self.arm_fresh_fraction <= 1.0):
+            raise ValueError(f"arm_fresh_fraction = {self.arm_fresh_fraction!r}: expected a fraction of the input "
+                             "timeouts in (0, 1]")
         if not (math.isfinite(self.end_check_period) and self.end_check_period >= 0):
             raise ValueError(f"end_check_period = {self.end_check_period!r}: expected seconds >= 0 (0: every update)")
 
@@ -210,9 +218,10 @@ class Supervisor:
         return (f"pile slope {deg:.1f} deg is outside the controller's range [{lo:g}, {hi:g}] deg "
                 f"({self.s.slope_source}): reshape the pile or pick a controller trained for it")
 
-    def _input_problems(self, now: float) -> list[str]:
+    def _input_problems(self, now: float, arming: bool = False) -> list[str]:
         """Problems of the inputs an attempt needs all the time: joints, odometry, drift flags,
-        the bridge (age, and its level unless the device's e-stop explains it)."""
+        the bridge (age, and its level unless the device's e-stop explains it). arming: the
+        preflight's stricter age, arm_fresh_fraction of each timeout."""
         inp, s, out = self.inputs, self.s, []
         p = s.prefix
         ages = (("joints", "joint states", f"{p}/joint_states, the bridge", s.input_timeout),
@@ -228,6 +237,10 @@ class Supervisor:
                 out.append(f"no {what} received ({src})")
             elif inp.age(name, now) > timeout:
                 out.append(f"{what} {inp.age(name, now):.2f} s old (timeout {timeout:g} s; {src})")
+            elif arming and inp.age(name, now) > timeout * s.arm_fresh_fraction:
+                out.append(f"{what} {inp.age(name, now):.2f} s old: to arm, at most {timeout * s.arm_fresh_fraction:.2g} s "
+                           f"({s.arm_fresh_fraction:g} of its {timeout:g} s timeout: an input this late would end "
+                           f"the attempt; {src})")
         if "joints" in inp.values:
             j = inp.values["joints"]
             for name in ("boom", "bucket"):
@@ -309,7 +322,7 @@ class Supervisor:
         estop = self._estop_problem(now)
         if estop:
             out.append(estop + ": release it first")
-        out += self._input_problems(now)
+        out += self._input_problems(now, arming=True)
         tilt = self._tilt_problem(now)
         if tilt:
             out.append(tilt)

@@ -80,6 +80,7 @@ SCHEMA: dict[str, Any] = {
         "r_dump_sign": _i(-1, 1), "r_weight_increments": _i(0, 1),
         "r_success_requires_sl": _i(0, 1), "success_pitch_margin_deg": _f(-45.0, 45.0),
         "r_success_pitch_margin_deg": _f(0.0, 20.0), "r_tilt_per_deg": _f(0.0, 1e4), "r_tilt_free_deg": _f(0.0, 45.0),
+        "r_tilt_ramp_after_success": _f(0.0, 1.0), "r_tilt_ramp_steps": _i(0, 100_000_000),
         "bottom_tolerance": _f(0.0, 0.5),
         "bucket_repose_deg": _f(5.0, 60.0), "normalisers_from_pile": _i(0, 1),  # H4: capacity, derived normalisers
     },
@@ -292,6 +293,9 @@ def load_config(path: str | os.PathLike | None = None) -> dict:
 TRAINING_ONLY = (("randomization", "enabled", 0), ("task", "r_success_pitch_margin_deg", 0.0),
                  ("task", "r_tilt_per_deg", 0.0))
 TILT_KEYS = ("r_tilt_per_deg", "r_tilt_free_deg")     # the tilt penalty; both left out of the hash while it is off
+# the tilt penalty's schedule in training (learning/train.TiltRamp): never in the hash. The actor's
+# reward at the end of its training is the full penalty, whatever the schedule; the card records it
+TILT_SCHEDULE_KEYS = ("r_tilt_ramp_after_success", "r_tilt_ramp_steps")
 
 
 def _with(cfg: dict, section: str, key: str, value) -> dict:
@@ -303,7 +307,9 @@ def config_hash(cfg: dict) -> str:
     TRAINING_ONLY settings at their neutral values left out: a switched-off `randomization`
     section (actors trained before the section existed keep their hash; a randomised run's hash
     differs), task.r_success_pitch_margin_deg at 0, and the tilt penalty's keys while
-    task.r_tilt_per_deg is 0."""
+    task.r_tilt_per_deg is 0; the tilt penalty's training schedule (TILT_SCHEDULE_KEYS) never."""
+    if "task" in cfg and any(k in cfg["task"] for k in TILT_SCHEDULE_KEYS):
+        cfg = {**cfg, "task": {k: v for k, v in cfg["task"].items() if k not in TILT_SCHEDULE_KEYS}}
     if int(cfg.get("randomization", {}).get("enabled", 0)) == 0:
         cfg = {k: v for k, v in cfg.items() if k != "randomization"}
     if "task" in cfg and float(cfg["task"].get("r_success_pitch_margin_deg", 0.0)) == 0.0:

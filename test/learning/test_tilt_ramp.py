@@ -1,0 +1,118 @@
+"""The tilt penalty ramped in once the actor loads (task.r_tilt_ramp_after_success /
+r_tilt_ramp_steps): the schedule by hand, the replay relabelling every stored transition with the
+weight of the moment, a short real training run that keeps the term apart, and the config hash
+that the schedule never enters (actors trained with or without it run on the same config)."""
+PARALLEL_SAFE = True
+
+import csv
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from lhd_loading_ros.learning.ddpg import ReplayBuffer, TiltRamp
+from lhd_loading_ros.task.config import config_hash, validate
+
+
+def test_the_ramp_by_hand():
+    r = TiltRamp(after_success=0.5, steps=1000)
+    assert r.enabled and r.weight(0) == 0.0
+    assert r.evaluated(0.0, 10_000) is False and r.weight(15_000) == 0.0
+    assert r.evaluated(0.49, 20_000) is False and r.weight(25_000) == 0.0
+    assert r.evaluated(0.5, 30_000) is True and r.start_step == 30_000
+    assert r.weight(30_000) == 0.0 and r.weight(30_250) == pytest.approx(0.25) and r.weight(31_000) == 1.0
+    assert r.weight(300_000) == 1.0
+    assert r.evaluated(1.0, 40_000) is False and r.start_step == 30_000     # starts once
+    assert r.evaluated(0.0, 50_000) is False and r.weight(50_000) == 1.0    # and stays
+    # off: the whole penalty throughout; steps 0: at once
+    assert TiltRamp(0.0, 1000).weight(0) == 1.0 and not TiltRamp(0.0, 1000).enabled
+    assert TiltRamp(0.0, 1000).evaluated(1.0, 10) is False
+    at_once = TiltRamp(0.25, 0)
+    at_once.evaluated(0.3, 10)
+    assert at_once.weight(10) == 1.0
+    # resumable; another schedule is refused
+    again = TiltRamp(0.5, 1000)
+    again.load_state_dict(r.state_dict())
+    assert again.weight(30_250) == pytest.approx(0.25)
+    with pytest.raises(ValueError, match="tilt ramp"):
+        TiltRamp(0.75, 1000).load_state_dict(r.state_dict())
+    for bad in ((-0.1, 10), (1.5, 10), (0.5, -1)):
+        with pytest.raises(ValueError):
+            TiltRamp(*bad)
+
+
+def test_the_replay_relabels_every_transition_with_the_current_weight():
+    rb = ReplayBuffer(4, aux=True)
+    for k, (r, tilt) in enumerate([(1.0, -10.0), (2.0, 0.0), (3.0, -30.0)]):
+        rb.add(np.full(12, k), np.zeros(3), r, False, np.full(12, k + 1), aux=tilt)
+    gen = torch.Generator().manual_seed(0)
+
+    def rewards_by_row(weight):
+        rb.aux_weight = weight
+        oa, r, nd, o2 = rb.sample(64, gen)
+        assert o2.shape == (64, 12) and torch.equal(o2[:, 0], oa[:, 0] + 1)   # o' is not the aux column
+        return {int(o): float(x) for o, x in zip(oa[:, 0], r[:, 0])}
+
+    assert rewards_by_row(0.0) == {0: 1.0, 1: 2.0, 2: 3.0}
+    assert rewards_by_row(0.5) == {0: -4.0, 1: 2.0, 2: -12.0}
+    assert rewards_by_row(1.0) == {0: -9.0, 1: 2.0, 2: -27.0}
+    # a buffer without the column refuses a term it cannot keep, and the layouts do not mix
+    plain = ReplayBuffer(4)
+    with pytest.raises(ValueError, match="aux"):
+        plain.add(np.zeros(12), np.zeros(3), 0.0, False, np.zeros(12), aux=-1.0)
+    with pytest.raises(ValueError, match="r_tilt_ramp"):
+        plain.load_state_dict(rb.state_dict())
+
+
+def test_the_schedule_is_not_in_the_config_hash(cfg):
+    c = json.loads(json.dumps(cfg))
+    c["task"]["r_tilt_per_deg"] = 10.0
+    h = config_hash(c)
+    c["task"]["r_tilt_ramp_after_success"], c["task"]["r_tilt_ramp_steps"] = 0.5, 12345
+    assert config_hash(validate(c)) == h
+    stripped = json.loads(json.dumps(c))
+    del stripped["task"]["r_tilt_ramp_after_success"], stripped["task"]["r_tilt_ramp_steps"]
+    assert config_hash(stripped) == h          # actors trained before the keys existed keep their hash
+    c["task"]["r_tilt_ramp_after_success"] = 1.5
+    with pytest.raises(Exception, match="r_tilt_ramp_after_success"):
+        validate(c)
+
+
+def test_a_short_run_keeps_the_tilt_term_apart(cfg, tmp_path):
+    """A fresh actor's evaluations do not succeed in every episode, so the weight stays 0; the
+    replay's reward column plus its tilt column is the environment's reward, and summed over the
+    first episode it is that episode's return in episodes.csv (written from the env's rewards)."""
+    from lhd_loading_ros.learning.train import train
+    from lhd_loading_ros.policy.actor_file import load_policy
+
+    cfg["training"].update({"learning_starts": 256, "eval_episodes": 2, "eval_every": 300,
+                            "checkpoint_every": 300, "hidden_sizes": [16, 16]})
+    cfg["task"].update({"r_tilt_per_deg": 10.0, "r_tilt_free_deg": 0.0,      # any pitch costs: a term to see
+                        "r_tilt_ramp_after_success": 1.0, "r_tilt_ramp_steps": 1000})
+    out = tmp_path / "run"
+    train("rld", 3, out, steps=300, config=cfg, progress=False, log=lambda *a: None)
+    st = torch.load(out / "checkpoint.pt", weights_only=True)
+    ramp = json.loads(st["tilt_ramp"])
+    assert ramp == {"after_success": 1.0, "steps": 1000, "start_step": None}
+    assert json.loads((out / "run.json").read_text())["tilt_ramp"] == ramp
+    data = st["replay"]["data"].numpy().astype(np.float64)
+    assert data.shape == (300, 12 + 3 + 2 + 12 + 1)
+    tilt = data[:, -1]
+    assert (tilt <= 0).all() and (tilt < 0).any(), tilt[:20]
+    eps = list(csv.DictReader((out / "episodes.csv").open()))
+    assert eps, "no episode ended in 300 steps"
+    n = int(eps[0]["steps"])
+    full = data[:n, 15] + data[:n, -1]
+    assert full.sum() == pytest.approx(float(eps[0]["return"]), rel=1e-4, abs=1e-2)
+    assert data[:n, 15].sum() > full.sum()       # the penalty is not in the stored reward
+    tw = load_policy(out / "final").meta["trained_with"]
+    assert tw["r_tilt_ramp_after_success"] == 1.0 and tw["r_tilt_ramp_steps"] == 1000
+    # another schedule does not resume this run
+    cfg["task"]["r_tilt_ramp_after_success"] = 0.5
+    with pytest.raises(ValueError, match="tilt ramp"):
+        train("rld", 3, out, steps=400, config=cfg, progress=False, log=lambda *a: None)
+    # the sim nodes' transitions have no terms apart: refused with the reason
+    with pytest.raises(ValueError, match="in-process"):
+        train("rld", 3, tmp_path / "ros", steps=10, config=cfg, progress=False, env_kind="ros",
+              namespaces=["/sim0"])
