@@ -237,3 +237,57 @@ def test_an_attempt_keeps_the_slope_it_was_armed_with(ros, tmp_path):
     finally:
         assert pol.stop() == 0, pol.log()
         rig.close()
+
+
+def test_an_attempt_keeps_the_end_zone_it_was_armed_with(ros, tmp_path):
+    """slope_source attempt: the end zone in the running status (the supervisor's, frozen at arming)
+    is d_end's x_max for the whole attempt; the end-zone node's live estimate, republished while the
+    bucket hides the face (in the twin x_max jumped 0.885 -> 1.090 m, truth 0.910), is taken after
+    it. Seen in the decision trace's observation: d_end = |x_shovel - x_max| / d_end_max, so with the
+    tip standing still the live zone 0.20 m farther moves d_end by 0.20 / d_end_max exactly."""
+    from lhd_loading_ros.task.config import load_config
+    from lhd_loading_ros.task.params import TaskParams
+
+    d_end_max = TaskParams.from_config(load_config()).d_end_max
+    rig = Rig(ros, slope_deg=20.0)
+    pol = RosProcess(POLICY, {}, tmp_path / "pol.log")
+    decisions = []
+    sub = ros.create_subscription(DiagnosticStatus, "/lhd/policy/decision",
+                                  lambda m: decisions.append((time.monotonic(), {k.key: k.value for k in m.values})),
+                                  REL)
+
+    def running(episode, end_zone=None):
+        st = status("running", episode)
+        st.values.append(KeyValue(key="slope_deg", value="20.00"))
+        if end_zone is not None:
+            st.values.append(KeyValue(key="end_zone", value=",".join(f"{v:.4f}" for v in end_zone)))
+        rig.status_pub.publish(st)
+        return time.monotonic()
+
+    def d_ends(since):
+        return [float(kv["observation"].split(",")[10]) for t, kv in decisions if t >= since and kv["observation"]]
+
+    try:
+        rig.publish_status("idle")
+        assert spin_until(ros, lambda: rig.has("inputs", DiagnosticStatus.OK, "all inputs fresh"), 60), pol.log()
+        t1 = running("1", (0.52, 0.85, 0.35))
+        assert spin_until(ros, lambda: len(d_ends(t1)) >= 5, 20), pol.log()[-2000:]
+        d0 = d_ends(t1)[-1]
+        assert d0 > 0.0
+        rig.latched[1].publish(Float64MultiArray(data=[0.52, 1.05, 0.35]))     # the live estimate moves
+        t_live = time.monotonic()
+        spin_until(ros, lambda: False, 1.5)
+        held = d_ends(t_live)
+        assert len(held) >= 10 and all(v == pytest.approx(d0, abs=1e-5) for v in held), (d0, held)
+        rig.publish_status("success")
+        spin_until(ros, lambda: False, 0.5)
+        # the next attempt's status carries no end zone: the live one (taken after the attempt) is used
+        t2 = running("2")
+        assert spin_until(ros, lambda: len(d_ends(t2 + 0.3)) >= 5, 20), pol.log()[-2000:]
+        d1 = d_ends(t2 + 0.3)[-1]
+        assert d1 - d0 == pytest.approx(0.20 / d_end_max, abs=1e-4), (d0, d1, d_end_max)
+        rig.publish_status("success", "2")
+    finally:
+        ros.destroy_subscription(sub)
+        assert pol.stop() == 0, pol.log()
+        rig.close()

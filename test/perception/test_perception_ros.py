@@ -76,6 +76,12 @@ def test_aruco_node_pose_speed_loss_and_staleness(ros, tmp_path):
             pub_img.publish(image_msg(frames[k], t0 + ts[k], "bgr8" if k % 2 else "mono8"))
             spin_until(node, lambda: False, 1 / fps)
         assert spin_until(node, lambda: len(odom) >= 40, 5.0), (len(odom), proc.log())
+        # the node may still be working through its image queue (a loaded machine): wait until the
+        # last frame's odometry came, so that the counts below are the final ones
+        last_ns = int(round((t0 + ts[-1]) * 1e9))
+        spin_until(node, lambda: odom and odom[-1].header.stamp.sec * 10**9 + odom[-1].header.stamp.nanosec
+                   >= last_ns - 1000, 5.0)
+        spin_until(node, lambda: False, 0.3)
         T_mb = transform((0.10, 0.0, -0.213), (0, 0, 0))
         for o in odom:
             t = o.header.stamp.sec + o.header.stamp.nanosec * 1e-9 - t0

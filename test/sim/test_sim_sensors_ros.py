@@ -27,7 +27,9 @@ from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import Marker, MarkerArray
 
 from lhd_loading_ros.perception.synthetic import DrawPoint
+from lhd_loading_ros.task.config import load_config
 from lhd_loading_ros.task.end_zone import nominal_density
+from lhd_loading_ros.task.kinematics import nose_down_pitch, quat_to_mat
 from lhd_loading_ros.task.zones import Zones
 from lhd_sim_node.sim_sensors import (CameraModel, LidarModel, TipTrail, camera_image, fee_arrow, lidar_scan,
                                       machine_segments, pile_surfaces, zone_boxes)
@@ -342,7 +344,7 @@ def test_aruco_node_with_an_imu_follows_a_tilting_machine(ros, sim, tmp_path):
                 im = _image_msg(img, t0 + ti)
                 dt = 1e-4
                 v_true = (state(ti + dt)[0][0] - state(ti - dt)[0][0]) / (2 * dt)
-                truth[_stamp_ns(im)] = (v_true, float(p[0]), ti)
+                truth[_stamp_ns(im)] = (v_true, float(p[0]), ti, float(p[2]), pitch)
                 pub_img.publish(im)
                 k_img += 1
             spin_until(ros, lambda: False, max(0.0, t_next - time.monotonic()), step=0.005)
@@ -353,15 +355,20 @@ def test_aruco_node_with_an_imu_follows_a_tilting_machine(ros, sim, tmp_path):
         for s in subs:
             ros.destroy_subscription(s)
     assert rcs == (0, 0), (with_imu.log(), level.log())
-    res = {}
+    res, pose_err = {}, {}
     for name, msgs in odoms.items():
-        ev, ex = [], []
+        ev, ex, ez, ep = [], [], [], []
         for o in msgs:
-            v_true, x_true, ti = truth[_stamp_ns(o)]
+            v_true, x_true, ti, z_true, pitch_true = truth[_stamp_ns(o)]
             if ti >= 0.3:                       # past the filter's start
                 ev.append(o.twist.twist.linear.x - v_true)
                 ex.append(o.pose.pose.position.x - x_true)
+                q = o.pose.pose.orientation
+                R = quat_to_mat(q.w, q.x, q.y, q.z)
+                ez.append(o.pose.pose.position.z - z_true)
+                ep.append(math.degrees(nose_down_pitch(R) - pitch_true))
         res[name] = (len(ev), math.sqrt(np.mean(np.square(ev))), float(np.max(np.abs(ev))), float(np.max(np.abs(ex))))
+        pose_err[name] = (float(np.max(np.abs(ez))), float(np.max(np.abs(ep))))
     print("\nArUco node, machine tilting 0 -> 12 deg nose down at 8 deg/s while creeping at 0.1 m/s:")
     for name, (n, rms, mx, exm) in res.items():
         print(f"  {'with the IMU' if name == 'imu' else 'levelled   '}: {n} speeds, v_x RMS {rms:.4f} m/s, "
@@ -371,6 +378,30 @@ def test_aruco_node_with_an_imu_follows_a_tilting_machine(ros, sim, tmp_path):
     assert rms <= 0.02 and exm <= 0.01, res
     # what the IMU removes: the levelled estimate is several times worse in speed and place
     assert res["lvl"][1] > 2.0 * rms and res["lvl"][3] > 0.03, res
+    # the odometry with the IMU is the tilted pose: base_link raised (17 cm at 12 deg) and pitched
+    # as the machine is; the levelled one is not. Bound by hand: the node's pitch at an image is the
+    # mean of the IMU samples of the last imu_window (0.1 s: 0.05 s late at 8 deg/s = 0.4 deg), less
+    # the 0.3 deg deadband, plus the mean of ~5 samples of 0.1 deg noise (3 sigma ~0.15 deg): 0.85 deg,
+    # so 1 deg; the height follows through the 0.8 m lever to the front axle: 0.8 sin(1 deg) = 14 mm
+    print(f"  base_link z / pitch error max: with the IMU {1000 * pose_err['imu'][0]:.1f} mm / "
+          f"{pose_err['imu'][1]:.2f} deg, levelled {1000 * pose_err['lvl'][0]:.1f} mm / {pose_err['lvl'][1]:.2f} deg")
+    assert pose_err["imu"][0] <= 0.015 and pose_err["imu"][1] <= 1.0, pose_err
+    assert pose_err["lvl"][0] > 0.1 and pose_err["lvl"][1] > 10.0, pose_err
+    # ... so the bucket tip computed from it (the policy node's and the supervisor's
+    # state_from_measurements) is where the machine put it: at 12 deg with the arm at rest, the
+    # tip from the tilted pose against the same forward kinematics on the true pose
+    from lhd_loading_ros.task.kinematics import ArmKinematics, state_from_measurements
+    kin = ArmKinematics.from_config(load_config())
+    last_o = odoms["imu"][-1]
+    _, x_t, _, z_t, pitch_t = truth[_stamp_ns(last_o)]
+    p_true, q_true = state(truth[_stamp_ns(last_o)][2])[:2]
+    joints = {"boom": (0.0, 0.0), "bucket": (0.3, 0.0)}
+    tip_true = state_from_measurements(kin, p_true, q_true, 0.0, joints, False, False)
+    op, oq = last_o.pose.pose.position, last_o.pose.pose.orientation
+    tip_est = state_from_measurements(kin, (op.x, op.y, op.z), (oq.w, oq.x, oq.y, oq.z), 0.0, joints, False, False)
+    assert math.degrees(pitch_t) == pytest.approx(12.0)
+    assert abs(tip_est.z_shovel - tip_true.z_shovel) < 0.015 and abs(tip_est.x_shovel - tip_true.x_shovel) < 0.015, \
+        (tip_est, tip_true)
 
 
 def _stopping_machine(t: float):

@@ -4,7 +4,9 @@ ArUco marker on the LHD seen by a camera above the draw point (paper: real envir
 In:  sensor_msgs/Image (mono8, bgr8, rgb8, bgra8, rgba8) and sensor_msgs/CameraInfo; optionally
      <prefix>/imu (sensor_msgs/Imu on the rear frame, axes = base_link's): with its orientation, a
      machine that tilts (its rear lifting as the boom pries at a buried bucket) is placed with its
-     roll and pitch about the wheels on the floor and v_x is base_link's (use_imu); with its linear
+     roll and pitch about the wheels on the floor, the odometry is that tilted pose (base_link raised
+     and pitched: the bucket tip the controllers compute from it is the machine's) and v_x is
+     base_link's (use_imu); with its linear
      acceleration too, the speed filter integrates it between images (imu_acceleration;
      docs/perception.md "Camera and accelerometer").
 Out (under /lhd, or the node's namespace):
@@ -43,7 +45,7 @@ from lhd_loading_ros.perception.aruco import (CameraModel, ImageEncodingError, I
                                               KalmanVelocityEstimator, MarkerDetector, MountingPrior, VelocityEstimator,
                                               dictionary, forward_acceleration, image_to_gray, level, marker_centre_ray,
                                               opencv_problem, position_on_plane, roll_pitch, tilted_base_position)
-from lhd_loading_ros.perception.geometry import quaternion_xyzw, transform
+from lhd_loading_ros.perception.geometry import quaternion_xyzw, rpy_matrix, transform
 from lhd_loading_ros.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
 from lhd_loading_ros.ros.qos import MEASUREMENT_QOS
@@ -105,7 +107,8 @@ class ArucoPoseNode(Node):
             Param("namespace_prefix", "/lhd", "topic prefix when the node runs in the root namespace"),
             Param("use_imu", True, "planar_motion: when <prefix>/imu (sensor_msgs/Imu on the rear frame) is fresh, "
                   "place base_link with its roll and pitch, the machine tilting about the wheels on the floor, "
-                  "and take v_x from base_link (without it: the levelled pose, v_x from the marker)"),
+                  "publish that tilted pose (base_link raised, pitched) and take v_x from base_link (without it: "
+                  "the levelled pose, v_x from the marker)"),
             Param("imu_timeout", 0.2, "use_imu: an IMU sample older than this (s, from its stamp to the image's) "
                   "is not used (nor its acceleration held longer)", lo=0.001, hi=10.0, on_change=self._set_imu_timeout),
             Param("imu_window", 0.1, "use_imu: the roll and pitch at an image are the mean of the IMU samples of "
@@ -164,7 +167,8 @@ class ArucoPoseNode(Node):
         self._wait_timer = None                 # one-shot (steady clock) ending such a wait
         self._deadline_passed = False           # its first expiry came (queued IMU samples may still end it)
         self.imu_deadband = math.radians(p["imu_deadband_deg"])
-        self.marker_in_base = np.linalg.inv(self.T_marker_base)[:3, 3]   # the marker's centre in base_link
+        self.T_base_marker = np.linalg.inv(self.T_marker_base)          # the marker in base_link
+        self.marker_in_base = self.T_base_marker[:3, 3]                  # the marker's centre in base_link
         self.imu: deque = deque(maxlen=32)      # (stamp s, roll, pitch) of recent IMU samples
         self.yaw = 0.0                          # the machine's heading from the last detection (rad)
         self.accel_samples = 0                  # IMU accelerations given to the speed filter
@@ -411,8 +415,13 @@ class ArucoPoseNode(Node):
                 db = self.imu_deadband
                 tilt = tuple(math.copysign(max(0.0, abs(a) - db), a) for a in tilt)
         if tilt is not None:
-            # the IMU says how the machine is tilted: base_link from the ray with that tilt; the
-            # published orientation stays levelled (planar_motion: what the controllers expect)
+            # the IMU says how the machine is tilted: base_link from the ray with that tilt, and
+            # the published pose IS the tilted one (orientation: the IMU's roll and pitch with the
+            # marker's heading; position: base_link raised as the tilt about the wheels on the
+            # floor lifts it). The controllers were trained on the simulator's true tip: a
+            # levelled pose put the tip of a machine pried 10 deg nose down 19 cm too high, the
+            # actor drove on, and the supervisor judged that tip in the end zone (docs/twin.md
+            # "Runs 43-46")
             yaw = math.atan2(T_base[1, 0], T_base[0, 0])
             contact_z = -(self.marker_height - float(self.marker_in_base[2]))
             p_base = tilted_base_position(self._ray, self.T_pile_cam, yaw, tilt[0], tilt[1], self.marker_in_base,
@@ -421,9 +430,10 @@ class ArucoPoseNode(Node):
                 self._reject("the camera ray through the marker does not meet the tilted marker's plane; expected a "
                              "camera above the marker (check camera_xyz, camera_rpy, marker_height)")
                 return
-            shift = p_base[:2] - T_base[:2, 3]
-            T_base[:2, 3] += shift
-            T_pile_marker[:2, 3] += shift
+            T_base = np.eye(4)
+            T_base[:3, :3] = rpy_matrix(tilt[0], tilt[1], yaw)
+            T_base[:3, 3] = p_base
+            T_pile_marker = T_base @ self.T_base_marker
             x_speed, source = float(p_base[0]), "base_imu"
             self.tilted += 1
         if source != self.x_source:     # marker x and base_link x differ by the lever arm: no step into v_x

@@ -31,7 +31,10 @@ before loading; a LiDAR fit made while the bucket cuts the face and the machine 
 scan is not it (in the digital twin it drifted from 29.8 to 31.8 deg on a 30 deg pile during
 attempts, past the trained range, and the actor was refused: docs/twin.md). slope_source = live
 takes every /pile/slope update, as before; a status without a slope (a test's, a third-party
-supervisor's) leaves the live slope in use.
+supervisor's) leaves the live slope in use. The end zone likewise: the supervisor's status carries
+the zones it froze at arming (`end_zone`), and while the attempt runs x_max is that one, not the
+end-zone node's live estimate (in the twin it jumped from 0.885 to 1.090 m in the middle of a
+30 deg attempt, truth 0.910 m, as the bucket hid the face: docs/twin.md "Runs 43-46").
 
 trigger = timer     10 Hz on the steady clock (the real machine; sim node in realtime mode),
                     with use_sim_time too: the loop must not stall on a /clock that holds still
@@ -55,7 +58,8 @@ after the command): message = what triggered it (timer | odom | fallback | locks
 odom_stamp_ns (header stamp of the odometry it used: on hardware the camera frame's capture
 time), mono_ns (CLOCK_MONOTONIC when the command was published), decided_mono_ns (trigger odom:
 when the decision was taken, the clock of its rate limit; otherwise mono_ns), command ("u_w,u_boom,u_bucket"),
-reason (empty, or why the command is the zero one). `lhd bench twin` matches these with the
+reason (empty, or why the command is the zero one), observation (the 12 normalised values the actor saw,
+OBS_NAMES order; empty when none was built). `lhd bench twin` matches these with the
 command frames on the serial line.
 """
 from __future__ import annotations
@@ -130,9 +134,9 @@ class PolicyNode(Node):
             Param("slope_timeout", 0.0, "s: a slope older than this gives the zero command; 0: no timeout (a "
                   "latched constant, e.g. a surveyed pile)", lo=0.0, hi=3600.0,
                   on_change=lambda v: self._set_slow_timeout("slope", v)),
-            Param("slope_source", "attempt", "attempt: while an attempt runs, the slope it was armed with (the "
-                  "/lhd/episode status' slope_rad or slope_deg, when it carries one); live: every /pile/slope "
-                  "update", choices=SLOPE_SOURCES, on_change=lambda v: setattr(self, "slope_source", v)),
+            Param("slope_source", "attempt", "attempt: while an attempt runs, the slope and the end zone it was "
+                  "armed with (the /lhd/episode status' slope_rad or slope_deg and end_zone, when it carries them); "
+                  "live: every /pile/slope and /pile/end_zone update", choices=SLOPE_SOURCES, on_change=lambda v: setattr(self, "slope_source", v)),
             Param("end_zone_timeout", 0.0, "s: an end zone older than this gives the zero command; 0: no timeout",
                   lo=0.0, hi=3600.0, on_change=lambda v: self._set_slow_timeout("end_zone", v)),
             Param("trigger", "timer", "timer: rate_hz on the steady clock; lockstep: one decision per sim-node "
@@ -156,7 +160,8 @@ class PolicyNode(Node):
         self.odom_margin = gp("odom_margin")
         self.slope_source = gp("slope_source")
         self.attempt_slope = None        # rad: the running attempt's armed slope in use (slope_source attempt)
-        self._live_slope = None          # (value, info, arrival) of a /pile/slope sample held back by it
+        self.attempt_held = {}           # slope / end_zone -> the running attempt's armed value in use, or None
+        self._live_held = {}             # slope / end_zone -> (value, info, arrival) of a live sample held back
         qin = qos_profile_sensor_data if gp("input_qos") == "sensor_data" else MEASUREMENT_QOS
         ns = topic_prefix(self, gp("namespace_prefix"))
 
@@ -270,41 +275,62 @@ class PolicyNode(Node):
         self._put(name, value)
 
     def _on_slope(self, msg: Float64, info) -> None:
-        if self.attempt_slope is not None:     # the attempt keeps the slope it was armed with; the
-            self._live_slope = (float(msg.data), info, time.monotonic())    # live one is kept for after
+        self._on_slow_live("slope", float(msg.data), info)
+
+    def _on_slow_live(self, name: str, value, info) -> None:
+        """A live /pile/slope or /pile/end_zone sample: in use, unless the running attempt holds
+        the value it was armed with (slope_source attempt); then kept for after the attempt."""
+        if self.attempt_held.get(name) is not None:
+            self._live_held[name] = (value, info, time.monotonic())
             return
-        self._live_slope = None
-        self._put_slow("slope", float(msg.data), info)
+        self._live_held.pop(name, None)
+        self._put_slow(name, value, info)
+
+    @staticmethod
+    def _armed_values(kv: dict) -> dict:
+        """The slope (rad; slope_rad exact, else slope_deg) and end zone ([x_min, x_max, z_min]) an
+        attempt's status says it was armed with; a missing or non-finite one is left out."""
+        out = {}
+        try:
+            slope = float(kv["slope_rad"]) if "slope_rad" in kv else math.radians(float(kv["slope_deg"]))
+            if math.isfinite(slope):
+                out["slope"] = slope
+        except (KeyError, ValueError):
+            pass
+        try:
+            zone = tuple(float(v) for v in kv["end_zone"].split(","))
+            if len(zone) == 3 and all(math.isfinite(v) for v in zone):
+                out["end_zone"] = zone
+        except (KeyError, ValueError):
+            pass
+        return out
 
     def _hold_attempt_slope(self, kv: dict) -> None:
-        """slope_source attempt: while running, the slope in the status (slope_rad exact, else
-        slope_deg) is the attempt's; out of running (or no slope in the status) the live one."""
-        armed = None
-        if self.slope_source == "attempt" and self.running():
-            try:
-                armed = float(kv["slope_rad"]) if "slope_rad" in kv else math.radians(float(kv["slope_deg"]))
-            except (KeyError, ValueError):
-                armed = None
-            if armed is not None and not math.isfinite(armed):
-                armed = None
-        held, self.attempt_slope = self.attempt_slope, armed
-        if armed is not None:
-            self._slow_source_ns.pop("slope", None)    # the next live sample after the attempt is taken
-            self._put("slope", armed)
-        elif held is not None:                         # the attempt ended: back to the live slope
-            self._slow_source_ns.pop("slope", None)
-            if self._live_slope is not None:           # one came during the attempt: it is the latest,
-                value, info, t = self._live_slope      # with its own arrival time (slope_timeout)
-                self._slow_source_ns["slope"] = info["source_timestamp"]
-                self.inputs.put("slope", value, t)
-                self._live_slope = None
+        """slope_source attempt: while running, the slope and the end zone in the status (the
+        supervisor's, frozen at arming; the sim node's exact ones) are the attempt's; out of running
+        (or without them in the status) the live ones."""
+        armed = self._armed_values(kv) if self.slope_source == "attempt" and self.running() else {}
+        for name in ("slope", "end_zone"):
+            held, now = self.attempt_held.get(name), armed.get(name)
+            self.attempt_held[name] = now
+            if now is not None:
+                self._slow_source_ns.pop(name, None)    # the next live sample after the attempt is taken
+                self._put(name, now)
+            elif held is not None:                      # the attempt ended: back to the live value
+                self._slow_source_ns.pop(name, None)
+                live = self._live_held.pop(name, None)
+                if live is not None:                    # one came during the attempt: it is the latest,
+                    value, info, t = live               # with its own arrival time (slope/end_zone_timeout)
+                    self._slow_source_ns[name] = info["source_timestamp"]
+                    self.inputs.put(name, value, t)
+        self.attempt_slope = self.attempt_held.get("slope")
 
     def _on_zone(self, msg: Float64MultiArray, info) -> None:
         if len(msg.data) != 3:
             self.get_logger().warn(f"end_zone must be [x_min, x_max, z_min], got {list(msg.data)}",
                                    throttle_duration_sec=2.0)
             return
-        self._put_slow("end_zone", tuple(float(v) for v in msg.data), info)
+        self._on_slow_live("end_zone", tuple(float(v) for v in msg.data), info)
 
     def running(self) -> bool:
         return self.episode_state == RUNNING
@@ -456,7 +482,10 @@ class PolicyNode(Node):
                   # fallback run on); mono_ns is when its command left, later by the cycle's work
                   "decided_mono_ns": str(self._decided_mono_ns if self.trigger == "odom" and self._decided_mono_ns
                                          is not None else sent_ns),
-                  "command": ",".join(repr(float(v)) for v in d.command), "reason": d.reason or ""}
+                  "command": ",".join(repr(float(v)) for v in d.command), "reason": d.reason or "",
+                  # the observation the actor saw (task.observation.OBS_NAMES order, normalised), empty
+                  # when none was built: what a replay compares with the truth
+                  "observation": "" if d.observation is None else ",".join(f"{float(v):.6g}" for v in d.observation)}
         st.values = [KeyValue(key=k, value=v) for k, v in values.items()]
         self.pub_decision.publish(st)
 

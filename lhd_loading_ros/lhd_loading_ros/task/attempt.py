@@ -24,8 +24,9 @@ The tip comes from odometry + joint states through the kinematics the policy nod
 (task.kinematics.state_from_measurements); with a fresh IMU orientation (optional; required when
 max_tilt_deg > 0) the bucket's pitch is computed with the odometry's heading and the IMU's roll
 and pitch (task.kinematics.with_tilt), so the final pitch includes the machine's own pitch, which
-the ArUco node's levelled pose leaves out (the tip's position stays the levelled pose's, as the
-controllers see it); the zones and the slope are those of the arming
+a levelled pose leaves out; the tip's position is the odometry's (the ArUco node with the IMU
+publishes the tilted pose, base_link raised, so the tip is the machine's; without it, the levelled
+pose's, as the controllers then see it); the zones and the slope are those of the arming
 (the pile of this attempt), so a pile estimate republished mid-attempt cannot move the goal.
 
 The figures: elapsed time from running to the end; front/rear drift % over the drift flags
@@ -285,10 +286,11 @@ class Supervisor:
                                          bool(inp.values.get("drift_rear")))
             if self._tilt(now) is not None:
                 # the bucket's pitch with the machine's own roll and pitch (the IMU's); the tip's
-                # POSITION stays the levelled pose's, as the controllers see it: turning the arm
-                # about base_link at its floor height would move the tip where it is not (a machine
-                # tilting nose-down pivots on its front wheels, its rear axle rising), and the end
-                # zone judged there would let a controller go on past its trained end
+                # POSITION is the odometry's as published: the ArUco node with the IMU publishes the
+                # tilted pose with base_link raised about the front wheels, which puts the tip where
+                # the machine has it (the controllers see the same); turning a LEVELLED pose's arm
+                # here, about base_link at its floor height, would put it where it is not (the
+                # machine pivots on its front wheels, its rear axle rising)
                 tilted = state_from_measurements(self.kin, pos, with_tilt(quat, inp.values["imu"]), v_x, j,
                                                  False, False)
                 st = replace(st, phi_shovel=tilted.phi_shovel)
@@ -564,6 +566,9 @@ class Supervisor:
              "reason": self.reason(now)}
         if a is not None:
             v["bag"] = bag_name(a.number)
+            # the zones frozen at arming, as the sim node's status carries its pile's: the policy
+            # node holds this end zone (d_end's x_max) while the attempt runs (slope_source attempt)
+            v["end_zone"] = f"{a.zones.x_min:.4f},{a.zones.x_max:.4f},{a.zones.z_min:.4f}"
             if a.running_at is not None and self.state == "running":
                 v["elapsed_s"] = f"{now - a.running_at:.2f}"
         if a is not None and self.state in ENDED:
