@@ -144,8 +144,11 @@ dead time):
                    if margin > 0 else "")
     tilt_per_deg = float(tw.get("r_tilt_per_deg", 0.0) or 0.0)
     tilt_free = float(tw.get("r_tilt_free_deg", 0.0) or 0.0)
+    ramp_after = float(tw.get("r_tilt_ramp_after_success", 0.0) or 0.0)
+    ramp_note = (f"; ramped in from 0 over {int(tw.get('r_tilt_ramp_steps', 0)):,} steps once an evaluation succeeded "
+                 f"in {ramp_after:g} of its episodes" if tilt_per_deg > 0 and ramp_after > 0 else "")
     tilt_name = (f" and a tilt penalty ({tilt_per_deg:g} per degree of the machine's pitch beyond {tilt_free:g} deg, "
-                 f"every step)" if tilt_per_deg > 0 else "")
+                 f"every step{ramp_note})" if tilt_per_deg > 0 else "")
     tilt_note = (f"; and, not in the paper at all, r_tilt: -{tilt_per_deg:g} per degree of the machine's pitch "
                  f"beyond {tilt_free:g} deg at every step" if tilt_per_deg > 0 else "")
     n_departures = 4 + (margin > 0)
