@@ -116,3 +116,64 @@ def test_a_short_run_keeps_the_tilt_term_apart(cfg, tmp_path):
     with pytest.raises(ValueError, match="in-process"):
         train("rld", 3, tmp_path / "ros", steps=10, config=cfg, progress=False, env_kind="ros",
               namespaces=["/sim0"])
+
+
+def test_a_ramp_that_begins_reaches_the_updates_and_the_card(cfg, tmp_path, monkeypatch):
+    """The evaluation is made to report success 1.0, so the ramp begins at the first evaluation
+    (step 150) and the weight at step 300 is (300 - 150) / 1000 = 0.15. The same run with the ramp
+    never beginning collects identical transitions until its first update (the evaluations use
+    their own environment), so its actor differs only through the weighted tilt term. The card records the
+    weight, and `lhd ship`'s reading of it (ramp_progress) gives the same from run.json."""
+    import lhd_loading_ros.learning.train as train_mod
+    from lhd_loading_ros.learning.ship import ramp_progress
+    from lhd_loading_ros.policy.actor_file import load_policy
+
+    cfg["training"].update({"learning_starts": 256, "eval_episodes": 2, "eval_every": 150,
+                            "checkpoint_every": 150, "hidden_sizes": [16, 16]})
+    cfg["task"].update({"r_tilt_per_deg": 10.0, "r_tilt_free_deg": 0.0,
+                        "r_tilt_ramp_after_success": 0.5, "r_tilt_ramp_steps": 1000})
+    real_evaluate = train_mod.evaluate
+
+    def evaluate_reporting(rate):
+        def ev(*a, **kw):
+            out = real_evaluate(*a, **kw)
+            return {**out, "success_rate": rate}
+        return ev
+
+    monkeypatch.setattr(train_mod, "evaluate", evaluate_reporting(1.0))
+    logs = []
+    train_mod.train("rld", 3, tmp_path / "on", steps=300, config=cfg, progress=False, log=logs.append)
+    monkeypatch.setattr(train_mod, "evaluate", evaluate_reporting(0.0))
+    train_mod.train("rld", 3, tmp_path / "off", steps=300, config=cfg, progress=False, log=lambda *a: None)
+    assert any("ramped in over 1,000 steps" in m and "150" in m for m in logs), logs
+    on = load_policy(tmp_path / "on" / "final")
+    off = load_policy(tmp_path / "off" / "final")
+    assert on.meta["tilt_ramp"]["start_step"] == 150 and on.meta["tilt_ramp"]["weight"] == pytest.approx(0.15)
+    assert off.meta["tilt_ramp"]["start_step"] is None and off.meta["tilt_ramp"]["weight"] == 0.0
+    w_on = np.load(tmp_path / "on" / "final" / "actor.npz")
+    w_off = np.load(tmp_path / "off" / "final" / "actor.npz")
+    assert not all(np.array_equal(w_on[k], w_off[k]) for k in w_on.files)
+    # until the first update (learning_starts, 256) the two runs collected the same transitions
+    # (the replays equal there, tilt column included); the actors differ through the updates alone
+    r_on = torch.load(tmp_path / "on" / "checkpoint.pt", weights_only=True)["replay"]["data"]
+    r_off = torch.load(tmp_path / "off" / "checkpoint.pt", weights_only=True)["replay"]["data"]
+    assert torch.equal(r_on[:256], r_off[:256]) and (r_on[:256, -1] < 0).any()
+    # ship's reading, from the card and from run.json alone (cards exported before the weight was)
+    assert ramp_progress(tmp_path / "on", on.meta) == (150, pytest.approx(0.15))
+    meta_old = {k: v for k, v in on.meta.items() if k != "tilt_ramp"}
+    assert ramp_progress(tmp_path / "on", meta_old) == (150, pytest.approx(0.15))
+    assert ramp_progress(tmp_path / "off", {k: v for k, v in off.meta.items() if k != "tilt_ramp"}) == (None, 0.0)
+
+
+def test_a_run_without_the_ramp_resumes_whatever_its_unused_steps(cfg, tmp_path):
+    """r_tilt_ramp_steps means nothing while the ramp is off: changing it must not stop a resume."""
+    from lhd_loading_ros.learning.train import train
+
+    cfg["training"].update({"learning_starts": 256, "eval_episodes": 2, "eval_every": 300,
+                            "checkpoint_every": 300, "hidden_sizes": [16, 16]})
+    cfg["task"].update({"r_tilt_per_deg": 10.0, "r_tilt_ramp_after_success": 0.0, "r_tilt_ramp_steps": 1000})
+    train("rld", 4, tmp_path / "r", steps=300, config=cfg, progress=False, log=lambda *a: None)
+    cfg["task"]["r_tilt_ramp_steps"] = 5000
+    logs = []
+    train("rld", 4, tmp_path / "r", steps=350, config=cfg, progress=False, log=logs.append)
+    assert any("resumed" in m for m in logs), logs

@@ -244,7 +244,8 @@ def test_an_attempt_keeps_the_end_zone_it_was_armed_with(ros, tmp_path):
     is d_end's x_max for the whole attempt; the end-zone node's live estimate, republished while the
     bucket hides the face (in the twin x_max jumped 0.885 -> 1.090 m, truth 0.910), is taken after
     it. Seen in the decision trace's observation: d_end = |x_shovel - x_max| / d_end_max, so with the
-    tip standing still the live zone 0.20 m farther moves d_end by 0.20 / d_end_max exactly."""
+    tip standing still the armed zone (0.95, while the live one says 0.85 and then 1.05) against the
+    live 1.05 of the next attempt moves d_end by 0.10 / d_end_max exactly."""
     from lhd_loading_ros.task.config import load_config
     from lhd_loading_ros.task.params import TaskParams
 
@@ -270,9 +271,11 @@ def test_an_attempt_keeps_the_end_zone_it_was_armed_with(ros, tmp_path):
     try:
         rig.publish_status("idle")
         assert spin_until(ros, lambda: rig.has("inputs", DiagnosticStatus.OK, "all inputs fresh"), 60), pol.log()
-        t1 = running("1", (0.52, 0.85, 0.35))
-        assert spin_until(ros, lambda: len(d_ends(t1)) >= 5, 20), pol.log()[-2000:]
-        d0 = d_ends(t1)[-1]
+        # live 0.85 (the Rig's); the attempt was armed on 0.95: 0.10 m apart
+        spin_until(ros, lambda: False, 1.0)
+        t1 = running("1", (0.52, 0.95, 0.35))
+        assert spin_until(ros, lambda: len(d_ends(t1 + 0.3)) >= 5, 20), pol.log()[-2000:]
+        d0 = d_ends(t1 + 0.3)[-1]
         assert d0 > 0.0
         rig.latched[1].publish(Float64MultiArray(data=[0.52, 1.05, 0.35]))     # the live estimate moves
         t_live = time.monotonic()
@@ -285,7 +288,7 @@ def test_an_attempt_keeps_the_end_zone_it_was_armed_with(ros, tmp_path):
         t2 = running("2")
         assert spin_until(ros, lambda: len(d_ends(t2 + 0.3)) >= 5, 20), pol.log()[-2000:]
         d1 = d_ends(t2 + 0.3)[-1]
-        assert d1 - d0 == pytest.approx(0.20 / d_end_max, abs=1e-4), (d0, d1, d_end_max)
+        assert d1 - d0 == pytest.approx(0.10 / d_end_max, abs=1e-4), (d0, d1, d_end_max)
         rig.publish_status("success", "2")
     finally:
         ros.destroy_subscription(sub)

@@ -217,8 +217,10 @@ def test_arming_needs_inputs_fresher_than_half_their_timeout(kin, name, what):
     r.feed(t + 0.30)
     r.sv.inputs.arrival[name] = t
     problems = r.sv.preflight(r.t)
-    assert problems == [f"{what} 0.30 s old: to arm, at most 0.25 s (0.5 of its 0.5 s timeout: an input this "
-                        f"late would end the attempt; " + problems[0].split("; ", 1)[1]], problems
+    src = {"odom": "/lhd/odom, the ArUco node", "joints": "/lhd/joint_states, the bridge",
+           "drift_rear": "/lhd/wheel_drift/rear, the bridge", "hw": "/lhd/hw/status"}[name]
+    assert problems == [f"{what} 0.30 s old: to arm, at most 0.25 s (0.5 of its 0.5 s timeout, a margin before a "
+                        f"late message ends the attempt; {src})"], problems
     ok, msg = r.sv.arm(r.t, "x")
     assert not ok and "to arm, at most 0.25 s" in msg and r.sv.state == "idle"
     # the running check keeps the whole timeout: an armed attempt is not ended by the same age

@@ -61,6 +61,26 @@ def pick(ranked: list, select: str):
     return order[-1] if select in ("best", "best-final") else order[(len(order) - 1) // 2]
 
 
+def ramp_progress(run_dir: Path, meta: dict) -> tuple[int | None, float | None]:
+    """The tilt penalty's ramp for an exported actor: (the step it began, None if it never did;
+    the weight at the actor's step, None when nothing recorded it). From the card (exports since
+    the ramp's weight is written) or the run's run.json."""
+    tr = meta.get("tilt_ramp")
+    if isinstance(tr, dict) and "weight" in tr:
+        return tr.get("start_step"), float(tr["weight"])
+    try:
+        tr = json.loads((Path(run_dir) / "run.json").read_text()).get("tilt_ramp")
+    except (OSError, ValueError):
+        return None, None
+    if not isinstance(tr, dict):
+        return None, None
+    start, steps = tr.get("start_step"), int(tr.get("steps", 0))
+    if start is None:
+        return None, 0.0
+    at = int(meta.get("steps", 0))
+    return int(start), (1.0 if steps == 0 else min(1.0, max(0.0, (at - int(start)) / steps)))
+
+
 def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=print, select: str = "median") -> dict:
     from lhd_sim_node.env import LhdLoadingEnv
 
@@ -82,6 +102,10 @@ def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=prin
         cands.append(((ev["success_rate"], ev["asl"], ev["ar"]), d, pol, ev))
     _, best_dir, pol, ev = pick(cands, select)
     log(f"shipping {best_dir.name}/{sub} ({'median' if select == 'median' else 'best'} of {len(cands)} seeds)")
+    start, weight = ramp_progress(best_dir, pol.meta)
+    if weight is not None and weight < 1.0:
+        log(f"warning: {best_dir.name}/{sub} has {weight:.0%} of the tilt penalty (its ramp "
+            f"{'never began' if start is None else f'began at step {start:,}'}): the card says so")
     eval_seed = HELD_OUT_SEED
     if select == "best-final":   # the selection's own piles flatter the winner: evaluate it on others
         eval_seed = CONFIRM_SEED
@@ -145,8 +169,15 @@ dead time):
     tilt_per_deg = float(tw.get("r_tilt_per_deg", 0.0) or 0.0)
     tilt_free = float(tw.get("r_tilt_free_deg", 0.0) or 0.0)
     ramp_after = float(tw.get("r_tilt_ramp_after_success", 0.0) or 0.0)
-    ramp_note = (f"; ramped in from 0 over {int(tw.get('r_tilt_ramp_steps', 0)):,} steps once an evaluation succeeded "
-                 f"in {ramp_after:g} of its episodes" if tilt_per_deg > 0 and ramp_after > 0 else "")
+    ramp_note = ""
+    if tilt_per_deg > 0 and ramp_after > 0:
+        start, weight = ramp_progress(best_dir, m)
+        ramp_steps = int(tw.get("r_tilt_ramp_steps", 0))
+        reached = ("; the ramp's start was not recorded" if weight is None else
+                   "; the ramp never began: this actor was trained WITHOUT the penalty" if start is None else
+                   f"; it began at step {start:,} and the actor has {weight:.0%} of the penalty")
+        ramp_note = (f"; ramped in from 0 over {ramp_steps:,} steps once an evaluation succeeded in {ramp_after:g} "
+                     f"of its episodes{reached}")
     tilt_name = (f" and a tilt penalty ({tilt_per_deg:g} per degree of the machine's pitch beyond {tilt_free:g} deg, "
                  f"every step{ramp_note})" if tilt_per_deg > 0 else "")
     tilt_note = (f"; and, not in the paper at all, r_tilt: -{tilt_per_deg:g} per degree of the machine's pitch "

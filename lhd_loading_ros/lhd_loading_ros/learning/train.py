@@ -207,7 +207,7 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
                              f"!= {chash[:12]}); use another --out or the same config")
         agent.load_state_dict(st["agent"])
         replay.load_state_dict(st["replay"])
-        if st.get("tilt_ramp"):
+        if ramp.enabled and st.get("tilt_ramp"):      # (the replay's layout already refused a ramp switched on/off)
             ramp.load_state_dict(json.loads(st["tilt_ramp"]))
         rng.bit_generator.state = json.loads(st["rng"])
         noise.x[:] = st["noise_x"].numpy()
@@ -246,7 +246,10 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
     meta_base = {"variant": variant, "seed": seed, "config_hash": chash, "ddpg": dc.to_dict()}
 
     def export(name: str, ev: dict) -> None:
-        export_actor(out / name, agent.actor, cfg, {**meta_base, "steps": step, "evaluation": ev})
+        # with the ramp: the tilt penalty's weight this actor was trained to (1: the whole penalty;
+        # 0: the ramp never began, the actor never met the penalty), on its card
+        ramp_meta = ({"tilt_ramp": {**ramp.state_dict(), "weight": ramp.weight(step)}} if ramp.enabled else {})
+        export_actor(out / name, agent.actor, cfg, {**meta_base, "steps": step, "evaluation": ev, **ramp_meta})
 
     def save_checkpoint() -> None:
         st = {"variant": variant, "seed": seed, "config_hash": chash, "step": step, "episode": episode,
@@ -254,7 +257,8 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
               "rng": json.dumps(rng.bit_generator.state), "noise_x": torch.from_numpy(noise.x.copy()),
               "noise_more": torch.from_numpy(np.array([noises[i].x for i in slots[1:]], dtype=np.float64).reshape(-1, 3)),
               "pending": json.dumps([slot_episode[i] for i in slots] + queue), "next_episode": started,
-              "contributed": json.dumps(contributed), "tilt_ramp": json.dumps(ramp.state_dict()),
+              "contributed": json.dumps(contributed),
+              "tilt_ramp": json.dumps(ramp.state_dict()) if ramp.enabled else "",
               "best": json.dumps(best) if best else "", "wall_s": wall_before + time.perf_counter() - t0}
         tmp = out / "checkpoint.pt.tmp"
         torch.save(st, tmp)

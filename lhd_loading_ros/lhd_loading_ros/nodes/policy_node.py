@@ -281,7 +281,9 @@ class PolicyNode(Node):
         """A live /pile/slope or /pile/end_zone sample: in use, unless the running attempt holds
         the value it was armed with (slope_source attempt); then kept for after the attempt."""
         if self.attempt_held.get(name) is not None:
-            self._live_held[name] = (value, info, time.monotonic())
+            kept = self._live_held.get(name)     # the newest by source time (both subscriptions deliver)
+            if kept is None or info["source_timestamp"] >= kept[1]["source_timestamp"]:
+                self._live_held[name] = (value, info, time.monotonic())
             return
         self._live_held.pop(name, None)
         self._put_slow(name, value, info)
@@ -379,6 +381,7 @@ class PolicyNode(Node):
             self.get_logger().warn(f"no publisher of {self.episode_topic} any more: no attempt running")
             self._status_publisher_seen = False
             self._set_episode(None, None)
+            self._hold_attempt_slope({})      # nobody runs an attempt: the live slope and end zone again
 
     # ------------------------------------------------------------------ decisions
     def _maybe_lockstep(self) -> None:

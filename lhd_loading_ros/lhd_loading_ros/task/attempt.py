@@ -239,9 +239,9 @@ class Supervisor:
             elif inp.age(name, now) > timeout:
                 out.append(f"{what} {inp.age(name, now):.2f} s old (timeout {timeout:g} s; {src})")
             elif arming and inp.age(name, now) > timeout * s.arm_fresh_fraction:
-                out.append(f"{what} {inp.age(name, now):.2f} s old: to arm, at most {timeout * s.arm_fresh_fraction:.2g} s "
-                           f"({s.arm_fresh_fraction:g} of its {timeout:g} s timeout: an input this late would end "
-                           f"the attempt; {src})")
+                out.append(f"{what} {inp.age(name, now):.2f} s old: to arm, at most {timeout * s.arm_fresh_fraction:g} s "
+                           f"({s.arm_fresh_fraction:g} of its {timeout:g} s timeout, a margin before a late message "
+                           f"ends the attempt; {src})")
         if "joints" in inp.values:
             j = inp.values["joints"]
             for name in ("boom", "bucket"):

@@ -293,8 +293,10 @@ def load_config(path: str | os.PathLike | None = None) -> dict:
 TRAINING_ONLY = (("randomization", "enabled", 0), ("task", "r_success_pitch_margin_deg", 0.0),
                  ("task", "r_tilt_per_deg", 0.0))
 TILT_KEYS = ("r_tilt_per_deg", "r_tilt_free_deg")     # the tilt penalty; both left out of the hash while it is off
-# the tilt penalty's schedule in training (learning/train.TiltRamp): never in the hash. The actor's
-# reward at the end of its training is the full penalty, whatever the schedule; the card records it
+# the tilt penalty's schedule in training (learning/ddpg.TiltRamp): never in the hash, like the
+# penalty itself a reward setting, not what the actor sees. It does decide how much of the penalty
+# an actor was trained with (all of it once the ramp is through; none if it never began): the card
+# records the schedule and that weight (learning/ship.py), and `lhd ship` warns below the whole
 TILT_SCHEDULE_KEYS = ("r_tilt_ramp_after_success", "r_tilt_ramp_steps")
 
 
