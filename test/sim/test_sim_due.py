@@ -291,8 +291,10 @@ def test_bridge_joint_states_and_load_cell_are_the_simulators(ros, sim, tmp_path
             assert match, f"joint state {list(m.position[:2])} {list(m.velocity)} is none of the simulator's"
         with due.lock:
             s = sim.state()
-        assert js[-1].position[0] == pytest.approx(s.phi_boom, abs=1e-4)
-        assert js[-1].position[1] == pytest.approx(s.phi_bucket, abs=1e-4)
+        # the arm stopped: the last joint state is where the simulator holds it, within the frame's
+        # 1e-4 rad encoder step and the loaded arm's creep since that frame (a CI run saw 1.1e-4)
+        assert js[-1].position[0] == pytest.approx(s.phi_boom, abs=3e-4)
+        assert js[-1].position[1] == pytest.approx(s.phi_bucket, abs=3e-4)
         mass.clear()
         assert spin_until(node, lambda: len(mass) >= 2, timeout=5.0)
         with due.lock:
