@@ -137,7 +137,8 @@ def test_up_sim_first_attempt_time_is_the_environments(tmp_path):
                         "--json"], capture_output=True, text=True, timeout=240, env=env_with_domain())
     assert p.returncode == 0, p.stderr[-3000:]
     first = json.loads(p.stdout)["episodes"][0]
-    assert first["elapsed_s"] == pytest.approx(ref.elapsed_s, abs=0.2), (first, ref)
+    # within two 0.1 s control periods, inclusive (a CI run: 2.7 against 2.9 s, 0.2 s plus float rounding)
+    assert first["elapsed_s"] == pytest.approx(ref.elapsed_s, abs=0.2 + 1e-9), (first, ref)
 
 
 def test_up_sim_namespace_and_sim_time(tmp_path):
