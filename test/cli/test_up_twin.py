@@ -30,7 +30,13 @@ SERIAL = True
 
 ALPHA_BOUND_DEG = 1.5
 X_MAX_BOUND_M = 0.05
-VX_BOUND = 0.02
+# issue 16's bound; on fewer cores than the twin needs (up_twin.MIN_CORES) the first attempt's
+# odometry is 100-200 ms old and v_x reaches 0.03-0.035 m/s (docs/twin.md runs 48-50, and one CI run
+# at 0.028): there the bound still catches a broken speed chain (0.1-0.2 m/s), not the starvation
+from lhd_loading_ros.cli.up_twin import MIN_CORES  # noqa: E402
+
+_CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+VX_BOUND = 0.02 if _CORES >= MIN_CORES else 0.05
 
 
 def test_one_twin_attempt_end_to_end(tmp_path):
