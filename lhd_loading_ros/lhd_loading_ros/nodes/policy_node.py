@@ -159,7 +159,6 @@ class PolicyNode(Node):
         self.trigger = gp("trigger")
         self.odom_margin = gp("odom_margin")
         self.slope_source = gp("slope_source")
-        self.attempt_slope = None        # rad: the running attempt's armed slope in use (slope_source attempt)
         self.attempt_held = {}           # slope / end_zone -> the running attempt's armed value in use, or None
         self._live_held = {}             # slope / end_zone -> (value, info, arrival) of a live sample held back
         qin = qos_profile_sensor_data if gp("input_qos") == "sensor_data" else MEASUREMENT_QOS
@@ -325,7 +324,6 @@ class PolicyNode(Node):
                     value, info, t = live               # with its own arrival time (slope/end_zone_timeout)
                     self._slow_source_ns[name] = info["source_timestamp"]
                     self.inputs.put(name, value, t)
-        self.attempt_slope = self.attempt_held.get("slope")
 
     def _on_zone(self, msg: Float64MultiArray, info) -> None:
         if len(msg.data) != 3:
