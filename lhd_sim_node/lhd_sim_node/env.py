@@ -132,6 +132,7 @@ class LhdLoadingEnv(gym.Env):
         self._done = terminated or truncated
         self._state = s
         info = self._info(s, outcome, terms, u)
+        info["success_margin_cut"] = self.tracker.margin_cut   # in terms["success"]; apart for a ramped margin
         if self._done:
             info["episode_result"] = self.result(outcome, truncated)
         return self._obs(s), r, terminated, truncated, info

@@ -1,7 +1,8 @@
 """The tilt penalty ramped in once the actor loads (task.r_tilt_ramp_after_success /
 r_tilt_ramp_steps): the schedule by hand, the replay relabelling every stored transition with the
 weight of the moment, a short real training run that keeps the term apart, and the config hash
-that the schedule never enters (actors trained with or without it run on the same config)."""
+that the schedule never enters (actors trained with or without it run on the same config); the
+pitch margin riding on the same ramp (task.r_tilt_ramp_pitch_margin)."""
 PARALLEL_SAFE = True
 
 import csv
@@ -71,8 +72,11 @@ def test_the_schedule_is_not_in_the_config_hash(cfg):
     h = config_hash(c)
     c["task"]["r_tilt_ramp_after_success"], c["task"]["r_tilt_ramp_steps"] = 0.5, 12345
     assert config_hash(validate(c)) == h
+    c["task"]["r_tilt_ramp_pitch_margin"] = 1
+    assert config_hash(validate(c)) == h
     stripped = json.loads(json.dumps(c))
     del stripped["task"]["r_tilt_ramp_after_success"], stripped["task"]["r_tilt_ramp_steps"]
+    del stripped["task"]["r_tilt_ramp_pitch_margin"]
     assert config_hash(stripped) == h          # actors trained before the keys existed keep their hash
     c["task"]["r_tilt_ramp_after_success"] = 1.5
     with pytest.raises(Exception, match="r_tilt_ramp_after_success"):
@@ -177,3 +181,70 @@ def test_a_run_without_the_ramp_resumes_whatever_its_unused_steps(cfg, tmp_path)
     logs = []
     train("rld", 4, tmp_path / "r", steps=350, config=cfg, progress=False, log=logs.append)
     assert any("resumed" in m for m in logs), logs
+
+
+def test_the_margin_cut_by_hand(cfg):
+    """r_success_margin_cut: zero outside the margin, the whole r_success inside it (the paper's
+    test passes, the margin's fails), r_success = R_success (d_w + d_p) / 2 max(W, W_target)."""
+    import math
+    from dataclasses import replace
+
+    from lhd_loading_ros.task.params import TaskParams
+    from lhd_loading_ros.task.reward import r_success, r_success_margin_cut
+
+    p = replace(TaskParams.from_config(cfg), r_success_pitch_margin=math.radians(3.0))
+    W = 30.0
+    inside, above, below = math.radians(41.5), math.radians(45.0), math.radians(39.0)
+    assert r_success_margin_cut(W, above, p) == 0.0 and r_success_margin_cut(W, below, p) == 0.0
+    assert r_success(W, inside, p) == 0.0
+    full = r_success(W, inside, replace(p, r_success_pitch_margin=0.0))
+    assert full > 0 and r_success_margin_cut(W, inside, p) == -full
+    assert r_success_margin_cut(W, inside, replace(p, r_success_pitch_margin=0.0)) == 0.0
+
+
+def test_a_ramped_margin_pays_r_success_at_40_deg_until_the_ramp(cfg, tmp_path, monkeypatch):
+    """task.r_tilt_ramp_pitch_margin = 1: the env's success_margin_cut goes into the aux column
+    with the tilt term, so the stored reward is the paper's r_success (no margin) until the ramp
+    weights the cut in. The env is made to end every episode as a success just inside the margin
+    (41 deg), so every terminal transition carries a cut; the stored columns add up to the env's
+    reward. Without the ramp on, the setting is refused with the reason."""
+    import math
+
+    import lhd_loading_ros.task.reward as reward_mod
+    from lhd_loading_ros.learning.train import train
+    from lhd_loading_ros.policy.actor_file import load_policy
+
+    cfg["training"].update({"learning_starts": 256, "eval_episodes": 2, "eval_every": 300,
+                            "checkpoint_every": 300, "hidden_sizes": [16, 16]})
+    cfg["task"].update({"r_tilt_per_deg": 10.0, "r_tilt_free_deg": 0.0, "r_success_pitch_margin_deg": 3.0,
+                        "r_tilt_ramp_after_success": 1.0, "r_tilt_ramp_steps": 1000, "r_tilt_ramp_pitch_margin": 1})
+    real_step = reward_mod.RewardTracker.step
+    seen = []
+
+    def step_success_inside_margin(self, s, *a, **kw):
+        from dataclasses import replace as rep
+        a = list(a)
+        if len(seen) % 7 == 6:      # every 7th transition: a success at 41 deg, 30 kg
+            s = rep(s, phi_shovel=math.radians(41.0))
+            a[2] = 30.0                                     # W
+            a[5] = "success"                                # outcome
+        seen.append(1)
+        return real_step(self, s, *a, **kw)
+
+    monkeypatch.setattr(reward_mod.RewardTracker, "step", step_success_inside_margin)
+    out = tmp_path / "run"
+    train("rld", 5, out, steps=300, config=cfg, progress=False, log=lambda *x: None)
+    st = torch.load(out / "checkpoint.pt", weights_only=True)
+    assert json.loads(st["tilt_ramp"])["pitch_margin"] is True
+    data = st["replay"]["data"].numpy().astype(np.float64)
+    aux = data[:, -1]
+    # a terminal success inside the margin: the aux column holds minus the whole r_success
+    # (hundreds to thousands), far beyond a step's tilt term
+    assert (aux < -100).any(), aux.min()
+    eps = list(csv.DictReader((out / "episodes.csv").open()))
+    n = int(eps[0]["steps"])
+    assert data[:n, 15].sum() + aux[:n].sum() == pytest.approx(float(eps[0]["return"]), rel=1e-4, abs=1e-2)
+    assert load_policy(out / "final").meta["trained_with"]["r_tilt_ramp_pitch_margin"] == 1
+    cfg["task"]["r_tilt_ramp_after_success"] = 0.0
+    with pytest.raises(ValueError, match="r_tilt_ramp_pitch_margin"):
+        train("rld", 5, tmp_path / "bad", steps=10, config=cfg, progress=False, log=lambda *x: None)

@@ -23,7 +23,8 @@ def _raw(c):
     the tilt penalty's training schedule never in it)."""
     c = {k: v for k, v in c.items() if k != "randomization"}
     c["task"] = {k: v for k, v in c["task"].items() if k not in ("r_tilt_per_deg", "r_tilt_free_deg",
-                                                                 "r_tilt_ramp_after_success", "r_tilt_ramp_steps")}
+                                                                 "r_tilt_ramp_after_success", "r_tilt_ramp_steps",
+                                                                 "r_tilt_ramp_pitch_margin")}
     return hashlib.sha256(json.dumps(c, sort_keys=True).encode()).hexdigest()[:16]
 
 

@@ -153,12 +153,15 @@ class TiltRamp:
     once). Why: with the whole penalty from the first step, 2 of 9 RLD seeds never found loading
     (docs/training.md "Tilt penalty"); the evaluation, not a training episode, says the actor
     has found it (a random actor's episode meets the success test now and then). R = 0: off,
-    the weight is 1 throughout."""
+    the weight is 1 throughout. pitch_margin (task.r_tilt_ramp_pitch_margin): r_success's pitch
+    margin rides on the same schedule (until the ramp, r_success is paid at the paper's 40 deg;
+    the replay's aux column then also holds what the margin takes away from it)."""
 
-    def __init__(self, after_success: float, steps: int):
+    def __init__(self, after_success: float, steps: int, pitch_margin: bool = False):
         if not (0.0 <= after_success <= 1.0) or steps < 0:
             raise ValueError(f"tilt ramp: after_success {after_success} must be in [0, 1] and steps {steps} >= 0")
         self.after_success, self.steps = float(after_success), int(steps)
+        self.pitch_margin = bool(pitch_margin)
         self.start_step: int | None = None
 
     @property
@@ -182,12 +185,15 @@ class TiltRamp:
         return min(1.0, max(0.0, (step - self.start_step) / self.steps))
 
     def state_dict(self) -> dict:
-        return {"after_success": self.after_success, "steps": self.steps, "start_step": self.start_step}
+        d = {"after_success": self.after_success, "steps": self.steps, "start_step": self.start_step}
+        return {**d, "pitch_margin": True} if self.pitch_margin else d   # (states before the key: no margin)
 
     def load_state_dict(self, d: dict) -> None:
-        if (float(d["after_success"]), int(d["steps"])) != (self.after_success, self.steps):
+        theirs = (float(d["after_success"]), int(d["steps"]), bool(d.get("pitch_margin", False)))
+        if theirs != (self.after_success, self.steps, self.pitch_margin):
             raise ValueError(f"the checkpoint's tilt ramp (after an evaluation with success >= {d['after_success']}, "
-                             f"over {d['steps']} steps) is not this config's ({self.after_success}, {self.steps}): "
+                             f"over {d['steps']} steps, pitch margin ramped: {theirs[2]}) is not this config's "
+                             f"({self.after_success}, {self.steps}, {self.pitch_margin}): "
                              "resume with the same task.r_tilt_ramp_* settings or use another --out")
         self.start_step = None if d["start_step"] is None else int(d["start_step"])
 

@@ -29,7 +29,9 @@ def export_actor(directory, actor: FlatMlp, cfg: dict, meta: dict):
                          "r_tilt_per_deg": float(cfg["task"].get("r_tilt_per_deg", 0.0)),
                          "r_tilt_free_deg": float(cfg["task"].get("r_tilt_free_deg", 0.0)),
                          **({"r_tilt_ramp_after_success": float(cfg["task"]["r_tilt_ramp_after_success"]),
-                             "r_tilt_ramp_steps": int(cfg["task"].get("r_tilt_ramp_steps", 0))}
+                             "r_tilt_ramp_steps": int(cfg["task"].get("r_tilt_ramp_steps", 0)),
+                             **({"r_tilt_ramp_pitch_margin": 1} if int(cfg["task"].get("r_tilt_ramp_pitch_margin", 0))
+                                else {})}
                             if float(cfg["task"].get("r_tilt_per_deg", 0.0)) > 0
                             and float(cfg["task"].get("r_tilt_ramp_after_success", 0.0)) > 0 else {})},
         **meta,

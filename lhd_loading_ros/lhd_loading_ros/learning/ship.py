@@ -177,7 +177,8 @@ dead time):
                    "; the ramp never began: this actor was trained WITHOUT the penalty" if start is None else
                    f"; it began at step {start:,} and the actor has {weight:.0%} of the penalty")
         ramp_note = (f"; ramped in from 0 over {ramp_steps:,} steps once an evaluation succeeded in {ramp_after:g} "
-                     f"of its episodes{reached}")
+                     f"of its episodes{', the pitch margin with it' if int(tw.get('r_tilt_ramp_pitch_margin', 0)) else ''}"
+                     f"{reached}")
     tilt_name = (f" and a tilt penalty ({tilt_per_deg:g} per degree of the machine's pitch beyond {tilt_free:g} deg, "
                  f"every step{ramp_note})" if tilt_per_deg > 0 else "")
     tilt_note = (f"; and, not in the paper at all, r_tilt: -{tilt_per_deg:g} per degree of the machine's pitch "

@@ -147,7 +147,14 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
         raise ValueError(f"env must be one of {ENV_KINDS}, got {env_kind!r}")
     task_cfg = cfg["task"]
     ramp = TiltRamp(float(task_cfg.get("r_tilt_ramp_after_success", 0.0)) if float(task_cfg.get("r_tilt_per_deg", 0.0)) > 0
-                    else 0.0, int(task_cfg.get("r_tilt_ramp_steps", 0)))
+                    else 0.0, int(task_cfg.get("r_tilt_ramp_steps", 0)),
+                    pitch_margin=bool(int(task_cfg.get("r_tilt_ramp_pitch_margin", 0))))
+    if ramp.pitch_margin and not (ramp.enabled and float(task_cfg.get("r_success_pitch_margin_deg", 0.0)) > 0):
+        raise ValueError("task.r_tilt_ramp_pitch_margin = 1 ramps r_success's pitch margin in with the tilt penalty: it "
+                         "needs task.r_tilt_per_deg > 0, task.r_tilt_ramp_after_success > 0 and "
+                         "task.r_success_pitch_margin_deg > 0 (got "
+                         f"{task_cfg.get('r_tilt_per_deg')}, {task_cfg.get('r_tilt_ramp_after_success')}, "
+                         f"{task_cfg.get('r_success_pitch_margin_deg')})")
     if ramp.enabled and env_kind != "local":
         raise ValueError("task.r_tilt_ramp_after_success > 0 (the tilt penalty ramped in) needs the in-process "
                          "environment: the sim nodes' transitions do not give the reward's terms apart; set it "
@@ -305,9 +312,11 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
             results = step_slots(acts)
             for i, a in acts.items():        # each source's transition in turn, as one environment's
                 obs2, r, term, trunc, info = results[i]
-                if ramp.enabled:             # the tilt term apart, weighted when sampled
-                    tilt = float(info["terms"].get("tilt", 0.0))
-                    replay.add(obs[i], a, r - tilt, term, obs2, aux=tilt)
+                if ramp.enabled:             # the tilt term (and a ramped margin's cut) apart, weighted when sampled
+                    aux = float(info["terms"].get("tilt", 0.0))
+                    if ramp.pitch_margin:
+                        aux += float(info["success_margin_cut"])
+                    replay.add(obs[i], a, r - aux, term, obs2, aux=aux)
                     replay.aux_weight = ramp.weight(step)
                 else:
                     replay.add(obs[i], a, r, term, obs2)
@@ -345,7 +354,8 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
                     last_eval = {k: row[k] for k in EVAL_FIELDS if k in row}
                     if ramp.evaluated(ev["success_rate"], step):
                         log(f"{variant} seed {seed}: evaluation success {ev['success_rate']:.2f} at step {step:,}: the "
-                            f"tilt penalty is ramped in over {ramp.steps:,} steps")
+                            f"tilt penalty{' and the pitch margin are' if ramp.pitch_margin else ' is'} ramped in "
+                            f"over {ramp.steps:,} steps")
                         write_run_json()
                     if best is None or _rank(last_eval) > _rank(best):
                         best = dict(last_eval)

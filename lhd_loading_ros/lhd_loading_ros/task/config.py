@@ -81,6 +81,7 @@ SCHEMA: dict[str, Any] = {
         "r_success_requires_sl": _i(0, 1), "success_pitch_margin_deg": _f(-45.0, 45.0),
         "r_success_pitch_margin_deg": _f(0.0, 20.0), "r_tilt_per_deg": _f(0.0, 1e4), "r_tilt_free_deg": _f(0.0, 45.0),
         "r_tilt_ramp_after_success": _f(0.0, 1.0), "r_tilt_ramp_steps": _i(0, 100_000_000),
+        "r_tilt_ramp_pitch_margin": _i(0, 1),
         "bottom_tolerance": _f(0.0, 0.5),
         "bucket_repose_deg": _f(5.0, 60.0), "normalisers_from_pile": _i(0, 1),  # H4: capacity, derived normalisers
     },
@@ -297,7 +298,7 @@ TILT_KEYS = ("r_tilt_per_deg", "r_tilt_free_deg")     # the tilt penalty; both l
 # penalty itself a reward setting, not what the actor sees. It does decide how much of the penalty
 # an actor was trained with (all of it once the ramp is through; none if it never began): the card
 # records the schedule and that weight (learning/ship.py), and `lhd ship` warns below the whole
-TILT_SCHEDULE_KEYS = ("r_tilt_ramp_after_success", "r_tilt_ramp_steps")
+TILT_SCHEDULE_KEYS = ("r_tilt_ramp_after_success", "r_tilt_ramp_steps", "r_tilt_ramp_pitch_margin")
 
 
 def _with(cfg: dict, section: str, key: str, value) -> dict:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from lhd_loading_ros.task.metrics import success_level
 from lhd_loading_ros.task.params import TaskParams
@@ -142,6 +142,15 @@ def r_success(W: float, phi: float, p: TaskParams) -> float:
     return p.R_success * (d_w + d_p) / 2.0 * max(W, p.W_target)
 
 
+def r_success_margin_cut(W: float, phi: float, p: TaskParams) -> float:
+    """What r_success_pitch_margin takes away from r_success (<= 0): r_success with the margin
+    minus r_success at the paper's pitch test. Nonzero only for a final pitch within the margin
+    above phi_thresh. Training keeps it apart when the margin is ramped in (learning/ddpg.TiltRamp)."""
+    if p.r_success_pitch_margin == 0.0:
+        return 0.0
+    return r_success(W, phi, p) - r_success(W, phi, replace(p, r_success_pitch_margin=0.0))
+
+
 def r_zone(restricted: bool, p: TaskParams) -> float:
     """-R_zone when the tip enters the restricted zone (terminal failure)."""
     return -p.R_zone if restricted else 0.0
@@ -167,6 +176,7 @@ class RewardTracker:
     z_prev: float = 0.0
     W_prev: float = 0.0
     recent_dx: deque = field(default_factory=deque)
+    margin_cut: float = 0.0        # the last step's r_success_margin_cut (in terms["success"] already)
 
     def reset(self, s: LhdState, W0: float = 0.0) -> None:
         """W0: what the bucket already holds when the episode starts (cut during the attack)."""
@@ -195,6 +205,7 @@ class RewardTracker:
         }
         if p.r_tilt_per_deg > 0.0:
             terms["tilt"] = r_tilt(machine_pitch, p)
+        self.margin_cut = r_success_margin_cut(W, s.phi_shovel, p) if outcome == "success" else 0.0
         self.x_prev, self.z_prev = s.x_shovel, s.z_shovel
         self.W_prev = W
         return terms

@@ -13,7 +13,7 @@ from collections import deque
 
 import numpy as np
 
-from lhd_loading_ros.task.kinematics import PLATE_T, ArmKinematics, _rot_y, _rot_z, arm_offsets, quat_to_mat
+from lhd_loading_ros.task.kinematics import PLATE_T, ArmKinematics, _rot_z, arm_offsets, quat_to_mat
 
 # chassis boxes of the MJCF (lhd_sim_node/mjcf.py rear_body / front_body): half length 0.3 m,
 # half height 0.1 m, centre 0.12 m above the axle; the front box's centre 0.6 * wheelbase/2
