@@ -346,6 +346,9 @@ def test_ship_picks_a_seed_and_writes_the_model_card(cfg, tmp_path):
                        2_000_000, cfg["task"]["bucket_capacity"], breakdown=False, stress="delay")
     assert h["conditions"]["delay"]["aml"]["values"][1] == pytest.approx(by_hand["aml"])
     assert len(h["conditions"]["nominal"]["success_rate"]["values"]) == 2
+    # in worker processes (lhd report --jobs): every evaluation is seeded, the same figures in the same order
+    h2 = held_out(runs, ("nominal", "delay"), 4, str(cfg_path), jobs=3)
+    assert h2["conditions"] == h["conditions"] and h2["runs"] == h["runs"]
     with pytest.raises(ValueError, match="unknown condition 'windy'"):
         held_out(runs, ("windy",), 4, str(cfg_path))
     # best-final: the best seed's FINAL actor; the card's tables on piles the choice never saw,

@@ -242,6 +242,9 @@ def _sweep(args) -> int:
 def _report(args) -> int:
     from lhd_loading_ros.learning.report import format_summary, plot_curves, summarize
 
+    if args.jobs < 0:
+        print(f"lhd report: --jobs must be >= 0 (0: one per core), got {args.jobs}", file=sys.stderr)
+        return 2
     groups: dict[str, list] = {}
     for r in args.runs:
         p = Path(r)
@@ -258,7 +261,8 @@ def _report(args) -> int:
             conds = tuple(c.strip() for c in args.held_out.split(",") if c.strip())
             for k, v in groups.items():
                 summaries[k]["held_out"] = held_out(v, conds, args.episodes, args.config,
-                                                    log=None if args.json else print)
+                                                    log=None if args.json else print,
+                                                    jobs=args.jobs or (os.cpu_count() or 1))
     except (FileNotFoundError, ValueError) as exc:
         print(f"lhd report: {exc}", file=sys.stderr)
         return 1
@@ -414,6 +418,8 @@ def main(argv=None) -> int:
                                "comma-separated conditions: nominal, randomized, placement, sensors, delay, light, dense")
     p_report.add_argument("--episodes", type=int, default=120, help="--held-out: episodes per actor and condition")
     p_report.add_argument("--config", default=None, help="--held-out: parameter file (default config/lhd_params.yaml)")
+    p_report.add_argument("--jobs", type=int, default=0,
+                          help="--held-out: processes (default 0: one per core); the figures do not depend on it")
     p_ship = sub.add_parser("ship", help="pick a variant's median seed (final actors, held-out evaluation), "
                                         "write policies/<variant>")
     p_ship.add_argument("--variant", choices=["rld", "rlc"], required=True)

@@ -71,35 +71,57 @@ def _stats(vals) -> dict:
             "iqm": iqm(vals), "iqm_ci95": list(bootstrap_ci(vals)), "values": vals.tolist()}
 
 
+def _held_out_one(job: tuple) -> dict:
+    """One (run, condition) evaluation of held_out, in a worker process: the same call as in-process."""
+    from lhd_loading_ros.learning.evaluate import evaluate_under
+    from lhd_loading_ros.policy.actor_file import load_policy
+    from lhd_loading_ros.task.config import load_config
+
+    run_dir, condition, episodes, seed, config = job
+    pol = load_policy(Path(run_dir) / "final")
+    ev = evaluate_under(condition, pol.variant, pol.actor, load_config(config), episodes, seed)
+    return {m: ev[m] for m in HELD_OUT_METRICS}
+
+
 def held_out(run_dirs: list, conditions=("nominal",), episodes: int = 120, config=None, seed: int = 2_000_000,
-             log=None) -> dict:
+             log=None, jobs: int = 1) -> dict:
     """Each run's final actor (`final/`, the end of training: no checkpoint or seed picking) on the
     held-out evaluation piles (`seed`, stratified as `lhd eval`), under each condition: "nominal",
     "randomized" (the config's domain randomisation drawn per episode) or a stress case of
     task.randomization.stress_conditions. RLC runs with the deployment filter, as on the machine.
     Returns {condition: {metric: mean, sd, iqm, iqm_ci95, values}} and the runs."""
-    from lhd_loading_ros.learning.evaluate import CONDITIONS, evaluate_under
-    from lhd_loading_ros.policy.actor_file import load_policy
+    from lhd_loading_ros.learning.evaluate import CONDITIONS
     from lhd_loading_ros.task.config import load_config
     from lhd_loading_ros.task.randomization import STRESS_CASES
 
     for c in conditions:
         if c not in CONDITIONS + STRESS_CASES:
             raise ValueError(f"unknown condition {c!r}; expected nominal, randomized or one of {', '.join(STRESS_CASES)}")
-    cfg = load_config(config)
+    load_config(config)            # a bad parameter file fails here, before any worker starts
     runs = [Path(d) for d in run_dirs]
     missing = [str(d) for d in runs if not (d / "final" / "policy.json").is_file()]
     if missing:
         raise FileNotFoundError(f"no final actor (final/policy.json) in {', '.join(missing)}: training not finished")
     per = {c: {m: [] for m in HELD_OUT_METRICS} for c in conditions}
-    for d in runs:
-        pol = load_policy(d / "final")
-        for c in conditions:
-            ev = evaluate_under(c, pol.variant, pol.actor, cfg, episodes, seed)
+    if jobs < 1:
+        raise ValueError(f"jobs must be >= 1, got {jobs}")
+    work = [(str(d), c, episodes, seed, config) for d in runs for c in conditions]
+    if jobs == 1:
+        results = map(_held_out_one, work)
+    else:                          # every evaluation is seeded: the same figures as in one process
+        import multiprocessing as mp
+
+        pool = mp.get_context("spawn").Pool(min(jobs, len(work)))
+        results = pool.imap(_held_out_one, work)       # in order, as they finish in turn
+    try:
+        for (d, c, *_), ev in zip(work, results):
             for m in HELD_OUT_METRICS:
                 per[c][m].append(ev[m])
             if log:
                 log(f"{d}: {c}: success {ev['success_rate']:.3f}, ASL {ev['asl']:.2f}, AML {ev['aml']:.1f} kg")
+    finally:
+        if jobs > 1:
+            pool.terminate()
     return {"runs": [str(d) for d in runs], "episodes": episodes, "seed": seed,
             "conditions": {c: {m: _stats(v) for m, v in per[c].items()} for c in conditions}}
 
