@@ -349,6 +349,12 @@ def test_ship_picks_a_seed_and_writes_the_model_card(cfg, tmp_path):
     # in worker processes (lhd report --jobs): every evaluation is seeded, the same figures in the same order
     h2 = held_out(runs, ("nominal", "delay"), 4, str(cfg_path), jobs=3)
     assert h2["conditions"] == h["conditions"] and h2["runs"] == h["runs"]
+    # success per pile slope: the stratified episodes spread evenly over the slopes, so each seed's
+    # success is the mean of its per-slope successes
+    sb = h["success_by_slope"]["nominal"]
+    assert len(sb) == 4 and h2["success_by_slope"] == h["success_by_slope"]
+    for i, overall in enumerate(h["conditions"]["nominal"]["success_rate"]["values"]):
+        assert np.mean([v["values"][i] for v in sb.values()]) == pytest.approx(overall)
     with pytest.raises(ValueError, match="unknown condition 'windy'"):
         held_out(runs, ("windy",), 4, str(cfg_path))
     # best-final: the best seed's FINAL actor; the card's tables on piles the choice never saw,

@@ -79,8 +79,10 @@ def _held_out_one(job: tuple) -> dict:
 
     run_dir, condition, episodes, seed, config = job
     pol = load_policy(Path(run_dir) / "final")
-    ev = evaluate_under(condition, pol.variant, pol.actor, load_config(config), episodes, seed)
-    return {m: ev[m] for m in HELD_OUT_METRICS}
+    ev = evaluate_under(condition, pol.variant, pol.actor, load_config(config), episodes, seed, breakdown=True)
+    out = {m: ev[m] for m in HELD_OUT_METRICS}
+    out["by_slope"] = {k: v["success_rate"] for k, v in ev["by_slope"].items()}
+    return out
 
 
 def held_out(run_dirs: list, conditions=("nominal",), episodes: int = 120, config=None, seed: int = 2_000_000,
@@ -89,7 +91,8 @@ def held_out(run_dirs: list, conditions=("nominal",), episodes: int = 120, confi
     held-out evaluation piles (`seed`, stratified as `lhd eval`), under each condition: "nominal",
     "randomized" (the config's domain randomisation drawn per episode) or a stress case of
     task.randomization.stress_conditions. RLC runs with the deployment filter, as on the machine.
-    Returns {condition: {metric: mean, sd, iqm, iqm_ci95, values}} and the runs."""
+    Returns {condition: {metric: mean, sd, iqm, iqm_ci95, values}}, the success per pile slope
+    ("success_by_slope": {condition: {slope: the same statistics}}) and the runs."""
     from lhd_loading_ros.learning.evaluate import CONDITIONS
     from lhd_loading_ros.task.config import load_config
     from lhd_loading_ros.task.randomization import STRESS_CASES
@@ -103,6 +106,7 @@ def held_out(run_dirs: list, conditions=("nominal",), episodes: int = 120, confi
     if missing:
         raise FileNotFoundError(f"no final actor (final/policy.json) in {', '.join(missing)}: training not finished")
     per = {c: {m: [] for m in HELD_OUT_METRICS} for c in conditions}
+    by_slope: dict = {c: {} for c in conditions}      # success per pile slope: where the seeds fail
     if jobs < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
     work = [(str(d), c, episodes, seed, config) for d in runs for c in conditions]
@@ -117,13 +121,17 @@ def held_out(run_dirs: list, conditions=("nominal",), episodes: int = 120, confi
         for (d, c, *_), ev in zip(work, results):
             for m in HELD_OUT_METRICS:
                 per[c][m].append(ev[m])
+            for k, v in ev["by_slope"].items():
+                by_slope[c].setdefault(k, []).append(v)
             if log:
                 log(f"{d}: {c}: success {ev['success_rate']:.3f}, ASL {ev['asl']:.2f}, AML {ev['aml']:.1f} kg")
     finally:
         if jobs > 1:
             pool.terminate()
     return {"runs": [str(d) for d in runs], "episodes": episodes, "seed": seed,
-            "conditions": {c: {m: _stats(v) for m, v in per[c].items()} for c in conditions}}
+            "conditions": {c: {m: _stats(v) for m, v in per[c].items()} for c in conditions},
+            "success_by_slope": {c: {k: _stats(v) for k, v in sorted(by_slope[c].items(), key=lambda kv: float(kv[0]))}
+                                 for c in conditions}}
 
 
 def format_held_out(label: str, h: dict) -> str:
@@ -134,6 +142,9 @@ def format_held_out(label: str, h: dict) -> str:
             vals = ", ".join(f"{x:.3g}" for x in v["values"])
             lines.append(f"    {m:>16}: {v['mean']:9.3f} +- {v['sd']:7.3f}   IQM {v['iqm']:9.3f} "
                          f"[{v['iqm_ci95'][0]:.3f}, {v['iqm_ci95'][1]:.3f}]   ({vals})")
+        for k, v in h.get("success_by_slope", {}).get(c, {}).items():
+            vals = ", ".join(f"{x:.2f}" for x in v["values"])
+            lines.append(f"    {'success, ' + k + ' deg':>16}: {v['mean']:9.3f} +- {v['sd']:7.3f}   ({vals})")
     return "\n".join(lines)
 
 
