@@ -41,6 +41,7 @@ class DdpgConfig:
     eval_episodes: int
     eval_seed: int
     checkpoint_every: int
+    twin_critics: int = 0          # 1: clipped double Q (two critics, the target's min; Fujimoto et al. 2018)
 
     @classmethod
     def from_config(cls, cfg: dict) -> "DdpgConfig":
@@ -53,6 +54,7 @@ class DdpgConfig:
             learning_starts=t["learning_starts"], hidden_sizes=tuple(t["hidden_sizes"]),
             reward_scale=t["reward_scale"], eval_every=t["eval_every"], eval_episodes=t["eval_episodes"],
             eval_seed=t["eval_seed"], checkpoint_every=t["checkpoint_every"],
+            twin_critics=int(t.get("twin_critics", 0)),
         )
 
     def to_dict(self) -> dict:
@@ -213,6 +215,14 @@ class DdpgAgent:
         self.critic_t.copy_from(self.critic)
         self.actor_opt = FlatAdam(self.actor, cfg.actor_lr)
         self.critic_opt = FlatAdam(self.critic, cfg.critic_lr)
+        # clipped double Q (training.twin_critics): a second critic, initialised after everything
+        # above so that the single-critic agent draws the same weights as before it existed
+        self.twin = bool(cfg.twin_critics)
+        if self.twin:
+            self.critic2 = FlatMlp(self.critic.sizes, "identity", generator=self.gen)
+            self.critic2_t = FlatMlp(self.critic.sizes, "identity")
+            self.critic2_t.copy_from(self.critic2)
+            self.critic2_opt = FlatAdam(self.critic2, cfg.critic_lr)
         self.updates = 0
 
     def act(self, obs: np.ndarray) -> np.ndarray:
@@ -228,18 +238,29 @@ class DdpgAgent:
 
     def update(self, oa: torch.Tensor, r: torch.Tensor, not_term: torch.Tensor, o2: torch.Tensor) -> tuple[float, float]:
         """One critic step on the TD target and one actor step on -Q(o, mu(o)); then the
-        soft target updates. Returns the TD errors and Q(o, mu(o)) of the batch (tensors)."""
+        soft target updates. Returns the TD errors and Q(o, mu(o)) of the batch (tensors).
+        With twin critics the target is the smaller of the two target critics' values (the
+        overestimation that made seeds collapse late feeds on the max), both critics learn
+        it, and the actor follows the first (clipped double Q, without TD3's delayed actor
+        and target smoothing)."""
         cfg = self.cfg
         B = oa.shape[0]
         # TD target y = s r + gamma (1 - terminated) Q'(o', mu'(o'))
         a2 = self.actor_t(o2)
-        q2 = self.critic_t(torch.cat((o2, a2), 1))
+        o2a2 = torch.cat((o2, a2), 1)
+        q2 = self.critic_t(o2a2)
+        if self.twin:
+            q2 = torch.minimum(q2, self.critic2_t(o2a2))
         y = torch.addcmul(r * cfg.reward_scale, not_term, q2, value=cfg.gamma)
         # critic: L = mean (Q(o, a) - y)^2
         q, cache = self.critic.forward(oa)
         err = q - y
         self.critic.backward(cache, err * (2.0 / B))
         self.critic_opt.step()
+        if self.twin:
+            qb, cache_b = self.critic2.forward(oa)
+            self.critic2.backward(cache_b, (qb - y) * (2.0 / B))
+            self.critic2_opt.step()
         # actor: maximise Q(o, mu(o)) through the updated critic (as CleanRL / Lillicrap)
         o = oa[:, : self.obs_dim]
         pi, acache = self.actor.forward(o)
@@ -250,20 +271,30 @@ class DdpgAgent:
         self.actor_opt.step()
         self.actor_t.soft_update_from(self.actor, cfg.tau)
         self.critic_t.soft_update_from(self.critic, cfg.tau)
+        if self.twin:
+            self.critic2_t.soft_update_from(self.critic2, cfg.tau)
         self.updates += 1
         return err, qpi
 
     # ------------------------------------------------------------------ checkpoints
     def state_dict(self) -> dict:
-        return {
+        d = {
             "actor": self.actor.flat.clone(), "critic": self.critic.flat.clone(),
             "actor_t": self.actor_t.flat.clone(), "critic_t": self.critic_t.flat.clone(),
             "actor_opt": self.actor_opt.state_dict(), "critic_opt": self.critic_opt.state_dict(),
             "updates": self.updates, "gen": self.gen.get_state(),
         }
+        if self.twin:
+            d.update(critic2=self.critic2.flat.clone(), critic2_t=self.critic2_t.flat.clone(),
+                     critic2_opt=self.critic2_opt.state_dict())
+        return d
 
     def load_state_dict(self, d: dict) -> None:
-        for name in ("actor", "critic", "actor_t", "critic_t"):
+        if ("critic2" in d) != self.twin:
+            raise ValueError(f"the checkpoint has {'two critics' if 'critic2' in d else 'one critic'}, this agent "
+                             f"{'two' if self.twin else 'one'}: resume with the same training.twin_critics "
+                             "or use another --out")
+        for name in ("actor", "critic", "actor_t", "critic_t") + (("critic2", "critic2_t") if self.twin else ()):
             net = getattr(self, name)
             if d[name].shape != net.flat.shape:
                 raise ValueError(f"checkpoint's {name} has {d[name].numel()} parameters, this agent "
@@ -271,5 +302,7 @@ class DdpgAgent:
             net.flat.copy_(d[name])
         self.actor_opt.load_state_dict(d["actor_opt"])
         self.critic_opt.load_state_dict(d["critic_opt"])
+        if self.twin:
+            self.critic2_opt.load_state_dict(d["critic2_opt"])
         self.updates = int(d["updates"])
         self.gen.set_state(d["gen"])

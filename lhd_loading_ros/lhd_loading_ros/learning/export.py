@@ -25,6 +25,7 @@ def export_actor(directory, actor: FlatMlp, cfg: dict, meta: dict):
         "config_hash": config_hash(cfg),
         # training-only settings (task.config.TRAINING_ONLY): not in what the actor sees, but in its card
         "trained_with": {"randomize": bool(int(cfg.get("randomization", {}).get("enabled", 0))),
+                         **({"twin_critics": 1} if int(cfg.get("training", {}).get("twin_critics", 0)) else {}),
                          "r_success_pitch_margin_deg": float(cfg["task"].get("r_success_pitch_margin_deg", 0.0)),
                          "r_tilt_per_deg": float(cfg["task"].get("r_tilt_per_deg", 0.0)),
                          "r_tilt_free_deg": float(cfg["task"].get("r_tilt_free_deg", 0.0)),

@@ -132,6 +132,7 @@ SCHEMA: dict[str, Any] = {
         "learning_starts": _i(1, 10_000_000), "hidden_sizes": _ilist(1, 4096, 1, 8), "reward_scale": _f(1e-6, 1e3),
         "eval_every": _i(1, 100_000_000), "eval_episodes": _i(1, 100_000), "eval_seed": _i(0, 2**31 - 1),
         "checkpoint_every": _i(1, 100_000_000), "torch_threads": _i(1, 256),
+        "twin_critics": _i(0, 1),
     },
 }
 
@@ -310,7 +311,10 @@ def config_hash(cfg: dict) -> str:
     TRAINING_ONLY settings at their neutral values left out: a switched-off `randomization`
     section (actors trained before the section existed keep their hash; a randomised run's hash
     differs), task.r_success_pitch_margin_deg at 0, and the tilt penalty's keys while
-    task.r_tilt_per_deg is 0; the tilt penalty's training schedule (TILT_SCHEDULE_KEYS) never."""
+    task.r_tilt_per_deg is 0; the tilt penalty's training schedule (TILT_SCHEDULE_KEYS) and
+    training.twin_critics (how the critic learned) never."""
+    if "training" in cfg and "twin_critics" in cfg["training"]:     # how the critic learned, not what the actor sees
+        cfg = {**cfg, "training": {k: v for k, v in cfg["training"].items() if k != "twin_critics"}}
     if "task" in cfg and any(k in cfg["task"] for k in TILT_SCHEDULE_KEYS):
         cfg = {**cfg, "task": {k: v for k, v in cfg["task"].items() if k not in TILT_SCHEDULE_KEYS}}
     if int(cfg.get("randomization", {}).get("enabled", 0)) == 0:
