@@ -112,8 +112,9 @@ class Rig:
         self.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 50)
         self.pub_img = self.node.create_publisher(Image, "/camera/image_raw", 10)
         self.pub_info = self.node.create_publisher(CameraInfo, "/camera/camera_info", qos_profile_sensor_data)
-        assert spin_until(self.node, lambda: self.node.count_subscribers("/camera/image_raw") > 0
-                          and self.node.count_subscribers("/camera/camera_info") > 0, 30.0), self.proc.log()
+        # matched from this side (the graph can list the node before the writers have matched it)
+        assert spin_until(self.node, lambda: self.pub_img.get_subscription_count() > 0
+                          and self.pub_info.get_subscription_count() > 0, 30.0), self.proc.log()
         self.spin(0.3)
 
     def _on_diag(self, msg):

@@ -82,7 +82,9 @@ class Rig:
         self.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 50)
         self.pub_scan = self.node.create_publisher(LaserScan, "/lidar/scan", qos_profile_sensor_data)
         self.pub_cloud = self.node.create_publisher(PointCloud2, "/lidar/points", qos_profile_sensor_data)
-        assert spin_until(self.node, lambda: self.node.count_subscribers("/lidar/scan") > 0
+        # matched from this side (the graph can list the node before the writers have matched it)
+        assert spin_until(self.node, lambda: self.pub_scan.get_subscription_count() > 0
+                          and self.pub_cloud.get_subscription_count() > 0
                           and self.node.count_publishers(f"{ns}/pile/slope") > 0, 30.0), self.proc.log()
         spin_until(self.node, lambda: False, 0.5)
 

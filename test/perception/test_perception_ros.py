@@ -59,7 +59,7 @@ def test_aruco_node_pose_speed_loss_and_staleness(ros, tmp_path):
     truth = drive_poses(ts, -0.75, speed)
     frames = [render(K, 640, 480, np.linalg.inv(T_pc) @ T, tex, 0.12, rng) for T in truth]
     try:
-        assert spin_until(node, lambda: node.count_subscribers("/camera/image_raw") > 0, 20.0), proc.log()
+        assert spin_until(node, lambda: pub_img.get_subscription_count() > 0, 20.0), proc.log()   # matched from this side
         spin_until(node, lambda: False, 0.5)
         # frames before any CameraInfo are ignored
         for k in range(5):
@@ -174,7 +174,7 @@ def test_lidar_node_slope_from_scans_and_clouds(ros, tmp_path):
     pub_cloud = node.create_publisher(PointCloud2, "/lidar/points", qos_profile_sensor_data)
     rng = np.random.default_rng(4)
     try:
-        assert spin_until(node, lambda: node.count_subscribers("/lidar/scan") > 0, 20.0), proc.log()
+        assert spin_until(node, lambda: pub_scan.get_subscription_count() > 0, 20.0), proc.log()   # matched from this side
         spin_until(node, lambda: False, 0.5)
         for alpha in (15.0, 30.0):
             r, amin, inc, rpy = synthetic_scan(math.radians(alpha), rng)
