@@ -12,6 +12,11 @@ from lhd_loading_ros.task.randomization import (NOMINAL, Conditions, Observation
                                                 delay_chunks, draw)
 
 
+# how the learner learned (clipped double Q, the slope curriculum): never in the hash
+NEVER_HASHED = ("twin_critics", "slope_curriculum", "slope_curriculum_bins", "slope_curriculum_window",
+                "slope_curriculum_uniform")
+
+
 @pytest.fixture(scope="module")
 def cfg():
     return load_config()
@@ -22,7 +27,7 @@ def test_the_shipped_section_is_off_and_a_disabled_section_leaves_the_hash_alone
     without = {k: v for k, v in cfg.items() if k != "randomization"}
     # the tilt penalty is off too: its keys stay out (test_tilt_reward.py)
     without["task"] = {k: v for k, v in cfg["task"].items() if k not in ("r_tilt_per_deg", "r_tilt_free_deg", "r_tilt_ramp_after_success", "r_tilt_ramp_steps", "r_tilt_ramp_pitch_margin")}
-    without["training"] = {k: v for k, v in cfg["training"].items() if k != "twin_critics"}   # never in it
+    without["training"] = {k: v for k, v in cfg["training"].items() if k not in NEVER_HASHED}
     import hashlib
     import json
     assert config_hash(cfg) == hashlib.sha256(json.dumps(without, sort_keys=True).encode()).hexdigest()[:16]
@@ -152,7 +157,7 @@ def test_the_training_pitch_margin_is_a_training_only_setting(cfg):
     def raw(c):       # the hash by its definition, written out here (the tilt penalty off: its keys out)
         c = {k: v for k, v in c.items() if k != "randomization" or c["randomization"]["enabled"]}
         c["task"] = {k: v for k, v in c["task"].items() if k not in ("r_tilt_per_deg", "r_tilt_free_deg", "r_tilt_ramp_after_success", "r_tilt_ramp_steps", "r_tilt_ramp_pitch_margin")}
-        c["training"] = {k: v for k, v in c["training"].items() if k != "twin_critics"}
+        c["training"] = {k: v for k, v in c["training"].items() if k not in NEVER_HASHED}
         return hashlib.sha256(json.dumps(c, sort_keys=True).encode()).hexdigest()[:16]
     old = copy.deepcopy(cfg)
     del old["task"]["r_success_pitch_margin_deg"]                    # an actor from before the key
@@ -193,7 +198,7 @@ def test_which_cards_count_as_randomised_and_configs_without_the_sections(cfg):
         if "task" in c:      # the tilt penalty off: its keys out
             c = {**c, "task": {k: v for k, v in c["task"].items() if k not in ("r_tilt_per_deg", "r_tilt_free_deg", "r_tilt_ramp_after_success", "r_tilt_ramp_steps", "r_tilt_ramp_pitch_margin")}}
         if "training" in c:  # how the critic learned: never in it
-            c = {**c, "training": {k: v for k, v in c["training"].items() if k != "twin_critics"}}
+            c = {**c, "training": {k: v for k, v in c["training"].items() if k not in NEVER_HASHED}}
         return hashlib.sha256(json.dumps(c, sort_keys=True).encode()).hexdigest()[:16]
     m0 = copy.deepcopy(cfg)
     m0["task"]["r_success_pitch_margin_deg"] = 0.0

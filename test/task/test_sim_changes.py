@@ -20,12 +20,14 @@ def cfg():
 
 def _raw(c):
     """The hash by its definition, written out here (randomisation off, margin 3 kept, tilt off,
-    the tilt penalty's training schedule and training.twin_critics never in it)."""
+    the tilt penalty's training schedule, training.twin_critics and the slope curriculum never in it)."""
     c = {k: v for k, v in c.items() if k != "randomization"}
     c["task"] = {k: v for k, v in c["task"].items() if k not in ("r_tilt_per_deg", "r_tilt_free_deg",
                                                                  "r_tilt_ramp_after_success", "r_tilt_ramp_steps",
                                                                  "r_tilt_ramp_pitch_margin")}
-    c["training"] = {k: v for k, v in c["training"].items() if k != "twin_critics"}
+    c["training"] = {k: v for k, v in c["training"].items()
+                     if k not in ("twin_critics", "slope_curriculum", "slope_curriculum_bins", "slope_curriculum_window",
+                                  "slope_curriculum_uniform")}
     return hashlib.sha256(json.dumps(c, sort_keys=True).encode()).hexdigest()[:16]
 
 

@@ -6,11 +6,13 @@ from lhd_loading_ros.task.config import config_hash
 from lhd_loading_ros.task.observation import OBS_HIGH, OBS_LOW, OBS_NAMES
 from lhd_loading_ros.task.params import TaskParams
 from lhd_loading_ros.policy.actor_file import save_policy
+from lhd_loading_ros.learning.curriculum import CurriculumConfig
 from lhd_loading_ros.learning.mlp import FlatMlp
 
 
 def export_actor(directory, actor: FlatMlp, cfg: dict, meta: dict):
     p = TaskParams.from_config(cfg)
+    curriculum = CurriculumConfig.from_training(cfg.get("training", {}))
     full = {
         "observation": {"names": list(OBS_NAMES), "low": OBS_LOW.tolist(), "high": OBS_HIGH.tolist(),
                         "normalization": "lhd_loading_ros.task.observation.build_observation (docs/modeling.md)"},
@@ -26,6 +28,7 @@ def export_actor(directory, actor: FlatMlp, cfg: dict, meta: dict):
         # training-only settings (task.config.TRAINING_ONLY): not in what the actor sees, but in its card
         "trained_with": {"randomize": bool(int(cfg.get("randomization", {}).get("enabled", 0))),
                          **({"twin_critics": 1} if int(cfg.get("training", {}).get("twin_critics", 0)) else {}),
+                         **({"slope_curriculum": curriculum.to_dict()} if curriculum is not None else {}),
                          "r_success_pitch_margin_deg": float(cfg["task"].get("r_success_pitch_margin_deg", 0.0)),
                          "r_tilt_per_deg": float(cfg["task"].get("r_tilt_per_deg", 0.0)),
                          "r_tilt_free_deg": float(cfg["task"].get("r_tilt_free_deg", 0.0)),

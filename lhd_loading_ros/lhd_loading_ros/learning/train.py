@@ -11,6 +11,9 @@ A run directory holds
   final/            exported actor at the end of training
 With the tilt penalty ramped in (task.r_tilt_ramp_after_success > 0, TiltRamp), the replay keeps the
 penalty apart and weights it when sampled; run.json and the checkpoint hold the ramp's state.
+With the slope curriculum (training.slope_curriculum, learning/curriculum.py) each training pile's
+slope is drawn from bins weighted by their recent failures; curriculum.csv holds the draw's
+probabilities at every evaluation, the checkpoint its state.
 Interrupted runs resume from checkpoint.pt: the agent, replay and noise continue exactly; the
 episode in progress is dropped and starts again (training episode k always uses the pile of
 seed (run seed, k), so with one environment the sequence of piles is the same with or without a
@@ -32,6 +35,7 @@ import torch
 
 from lhd_loading_ros.task.config import config_hash, load_config
 from lhd_loading_ros.task.metrics import result_from_status
+from lhd_loading_ros.learning.curriculum import CurriculumConfig, SlopeCurriculum
 from lhd_loading_ros.learning.ddpg import DdpgAgent, DdpgConfig, OUNoise, ReplayBuffer, TiltRamp, noise_scale
 from lhd_loading_ros.learning.evaluate import evaluate
 from lhd_loading_ros.learning.export import export_actor
@@ -40,7 +44,7 @@ EVAL_FIELDS = ("step", "ar", "aml", "aff", "asl", "success_rate", "end_zone_rate
                "front_drift_pct", "rear_drift_pct", "noise_scale", "critic_loss", "q_mean", "episodes_done",
                "wall_s", "eval_wall_s")
 EPISODE_FIELDS = ("episode", "step", "return", "loaded", "outcome", "steps", "alpha_deg", "material", "noise_scale",
-                  "source")
+                  "source", "success")     # success: the paper's test (SL >= 1), what the slope curriculum counts
 ENV_KINDS = ("local", "ros")
 
 
@@ -96,19 +100,26 @@ def _append_csv(path: Path, fields, row: dict) -> None:
         w.writerow({k: row.get(k, "") for k in fields})
 
 
-def _truncate_csv(path: Path, key: str, limit: int) -> None:
-    """Drop rows written after the checkpoint we resume from (their steps will be redone)."""
+def _truncate_csv(path: Path, key: str, limit: int, fields=None) -> None:
+    """Drop rows written after the checkpoint we resume from (their steps will be redone).
+    fields: the columns the run writes now; a file of an older layout gets them (blank in its
+    old rows), so that the rows appended after the resume match its header."""
     if not path.exists():
         return
     with open(path, newline="") as f:
-        rows = list(csv.DictReader(f))
-        fields = rows and list(rows[0].keys())
+        reader = csv.DictReader(f)
+        rows = list(reader)
+        header = list(reader.fieldnames or [])
+    fields = list(fields) if fields is not None else header
+    fields += [k for k in header if k not in fields]
     kept = [r for r in rows if int(float(r[key])) <= limit]
+    if not fields:
+        path.unlink()                  # nothing in it: _append_csv writes the header again
+        return
     with open(path, "w", newline="") as f:
-        if fields:
-            w = csv.DictWriter(f, fieldnames=fields)
-            w.writeheader()
-            w.writerows(kept)
+        w = csv.DictWriter(f, fieldnames=fields, restval="")
+        w.writeheader()
+        w.writerows(kept)
 
 
 def _rank(ev: dict) -> tuple:
@@ -159,6 +170,14 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
         raise ValueError("task.r_tilt_ramp_after_success > 0 (the tilt penalty ramped in) needs the in-process "
                          "environment: the sim nodes' transitions do not give the reward's terms apart; set it "
                          "to 0 or train with --env local")
+    cur_cfg = CurriculumConfig.from_training(cfg["training"])
+    if cur_cfg is not None and env_kind != "local":
+        raise ValueError("training.slope_curriculum = 1 draws each training pile's slope in the learner: it needs the "
+                         "in-process environment (the sim nodes draw their own piles); set it to 0 or train with "
+                         "--env local")
+    ep_cfg = cfg["paper"]["episode"]
+    curriculum = (SlopeCurriculum(float(ep_cfg["alpha_min_deg"]), float(ep_cfg["alpha_max_deg"]), cur_cfg)
+                  if cur_cfg is not None else None)
     eval_env = LhdLoadingEnv(variant, cfg)     # evaluations in-process, on the learner's machine
     if env_kind == "ros":
         from lhd_sim_node.ros_env import SimNodePool
@@ -187,7 +206,11 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
         sources = ["local"]
 
         def reset_slot(i: int, seed_k: int):
-            return env.reset(seed=seed_k)[0]
+            if curriculum is None:
+                return env.reset(seed=seed_k)[0]
+            # the slope from the curriculum, on its own stream of the episode's seed
+            slope = curriculum.draw(np.random.default_rng([seed_k, 0x5C]))
+            return env.reset(seed=seed_k, options={"slope_deg": slope})[0]
 
         def step_slots(actions: dict) -> dict:
             return {0: env.step(actions[0])}
@@ -214,6 +237,14 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
                              f"!= {chash[:12]}); use another --out or the same config")
         agent.load_state_dict(st["agent"])
         replay.load_state_dict(st["replay"])
+        if curriculum is not None:
+            if not st.get("slope_curriculum"):
+                raise ValueError(f"{ckpt} was trained without training.slope_curriculum: resume with it off, or use "
+                                 "another --out")
+            curriculum.load_state_dict(json.loads(st["slope_curriculum"]))
+        elif st.get("slope_curriculum"):
+            raise ValueError(f"{ckpt} was trained with training.slope_curriculum: resume with it on, or use another "
+                             "--out")
         if ramp.enabled and st.get("tilt_ramp"):      # (the replay's layout already refused a ramp switched on/off)
             ramp.load_state_dict(json.loads(st["tilt_ramp"]))
         rng.bit_generator.state = json.loads(st["rng"])
@@ -233,12 +264,14 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
                              f">= {step:,} to go on, or another --out")
         best = json.loads(st["best"]) if st["best"] else None
         wall_before = float(st["wall_s"])
-        _truncate_csv(out / "evals.csv", "step", step)
-        _truncate_csv(out / "episodes.csv", "step", step)
+        _truncate_csv(out / "evals.csv", "step", step, EVAL_FIELDS)
+        _truncate_csv(out / "episodes.csv", "step", step, EPISODE_FIELDS)
+        if (out / "curriculum.csv").exists():
+            _truncate_csv(out / "curriculum.csv", "step", step)
         log(f"resumed {out} at step {step:,} (episode {episode})")
     else:
         pending, next_episode = [], 0
-        for f in ("evals.csv", "episodes.csv"):
+        for f in ("evals.csv", "episodes.csv", "curriculum.csv"):
             (out / f).unlink(missing_ok=True)
 
     def write_run_json() -> None:
@@ -246,7 +279,9 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
             "variant": variant, "seed": seed, "config_hash": chash, "ddpg": dc.to_dict(),
             "torch": torch.__version__, "command": sys.argv, "env": env_kind, "sources": sources,
             "transitions_by_source": contributed,
-            **({"tilt_ramp": ramp.state_dict()} if ramp.enabled else {})}, indent=2) + "\n")
+            **({"tilt_ramp": ramp.state_dict()} if ramp.enabled else {}),
+            **({"slope_curriculum": {**cur_cfg.to_dict(), "probabilities": curriculum.probabilities().round(4).tolist()}}
+               if curriculum is not None else {})}, indent=2) + "\n")
 
     write_run_json()
 
@@ -266,6 +301,7 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
               "pending": json.dumps([slot_episode[i] for i in slots] + queue), "next_episode": started,
               "contributed": json.dumps(contributed),
               "tilt_ramp": json.dumps(ramp.state_dict()) if ramp.enabled else "",
+              "slope_curriculum": json.dumps(curriculum.state_dict()) if curriculum is not None else "",
               "best": json.dumps(best) if best else "", "wall_s": wall_before + time.perf_counter() - t0}
         tmp = out / "checkpoint.pt.tmp"
         torch.save(st, tmp)
@@ -328,11 +364,13 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
                 obs[i] = obs2
                 if term or trunc:
                     res = info["episode_result"]
+                    if curriculum is not None:
+                        curriculum.record(res.alpha_deg, res.success)     # the paper's test (SL >= 1)
                     _append_csv(out / "episodes.csv", EPISODE_FIELDS, {
                         "episode": slot_episode[i], "step": step, "return": f"{ep_ret[i]:.3f}",
                         "loaded": f"{res.loaded:.3f}", "outcome": info["outcome"] if term else "timeout",
                         "steps": res.steps, "alpha_deg": f"{res.alpha_deg:.2f}", "material": res.material,
-                        "noise_scale": f"{scale:.4f}", "source": sources[i]})
+                        "noise_scale": f"{scale:.4f}", "source": sources[i], "success": int(res.success)})
                     episode += 1
                     ep_ret[i] = 0.0
                     noises[i].reset()
@@ -348,6 +386,11 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
                            "eval_wall_s": ev["wall_s"], **{k: ev[k] for k in EVAL_FIELDS if k in ev and k != "wall_s"}}
                     _append_csv(out / "evals.csv", EVAL_FIELDS, {k: (f"{v:.6g}" if isinstance(v, float) else v)
                                                                  for k, v in row.items()})
+                    if curriculum is not None:
+                        edges = curriculum.edges
+                        names = [f"p_{edges[k]:g}_{edges[k + 1]:g}" for k in range(len(edges) - 1)]
+                        _append_csv(out / "curriculum.csv", ("step", *names),
+                                    {"step": step, **{n: f"{v:.4f}" for n, v in zip(names, curriculum.probabilities())}})
                     if tb is not None:
                         for k in ("ar", "aml", "aff", "asl", "success_rate", "critic_loss", "q_mean"):
                             tb.add_scalar(f"eval/{k}", row[k], step)

@@ -132,7 +132,8 @@ SCHEMA: dict[str, Any] = {
         "learning_starts": _i(1, 10_000_000), "hidden_sizes": _ilist(1, 4096, 1, 8), "reward_scale": _f(1e-6, 1e3),
         "eval_every": _i(1, 100_000_000), "eval_episodes": _i(1, 100_000), "eval_seed": _i(0, 2**31 - 1),
         "checkpoint_every": _i(1, 100_000_000), "torch_threads": _i(1, 256),
-        "twin_critics": _i(0, 1),
+        "twin_critics": _i(0, 1), "slope_curriculum": _i(0, 1), "slope_curriculum_bins": _i(1, 100),
+        "slope_curriculum_window": _i(1, 100_000), "slope_curriculum_uniform": _f(0.0, 1.0),
     },
 }
 
@@ -300,6 +301,10 @@ TILT_KEYS = ("r_tilt_per_deg", "r_tilt_free_deg")     # the tilt penalty; both l
 # an actor was trained with (all of it once the ramp is through; none if it never began): the card
 # records the schedule and that weight (learning/ship.py), and `lhd ship` warns below the whole
 TILT_SCHEDULE_KEYS = ("r_tilt_ramp_after_success", "r_tilt_ramp_steps", "r_tilt_ramp_pitch_margin")
+# how the learner learned (never in the hash; the card's trained_with records them): clipped double Q
+# and the slope curriculum (learning/curriculum.py), which draws training piles, never evaluation ones
+TRAINING_SCHEDULE_KEYS = ("twin_critics", "slope_curriculum", "slope_curriculum_bins", "slope_curriculum_window",
+                          "slope_curriculum_uniform")
 
 
 def _with(cfg: dict, section: str, key: str, value) -> dict:
@@ -312,9 +317,10 @@ def config_hash(cfg: dict) -> str:
     section (actors trained before the section existed keep their hash; a randomised run's hash
     differs), task.r_success_pitch_margin_deg at 0, and the tilt penalty's keys while
     task.r_tilt_per_deg is 0; the tilt penalty's training schedule (TILT_SCHEDULE_KEYS) and
-    training.twin_critics (how the critic learned) never."""
-    if "training" in cfg and "twin_critics" in cfg["training"]:     # how the critic learned, not what the actor sees
-        cfg = {**cfg, "training": {k: v for k, v in cfg["training"].items() if k != "twin_critics"}}
+    training.twin_critics and the slope curriculum (TRAINING_SCHEDULE_KEYS) never."""
+    if "training" in cfg and any(k in cfg["training"] for k in TRAINING_SCHEDULE_KEYS):
+        # how the critic learned and which piles the learner practised on, not what the actor sees
+        cfg = {**cfg, "training": {k: v for k, v in cfg["training"].items() if k not in TRAINING_SCHEDULE_KEYS}}
     if "task" in cfg and any(k in cfg["task"] for k in TILT_SCHEDULE_KEYS):
         cfg = {**cfg, "task": {k: v for k, v in cfg["task"].items() if k not in TILT_SCHEDULE_KEYS}}
     if int(cfg.get("randomization", {}).get("enabled", 0)) == 0:

@@ -1,0 +1,91 @@
+"""Slope curriculum for training (training.slope_curriculum; docs/training.md "Slope curriculum").
+
+Every seed of the randomised studies loaded 20-30 deg piles and failed the 15 deg ones: the
+shallowest piles need the longest dig for the success test's 20 kg, and with slopes drawn
+uniformly over [alpha_min, alpha_max] they are one sixth of the training piles however often they
+fail. The curriculum splits the slope range into bins and draws a training pile's slope from them
+in proportion to how often the bin's recent training episodes failed, mixed with the uniform draw
+so that no slope is left out:
+
+    p_b = u / B + (1 - u) * f_b / sum_k f_k        (uniform when no bin fails)
+
+f_b: the share of the bin's last `window` training episodes that did not succeed (1 for a bin
+with none yet), u: the uniform share, B: the bins. Within a bin the slope is uniform. This is
+the idea of prioritised level replay (Jiang et al. 2021) with the failure rate as the score. The
+evaluations (and everything after training) keep the uniform draw: the curriculum only decides
+which piles the learner practises on, not what its figures are measured on.
+"""
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class CurriculumConfig:
+    bins: int = 6
+    window: int = 100
+    uniform: float = 0.5
+
+    @classmethod
+    def from_training(cls, t: dict) -> "CurriculumConfig | None":
+        """The curriculum of a config's training section, or None when it is off."""
+        if not int(t.get("slope_curriculum", 0)):
+            return None
+        return cls(bins=int(t.get("slope_curriculum_bins", 6)), window=int(t.get("slope_curriculum_window", 100)),
+                   uniform=float(t.get("slope_curriculum_uniform", 0.5)))
+
+    def to_dict(self) -> dict:
+        return {"bins": self.bins, "window": self.window, "uniform": self.uniform}
+
+
+class SlopeCurriculum:
+    """Failure-weighted draw of training slopes over [lo_deg, hi_deg] (module docstring)."""
+
+    def __init__(self, lo_deg: float, hi_deg: float, cfg: CurriculumConfig):
+        if not hi_deg > lo_deg:
+            raise ValueError(f"slope curriculum: the range must be lo < hi, got [{lo_deg}, {hi_deg}] deg")
+        if cfg.bins < 1 or cfg.window < 1 or not 0.0 <= cfg.uniform <= 1.0:
+            raise ValueError(f"slope curriculum: expected bins >= 1, window >= 1 and 0 <= uniform <= 1, got {cfg}")
+        self.lo, self.hi, self.cfg = float(lo_deg), float(hi_deg), cfg
+        self.edges = np.linspace(self.lo, self.hi, cfg.bins + 1)
+        self.recent = [deque(maxlen=cfg.window) for _ in range(cfg.bins)]
+
+    def bin_of(self, slope_deg: float) -> int:
+        """The bin holding slope_deg (the top edge belongs to the last bin)."""
+        if not self.lo - 1e-9 <= slope_deg <= self.hi + 1e-9:
+            raise ValueError(f"slope {slope_deg} deg outside the curriculum's range [{self.lo:g}, {self.hi:g}] deg")
+        return int(min(self.cfg.bins - 1, max(0, np.searchsorted(self.edges, slope_deg, side="right") - 1)))
+
+    def record(self, slope_deg: float, success: bool) -> None:
+        self.recent[self.bin_of(slope_deg)].append(bool(success))
+
+    def failure_rates(self) -> np.ndarray:
+        return np.array([1.0 - float(np.mean(r)) if r else 1.0 for r in self.recent])
+
+    def probabilities(self) -> np.ndarray:
+        b, u = self.cfg.bins, self.cfg.uniform
+        f = self.failure_rates()
+        if f.sum() <= 0.0:
+            return np.full(b, 1.0 / b)
+        return u / b + (1.0 - u) * f / f.sum()
+
+    def draw(self, rng: np.random.Generator) -> float:
+        """A slope, deg: a bin by probabilities(), then uniform within it."""
+        k = int(rng.choice(self.cfg.bins, p=self.probabilities()))
+        return float(rng.uniform(self.edges[k], self.edges[k + 1]))
+
+    def state_dict(self) -> dict:
+        return {"config": self.cfg.to_dict(), "range_deg": [self.lo, self.hi],
+                "recent": [[int(x) for x in r] for r in self.recent]}
+
+    def load_state_dict(self, st: dict) -> None:
+        if st["config"] != self.cfg.to_dict() or [float(x) for x in st["range_deg"]] != [self.lo, self.hi]:
+            raise ValueError(f"the checkpoint's slope curriculum {st['config']} over {st['range_deg']} deg is not "
+                             f"this config's {self.cfg.to_dict()} over {[self.lo, self.hi]} deg: resume with the same "
+                             "training.slope_curriculum_* settings, or use another --out")
+        for r, xs in zip(self.recent, st["recent"]):
+            r.clear()
+            r.extend(bool(x) for x in xs)
