@@ -27,9 +27,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from pathlib import Path
+
+from lhd_loading_ros.task.cores import usable_cores
 
 
 def _bench(args) -> int:
@@ -109,7 +110,7 @@ def _train(args) -> int:
         extra = (["--steps", str(args.steps)] if args.steps else []) + (["--config", args.config] if args.config else [])
         extra += ["--no-resume"] if not args.resume else []
         extra += ["--randomize"] if args.randomize else []
-        return run_seeds(args.variant, seeds, out, args.jobs or (os.cpu_count() or 1), extra)
+        return run_seeds(args.variant, seeds, out, args.jobs or usable_cores(), extra)
     from lhd_loading_ros.learning.train import train
 
     run_dir = out if args.out and not args.seeds else out / f"seed_{seeds[0]}"
@@ -262,7 +263,7 @@ def _report(args) -> int:
             for k, v in groups.items():
                 summaries[k]["held_out"] = held_out(v, conds, args.episodes, args.config,
                                                     log=None if args.json else print,
-                                                    jobs=args.jobs or (os.cpu_count() or 1))
+                                                    jobs=args.jobs or usable_cores())
     except (FileNotFoundError, ValueError) as exc:
         print(f"lhd report: {exc}", file=sys.stderr)
         return 1

@@ -48,6 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lhd_loading_ros.task.cores import usable_cores
 from lhd_loading_ros.cli.launcher import Child, _StopOnSignals, stop_stack
 from lhd_loading_ros.cli.up_real import ENDED, default_params_file, format_preflight, make_run_dir
 from lhd_loading_ros.cli.up_real import parser as real_parser
@@ -459,7 +460,7 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
     run_dir = make_run_dir(args.run_dir, "twin", "lhd up twin")
     if run_dir is None:
         return 2
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    cores = usable_cores()          # the affinity, capped by a cgroup CPU quota
     if cores < MIN_CORES:
         say(f"note: {cores} CPU core(s) for the twin and ten real-time nodes: expect late odometry (100-350 ms), "
             f"v_x errors over 0.02 m/s and lost_input endings, above all in the first attempts; "

@@ -35,6 +35,8 @@ from pathlib import Path
 
 import numpy as np
 
+from lhd_loading_ros.task.cores import usable_cores
+
 CONTROLLERS = ("rld", "rlc", "tampier", "scripted")
 SLOPES = (15.0, 20.0, 25.0, 30.0)
 MATERIALS = ("homogeneous", "nonhomogeneous")
@@ -174,7 +176,7 @@ def run(jobs: list[Job], jobs_n: int = 0, config=None, policy_dirs: dict | None 
     from lhd_loading_ros.policy.actor_file import default_policy_dir
     dirs = {v: str(default_policy_dir(v)) for v in ("rld", "rlc")}
     dirs.update(policy_dirs or {})
-    n = jobs_n or os.cpu_count() or 1
+    n = jobs_n or usable_cores()
     rows: list = [None] * len(jobs)
     t0 = time.monotonic()
 
@@ -395,7 +397,7 @@ def paper(out: str | os.PathLike, episodes: int = 10, controllers=CONTROLLERS, s
     summary = {"attempts": len(rows), "episodes_per_cell": episodes, "controllers": list(controllers),
                "slopes_deg": list(slopes), "materials": list(materials), "errors_deg": list(errors),
                "time_limit_s": TIME_LIMIT_S, "seed": seed, "wall_s": time.monotonic() - t0,
-               "jobs": jobs_n or os.cpu_count(), "figures": figs, "controllers_table": ctl, "slope_error_table": err}
+               "jobs": jobs_n or usable_cores(), "figures": figs, "controllers_table": ctl, "slope_error_table": err}
     (out / "summary.json").write_text(json.dumps(summary, indent=1))
     summary["markdown"] = md_c + ("\n### Slope error (homogeneous piles, all attempts)\n\n" + md_e if md_e else "")
     return summary
