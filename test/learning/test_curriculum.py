@@ -105,6 +105,20 @@ def test_config_hash_and_validation(cfg):
     bad["training"]["slope_curriculum_uniform"] = 2.0
     with pytest.raises(ValueError, match="slope_curriculum_uniform"):
         validate(bad)
+    # a parameter file written before these keys (and twin_critics) existed still loads: they are
+    # filled with their defaults (off), and the hash is the same
+    old = copy.deepcopy(cfg)
+    for k in ("twin_critics", "slope_curriculum", "slope_curriculum_bins", "slope_curriculum_window",
+              "slope_curriculum_uniform"):
+        del old["training"][k]
+    old = validate(old)
+    assert (old["training"]["twin_critics"], old["training"]["slope_curriculum"]) == (0, 0)
+    assert config_hash(old) == config_hash(cfg)
+    # any other key is still required
+    missing = copy.deepcopy(cfg)
+    del missing["training"]["eval_seed"]
+    with pytest.raises(ValueError, match="missing key 'training.eval_seed'"):
+        validate(missing)
 
 
 def test_a_short_run_draws_its_piles_from_the_curriculum_and_resumes_it(cfg, tmp_path):

@@ -224,9 +224,22 @@ def _describe(spec) -> str:
     return f"{kind} in [{lo:g}, {hi:g}]"
 
 
+# Keys a parameter file may leave out, with the value they then take: how the learner learns
+# (never in the config hash, TRAINING_SCHEDULE_KEYS), added after parameter files were written
+# that trained fine without them. Every other key is required.
+OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curriculum"): 0,
+                     ("training", "slope_curriculum_bins"): 6, ("training", "slope_curriculum_window"): 100,
+                     ("training", "slope_curriculum_uniform"): 0.5}
+
+
 def validate(cfg: Any) -> dict:
-    """Validate a parsed config mapping; return it with ints converted. Raises ConfigError."""
+    """Validate a parsed config mapping; return it with ints converted and the keys of
+    OPTIONAL_DEFAULTS it left out filled in. Raises ConfigError."""
     errors: list[str] = []
+    if isinstance(cfg, dict):
+        for (section, key), value in OPTIONAL_DEFAULTS.items():
+            if isinstance(cfg.get(section), dict):
+                cfg[section].setdefault(key, value)
     _check(cfg, SCHEMA, "", errors)
     if not errors:
         for desc, pred in _RELATIONS:
