@@ -47,8 +47,9 @@ class SlopeCurriculum:
     def __init__(self, lo_deg: float, hi_deg: float, cfg: CurriculumConfig):
         if not hi_deg > lo_deg:
             raise ValueError(f"slope curriculum: the range must be lo < hi, got [{lo_deg}, {hi_deg}] deg")
-        if cfg.bins < 1 or cfg.window < 1 or not 0.0 <= cfg.uniform <= 1.0:
-            raise ValueError(f"slope curriculum: expected bins >= 1, window >= 1 and 0 <= uniform <= 1, got {cfg}")
+        if cfg.bins < 1 or cfg.window < 1 or not 0.0 < cfg.uniform <= 1.0:
+            # uniform > 0: a bin whose window is all successes must still be drawn, or it is never measured again
+            raise ValueError(f"slope curriculum: expected bins >= 1, window >= 1 and 0 < uniform <= 1, got {cfg}")
         self.lo, self.hi, self.cfg = float(lo_deg), float(hi_deg), cfg
         self.edges = np.linspace(self.lo, self.hi, cfg.bins + 1)
         self.recent = [deque(maxlen=cfg.window) for _ in range(cfg.bins)]

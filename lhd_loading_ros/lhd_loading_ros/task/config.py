@@ -133,7 +133,7 @@ SCHEMA: dict[str, Any] = {
         "eval_every": _i(1, 100_000_000), "eval_episodes": _i(1, 100_000), "eval_seed": _i(0, 2**31 - 1),
         "checkpoint_every": _i(1, 100_000_000), "torch_threads": _i(1, 256),
         "twin_critics": _i(0, 1), "slope_curriculum": _i(0, 1), "slope_curriculum_bins": _i(1, 100),
-        "slope_curriculum_window": _i(1, 100_000), "slope_curriculum_uniform": _f(0.0, 1.0),
+        "slope_curriculum_window": _i(1, 100_000), "slope_curriculum_uniform": _f(0.01, 1.0),
     },
 }
 

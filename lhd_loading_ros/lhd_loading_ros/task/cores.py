@@ -4,16 +4,16 @@ affinity, but is throttled to 2). Used for the default number of parallel jobs a
 warning about too few cores."""
 from __future__ import annotations
 
-import math
 import os
 from pathlib import Path
 
 
 def quota_cores(cpu_max: str | None = None, cfs_quota_us: str | None = None,
                 cfs_period_us: str | None = None) -> int | None:
-    """Cores a cgroup quota allows (rounded up), or None when unlimited or unknown.
-    cpu_max: cgroup v2's cpu.max ("max 100000" or "<quota> <period>"); cfs_quota_us /
-    cfs_period_us: cgroup v1's (quota -1 = unlimited)."""
+    """Whole cores a cgroup quota allows (rounded down, at least 1: a 3.5-CPU quota cannot keep
+    four busy threads running), or None when unlimited or unknown. cpu_max: cgroup v2's cpu.max
+    ("max 100000" or "<quota> <period>"); cfs_quota_us / cfs_period_us: cgroup v1's (quota -1 =
+    unlimited)."""
     try:
         if cpu_max is not None:
             quota, period = cpu_max.split()[:2]
@@ -28,21 +28,46 @@ def quota_cores(cpu_max: str | None = None, cfs_quota_us: str | None = None,
         return None
     if q <= 0 or p <= 0:
         return None
-    return max(1, math.ceil(q / p))
+    return max(1, q // p)
 
 
-def _read(path: str) -> str | None:
+def _read(path: Path) -> str | None:
     try:
-        return Path(path).read_text()
+        return path.read_text()
     except OSError:
         return None
 
 
+def cgroup_dirs(proc_cgroup: str, root: Path = Path("/sys/fs/cgroup")) -> list[Path]:
+    """The CPU controller's directories of this process's cgroup and of every cgroup above it
+    (a quota set on a parent, e.g. a systemd slice, applies too), from /proc/self/cgroup: the
+    v2 line "0::/path", or v1's line naming the cpu controller."""
+    dirs = []
+    for line in proc_cgroup.splitlines():
+        parts = line.split(":", 2)
+        if len(parts) != 3:
+            continue
+        _, controllers, path = parts
+        if controllers == "":                                  # cgroup v2
+            base = root
+        elif "cpu" in controllers.split(","):                  # cgroup v1 cpu controller
+            base = root / "cpu" if (root / "cpu").exists() else root / controllers
+        else:
+            continue
+        rel = Path(path.lstrip("/"))
+        for k in range(len(rel.parts), -1, -1):
+            dirs.append(base.joinpath(*rel.parts[:k]))
+    return dirs
+
+
 def usable_cores() -> int:
-    """min(affinity, cgroup quota); at least 1."""
+    """min(affinity, the smallest cgroup quota on the way up from this process's cgroup); at least 1."""
     n = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    q = quota_cores(cpu_max=_read("/sys/fs/cgroup/cpu.max"))
-    if q is None:
-        q = quota_cores(cfs_quota_us=_read("/sys/fs/cgroup/cpu/cpu.cfs_quota_us"),
-                        cfs_period_us=_read("/sys/fs/cgroup/cpu/cpu.cfs_period_us"))
-    return max(1, min(n, q) if q is not None else n)
+    quotas = []
+    for d in cgroup_dirs(_read(Path("/proc/self/cgroup")) or "0::/"):
+        q = quota_cores(cpu_max=_read(d / "cpu.max"))
+        if q is None:
+            q = quota_cores(cfs_quota_us=_read(d / "cpu.cfs_quota_us"), cfs_period_us=_read(d / "cpu.cfs_period_us"))
+        if q is not None:
+            quotas.append(q)
+    return max(1, min([n, *quotas]))
