@@ -201,3 +201,11 @@ def test_the_sim_nodes_draw_their_own_piles_so_the_curriculum_is_refused_there(c
     with pytest.raises(ValueError, match="slope_curriculum = 1 .* in-process"):
         train("rld", 0, tmp_path / "r", steps=10, config=small(cfg), env_kind="ros", namespaces=["/sim0"],
               progress=False, log=lambda *a: None)
+
+
+def test_the_class_defaults_are_the_config_defaults():
+    """One set of defaults: a training section without the keys gives what config.OPTIONAL_DEFAULTS fills in."""
+    from lhd_loading_ros.task.config import OPTIONAL_DEFAULTS
+
+    c = CurriculumConfig.from_training({"slope_curriculum": 1})
+    assert c.to_dict() == {k: OPTIONAL_DEFAULTS[("training", f"slope_curriculum_{k}")] for k in ("bins", "window", "uniform")}

@@ -34,8 +34,9 @@ class CurriculumConfig:
         """The curriculum of a config's training section, or None when it is off."""
         if not int(t.get("slope_curriculum", 0)):
             return None
-        return cls(bins=int(t.get("slope_curriculum_bins", 6)), window=int(t.get("slope_curriculum_window", 100)),
-                   uniform=float(t.get("slope_curriculum_uniform", 0.5)))
+        return cls(bins=int(t.get("slope_curriculum_bins", cls.bins)),
+                   window=int(t.get("slope_curriculum_window", cls.window)),
+                   uniform=float(t.get("slope_curriculum_uniform", cls.uniform)))
 
     def to_dict(self) -> dict:
         return {"bins": self.bins, "window": self.window, "uniform": self.uniform}
