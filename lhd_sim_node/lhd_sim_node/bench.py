@@ -59,10 +59,12 @@ def _record(env: LhdLoadingEnv, actions: np.ndarray, seed: int) -> list:
         mujoco.mj_step(m, d, nstep=n)
 
     sim._physics, sim.place_machine = rec_physics, rec_place
+    fused, sim.fused = sim.fused, False     # the Python-driven loop calls _physics at every chunk
     try:
         _episode_loop(env, actions, seed)
     finally:
         del sim._physics, sim.place_machine
+        sim.fused = fused
     return chunks
 
 

@@ -32,7 +32,9 @@ from .fee_kernel import (OUT_SIZE, P_BID_BUCKET, P_BUCKET_MASS0, P_CA, P_DX, P_D
                          ST_SIZE, ST_SPILLED, ST_TIP_PREV_X, ST_TIP_PREV_Z, ST_V_BUCKET, ST_V_CUT, ST_W_IDEAL, P_BY_MOTION,
                          ST_MOBILISED, P_WEDGE_TAU, beta_tables, fee_update, wedge_mobilisation)
 from .mjcf import attack_geometry, build_mjcf
+from . import fused
 from .bucket_body import BucketBody, bucket_body_update
+from .fused import run_chunks
 
 WHEELS = ("wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr")
 MATERIALS = ("homogeneous", "nonhomogeneous")
@@ -126,6 +128,11 @@ class LhdSimulator:
         self._fee_rake = self.rake_attack
         self._fee_depth = ()
         self.use_kernel = True
+        # chunks run in one compiled loop that calls MuJoCo's C API (fused.py; bit-identical to
+        # _physics + mujoco.mj_kinematics); False keeps the Python-driven loop (the bench's
+        # recording run sets it, to see every chunk)
+        self.fused = fused.AVAILABLE
+        self._pm, self._pd = self.model._address, self.data._address
         vx = cfg["paper"]["voxels"]
         # the bucket's geometric capacity (m^3, struck + heap at repose) over the tip pitch (H4's table)
         cap_pitch, cap_vol = capacity_table(cfg)
@@ -239,17 +246,19 @@ class LhdSimulator:
         self.set_command(np.array([self.attack_speed, 0.0, 0.0]))
         self._u_prev = np.array([self.attack_speed, 0.0, 0.0])
         self._drift_marks.clear()
-        while self.data.site_xpos[self.sid_tip][0] < p.d_init:
+        tip = self._site_xpos[self.sid_tip]
+        while tip[0] < p.d_init:
             self._drift_marks.append(self._drift_mark())
             self._drift_from = self._drift_marks[0]
-            self._physics(self.fee_every)
-            mujoco.mj_kinematics(self.model, self.data)
+            self._chunks(1)
             t += self.fee_dt
-            if self.use_kernel:
-                self._sync_from_kernel()
             if t > self.attack_timeout:
+                if self.use_kernel:
+                    self._sync_from_kernel()
                 raise AttackError(f"the bucket did not reach d_init = {p.d_init} m inside the pile within "
                                   f"{self.attack_timeout} s (tip at x = {self.data.site_xpos[self.sid_tip][0]:.3f} m)")
+        if self.use_kernel:     # the kernel's state accumulates in self._kst: read it once, after the drive
+            self._sync_from_kernel()
 
     # ------------------------------------------------------------------ stepping
     def set_command(self, u: np.ndarray) -> None:
@@ -269,13 +278,14 @@ class LhdSimulator:
         prev = self._u_prev
         self._drift_marks.clear()
         self._drift_from = self._drift_mark()
-        for k in range(self.n_phys // self.fee_every):
-            if k == 0 or k == dd or k == dh:       # the command changes: set it, pull the set-points back
-                self.set_command(np.array([prev[0] if k < dd else u[0], prev[1] if k < dh else u[1],
-                                           prev[2] if k < dh else u[2]]))
-                self._anti_windup()
-            self._physics(self.fee_every)
-        mujoco.mj_kinematics(self.model, self.data)
+        chunks = self.n_phys // self.fee_every
+        changes = sorted({0, *(k for k in (dd, dh) if 0 < k < chunks)})   # the command changes: set it,
+        for i, k in enumerate(changes):                                    # pull the set-points back
+            self.set_command(np.array([prev[0] if k < dd else u[0], prev[1] if k < dh else u[1],
+                                       prev[2] if k < dh else u[2]]))
+            self._anti_windup()
+            last = i == len(changes) - 1
+            self._chunks((chunks if last else changes[i + 1]) - k, kinematics=last)
         if self.use_kernel:
             self._sync_from_kernel()
         self._u_prev = u
@@ -293,10 +303,21 @@ class LhdSimulator:
         self._anti_windup()
         self._drift_marks.append(self._drift_mark())
         self._drift_from = self._drift_marks[0]
-        self._physics(self.fee_every)
-        mujoco.mj_kinematics(self.model, self.data)
+        self._chunks(1)
         if self.use_kernel:
             self._sync_from_kernel()
+
+    def _chunks(self, n: int, kinematics: bool = True) -> None:
+        """n FEE chunks (each: _physics(fee_every)), then mj_kinematics if kinematics, in one
+        compiled call where it can (fused.py), else driven from Python: the same states."""
+        if self.fused and self.use_kernel:
+            run_chunks(self._pm, self._pd, n, self.fee_every, self.fee_enabled, kinematics, self._kargs,
+                       self._body_args)
+            return
+        for _ in range(n):
+            self._physics(self.fee_every)
+        if kinematics:
+            mujoco.mj_kinematics(self.model, self.data)
 
     def _physics(self, n: int) -> None:
         if self.fee_enabled:

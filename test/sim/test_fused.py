@@ -1,0 +1,104 @@
+"""The compiled chunk loop (lhd_sim_node/fused.py) is the Python-driven loop, bit for bit.
+
+Two environments with the same seeds and actions, one stepping through fused.run_chunks (MuJoCo's
+C API called from numba), one through Simulator._physics + mujoco.mj_kinematics, must hold the
+same MuJoCo state, pile, payload and kernel state after every step: in nominal episodes, with
+randomised conditions (actuator dead times split the period into several runs of chunks,
+heading and offset), with the FEE off, and through the twin's chunk-wise advance()."""
+import numpy as np
+import pytest
+
+from lhd_sim_node import fused
+from lhd_sim_node.env import LhdLoadingEnv
+from lhd_sim_node.simulator import AttackError
+
+
+def _snapshot(env: LhdLoadingEnv) -> dict:
+    s, m, d = env.sim, env.sim.model, env.sim.data
+    return {
+        "time": np.array([d.time]), "qpos": d.qpos.copy(), "qvel": d.qvel.copy(), "act": d.act.copy(),
+        "ctrl": d.ctrl.copy(), "xfrc": d.xfrc_applied.copy(), "tendon_fl": m.tendon_frictionloss.copy(),
+        "dof_fl": m.dof_frictionloss.copy(), "body_mass": m.body_mass.copy(), "top": s.pile.top.copy(),
+        "site_xpos": d.site_xpos.copy(), "kst": s._kst.copy(),
+        "payload": np.array([s.loaded_mass, s.spilled_mass, s.V_cut, s.W_ideal, s._fee_h, s._fee_v, s._alpha_s]),
+    }
+
+
+def _assert_same(a: dict, b: dict, where: str) -> None:
+    for k in a:
+        np.testing.assert_array_equal(a[k], b[k], err_msg=f"{k} differs {where}")
+
+
+def _pair(randomize: bool = False):
+    fast, slow = LhdLoadingEnv(randomize=randomize), LhdLoadingEnv(randomize=randomize)
+    slow.sim.fused = False
+    return fast, slow
+
+
+def test_the_library_is_found_and_used_here():
+    # this project's machines (Linux wheels of mujoco) have the library; a platform without it
+    # falls back to the Python loop (test below), it does not fail
+    assert fused.AVAILABLE
+    assert LhdLoadingEnv().sim.fused
+
+
+def _run(fast, slow, seed: int, steps: int, rng) -> int:
+    ra, rb = fast.reset(seed=seed), slow.reset(seed=seed)
+    np.testing.assert_array_equal(ra[0], rb[0])
+    _assert_same(_snapshot(fast), _snapshot(slow), f"after the attack drive (seed {seed})")
+    n = 0
+    for k in range(steps):
+        a = rng.uniform(-1.0, 1.0, 3)
+        oa, rwa, ta, tra, _ = fast.step(a)
+        ob, rwb, tb, trb, _ = slow.step(a)
+        n += 1
+        np.testing.assert_array_equal(oa, ob)
+        assert (rwa, ta, tra) == (rwb, tb, trb)
+        _assert_same(_snapshot(fast), _snapshot(slow), f"after step {k} (seed {seed})")
+        if ta or tra:
+            break
+    return n
+
+
+def test_nominal_episodes_are_bit_identical():
+    fast, slow = _pair()
+    rng = np.random.default_rng(3)
+    steps = sum(_run(fast, slow, seed, 60, rng) for seed in (0, 1, 2))
+    assert steps >= 30      # real episodes were compared, not just resets
+
+
+def test_randomised_episodes_with_dead_times_are_bit_identical():
+    fast, slow = _pair(randomize=True)
+    rng = np.random.default_rng(4)
+    split = 0
+    for seed in range(6):
+        _run(fast, slow, seed, 25, rng)
+        dd, dh = fast.sim._delay_chunks
+        split += (dd > 0) or (dh > 0)
+    assert split >= 2, "no episode had an actuator dead time: the split runs of chunks were not compared"
+
+
+def test_without_the_fee_and_through_advance():
+    fast, slow = _pair()
+    for e in (fast, slow):
+        e.reset(seed=5)
+        e.sim.fee_enabled = False
+    for k in range(10):
+        fast.sim.step(np.array([8.0, 0.0, 0.3]))
+        slow.sim.step(np.array([8.0, 0.0, 0.3]))
+    _assert_same(_snapshot(fast), _snapshot(slow), "with the FEE off")
+    for e in (fast, slow):
+        e.sim.fee_enabled = True
+    for k in range(12):   # the twin's 20 ms chunks
+        u = np.array([6.0, -0.2 if k > 5 else 0.0, 0.4])
+        fast.sim.advance(u)
+        slow.sim.advance(u)
+        _assert_same(_snapshot(fast), _snapshot(slow), f"after advance {k}")
+        assert fast.sim.wheel_drift() == slow.sim.wheel_drift()
+
+
+def test_the_attack_timeout_still_fires():
+    env = LhdLoadingEnv()
+    assert env.sim.fused
+    with pytest.raises(AttackError, match="did not reach d_init"):
+        env.sim.reset(np.random.default_rng(0), attack_speed=0.0)
