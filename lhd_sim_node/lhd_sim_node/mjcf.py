@@ -4,9 +4,13 @@ World frame = pile frame {M}: floor at z = 0, the pile's toe at x = 0, the machi
 along +x. Joint zeros are the attack pose: the bucket's bottom plate lies on the floor and
 the tip frame's x-axis is parallel to it.
 
-Bodies: rear frame (free joint) -> rear wheels, front frame (central articulation hinge,
-locked by an equality constraint) -> front wheels, boom (hinge about +y: negative lifts)
--> bucket (hinge about -y: positive curls back). Wheels are spheres in frictional contact
+Bodies: rear frame (free joint) -> rear wheels, front frame (rigid on the rear frame: the
+central articulation does not steer while loading) -> front wheels, boom (hinge about +y:
+negative lifts) -> bucket (hinge about -y: positive curls back). Until 2026-11-26 the
+articulation was a hinge held by a soft equality constraint (``articulation_hinge=True``
+builds that model again): its largest excursion in random episodes was 0.34 mrad, and the
+extra degree of freedom and constraint cost 5 % of the simulator's time
+(docs/modeling.md, "Speed"). Wheels are spheres in frictional contact
 with the floor driven by speed servos with a torque limit, so the machine can stall (pile
 resistance above the drive force) or drift (drive torque above what friction transmits).
 Boom and bucket are speed servos with force limits, like hydraulics with relief valves.
@@ -20,7 +24,9 @@ FEE_ANCHOR_X = -200.0  # m, anchor of the horizontal resistance tendon (far: the
 BODY_ANCHOR_Z = 500.0  # m, anchor of the bucket body's vertical resistance tendon (far: it stays vertical)
 
 
-def build_mjcf(cfg: dict) -> str:
+def build_mjcf(cfg: dict, articulation_hinge: bool = False) -> str:
+    """The MJCF of the machine for config `cfg`; articulation_hinge=True: the earlier model with
+    the articulation as a hinge locked by an equality constraint (see the module's docstring)."""
     mc, sim, ctl = cfg["machine"], cfg["sim"], cfg["paper"]["control"]
     task = cfg["task"]
     g = attack_geometry(mc)
@@ -74,6 +80,12 @@ def build_mjcf(cfg: dict) -> str:
         f'ctrlrange="{ctl["wheels_min"]} {ctl["wheels_max"]}"/>\n'
         for w in ("rl", "rr", "fl", "fr"))
 
+    articulation = lock = ""
+    if articulation_hinge:
+        articulation = '        <joint name="articulation" type="hinge" axis="0 0 1" range="-0.7 0.7"/>\n'
+        lock = ('  <equality>\n    <joint name="articulation_lock" joint1="articulation" polycoef="0 0 0 0 0"/>\n'
+                '  </equality>\n')
+
     return f"""
 <mujoco model="lhd_scaled_5to1">
   <compiler angle="radian" autolimits="true"/>
@@ -94,8 +106,7 @@ def build_mjcf(cfg: dict) -> str:
       <geom name="rear_body" type="box" pos="0 0 0.12" size="0.3 0.17 0.1" mass="0"/>
       <site name="base_link" pos="0 0 0"/>
 {wheel("wheel_rl", 0.0, tr / 2, 6)}{wheel("wheel_rr", 0.0, -tr / 2, 6)}      <body name="front_frame" pos="{fx} 0 0">
-        <joint name="articulation" type="hinge" axis="0 0 1" range="-0.7 0.7"/>
-        <inertial pos="{fx*0.6:.4f} 0 0.12" mass="{front_m:.4f}" diaginertia="{front_m*0.03:.4f} {front_m*0.04:.4f} {front_m*0.05:.4f}"/>
+{articulation}        <inertial pos="{fx*0.6:.4f} 0 0.12" mass="{front_m:.4f}" diaginertia="{front_m*0.03:.4f} {front_m*0.04:.4f} {front_m*0.05:.4f}"/>
         <geom name="front_body" type="box" pos="{fx*0.6:.4f} 0 0.12" size="0.3 0.17 0.1" mass="0"/>
 {wheel("wheel_fl", fx, tr / 2, 8)}{wheel("wheel_fr", fx, -tr / 2, 8)}        <body name="boom" pos="{pivot_x - fx:.5f} 0 {pivot_z - r:.5f}">
           <joint name="boom" type="hinge" axis="0 1 0" range="{task['boom_angle_min']} {task['boom_angle_max']}" armature="0.05"/>
@@ -137,10 +148,7 @@ def build_mjcf(cfg: dict) -> str:
     </spatial>
     <!-- Drive: rotor -> wheel, slipping beyond the motor's torque limit (see build_mjcf). -->
 {drive_tendons}  </tendon>
-  <equality>
-    <joint name="articulation_lock" joint1="articulation" polycoef="0 0 0 0 0"/>
-  </equality>
-  <actuator>
+{lock}  <actuator>
     <!-- Wheel motors: speed servos on the rotors; the torque limit is the drive tendons' frictionloss. -->
 {drive_actuators}    <!-- Hydraulic joints: the valve command is a speed; the oil column holds the joint where it is
          (integrated-velocity position servo), up to the relief force. -->

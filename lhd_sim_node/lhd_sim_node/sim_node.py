@@ -39,6 +39,7 @@ from __future__ import annotations
 import math
 import time
 
+import mujoco
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
@@ -137,8 +138,11 @@ class SimNode(Node):
         self.dt = self.env.p.control_dt
         self.dt_ns = int(round(self.dt * 1e9))
         m = self.sim.model
-        self._art_q = m.jnt_qposadr[m.joint("articulation").id]
-        self._art_v = m.jnt_dofadr[m.joint("articulation").id]
+        # the articulation is rigid in the model (mjcf.py): reported, as a steady 0, where a
+        # machine's encoder would report it
+        art = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "articulation")
+        self._art_q = int(m.jnt_qposadr[art]) if art >= 0 else None
+        self._art_v = int(m.jnt_dofadr[art]) if art >= 0 else None
         self._wheel_q = [m.jnt_qposadr[m.joint(w).id] for w in JOINTS[3:]]
         self._wheel_v = [m.jnt_dofadr[m.joint(w).id] for w in JOINTS[3:]]
 
@@ -449,8 +453,10 @@ class SimNode(Node):
         js = JointState()
         js.header.stamp = stamp
         js.name = list(JOINTS)
-        js.position = [float(s.phi_boom), float(s.phi_bucket), float(q[self._art_q])] + [float(q[i]) for i in self._wheel_q]
-        js.velocity = ([float(s.dphi_boom), float(s.dphi_bucket), float(d.qvel[self._art_v])]
+        art_q = 0.0 if self._art_q is None else float(q[self._art_q])
+        art_v = 0.0 if self._art_v is None else float(d.qvel[self._art_v])
+        js.position = [float(s.phi_boom), float(s.phi_bucket), art_q] + [float(q[i]) for i in self._wheel_q]
+        js.velocity = ([float(s.dphi_boom), float(s.dphi_bucket), art_v]
                        + [float(d.qvel[i]) for i in self._wheel_v])
         self.pub_js.publish(js)
         if self.pub_transition is not None:

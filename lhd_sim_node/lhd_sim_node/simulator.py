@@ -58,11 +58,13 @@ class FeeReport:
 
 
 class LhdSimulator:
-    def __init__(self, cfg: dict):
+    def __init__(self, cfg: dict, articulation_hinge: bool = False):
+        """articulation_hinge=True: the machine model before 2026-11-26, its articulation a hinge
+        locked by an equality constraint (mjcf.build_mjcf; for comparisons), not a rigid joint."""
         self.cfg = cfg
         self.p = TaskParams.from_config(cfg)
         self.soil = SoilRanges.from_config(cfg)
-        self.model = mujoco.MjModel.from_xml_string(build_mjcf(cfg))
+        self.model = mujoco.MjModel.from_xml_string(build_mjcf(cfg, articulation_hinge=articulation_hinge))
         self.data = mujoco.MjData(self.model)
         m = self.model
         pc, sc = cfg["pile"], cfg["sim"]

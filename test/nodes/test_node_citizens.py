@@ -175,9 +175,9 @@ def measured_state(slope_deg):
 
     env = LhdLoadingEnv("rld")
     env.reset(seed=0, options={"slope_deg": slope_deg, "material": "homogeneous"})
-    m, d, s = env.sim.model, env.sim.data, env.state
+    d, s = env.sim.data, env.state
     js = JointState(name=["boom", "bucket", "articulation"],
-                    position=[float(s.phi_boom), float(s.phi_bucket), float(d.qpos[m.jnt_qposadr[m.joint("articulation").id]])],
+                    position=[float(s.phi_boom), float(s.phi_bucket), 0.0],   # articulation: rigid in the model
                     velocity=[float(s.dphi_boom), float(s.dphi_bucket), 0.0])
     od = Odometry()
     p = od.pose.pose

@@ -14,9 +14,9 @@ FK_ATOL = 1e-9   # m / rad: forward kinematics vs MuJoCo's site poses
 
 
 def measurements(env):
-    m, d = env.sim.model, env.sim.data
+    d = env.sim.data
     s = env.state
-    art = float(d.qpos[m.jnt_qposadr[m.joint("articulation").id]])
+    art = 0.0   # the articulation is rigid in the model (mjcf.py): its encoder would read 0
     joints = {"boom": (s.phi_boom, s.dphi_boom), "bucket": (s.phi_bucket, s.dphi_bucket), "articulation": (art, 0.0)}
     return tuple(d.qpos[:3]), tuple(d.qpos[3:7]), s.v_x, joints, s.drift_front, s.drift_rear
 

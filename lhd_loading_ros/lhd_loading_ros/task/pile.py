@@ -203,10 +203,12 @@ class VoxelPile:
     def x_at_mass(self, m: float) -> float:
         """Smallest x such that the intact pile holds mass m between the toe and x.
         Clipped to L if the pile holds less than m."""
+        return self.x_at_masses((m,))[0]
+
+    def x_at_masses(self, ms) -> list[float]:
+        """x_at_mass for each of ms, the pile's mass profile computed once."""
         edges, cum = self.cumulative_mass_x()
-        if m >= cum[-1]:
-            return self.L
-        return float(np.interp(m, cum, edges))
+        return [self.L if m >= cum[-1] else float(np.interp(m, cum, edges)) for m in ms]
 
     def soil_at(self, j: np.ndarray, i: int, z: np.ndarray):
         """(density, phi, delta, cohesion) of the voxels of slices j in column i at heights z."""

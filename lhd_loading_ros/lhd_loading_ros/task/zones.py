@@ -29,8 +29,9 @@ class Zones:
     @classmethod
     def for_pile(cls, pile, p) -> "Zones":
         """Zones of a freshly generated pile (VoxelPile) with TaskParams p."""
+        x_min, x_max = pile.x_at_masses((p.m_min, p.m_max))
         return cls(
-            x_min=pile.x_at_mass(p.m_min), x_max=pile.x_at_mass(p.m_max), z_min=p.z_min,
+            x_min=x_min, x_max=x_max, z_min=p.z_min,
             x_cutoff=pile.L - p.d_cutoff, x_obs_start=-p.x_init_obs, x_obs_end=-p.x_init_obs + p.x_obs,
             y_half=p.y_obs / 2.0, z_top=p.z_obs,
         )
