@@ -47,20 +47,36 @@ def build_mjcf(cfg: dict, articulation_hinge: bool = False) -> str:
 
     wm, mu = mc["wheel_mass"], mc["wheel_friction"]
 
-    def wheel(name: str, x: float, y: float, indent: int) -> str:
-        """The wheel (tyre in contact with the floor) and its drive motor's rotor beside it on the
-        same frame (drive_tendons couples the two; docs/modeling.md, "Drive and drift")."""
-        pad = " " * indent
-        motor = name.replace("wheel", "motor")
-        return (f'{pad}<body name="{name}" pos="{x} {y} 0">\n'
-                f'{pad}  <joint name="{name}" type="hinge" axis="0 1 0"/>\n'
-                f'{pad}  <geom name="{name}" type="sphere" size="{r}" mass="{wm}" contype="0" '
-                f'conaffinity="1" friction="{mu} 0.005 0.0001" rgba="0.1 0.1 0.1 1"/>\n'
-                f'{pad}</body>\n'
-                f'{pad}<body name="{motor}" pos="{x} {y} 0">\n'
-                f'{pad}  <joint name="{motor}" type="hinge" axis="0 1 0" armature="{mc["motor_armature"]}"/>\n'
+    diff = bool(mc.get("rear_differential", 0))
+
+    def rotor(motor: str, x: float, y: float, armature: float, pad: str) -> str:
+        return (f'{pad}<body name="{motor}" pos="{x} {y} 0">\n'
+                f'{pad}  <joint name="{motor}" type="hinge" axis="0 1 0" armature="{armature}"/>\n'
                 f'{pad}  <inertial pos="0 0 0" mass="1e-6" diaginertia="1e-9 1e-9 1e-9"/>\n'
                 f'{pad}</body>\n')
+
+    def wheel(name: str, x: float, y: float, indent: int) -> str:
+        """The wheel (tyre in contact with the floor) and, unless the rear differential drives
+        it, its own drive motor's rotor beside it on the same frame (drive_tendons couples the
+        two; docs/modeling.md, "Drive and drift")."""
+        pad = " " * indent
+        out = (f'{pad}<body name="{name}" pos="{x} {y} 0">\n'
+               f'{pad}  <joint name="{name}" type="hinge" axis="0 1 0"/>\n'
+               f'{pad}  <geom name="{name}" type="sphere" size="{r}" mass="{wm}" contype="0" '
+               f'conaffinity="1" friction="{mu} 0.005 0.0001" rgba="0.1 0.1 0.1 1"/>\n'
+               f'{pad}</body>\n')
+        if diff and name in ("wheel_rl", "wheel_rr"):
+            return out
+        return out + rotor(name.replace("wheel", "motor"), x, y, mc["motor_armature"], pad)
+
+    # The paper's machine: "the rear wheels share a single motor and are connected to a
+    # differential, whilst each front wheel has an independent motor" (rear_differential: 1).
+    # The rear motor's rotor turns at the mean of the two rear wheels' speeds (an open
+    # differential: tendon motor_r - (wheel_rl + wheel_rr) / 2) and gives each of them half its
+    # torque, so each rear wheel still gets up to wheel_torque_limit (the tendon's limit is
+    # twice it), the rotor has two wheels' inertia and gain, and a wheel that loses grip takes
+    # the other's torque down with it, as an open differential does.
+    rear_rotor = rotor("motor_r", 0.0, 0.0, 2 * mc["motor_armature"], " " * 6) if diff else ""
 
     # Drive (docs/modeling.md, "Drive and drift"): each wheel's motor is a speed servo on its own
     # rotor (velocity actuator, not force-limited: MuJoCo 3.3's implicitfast integrator folds a
@@ -71,14 +87,22 @@ def build_mjcf(cfg: dict, articulation_hinge: bool = False) -> str:
     # time constant (8 ms = 2 x the largest timestep used) is fixed so that MuJoCo never rescales it
     # with the timestep.
     tq = mc["wheel_torque_limit"]
+    friction = 'solreffriction="0.008 1" solimpfriction="0.99 0.99 0.001"'
+    own = ("fl", "fr") if diff else ("rl", "rr", "fl", "fr")
     drive_tendons = "".join(
-        f'    <fixed name="drive_{w}" frictionloss="{tq}" solreffriction="0.008 1" solimpfriction="0.99 0.99 0.001">'
+        f'    <fixed name="drive_{w}" frictionloss="{tq}" {friction}>'
         f'<joint joint="motor_{w}" coef="1"/><joint joint="wheel_{w}" coef="-1"/></fixed>\n'
-        for w in ("rl", "rr", "fl", "fr"))
+        for w in own)
     drive_actuators = "".join(
         f'    <velocity name="wheel_{w}" joint="motor_{w}" kv="{mc["wheel_kv"]}" '
         f'ctrlrange="{ctl["wheels_min"]} {ctl["wheels_max"]}"/>\n'
-        for w in ("rl", "rr", "fl", "fr"))
+        for w in own)
+    if diff:
+        drive_tendons = (f'    <fixed name="drive_r" frictionloss="{2 * tq}" {friction}><joint joint="motor_r" coef="1"/>'
+                         f'<joint joint="wheel_rl" coef="-0.5"/><joint joint="wheel_rr" coef="-0.5"/></fixed>\n'
+                         + drive_tendons)
+        drive_actuators = (f'    <velocity name="wheel_r" joint="motor_r" kv="{2 * mc["wheel_kv"]}" '
+                           f'ctrlrange="{ctl["wheels_min"]} {ctl["wheels_max"]}"/>\n' + drive_actuators)
 
     articulation = lock = ""
     if articulation_hinge:
@@ -105,7 +129,7 @@ def build_mjcf(cfg: dict, articulation_hinge: bool = False) -> str:
       <inertial pos="{-mc['rear_com_behind_axle']} 0 0.12" mass="{rear_m:.4f}" diaginertia="{rear_m*0.03:.4f} {rear_m*0.04:.4f} {rear_m*0.05:.4f}"/>
       <geom name="rear_body" type="box" pos="0 0 0.12" size="0.3 0.17 0.1" mass="0"/>
       <site name="base_link" pos="0 0 0"/>
-{wheel("wheel_rl", 0.0, tr / 2, 6)}{wheel("wheel_rr", 0.0, -tr / 2, 6)}      <body name="front_frame" pos="{fx} 0 0">
+{wheel("wheel_rl", 0.0, tr / 2, 6)}{wheel("wheel_rr", 0.0, -tr / 2, 6)}{rear_rotor}      <body name="front_frame" pos="{fx} 0 0">
 {articulation}        <inertial pos="{fx*0.6:.4f} 0 0.12" mass="{front_m:.4f}" diaginertia="{front_m*0.03:.4f} {front_m*0.04:.4f} {front_m*0.05:.4f}"/>
         <geom name="front_body" type="box" pos="{fx*0.6:.4f} 0 0.12" size="0.3 0.17 0.1" mass="0"/>
 {wheel("wheel_fl", fx, tr / 2, 8)}{wheel("wheel_fr", fx, -tr / 2, 8)}        <body name="boom" pos="{pivot_x - fx:.5f} 0 {pivot_z - r:.5f}">

@@ -203,7 +203,7 @@ def read_simulator(sim) -> Reading:
     d = sim.data
     # WHEELS order in the simulator: fl, fr, rl, rr for the dofs and the actuators
     wheels = tuple(float(v) for v in d.qvel[sim.wheel_dof])
-    torques = tuple(float(d.actuator_force[a]) for a in sim.act_wheels)
+    torques = sim.wheel_torques()
     return Reading(s.phi_boom, s.phi_bucket, s.dphi_boom, s.dphi_bucket, wheels, torques)
 
 

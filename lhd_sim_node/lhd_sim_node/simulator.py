@@ -111,7 +111,13 @@ class LhdSimulator:
         self.boom_v = m.jnt_dofadr[m.joint("boom").id]
         self.bucket_q = m.jnt_qposadr[m.joint("bucket").id]
         self.bucket_v = m.jnt_dofadr[m.joint("bucket").id]
-        self.act_wheels = np.array([m.actuator(w).id for w in WHEELS])
+        # drive motors: one per wheel, or (machine.rear_differential) one per front wheel and one
+        # for the rear differential ("wheel_r"); every motor takes the same wheel-speed command
+        names = [m.actuator(i).name for i in range(m.nu)]
+        self.act_wheels = np.array([m.actuator(w).id for w in (*WHEELS, "wheel_r") if w in names])
+        # the motor whose torque each wheel of WHEELS gets, and the share of it
+        self._wheel_torque_from = [(m.actuator(w).id, 1.0) if w in names else (m.actuator("wheel_r").id, 0.5)
+                                   for w in WHEELS]
         self.act_boom = m.actuator("boom").id
         self.act_bucket = m.actuator("bucket").id
         self.act_boom_adr = m.actuator_actadr[self.act_boom]
@@ -527,6 +533,12 @@ class LhdSimulator:
             phi_bucket=float(qpos[self.bucket_q]), dphi_bucket=float(qvel[self.bucket_v]),
             x_bottom=x_b, z_bottom=z_b, drift_front=front, drift_rear=rear,
         )
+
+    def wheel_torques(self) -> tuple[float, ...]:
+        """(fl, fr, rl, rr) drive torque commanded to each wheel, N m: its motor's speed-servo
+        torque, or half the rear motor's where the rear differential splits it."""
+        f = self.data.actuator_force
+        return tuple(float(f[a]) * share for a, share in self._wheel_torque_from)
 
     def wheel_speeds(self) -> np.ndarray:
         """(fl, fr, rl, rr) rad/s."""

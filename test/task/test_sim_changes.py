@@ -20,8 +20,11 @@ def cfg():
 
 def _raw(c):
     """The hash by its definition, written out here (randomisation off, margin 3 kept, tilt off,
-    the tilt penalty's training schedule, training.twin_critics and the slope curriculum never in it)."""
+    the tilt penalty's training schedule, training.twin_critics and the slope curriculum never in it,
+    machine.rear_differential only when 1)."""
     c = {k: v for k, v in c.items() if k != "randomization"}
+    if c["machine"].get("rear_differential", 0) == 0:
+        c["machine"] = {k: v for k, v in c["machine"].items() if k != "rear_differential"}
     c["task"] = {k: v for k, v in c["task"].items() if k not in ("r_tilt_per_deg", "r_tilt_free_deg",
                                                                  "r_tilt_ramp_after_success", "r_tilt_ramp_steps",
                                                                  "r_tilt_ramp_pitch_margin")}
@@ -31,13 +34,22 @@ def _raw(c):
     return hashlib.sha256(json.dumps(c, sort_keys=True).encode()).hexdigest()[:16]
 
 
-def test_an_actor_from_before_the_wedge_change_is_recognised(cfg):
+def _before_the_wedge(cfg):
+    """The config of an actor trained before the wedge change (2026-11-26), hence also before
+    the rear differential (the same day, later)."""
     before = copy.deepcopy(cfg)
     del before["pile"]["fee_wedge_by_motion"], before["pile"]["fee_wedge_tau"]
+    del before["machine"]["rear_differential"]
+    return before
+
+
+def test_an_actor_from_before_the_wedge_change_is_recognised(cfg):
+    before = _before_the_wedge(cfg)
     h_before = _raw(before)
     assert not hash_matches(h_before, cfg)                       # strictly another config ...
     note = sim_change_note(h_before, cfg)
     assert note is not None and "fee_wedge_by_motion" in note    # ... named as the simulator before the change
+    assert "rear_differential" in note                           # ... and before the later one
     assert sim_change_note(config_hash(cfg), cfg) is None        # trained on this one: nothing to say
     assert sim_change_note("0123456789abcdef", cfg) is None
     assert sim_change_note(None, cfg) is None
@@ -45,8 +57,21 @@ def test_an_actor_from_before_the_wedge_change_is_recognised(cfg):
     other["paper"]["reward"]["R_zone"] = 1000.0                  # another change besides: still a mismatch
     assert sim_change_note(_raw(other), cfg) is None
     half = copy.deepcopy(cfg)
-    del half["pile"]["fee_wedge_tau"]                            # only one of the change's keys removed
+    del half["pile"]["fee_wedge_tau"], half["machine"]["rear_differential"]   # one of the wedge's keys only
     assert sim_change_note(_raw(half), cfg) is None
+
+
+def test_an_actor_from_before_the_rear_differential_is_recognised(cfg):
+    """Trained after the wedge change, with a motor on each rear wheel (rear_differential 0, or a
+    parameter file without the key: the same hash)."""
+    four = copy.deepcopy(cfg)
+    four["machine"]["rear_differential"] = 0
+    legacy = copy.deepcopy(cfg)
+    del legacy["machine"]["rear_differential"]
+    assert _raw(four) == _raw(legacy) == config_hash(four) == config_hash(legacy)
+    note = sim_change_note(_raw(four), cfg)
+    assert note is not None and "rear_differential" in note and "fee_wedge" not in note
+    assert sim_change_note(_raw(four), four) is None              # on its own drive: nothing to say
 
 
 def test_an_actor_between_two_changes_is_recognised(cfg, monkeypatch):
@@ -57,9 +82,8 @@ def test_an_actor_between_two_changes_is_recognised(cfg, monkeypatch):
     cfg2["pile"]["later_key"] = 1
     monkeypatch.setattr(config_mod, "SIM_CHANGES", config_mod.SIM_CHANGES + (
         ("pile", ("later_key",), "2099-01-01", "no later key"),))
-    between = copy.deepcopy(cfg)                                 # trained after the first change
-    before = copy.deepcopy(cfg)
-    del before["pile"]["fee_wedge_by_motion"], before["pile"]["fee_wedge_tau"]
+    between = copy.deepcopy(cfg)                                 # trained after the listed changes
+    before = _before_the_wedge(cfg)
     n_between, n_before = config_mod.sim_change_note(_raw(between), cfg2), config_mod.sim_change_note(_raw(before), cfg2)
     assert n_between is not None and "later_key" in n_between and "fee_wedge" not in n_between
     assert n_before is not None and "later_key" in n_before and "fee_wedge" in n_before

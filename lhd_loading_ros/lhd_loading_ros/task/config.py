@@ -91,6 +91,7 @@ SCHEMA: dict[str, Any] = {
         "bucket_mass": _f(0.1, 1e4), "wheel_mass": _f(0.01, 1e3), "wheel_radius": _f(0.01, 5.0),
         "wheelbase": _f(0.1, 20.0), "track": _f(0.1, 10.0), "wheel_friction": _f(0.05, 3.0),
         "wheel_torque_limit": _f(0.1, 1e5), "wheel_kv": _f(0.1, 1e5), "motor_armature": _f(1e-5, 100.0),
+        "rear_differential": _i(0, 1),
         "boom_pivot_ahead_of_front_axle": _f(-2.0, 5.0), "boom_pivot_height": _f(0.05, 5.0),
         "boom_length": _f(0.05, 10.0), "bucket_hinge_height": _f(0.01, 5.0),
         "bucket_tip_ahead_of_hinge": _f(0.01, 5.0), "bucket_width": _f(0.05, 10.0),
@@ -226,10 +227,12 @@ def _describe(spec) -> str:
 
 # Keys a parameter file may leave out, with the value they then take: how the learner learns
 # (never in the config hash, TRAINING_SCHEDULE_KEYS), added after parameter files were written
-# that trained fine without them. Every other key is required.
+# that trained fine without them; and machine.rear_differential, whose absence means the
+# simulator before it (SIM_CHANGES: every wheel its own motor), as in the parameter files of the
+# evidence written before it. Every other key is required.
 OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curriculum"): 0,
                      ("training", "slope_curriculum_bins"): 6, ("training", "slope_curriculum_window"): 100,
-                     ("training", "slope_curriculum_uniform"): 0.5}
+                     ("training", "slope_curriculum_uniform"): 0.5, ("machine", "rear_differential"): 0}
 
 
 def validate(cfg: Any) -> dict:
@@ -336,6 +339,9 @@ def config_hash(cfg: dict) -> str:
         cfg = {**cfg, "training": {k: v for k, v in cfg["training"].items() if k not in TRAINING_SCHEDULE_KEYS}}
     if "task" in cfg and any(k in cfg["task"] for k in TILT_SCHEDULE_KEYS):
         cfg = {**cfg, "task": {k: v for k, v in cfg["task"].items() if k not in TILT_SCHEDULE_KEYS}}
+    if "machine" in cfg and int(cfg["machine"].get("rear_differential", 0)) == 0:
+        # the drive before the rear differential (SIM_CHANGES): the hash it always had
+        cfg = {**cfg, "machine": {k: v for k, v in cfg["machine"].items() if k != "rear_differential"}}
     if int(cfg.get("randomization", {}).get("enabled", 0)) == 0:
         cfg = {k: v for k, v in cfg.items() if k != "randomization"}
     if "task" in cfg and float(cfg["task"].get("r_success_pitch_margin_deg", 0.0)) == 0.0:
@@ -389,6 +395,8 @@ def hash_matches(h: str | None, cfg: dict, trained_margin_deg: float | None = No
 SIM_CHANGES = (
     ("pile", ("fee_wedge_by_motion", "fee_wedge_tau"), "2026-11-26",
      "the lip's FEE wedge resisted any horizontal tip motion, also lifting and curling out of the face"),
+    ("machine", ("rear_differential",), "2026-11-26",
+     "each rear wheel had its own motor; the paper's machine drives them through one motor and a differential"),
 )
 
 
