@@ -76,3 +76,33 @@ def run_chunks(pm, pd, n_chunks, nstep, fee_on, kinematics, kargs, bargs):
             _mj_step(pm, pd)
     if kinematics:
         _mj_kinematics(pm, pd)
+
+
+@njit(cache=True)
+def run_attack(pm, pd, nstep, fee_on, kargs, bargs, site_xpos, sid_tip, d_init, fee_dt, timeout, time0, timestep,
+               qpos, wheel_qs, marks):
+    """The attack drive of Simulator.reset: while the tip is short of d_init, record the drift mark
+    (time, x, wheel angles) and run one chunk (run_chunks with kinematics); stop past `timeout`.
+    The marks go to marks[k] (k: the chunk); the time is MuJoCo's, accumulated here as mj_step
+    accumulates it (time += timestep per step). Returns (chunks run, timed out)."""
+    t = 0.0
+    now = time0
+    k = 0
+    while site_xpos[sid_tip, 0] < d_init:
+        marks[k, 0] = now
+        marks[k, 1] = qpos[0]
+        for w in range(wheel_qs.shape[0]):
+            marks[k, 2 + w] = qpos[wheel_qs[w]]
+        if fee_on:
+            fee_update(*kargs)
+        bucket_body_update(*bargs)
+        for _ in range(nstep):
+            _mj_step(pm, pd)
+            now += timestep
+        _mj_kinematics(pm, pd)
+        t += fee_dt
+        k += 1
+        if t > timeout:
+            return k, True
+    return k, False
+

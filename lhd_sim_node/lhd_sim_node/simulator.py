@@ -34,7 +34,7 @@ from .fee_kernel import (OUT_SIZE, P_BID_BUCKET, P_BUCKET_MASS0, P_CA, P_DX, P_D
 from .mjcf import attack_geometry, build_mjcf
 from . import fused
 from .bucket_body import BucketBody, bucket_body_update
-from .fused import run_chunks
+from .fused import run_attack, run_chunks
 
 WHEELS = ("wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr")
 MATERIALS = ("homogeneous", "nonhomogeneous")
@@ -105,6 +105,7 @@ class LhdSimulator:
         # drift over a window of one control period (wheel_drift): the marks (time, x, wheel angles)
         # at the start of the last chunks; advance() and the attack drive keep the last n of them
         self._wheel_qs = [int(m.jnt_qposadr[m.joint(w).id]) for w in WHEELS]
+        self._wheel_qs_arr = np.array(self._wheel_qs, dtype=np.int64)
         self._drift_marks: deque = deque(maxlen=max(1, self.n_phys // self.fee_every))
         self._drift_from: tuple = ()
         self.boom_q = m.jnt_qposadr[m.joint("boom").id]
@@ -140,6 +141,8 @@ class LhdSimulator:
         # _physics + mujoco.mj_kinematics); False keeps the Python-driven loop (the bench's
         # recording run sets it, to see every chunk)
         self.fused = fused.AVAILABLE
+        self._attack_marks = np.zeros((int(self.attack_timeout / (self.fee_every * m.opt.timestep)) + 2,
+                                       2 + len(WHEELS)))
         self._pm, self._pd = self.model._address, self.data._address
         vx = cfg["paper"]["voxels"]
         # the bucket's geometric capacity (m^3, struck + heap at repose) over the tip pitch (H4's table)
@@ -255,16 +258,29 @@ class LhdSimulator:
         self._u_prev = np.array([self.attack_speed, 0.0, 0.0])
         self._drift_marks.clear()
         tip = self._site_xpos[self.sid_tip]
-        while tip[0] < p.d_init:
+        # drive in, recording the drift marks, until the tip is d_init inside the pile or the
+        # timeout passes: compiled (fused.run_attack) where it can, else the Python loop below
+        if self.fused and self.use_kernel:
+            marks = self._attack_marks
+            n, timed_out = run_attack(self._pm, self._pd, self.fee_every, self.fee_enabled, self._kargs,
+                                      self._body_args, self._site_xpos, self.sid_tip, p.d_init, self.fee_dt,
+                                      self.attack_timeout, self.data.time, self.model.opt.timestep, self._qpos,
+                                      self._wheel_qs_arr, marks)
+            for k in range(max(0, n - self._drift_marks.maxlen), n):
+                self._drift_marks.append(tuple(marks[k].tolist()))
+            if n:
+                self._drift_from = self._drift_marks[0]
+            t = self.attack_timeout + 1.0 if timed_out else 0.0
+        while t <= self.attack_timeout and tip[0] < p.d_init:
             self._drift_marks.append(self._drift_mark())
             self._drift_from = self._drift_marks[0]
             self._chunks(1)
             t += self.fee_dt
-            if t > self.attack_timeout:
-                if self.use_kernel:
-                    self._sync_from_kernel()
-                raise AttackError(f"the bucket did not reach d_init = {p.d_init} m inside the pile within "
-                                  f"{self.attack_timeout} s (tip at x = {self.data.site_xpos[self.sid_tip][0]:.3f} m)")
+        if t > self.attack_timeout:
+            if self.use_kernel:
+                self._sync_from_kernel()
+            raise AttackError(f"the bucket did not reach d_init = {p.d_init} m inside the pile within "
+                              f"{self.attack_timeout} s (tip at x = {self.data.site_xpos[self.sid_tip][0]:.3f} m)")
         if self.use_kernel:     # the kernel's state accumulates in self._kst: read it once, after the drive
             self._sync_from_kernel()
 
@@ -459,13 +475,15 @@ class LhdSimulator:
         self._next_center, self._tip_prev_x, self._tip_prev_z = st[ST_NEXT_CENTER], st[ST_TIP_PREV_X], st[ST_TIP_PREV_Z]
         self._mobilised = st[ST_MOBILISED]
         self._fee_h, self._fee_v, self._fee_rake = st[ST_FH], st[ST_FZ], st[ST_RAKE]
-        self._fee_depth = self._kdepth[self._kdepth > 0.0].copy() if st[ST_ENGAGED] else ()
+        self._fee_depth = None if st[ST_ENGAGED] else ()   # None: the kernel's depths, read by last_fee
         self.V_cut, self._v_bucket, self._m_bucket = st[ST_V_CUT], st[ST_V_BUCKET], st[ST_M_BUCKET]
         self._spilled, self._alpha_s = st[ST_SPILLED], st[ST_ALPHA_S]
 
     @property
     def last_fee(self) -> FeeReport:
         xf = self.data.xfrc_applied[self.bid_bucket]
+        if self._fee_depth is None:      # engaged at the last sync: the slices' depths (kernel output)
+            self._fee_depth = self._kdepth[self._kdepth > 0.0].copy()
         return FeeReport(np.array([-self._fee_h, 0.0, self._fee_v]), xf[3:].copy(), np.asarray(self._fee_depth),
                          math.hypot(self._fee_h, self._fee_v), self._fee_rake, float(self._alpha_s), float(self._mobilised))
 

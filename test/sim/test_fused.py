@@ -46,6 +46,9 @@ def _run(fast, slow, seed: int, steps: int, rng) -> int:
     ra, rb = fast.reset(seed=seed), slow.reset(seed=seed)
     np.testing.assert_array_equal(ra[0], rb[0])
     _assert_same(_snapshot(fast), _snapshot(slow), f"after the attack drive (seed {seed})")
+    # the attack drive's drift marks (time, x, wheel angles of its last chunks): the same floats
+    assert list(fast.sim._drift_marks) == list(slow.sim._drift_marks)
+    assert fast.sim._drift_from == slow.sim._drift_from and len(fast.sim._drift_marks) == 5
     n = 0
     for k in range(steps):
         a = rng.uniform(-1.0, 1.0, 3)
@@ -98,7 +101,11 @@ def test_without_the_fee_and_through_advance():
 
 
 def test_the_attack_timeout_still_fires():
-    env = LhdLoadingEnv()
-    assert env.sim.fused
-    with pytest.raises(AttackError, match="did not reach d_init"):
-        env.sim.reset(np.random.default_rng(0), attack_speed=0.0)
+    fast, slow = _pair()
+    for e in (fast, slow):
+        with pytest.raises(AttackError, match="did not reach d_init") as err:
+            e.sim.reset(np.random.default_rng(0), attack_speed=0.0)
+        e.err = str(err.value)
+    assert fast.err == slow.err
+    _assert_same(_snapshot(fast), _snapshot(slow), "after the attack timeout")
+    assert list(fast.sim._drift_marks) == list(slow.sim._drift_marks)

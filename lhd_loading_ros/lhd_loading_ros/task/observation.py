@@ -24,8 +24,8 @@ OBS_NAMES = ("x_shovel", "y_shovel", "z_shovel", "phi_shovel", "v_x", "drift", "
              "phi_bucket", "dphi_bucket", "d_end", "alpha")
 OBS_LOW = np.array([-1, -1, -1, -1, -1, 0, -1, -1, -1, -1, 0, 0], dtype=np.float32)
 OBS_HIGH = np.ones(OBS_DIM, dtype=np.float32)
-_LOW = OBS_LOW.tolist()
-_HIGH = OBS_HIGH.tolist()
+_LOW = OBS_LOW.astype(np.float64)
+_HIGH = OBS_HIGH.astype(np.float64)
 
 
 def _to_pm1(v: float, lo: float, hi: float) -> float:
@@ -52,7 +52,7 @@ def build_observation(s: LhdState, alpha: float, x_max: float, p: TaskParams) ->
         abs(s.x_shovel - x_max) / p.d_end_max,
         (alpha - p.alpha_min) / (p.alpha_max - p.alpha_min),
     ]
-    bad = [OBS_NAMES[i] for i, v in enumerate(o) if not math.isfinite(v)]
-    if bad:
+    if not all(map(math.isfinite, o)):
+        bad = [OBS_NAMES[i] for i, v in enumerate(o) if not math.isfinite(v)]
         raise ValueError(f"observation has non-finite components: {', '.join(bad)}")
-    return np.array([min(max(v, lo), hi) for v, lo, hi in zip(o, _LOW, _HIGH)], dtype=np.float32)
+    return np.clip(np.array(o), _LOW, _HIGH).astype(np.float32)

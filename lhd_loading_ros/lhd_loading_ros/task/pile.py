@@ -126,8 +126,7 @@ class VoxelPile:
 
     def _place_rocks(self, rng: np.random.Generator, soil: SoilRanges) -> None:
         n = int(rng.integers(soil.rocks[0], soil.rocks[1] + 1))
-        xc, yc, zc = np.meshgrid(self.x_centers, self.y_centers, (self.z_edges[:-1] + self.z_edges[1:]) / 2)
-        # meshgrid with 'xy' indexing gives (n_y, n_x, n_z) for these three vectors
+        xc, yc, zc = self.x_centers, self.y_centers, (self.z_edges[:-1] + self.z_edges[1:]) / 2
         placed = 0
         for _ in range(20 * max(n, 1)):
             if placed >= n:
@@ -139,7 +138,9 @@ class VoxelPile:
                 continue
             z = rng.uniform(size / 2, zmax)
             y = rng.uniform(-self.w / 2 + size / 2, self.w / 2 - size / 2) if self.w > size else 0.0
-            inside = (np.abs(xc - x) <= size / 2) & (np.abs(yc - y) <= size / 2) & (np.abs(zc - z) <= size / 2)
+            # the voxels (n_y, n_x, n_z) whose centres lie in the rock: the grid is separable
+            inside = ((np.abs(yc - y) <= size / 2)[:, None, None] & (np.abs(xc - x) <= size / 2)[None, :, None]
+                      & (np.abs(zc - z) <= size / 2)[None, None, :])
             if not inside.any():  # rock smaller than a voxel: take the voxel holding its centre
                 inside = np.zeros_like(inside)
                 j = min(int((y + self.w / 2) / self.dy), self.n_y - 1)
@@ -173,7 +174,7 @@ class VoxelPile:
         if x >= self.L:
             return self.h
         i = self.column_index(x)
-        return float(self.top[:, i].max() if j is None else self.top[j, i])
+        return max(self.top[:, i].tolist()) if j is None else float(self.top[j, i])
 
     def fills(self) -> np.ndarray:
         """Fill fraction of every voxel, shape (n_y, n_x, n_z), each in [0, 1]."""
