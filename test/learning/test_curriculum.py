@@ -110,7 +110,7 @@ def test_config_hash_and_validation(cfg):
     # filled with their defaults (off), and the hash is the same
     old = copy.deepcopy(cfg)
     for k in ("twin_critics", "slope_curriculum", "slope_curriculum_bins", "slope_curriculum_window",
-              "slope_curriculum_uniform"):
+              "slope_curriculum_uniform", "lr_final_scale", "lr_decay_from"):
         del old["training"][k]
     old = validate(old)
     assert (old["training"]["twin_critics"], old["training"]["slope_curriculum"]) == (0, 0)

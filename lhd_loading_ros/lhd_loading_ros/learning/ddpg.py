@@ -42,6 +42,8 @@ class DdpgConfig:
     eval_seed: int
     checkpoint_every: int
     twin_critics: int = 0          # 1: clipped double Q (two critics, the target's min; Fujimoto et al. 2018)
+    lr_final_scale: float = 1.0    # both learning rates fall linearly to this share of theirs ...
+    lr_decay_from: int = 0         # ... from this step to total_steps (1.0: constant, the paper)
 
     @classmethod
     def from_config(cls, cfg: dict) -> "DdpgConfig":
@@ -55,6 +57,7 @@ class DdpgConfig:
             reward_scale=t["reward_scale"], eval_every=t["eval_every"], eval_episodes=t["eval_episodes"],
             eval_seed=t["eval_seed"], checkpoint_every=t["checkpoint_every"],
             twin_critics=int(t.get("twin_critics", 0)),
+            lr_final_scale=float(t.get("lr_final_scale", 1.0)), lr_decay_from=int(t.get("lr_decay_from", 0)),
         )
 
     def to_dict(self) -> dict:
@@ -87,6 +90,16 @@ def noise_scale(step: int, decay_steps: int, final: float) -> float:
         return final
     f = min(1.0, max(0.0, step / decay_steps))
     return 1.0 + (final - 1.0) * f
+
+
+def lr_scale(step: int, start: int, total: int, final: float) -> float:
+    """Share of the learning rates at `step` (training.lr_final_scale / lr_decay_from): 1 up to
+    `start`, then linear to `final` at `total`, `final` after it."""
+    if final >= 1.0 or step <= start:
+        return 1.0
+    if step >= total or total <= start:
+        return final
+    return 1.0 + (final - 1.0) * (step - start) / (total - start)
 
 
 # ---------------------------------------------------------------------- replay
@@ -224,6 +237,13 @@ class DdpgAgent:
             self.critic2_t.copy_from(self.critic2)
             self.critic2_opt = FlatAdam(self.critic2, cfg.critic_lr)
         self.updates = 0
+
+    def set_lr_scale(self, scale: float) -> None:
+        """Both optimisers' learning rates at `scale` times the configured ones."""
+        self.actor_opt.lr = self.cfg.actor_lr * scale
+        self.critic_opt.lr = self.cfg.critic_lr * scale
+        if self.twin:
+            self.critic2_opt.lr = self.cfg.critic_lr * scale
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         """Deterministic action mu(o) in [-1, 1]^3 (float64)."""

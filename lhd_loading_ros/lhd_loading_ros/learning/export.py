@@ -29,6 +29,9 @@ def export_actor(directory, actor: FlatMlp, cfg: dict, meta: dict):
         "trained_with": {"randomize": bool(int(cfg.get("randomization", {}).get("enabled", 0))),
                          **({"twin_critics": 1} if int(cfg.get("training", {}).get("twin_critics", 0)) else {}),
                          **({"slope_curriculum": curriculum.to_dict()} if curriculum is not None else {}),
+                         **({"lr_final_scale": float(cfg["training"]["lr_final_scale"]),
+                             "lr_decay_from": int(cfg["training"].get("lr_decay_from", 0))}
+                            if float(cfg.get("training", {}).get("lr_final_scale", 1.0)) < 1.0 else {}),
                          "r_success_pitch_margin_deg": float(cfg["task"].get("r_success_pitch_margin_deg", 0.0)),
                          "r_tilt_per_deg": float(cfg["task"].get("r_tilt_per_deg", 0.0)),
                          "r_tilt_free_deg": float(cfg["task"].get("r_tilt_free_deg", 0.0)),

@@ -36,7 +36,7 @@ import torch
 from lhd_loading_ros.task.config import config_hash, load_config
 from lhd_loading_ros.task.metrics import result_from_status
 from lhd_loading_ros.learning.curriculum import CurriculumConfig, SlopeCurriculum
-from lhd_loading_ros.learning.ddpg import DdpgAgent, DdpgConfig, OUNoise, ReplayBuffer, TiltRamp, noise_scale
+from lhd_loading_ros.learning.ddpg import DdpgAgent, DdpgConfig, OUNoise, ReplayBuffer, TiltRamp, lr_scale, noise_scale
 from lhd_loading_ros.learning.evaluate import evaluate
 from lhd_loading_ros.learning.export import export_actor
 
@@ -360,6 +360,8 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
                 ep_ret[i] += r
                 step += 1
                 if replay.size >= dc.learning_starts:
+                    if dc.lr_final_scale < 1.0:    # training.lr_final_scale: the late learning rates
+                        agent.set_lr_scale(lr_scale(step, dc.lr_decay_from, dc.total_steps, dc.lr_final_scale))
                     err, q = agent.update(*replay.sample(dc.batch_size, agent.gen))
                 obs[i] = obs2
                 if term or trunc:

@@ -135,6 +135,7 @@ SCHEMA: dict[str, Any] = {
         "checkpoint_every": _i(1, 100_000_000), "torch_threads": _i(1, 256),
         "twin_critics": _i(0, 1), "slope_curriculum": _i(0, 1), "slope_curriculum_bins": _i(1, 100),
         "slope_curriculum_window": _i(1, 100_000), "slope_curriculum_uniform": _f(0.01, 1.0),
+        "lr_final_scale": _f(0.01, 1.0), "lr_decay_from": _i(0, 100_000_000),
     },
 }
 
@@ -232,7 +233,8 @@ def _describe(spec) -> str:
 # evidence written before it. Every other key is required.
 OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curriculum"): 0,
                      ("training", "slope_curriculum_bins"): 6, ("training", "slope_curriculum_window"): 100,
-                     ("training", "slope_curriculum_uniform"): 0.5, ("machine", "rear_differential"): 0}
+                     ("training", "slope_curriculum_uniform"): 0.5, ("training", "lr_final_scale"): 1.0,
+                     ("training", "lr_decay_from"): 0, ("machine", "rear_differential"): 0}
 
 
 def validate(cfg: Any) -> dict:
@@ -320,7 +322,7 @@ TILT_SCHEDULE_KEYS = ("r_tilt_ramp_after_success", "r_tilt_ramp_steps", "r_tilt_
 # how the learner learned (never in the hash; the card's trained_with records them): clipped double Q
 # and the slope curriculum (learning/curriculum.py), which draws training piles, never evaluation ones
 TRAINING_SCHEDULE_KEYS = ("twin_critics", "slope_curriculum", "slope_curriculum_bins", "slope_curriculum_window",
-                          "slope_curriculum_uniform")
+                          "slope_curriculum_uniform", "lr_final_scale", "lr_decay_from")
 
 
 def _with(cfg: dict, section: str, key: str, value) -> dict:
@@ -333,7 +335,7 @@ def config_hash(cfg: dict) -> str:
     section (actors trained before the section existed keep their hash; a randomised run's hash
     differs), task.r_success_pitch_margin_deg at 0, and the tilt penalty's keys while
     task.r_tilt_per_deg is 0; the tilt penalty's training schedule (TILT_SCHEDULE_KEYS) and
-    training.twin_critics and the slope curriculum (TRAINING_SCHEDULE_KEYS) never."""
+    training.twin_critics, the slope curriculum and the learning-rate decay (TRAINING_SCHEDULE_KEYS) never."""
     if "training" in cfg and any(k in cfg["training"] for k in TRAINING_SCHEDULE_KEYS):
         # how the critic learned and which piles the learner practised on, not what the actor sees
         cfg = {**cfg, "training": {k: v for k, v in cfg["training"].items() if k not in TRAINING_SCHEDULE_KEYS}}
