@@ -18,8 +18,8 @@ passes exactly as a pointer.
 Where the library cannot be found or loaded (an unusual install), ``AVAILABLE`` is False and
 the simulator keeps its Python-driven loop; nothing else changes.
 
-Faults: ``mj_step`` raises MuJoCo errors (``mju_error``) only for a broken model or an arena
-overflow, neither possible with the shipped MJCF and its 2 MB arena; an unstable state is
+Faults: ``mj_step`` reports MuJoCo errors (``mju_error``; from compiled code the process would
+rather exit than raise) only for a broken model or an arena overflow, neither possible with the shipped MJCF and its 2 MB arena; an unstable state is
 handled inside MuJoCo as always (a warning and a reset of the data), exactly as when called
 from Python.
 """
@@ -28,6 +28,7 @@ from __future__ import annotations
 import glob
 import os
 
+import numba
 from numba import njit, types
 
 from .bucket_body import bucket_body_update
@@ -56,14 +57,42 @@ def _load() -> bool:
     return True
 
 
-AVAILABLE = _load()
+def _drop_stale_cache() -> None:
+    """numba keys the disk cache of the loops below on this file's stamp alone, but they hold
+    compiled copies of fee_kernel / bucket_body code (and fee.py, kinematics.py constants): when
+    any of those sources changed since the cache was written, the cached loops are removed so that
+    numba compiles them again."""
+    import hashlib
+    import numba.core.config as ncfg
+    here = os.path.dirname(os.path.abspath(__file__))
+    deps = [os.path.join(here, f) for f in ("fused.py", "fee_kernel.py", "bucket_body.py", "fee.py", "mjcf.py")]
+    try:
+        from lhd_loading_ros.task import kinematics
+        deps.append(kinematics.__file__)
+        digest = hashlib.sha256(b"".join(open(f, "rb").read() for f in deps)).hexdigest()
+        dirs = [os.path.join(here, "__pycache__")] + ([ncfg.CACHE_DIR] if ncfg.CACHE_DIR else [])
+        for d in dirs:
+            stamp = os.path.join(d, "fused.deps")
+            if os.path.isdir(d) and (not os.path.isfile(stamp) or open(stamp).read() != digest):
+                for f in glob.glob(os.path.join(d, "**", "fused.run_*"), recursive=True):
+                    os.remove(f)
+                with open(stamp, "w") as fh:
+                    fh.write(digest)
+    except OSError:
+        pass     # a read-only install: nothing cached there either
+
+
+_drop_stale_cache()
+
+# NUMBA_DISABLE_JIT: the external functions would be no-ops from plain Python
+AVAILABLE = _load() and not numba.config.DISABLE_JIT
 
 # resolved by name in the library loaded above (cacheable: no address is baked into the code)
 _mj_step = types.ExternalFunction("mj_step", types.void(types.uintp, types.uintp))
 _mj_kinematics = types.ExternalFunction("mj_kinematics", types.void(types.uintp, types.uintp))
 
 
-@njit(cache=True)
+@njit(cache=True)    # a stale cache is dropped at import (_drop_stale_cache)
 def run_chunks(pm, pd, n_chunks, nstep, fee_on, kinematics, kargs, bargs):
     """n_chunks x (FEE update if fee_on, bucket-body update, nstep MuJoCo steps), then
     mj_kinematics if kinematics: what Simulator._physics does n_chunks times, followed by

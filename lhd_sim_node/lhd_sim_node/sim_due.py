@@ -17,7 +17,7 @@ What the device does, as the reference firmware (lhd_hw_bridge/firmware/lhd_due/
 * sensor frames (0x01) at 100 Hz, load-cell frames (0x04) at 10 Hz (`load_cell`, default on).
 
 The plant is the simulator, driven with the actuator command of the outputs (`actuator_command`):
-wheels = the clamped set-point (rad/s; the simulator's four wheel servos), boom / bucket = the valve
+wheels = the clamped set-point (rad/s; the simulator's wheel motors: one per front wheel, one for the rear differential), boom / bucket = the valve
 state x the full hydraulic speed (TaskParams.boom_min: -0.191 rad/s, a lift; TaskParams.bucket_max:
 +0.2 rad/s, a curl): the valves are ternary, the machine has no proportional arm speed; zero when
 the drive is disabled, the watchdog holds or the e-stop is pressed. The machine is stepped in

@@ -143,7 +143,7 @@ class LhdSimulator:
         self.fused = fused.AVAILABLE
         self._attack_marks = np.zeros((int(self.attack_timeout / (self.fee_every * m.opt.timestep)) + 2,
                                        2 + len(WHEELS)))
-        self._pm, self._pd = self.model._address, self.data._address
+        self._pm, self._pd = (self.model._address, self.data._address) if self.fused else (0, 0)
         vx = cfg["paper"]["voxels"]
         # the bucket's geometric capacity (m^3, struck + heap at repose) over the tip pitch (H4's table)
         cap_pitch, cap_vol = capacity_table(cfg)

@@ -45,7 +45,7 @@ def test_lhd_mjcf_writes_a_model_mujoco_loads(tmp_path):
     subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "mjcf", "--out", str(out)], check=True,
                    capture_output=True)
     m = mujoco.MjModel.from_xml_path(str(out))
-    assert m.nu == 6 and abs(sum(m.body_mass) - 121.0) < 1e-5  # 4 motor rotors of 1e-6 kg (mjcf.py)
+    assert m.nu == 5 and abs(sum(m.body_mass) - 121.0) < 1e-5  # 3 motor rotors of 1e-6 kg (mjcf.py: rear differential)
 
 
 def test_lhd_bench_node_runs_and_leaves_no_temporary_folder(tmp_path):

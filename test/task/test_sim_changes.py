@@ -30,7 +30,7 @@ def _raw(c):
                                                                  "r_tilt_ramp_pitch_margin")}
     c["training"] = {k: v for k, v in c["training"].items()
                      if k not in ("twin_critics", "slope_curriculum", "slope_curriculum_bins", "slope_curriculum_window",
-                                  "slope_curriculum_uniform")}
+                                  "slope_curriculum_uniform", "lr_final_scale", "lr_decay_from")}
     return hashlib.sha256(json.dumps(c, sort_keys=True).encode()).hexdigest()[:16]
 
 
