@@ -246,6 +246,7 @@ UNDECLARED = {
     ("lhd_loading_ros", "stable_baselines3"): "optional: lhd bench train --vs-sb3 only",
     ("lhd_loading_ros", "imageio_ffmpeg"): "optional: lhd replay --video OUT.mp4 only (GIF needs only Pillow)",
     ("lhd_loading_ros", "ray"): "optional: lhd sweep only (requirements.txt installs it; no rosdep key)",
+    ("lhd_sim_node", "llvmlite"): "numba's own dependency (python3-numba installs it): loads libmujoco for fused.py",
 }
 PACKAGES = ("lhd_loading_ros", "lhd_sim_node", "lhd_hw_bridge")
 # ROS packages a launch file starts (not imported): (package, key) -> the launch file that needs it
