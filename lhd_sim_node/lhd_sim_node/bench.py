@@ -23,6 +23,8 @@ import time
 import mujoco
 import numpy as np
 
+from . import fused as fused_mod
+
 from .bucket_body import bucket_body_update
 from .env import LhdLoadingEnv
 
@@ -121,4 +123,7 @@ def bench_sim(steps: int = 3000, seed: int = 0, config=None, rounds: int = 3) ->
         "fee_updates_per_control_step": sim.n_phys // sim.fee_every,
         "timestep_s": float(sim.model.opt.timestep),
         "replay_max_qpos_error": replay_error,
+        # the compiled chunk loop (lhd_sim_node/fused.py) or, with the reason, the Python-driven one
+        "compiled_loop": bool(sim.fused),
+        **({} if sim.fused else {"compiled_loop_off_because": fused_mod.UNAVAILABLE_REASON or "switched off"}),
     }

@@ -86,7 +86,8 @@ class LhdLoadingEnv(gym.Env):
                        d_attack=options.get("d_attack"), attack_speed=options.get("attack_speed"), conditions=c)
         self._sensors = None if c == NOMINAL else ObservationCorruptor(c, self.np_random)
         s = self.sim.state()
-        self.tracker = RewardTracker(self.p, self.sim.zones, self.p.h_pile)
+        # the reward's x_midgoal: the paper's constant, or this pile's x_min (task.midgoal_from_pile)
+        self.tracker = RewardTracker(self.p.for_pile(self.sim.zones), self.sim.zones, self.p.h_pile)
         self.tracker.reset(s, self.sim.loaded_mass)
         self.steps = 0
         self.ret = 0.0

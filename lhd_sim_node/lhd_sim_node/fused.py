@@ -15,13 +15,15 @@ Pointers: ``MjModel._address`` and ``MjData._address`` are the addresses of the 
 they are passed as unsigned integers of pointer width, which every 64-bit ABI MuJoCo supports
 passes exactly as a pointer.
 
-Where the library cannot be found or loaded (an unusual install), ``AVAILABLE`` is False and
-the simulator keeps its Python-driven loop; nothing else changes.
+Where the library cannot be found or loaded, or is not the version the bindings report (an
+unusual install), ``AVAILABLE`` is False, ``UNAVAILABLE_REASON`` says why (``lhd bench sim``
+prints it) and the simulator keeps its Python-driven loop; nothing else changes.
 
 Faults: ``mj_step`` reports MuJoCo errors (``mju_error``; from compiled code the process would
 rather exit than raise) only for a broken model or an arena overflow, neither possible with the shipped MJCF and its 2 MB arena; an unstable state is
 handled inside MuJoCo as always (a warning and a reset of the data), exactly as when called
-from Python.
+from Python; the simulator checks for that reset after every period and after the attack drive
+(whose reproduced time ``run_attack`` returns) and raises SimulationError.
 """
 from __future__ import annotations
 
@@ -45,16 +47,26 @@ def _library_path() -> str | None:
     return None
 
 
-def _load() -> bool:
+def _load() -> str:
+    """Load the library the ``mujoco`` package uses into llvmlite's symbol table; return '' when
+    it is loaded and is the version the bindings report, else why not (UNAVAILABLE_REASON)."""
     path = _library_path()
     if path is None:
-        return False
+        return "no MuJoCo shared library beside the mujoco package"
     try:
+        import ctypes
+
+        import mujoco
+        lib = ctypes.CDLL(path)
+        lib.mj_versionString.restype = ctypes.c_char_p
+        found = lib.mj_versionString().decode()
+        if found != mujoco.mj_versionString():
+            return f"{path} is MuJoCo {found}, the bindings are {mujoco.mj_versionString()}"
         import llvmlite.binding as llb
         llb.load_library_permanently(path)
-    except Exception:   # noqa: BLE001  (any failure: keep the Python loop)
-        return False
-    return True
+    except Exception as e:   # noqa: BLE001  (any failure: keep the Python loop)
+        return f"could not load {path}: {e}"
+    return ""
 
 
 def _drop_stale_cache() -> None:
@@ -85,7 +97,8 @@ def _drop_stale_cache() -> None:
 _drop_stale_cache()
 
 # NUMBA_DISABLE_JIT: the external functions would be no-ops from plain Python
-AVAILABLE = _load() and not numba.config.DISABLE_JIT
+UNAVAILABLE_REASON = "NUMBA_DISABLE_JIT is set" if numba.config.DISABLE_JIT else _load()
+AVAILABLE = not UNAVAILABLE_REASON
 
 # resolved by name in the library loaded above (cacheable: no address is baked into the code)
 _mj_step = types.ExternalFunction("mj_step", types.void(types.uintp, types.uintp))
@@ -113,7 +126,8 @@ def run_attack(pm, pd, nstep, fee_on, kargs, bargs, site_xpos, sid_tip, d_init, 
     """The attack drive of Simulator.reset: while the tip is short of d_init, record the drift mark
     (time, x, wheel angles) and run one chunk (run_chunks with kinematics); stop past `timeout`.
     The marks go to marks[k] (k: the chunk); the time is MuJoCo's, accumulated here as mj_step
-    accumulates it (time += timestep per step). Returns (chunks run, timed out)."""
+    accumulates it (time += timestep per step). Returns (chunks run, timed out, the time reproduced);
+    the caller compares that time with MuJoCo's, which an instability reset (mj_resetData) zeroes."""
     t = 0.0
     now = time0
     k = 0
@@ -132,6 +146,6 @@ def run_attack(pm, pd, nstep, fee_on, kargs, bargs, site_xpos, sid_tip, d_init, 
         t += fee_dt
         k += 1
         if t > timeout:
-            return k, True
-    return k, False
+            return k, True, now
+    return k, False, now
 

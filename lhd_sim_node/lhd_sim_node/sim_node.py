@@ -59,7 +59,7 @@ from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
 from lhd_loading_ros.ros.run import run_node
 
 from .env import LhdLoadingEnv
-from .simulator import MATERIALS
+from .simulator import MATERIALS, SimulationError
 
 # QoS (lhd_loading_ros.ros.qos, shared with the hardware bridge and the policy node): measurements
 # MEASUREMENT_QOS (reliable, keep-last 5: lockstep must not lose a state, and best-effort
@@ -170,6 +170,7 @@ class SimNode(Node):
         self._zones_sent = None
         self.episodes_done = 0
         self.outcome = "running"
+        self.abort_reason = ""
         self.result = None
         self.episode_seed = self.seed
         self._obs, self._reward, self._term, self._trunc = None, 0.0, False, False
@@ -334,7 +335,20 @@ class SimNode(Node):
         self._step(u)
 
     def _step(self, u: np.ndarray) -> None:
-        self._obs, self._reward, term, trunc, info = self.env.step_actuator(u)
+        try:
+            self._obs, self._reward, term, trunc, info = self.env.step_actuator(u)
+        except SimulationError as e:
+            # MuJoCo reset an unstable state: the episode ends as aborted (no result, no reward), the
+            # last good state is published once more, and the next episode starts as after any end
+            self.outcome, self.result, self.abort_reason = "aborted", None, str(e)
+            self._applied = np.zeros(3)
+            self._term, self._trunc = True, False
+            self._ended_at = time.monotonic()
+            self.get_logger().error(f"episode {self.episode} aborted: {e}")
+            self.publish_state()
+            if self.auto_reset and not self._finished_all() and self.mode == "lockstep":
+                self._new_episode()
+            return
         self._applied = np.array(u, dtype=np.float64)
         self._term, self._trunc = bool(term), bool(trunc)
         self.t_ns += self.dt_ns
@@ -411,6 +425,8 @@ class SimNode(Node):
             "slope_rad": repr(float(self.sim.pile.alpha)),
             "end_zone": ",".join(repr(float(v)) for v in (self.sim.zones.x_min, self.sim.zones.x_max, self.sim.zones.z_min)),
         }
+        if self.outcome == "aborted":
+            vals["reason"] = self.abort_reason
         if self.result is not None:
             r = self.result
             vals.update({"success": r.success, "success_level": r.success_level, "return": f"{r.ret:.3f}",

@@ -41,6 +41,10 @@ MATERIALS = ("homogeneous", "nonhomogeneous")
 WINDUP = 0.02  # rad, largest lead of a hydraulic set-point over its joint
 
 
+class SimulationError(RuntimeError):
+    """MuJoCo found the state unstable (non-finite or huge accelerations) and reset it."""
+
+
 class AttackError(RuntimeError):
     """The machine did not bury the bucket d_init into the pile within the attack timeout."""
 
@@ -179,6 +183,16 @@ class LhdSimulator:
         self._deltas = np.array([gravel_delta, s.rock_delta])
         self._tabs = beta_tables(self._phis, BETA_GRID)  # the FEE kernel's beta-only terms per class
 
+    _UNSTABLE = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
+
+    def _instability_count(self) -> int:
+        """How often MuJoCo has reset this data for a non-finite or huge position, velocity or
+        acceleration (mj_step's checks; the counts survive the reset)."""
+        return sum(int(self.data.warning[w].number) for w in self._UNSTABLE)
+
+    def _warning_summary(self) -> str:
+        return ", ".join(f"{w.name} {int(self.data.warning[w].number)}" for w in self._UNSTABLE)
+
     def place_machine(self, d_attack: float, heading: float = 0.0, lateral: float = 0.0) -> None:
         """Attack pose, at rest, bucket tip d_attack before the toe of the pile; heading (rad, yaw,
         positive turns the nose to +y) and lateral (m, the lip centre's y) for a machine placed by
@@ -260,9 +274,11 @@ class LhdSimulator:
         tip = self._site_xpos[self.sid_tip]
         # drive in, recording the drift marks, until the tip is d_init inside the pile or the
         # timeout passes: compiled (fused.run_attack) where it can, else the Python loop below
+        warnings0 = self._instability_count()
+        now = None
         if self.fused and self.use_kernel:
             marks = self._attack_marks
-            n, timed_out = run_attack(self._pm, self._pd, self.fee_every, self.fee_enabled, self._kargs,
+            n, timed_out, now = run_attack(self._pm, self._pd, self.fee_every, self.fee_enabled, self._kargs,
                                       self._body_args, self._site_xpos, self.sid_tip, p.d_init, self.fee_dt,
                                       self.attack_timeout, self.data.time, self.model.opt.timestep, self._qpos,
                                       self._wheel_qs_arr, marks)
@@ -276,6 +292,12 @@ class LhdSimulator:
             self._drift_from = self._drift_marks[0]
             self._chunks(1)
             t += self.fee_dt
+        # an instability inside the drive: mj_step reset the data (its time to 0) and counted a warning
+        if self._instability_count() != warnings0 or (now is not None and abs(now - self.data.time) > 1e-6):
+            raise SimulationError(
+                f"MuJoCo found the state unstable during the attack drive and reset it (time {self.data.time:.4f} s"
+                f"{'' if now is None else f', expected {now:.4f} s'}; {self._warning_summary()}); expected a finite, "
+                "stable state: the pile, the conditions or the model's timestep are outside what the simulator handles")
         if t > self.attack_timeout:
             if self.use_kernel:
                 self._sync_from_kernel()
@@ -310,9 +332,19 @@ class LhdSimulator:
             self._anti_windup()
             last = i == len(changes) - 1
             self._chunks((chunks if last else changes[i + 1]) - k, kinematics=last)
+        self._check_stable()
         if self.use_kernel:
             self._sync_from_kernel()
         self._u_prev = u
+
+    def _check_stable(self) -> None:
+        """MuJoCo resets the data (time back to 0) when it finds a non-finite or huge position,
+        velocity or acceleration; a period that ends at or before its start time had one. The
+        episode cannot go on from a machine teleported to its initial pose: SimulationError."""
+        if self.data.time <= self._drift_from[0]:
+            raise SimulationError(
+                f"MuJoCo found the state unstable and reset it (time {self.data.time:.4f} s after "
+                f"{self._drift_from[0]:.4f} s; {self._warning_summary()}); the episode cannot continue: reset it")
 
     def advance(self, u: np.ndarray) -> None:
         """One FEE period (``fee_every`` physics steps: 20 ms at the shipped config) with command
@@ -328,6 +360,7 @@ class LhdSimulator:
         self._drift_marks.append(self._drift_mark())
         self._drift_from = self._drift_marks[0]
         self._chunks(1)
+        self._check_stable()
         if self.use_kernel:
             self._sync_from_kernel()
 

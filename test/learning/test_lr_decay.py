@@ -84,3 +84,16 @@ def test_never_in_the_config_hash_and_validated(cfg):
     bad = small(cfg, final=0.0)
     with pytest.raises(ValueError, match="lr_final_scale"):
         validate(bad)
+
+
+def test_a_decay_that_never_starts_or_a_resume_that_moves_it_is_refused(cfg, tmp_path):
+    """lr_decay_from at or past the last step would record a decay on the card that never ran; a
+    resume with more steps than the decay was planned for would lift the rates again mid-run."""
+    from lhd_loading_ros.learning.train import train
+
+    with pytest.raises(ValueError, match="lr_decay_from = 300 is not before the run's last step"):
+        train("rld", 3, tmp_path / "never", steps=300, config=small(cfg), progress=False, log=lambda *a: None)
+    out = tmp_path / "run"
+    train("rld", 3, out, steps=500, config=small(cfg), progress=False, log=lambda *a: None)
+    with pytest.raises(ValueError, match="runs to step 500"):
+        train("rld", 3, out, steps=800, config=small(cfg), progress=False, log=lambda *a: None)

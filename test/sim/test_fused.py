@@ -109,3 +109,52 @@ def test_the_attack_timeout_still_fires():
     assert fast.err == slow.err
     _assert_same(_snapshot(fast), _snapshot(slow), "after the attack timeout")
     assert list(fast.sim._drift_marks) == list(slow.sim._drift_marks)
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_an_instability_in_the_attack_drive_is_an_error(compiled, monkeypatch):
+    """A non-finite velocity makes mj_step reset the data (time back to 0) and count a warning: the
+    compiled drive's reproduced time would silently go on from the old one. Both drives raise
+    SimulationError naming it instead of starting an episode from a reset machine."""
+    import math
+    from lhd_sim_node.simulator import SimulationError
+
+    env = LhdLoadingEnv()
+    env.sim.fused = compiled
+    place = env.sim.place_machine
+
+    def place_and_break(*a, **k):
+        place(*a, **k)
+        env.sim.data.qvel[0] = math.nan
+    monkeypatch.setattr(env.sim, "place_machine", place_and_break)
+    with pytest.raises(SimulationError, match="unstable during the attack drive"):
+        env.reset(seed=1)
+    monkeypatch.setattr(env.sim, "place_machine", place)
+    env.reset(seed=1)          # a sound reset afterwards works
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_an_instability_in_a_step_is_an_error(compiled):
+    """The same in an episode: a non-finite velocity mid-episode is a SimulationError, not a machine
+    silently put back at its initial pose."""
+    import math
+    from lhd_sim_node.simulator import SimulationError
+
+    env = LhdLoadingEnv()
+    env.sim.fused = compiled
+    env.reset(seed=2)
+    env.step(np.array([1.0, 0.0, 0.0]))
+    env.sim.data.qvel[0] = math.nan
+    with pytest.raises(SimulationError, match="unstable"):
+        env.step(np.array([1.0, 0.0, 0.0]))
+
+
+def test_a_library_of_another_version_is_not_used(monkeypatch):
+    """The library beside the bindings must be the version they report: else no compiled loop, and
+    the reason (lhd bench sim prints it)."""
+    import mujoco
+    assert fused._load() == ""
+    real = mujoco.mj_versionString()
+    monkeypatch.setattr(mujoco, "mj_versionString", lambda: "0.0.1")
+    reason = fused._load()
+    assert f"is MuJoCo {real}, the bindings are 0.0.1" in reason

@@ -27,7 +27,7 @@ def _raw(c):
         c["machine"] = {k: v for k, v in c["machine"].items() if k != "rear_differential"}
     c["task"] = {k: v for k, v in c["task"].items() if k not in ("r_tilt_per_deg", "r_tilt_free_deg",
                                                                  "r_tilt_ramp_after_success", "r_tilt_ramp_steps",
-                                                                 "r_tilt_ramp_pitch_margin")}
+                                                                 "r_tilt_ramp_pitch_margin", "midgoal_from_pile")}
     c["training"] = {k: v for k, v in c["training"].items()
                      if k not in ("twin_critics", "slope_curriculum", "slope_curriculum_bins", "slope_curriculum_window",
                                   "slope_curriculum_uniform", "lr_final_scale", "lr_decay_from")}
@@ -59,6 +59,15 @@ def test_an_actor_from_before_the_wedge_change_is_recognised(cfg):
     half = copy.deepcopy(cfg)
     del half["pile"]["fee_wedge_tau"], half["machine"]["rear_differential"]   # one of the wedge's keys only
     assert sim_change_note(_raw(half), cfg) is None
+
+
+def test_with_the_differential_off_only_the_wedge_is_named(cfg):
+    """A config that keeps a motor per rear wheel (rear_differential: 0, the drive before that
+    change) differs from a pre-wedge card only by the wedge: the note names the wedge alone."""
+    four = copy.deepcopy(cfg)
+    four["machine"]["rear_differential"] = 0
+    note = sim_change_note(_raw(_before_the_wedge(cfg)), four)
+    assert note is not None and "fee_wedge_by_motion" in note and "rear_differential" not in note
 
 
 def test_an_actor_from_before_the_rear_differential_is_recognised(cfg):

@@ -149,6 +149,11 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
         dc = DdpgConfig(**{**dc.__dict__, **over})
     if dc.total_steps < 1:
         raise ValueError(f"steps must be >= 1, got {dc.total_steps}")
+    if dc.lr_final_scale < 1.0 and dc.lr_decay_from >= dc.total_steps:
+        raise ValueError(f"training.lr_decay_from = {dc.lr_decay_from:,} is not before the run's last step "
+                         f"({dc.total_steps:,}): the learning rates would never fall although lr_final_scale = "
+                         f"{dc.lr_final_scale:g} says they should; set lr_decay_from below the steps, or "
+                         "lr_final_scale to 1")
     torch.set_num_threads(cfg["training"]["torch_threads"])
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -259,6 +264,12 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
         next_episode = int(st["next_episode"]) if "next_episode" in st else episode + 1
         for k, v in (json.loads(st["contributed"]) if st.get("contributed") else {}).items():
             contributed[k] = contributed.get(k, 0) + int(v)
+        lr_total = int(st.get("lr_total_steps", 0))
+        if (dc.lr_final_scale < 1.0 and lr_total and lr_total != dc.total_steps
+                and step > dc.lr_decay_from):
+            raise ValueError(f"{ckpt} is {step:,} steps into a learning-rate decay that runs to step {lr_total:,}; "
+                             f"going on to {dc.total_steps:,} would move the schedule (the rates would jump back "
+                             f"up): give --steps {lr_total:,}, or start another --out")
         if step > dc.total_steps:
             raise ValueError(f"{out} already has {step:,} steps, more than the {dc.total_steps:,} asked; give --steps "
                              f">= {step:,} to go on, or another --out")
@@ -302,7 +313,9 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
               "contributed": json.dumps(contributed),
               "tilt_ramp": json.dumps(ramp.state_dict()) if ramp.enabled else "",
               "slope_curriculum": json.dumps(curriculum.state_dict()) if curriculum is not None else "",
-              "best": json.dumps(best) if best else "", "wall_s": wall_before + time.perf_counter() - t0}
+              "best": json.dumps(best) if best else "", "wall_s": wall_before + time.perf_counter() - t0,
+              # the step the learning-rate decay runs to (0: no decay): a resume must not move it
+              "lr_total_steps": dc.total_steps if dc.lr_final_scale < 1.0 else 0}
         tmp = out / "checkpoint.pt.tmp"
         torch.save(st, tmp)
         os.replace(tmp, ckpt)

@@ -84,6 +84,7 @@ SCHEMA: dict[str, Any] = {
         "r_tilt_ramp_pitch_margin": _i(0, 1),
         "bottom_tolerance": _f(0.0, 0.5),
         "bucket_repose_deg": _f(5.0, 60.0), "normalisers_from_pile": _i(0, 1),  # H4: capacity, derived normalisers
+        "midgoal_from_pile": _i(0, 1),
     },
     "machine": {
         "total_mass": _f(1.0, 1e5), "chassis_mass": _f(0.1, 1e5), "rear_mass_fraction": _f(0.05, 0.95),
@@ -234,7 +235,8 @@ def _describe(spec) -> str:
 OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curriculum"): 0,
                      ("training", "slope_curriculum_bins"): 6, ("training", "slope_curriculum_window"): 100,
                      ("training", "slope_curriculum_uniform"): 0.5, ("training", "lr_final_scale"): 1.0,
-                     ("training", "lr_decay_from"): 0, ("machine", "rear_differential"): 0}
+                     ("training", "lr_decay_from"): 0, ("machine", "rear_differential"): 0,
+                     ("task", "midgoal_from_pile"): 0}
 
 
 def validate(cfg: Any) -> dict:
@@ -318,7 +320,10 @@ TILT_KEYS = ("r_tilt_per_deg", "r_tilt_free_deg")     # the tilt penalty; both l
 # penalty itself a reward setting, not what the actor sees. It does decide how much of the penalty
 # an actor was trained with (all of it once the ramp is through; none if it never began): the card
 # records the schedule and that weight (learning/ship.py), and `lhd ship` warns below the whole
-TILT_SCHEDULE_KEYS = ("r_tilt_ramp_after_success", "r_tilt_ramp_steps", "r_tilt_ramp_pitch_margin")
+TILT_SCHEDULE_KEYS = ("r_tilt_ramp_after_success", "r_tilt_ramp_steps", "r_tilt_ramp_pitch_margin",
+                      # where r_midgoal / r_inact switch (the paper's constant x_midgoal, or the episode pile's
+                      # x_min): reward shaping, not what the actor sees; the card's trained_with records it
+                      "midgoal_from_pile")
 # how the learner learned (never in the hash; the card's trained_with records them): clipped double Q
 # and the slope curriculum (learning/curriculum.py), which draws training piles, never evaluation ones
 TRAINING_SCHEDULE_KEYS = ("twin_critics", "slope_curriculum", "slope_curriculum_bins", "slope_curriculum_window",
@@ -410,7 +415,10 @@ def older_configs(cfg: dict) -> list[tuple[dict, list[str]]]:
     for section, keys, date, before in reversed(SIM_CHANGES):
         if section not in older or not any(k in older[section] for k in keys):
             continue
-        older = {**older, section: {k: v for k, v in older[section].items() if k not in keys}}
+        undone = {**older, section: {k: v for k, v in older[section].items() if k not in keys}}
+        if config_hash(undone) == config_hash(older):
+            continue      # the key at the value meaning "as before" (rear_differential: 0): no change to name
+        older = undone
         done = [f"{section}.{'/'.join(keys)} ({date}; before: {before})"] + done
         out.append((older, list(done)))
     return out

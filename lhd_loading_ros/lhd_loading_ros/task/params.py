@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from lhd_loading_ros.task.zones import derived_normalisers
 
@@ -84,6 +84,16 @@ class TaskParams:
     r_success_pitch_margin: float = 0.0         # rad; r_success only when phi^T > phi_thresh_pitch + this (training)
     r_tilt_per_deg: float = 0.0                 # training: r_tilt = -this x (|machine pitch| - r_tilt_free) per step, deg
     r_tilt_free: float = 0.0                    # rad; a machine pitch this small costs nothing
+    midgoal_from_pile: int = 0                  # 1: r_midgoal / r_inact switch at the episode pile's x_min (for_pile)
+
+    def for_pile(self, zones) -> "TaskParams":
+        """These parameters for one episode's pile: with midgoal_from_pile, x_midgoal is the end zone's
+        x_min (where the intact pile holds m_min between its toe and x; the paper's 0.54 m is that of a
+        30 deg pile, 0.53-0.57 m over the gravel densities) and d_midgoal_max = x_midgoal - d_init, the
+        largest d_midgoal, as the paper's 0.44 m is for 0.54 m. Otherwise self (the paper's constants)."""
+        if not self.midgoal_from_pile:
+            return self
+        return replace(self, x_midgoal=zones.x_min, d_midgoal_max=max(zones.x_min - self.d_init, 1e-3))
 
     @classmethod
     def from_config(cls, cfg: dict) -> "TaskParams":
@@ -118,4 +128,5 @@ class TaskParams:
             r_success_pitch_margin=rad(t.get("r_success_pitch_margin_deg", 0.0)), bottom_tolerance=t["bottom_tolerance"],
             r_tilt_per_deg=t.get("r_tilt_per_deg", 0.0), r_tilt_free=rad(t.get("r_tilt_free_deg", 0.0)),
             bucket_repose=rad(t["bucket_repose_deg"]), normalisers_from_pile=t["normalisers_from_pile"],
+            midgoal_from_pile=int(t.get("midgoal_from_pile", 0)),
         )

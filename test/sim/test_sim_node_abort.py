@@ -1,0 +1,40 @@
+"""The sim node when MuJoCo finds its state unstable mid-episode (SimulationError): the episode ends
+as `aborted` with the reason on /lhd/episode's status, nothing is stepped further from a machine
+teleported back to its initial pose, no NaN is published, and (lockstep, auto_reset) the next
+episode starts. A real SimNode in this process over rclpy; the instability is a NaN velocity put
+into its MuJoCo data, which mj_step detects and resets as it would a diverging state."""
+import math
+
+import numpy as np
+import rclpy
+from rclpy.parameter import Parameter
+
+from rosutil import init_ros, shutdown_ros
+
+
+def test_an_unstable_state_aborts_the_episode_and_the_next_one_starts():
+    from lhd_sim_node.sim_node import SimNode
+    init_ros()
+    node = SimNode(parameter_overrides=[Parameter("mode", value="lockstep"), Parameter("auto_reset", value=True)])
+    try:
+        ep0 = node.episode
+        node._on_cmd(type("M", (), {"data": [1.0, 0.0, 0.0]})())
+        assert node.outcome == "running" and node.env.steps == 1
+        node.sim.data.qvel[0] = math.nan
+        node._on_cmd(type("M", (), {"data": [1.0, 0.0, 0.0]})())
+        # ended as aborted, then (lockstep + auto_reset) a new episode began
+        assert node.episode == ep0 + 1 and node.outcome == "running"
+        assert "unstable" in node.abort_reason
+        assert np.isfinite(node.sim.data.qvel).all() and np.isfinite(node._obs).all()
+        node.auto_reset = False
+        node.sim.data.qvel[0] = math.nan
+        node._on_cmd(type("M", (), {"data": [1.0, 0.0, 0.0]})())
+        st = {kv.key: kv.value for kv in node._status().values}
+        assert node.outcome == "aborted" and st["state"] == "aborted" and "unstable" in st["reason"]
+        assert all(math.isfinite(float(st[k])) for k in ("loaded_mass", "x_shovel", "z_shovel"))
+        steps = node.env.steps
+        node._on_cmd(type("M", (), {"data": [1.0, 0.0, 0.0]})())      # no stepping of an ended episode
+        assert node.env.steps == steps
+    finally:
+        node.destroy_node()
+        shutdown_ros()
