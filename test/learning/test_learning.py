@@ -391,3 +391,27 @@ def test_ship_selection_median_and_best():
     assert pick(keys[:1], "median")[1] == "a"
     with pytest.raises(ValueError, match="select must be one of"):
         pick(keys, "luckiest")
+
+
+def test_the_tilt_gate_leaves_prying_seeds_out_of_the_median():
+    """lhd ship --max-tilt-rate: seeds whose held-out share of attempts tilting the machine over 5 deg
+    exceeds the gate are not candidates; the median is taken over the others (lower middle one)."""
+    from pathlib import Path as P
+
+    from lhd_loading_ros.learning.ship import gate_tilt, pick
+
+    def cand(name, success, asl, tilt):
+        return ((success, asl, 0.0), P(name), None, {"tilt_over_5deg_rate": tilt})
+
+    cands = [cand("seed_0", 1.0, 4.76, 0.0), cand("seed_1", 1.0, 4.28, 0.32), cand("seed_2", 0.975, 4.03, 0.04),
+             cand("seed_3", 1.0, 4.61, 0.01), cand("seed_4", 0.75, 3.74, 0.0)]
+    assert pick(cands, "median")[1].name == "seed_1"                 # without the gate: 0.75, 0.975, [1.0 x3 by ASL]
+    kept, out = gate_tilt(cands, 0.05)
+    assert [c[1].name for c in out] == ["seed_1"] and len(kept) == 4
+    assert pick(kept, "median")[1].name == "seed_2"                  # 0.75, [0.975], 1.0/4.61, 1.0/4.76
+    assert gate_tilt(cands, None) == (cands, [])
+    assert gate_tilt(cands, 0.04)[1] == [cands[1]]                   # at the gate: kept
+    with pytest.raises(ValueError, match="every seed lifts the machine's rear"):
+        gate_tilt([cands[1], cands[2]], 0.03)
+    with pytest.raises(ValueError, match="expected a share in"):
+        gate_tilt(cands, 1.5)

@@ -431,6 +431,9 @@ def main(argv=None) -> int:
                         help="median: the median seed's final actor (default); best: the best seed's best checkpoint; "
                              "best-final: the best seed's final actor, its table on piles the selection never saw")
     p_ship.add_argument("--config", default=None)
+    p_ship.add_argument("--max-tilt-rate", type=float, default=None,
+                        help="leave out seeds whose actor lifts the machine's rear over 5 deg in more than this share "
+                             "of its held-out attempts (e.g. 0.05); default: no gate")
     p_mjcf = sub.add_parser("mjcf", help="write the MJCF of the scaled LHD generated from the parameter file")
     p_mjcf.add_argument("--out", help="file to write (default: print)")
     p_mjcf.add_argument("--config", default=None)
@@ -509,7 +512,7 @@ def main(argv=None) -> int:
 
         try:
             res = ship(args.variant, args.runs, args.out or f"policies/{args.variant}", args.episodes, args.config,
-                       select=args.select)
+                       select=args.select, max_tilt_rate=args.max_tilt_rate)
         except (FileNotFoundError, ValueError) as exc:
             print(f"lhd ship: {exc}", file=sys.stderr)
             return 1

@@ -10,7 +10,12 @@ Selection (`select`):
   the highest ranked ships; the card then says that it is the best of the seeds, not a typical one.
 - "best-final": each seed's `final/` actor (no checkpoint picking), the highest ranked ships; as
   the held-out seed chose it, its own table is evaluated again on piles that took no part in the
-  choice (CONFIRM_SEED), and the card shows the seeds' distribution as what a retraining user gets."""
+  choice (CONFIRM_SEED), and the card shows the seeds' distribution as what a retraining user gets.
+
+`max_tilt_rate` (`--max-tilt-rate`; default None, no gate): a seed whose actor lifts the machine's
+rear over 5 deg in more than this share of its held-out attempts (a breakout that pries the machine,
+docs/modeling.md "The machine's own tilt") is left out of the selection; the card lists it and why.
+The median is then the median of the seeds that remain."""
 from __future__ import annotations
 
 import json
@@ -52,6 +57,21 @@ def _table(ev: dict) -> str:
 SELECTIONS = ("median", "best", "best-final")
 
 
+def gate_tilt(cands: list, max_tilt_rate: float | None) -> tuple[list, list]:
+    """(kept, left out): candidates (key, dir, policy, evaluation) whose held-out share of attempts
+    tilting the machine over 5 deg is at most max_tilt_rate (all of them when it is None)."""
+    if max_tilt_rate is None:
+        return list(cands), []
+    if not (0.0 <= max_tilt_rate <= 1.0):
+        raise ValueError(f"max_tilt_rate = {max_tilt_rate!r}: expected a share in [0, 1]")
+    kept = [c for c in cands if c[3].get("tilt_over_5deg_rate", 0.0) <= max_tilt_rate]
+    if not kept:
+        raise ValueError(f"every seed lifts the machine's rear over 5 deg in more than {max_tilt_rate:g} of its "
+                         "held-out attempts (" + ", ".join(f"{c[1].name} {c[3].get('tilt_over_5deg_rate', 0.0):.2f}"
+                                                           for c in cands) + "): nothing to ship under this gate")
+    return kept, [c for c in cands if c not in kept]
+
+
 def pick(ranked: list, select: str):
     """ranked: (key, ...) tuples. "median": the median by key (the lower middle one for an
     even count); "best" / "best-final": the highest key."""
@@ -81,7 +101,8 @@ def ramp_progress(run_dir: Path, meta: dict) -> tuple[int | None, float | None]:
     return int(start), (1.0 if steps == 0 else min(1.0, max(0.0, (at - int(start)) / steps)))
 
 
-def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=print, select: str = "median") -> dict:
+def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=print, select: str = "median",
+         max_tilt_rate: float | None = None) -> dict:
     from lhd_sim_node.env import LhdLoadingEnv
 
     if select not in SELECTIONS:
@@ -100,8 +121,13 @@ def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=prin
         ev = evaluate(env, pol.actor, episodes, HELD_OUT_SEED, cfg["task"]["bucket_capacity"])
         log(f"{d.name}/{sub}: held-out success {ev['success_rate']:.3f}, ASL {ev['asl']:.2f}, AML {ev['aml']:.1f}")
         cands.append(((ev["success_rate"], ev["asl"], ev["ar"]), d, pol, ev))
-    _, best_dir, pol, ev = pick(cands, select)
-    log(f"shipping {best_dir.name}/{sub} ({'median' if select == 'median' else 'best'} of {len(cands)} seeds)")
+    kept, gated = gate_tilt(cands, max_tilt_rate)
+    for c in gated:
+        log(f"{c[1].name}/{sub} left out: it lifts the machine's rear over 5 deg in "
+            f"{c[3]['tilt_over_5deg_rate']:.0%} of its held-out attempts (--max-tilt-rate {max_tilt_rate:g})")
+    _, best_dir, pol, ev = pick(kept, select)
+    log(f"shipping {best_dir.name}/{sub} ({'median' if select == 'median' else 'best'} of {len(kept)} seeds"
+        f"{f', {len(gated)} left out for tilting the machine' if gated else ''})")
     start, weight = ramp_progress(best_dir, pol.meta)
     if weight is not None and weight < 1.0:
         log(f"warning: {best_dir.name}/{sub} has {weight:.0%} of the tilt penalty (its ramp "
@@ -154,10 +180,18 @@ dead time):
 | randomised | {r['success_rate']:.3f} | {r['asl']:.2f} | {r['aml']:.1f} | {r['elapsed_s']:.2f} | {r['restricted_zone']} | {r['timeout']} |
 | placement corners | {st['success_rate']:.3f} | {st['asl']:.2f} | {st['aml']:.1f} | {st['elapsed_s']:.2f} | {st['restricted_zone']} | {st['timeout']} |
 """
+    gated_dirs = {c[1] for c in gated}
     seeds_rows = "\n".join(
         f"| {d.name} | {e['success_rate']:.3f} | {e['asl']:.2f} | {e['aml']:.1f} | {e['ar']:.0f} | "
-        f"{'shipped' if d == best_dir else ''} |" for _, d, _, e in cands)
-    why = {"median": f"its final actor at step {m['steps']:,}; the median of {len(cands)} seeds on the held-out evaluation",
+        f"{e.get('tilt_over_5deg_rate', float('nan')):.2f} | "
+        f"{'shipped' if d == best_dir else 'left out: tilts the machine' if d in gated_dirs else ''} |"
+        for _, d, _, e in cands)
+    gate_note = (f" Seeds whose actor lifts the machine's rear over 5 deg in more than {max_tilt_rate:g} of the "
+                 f"attempts were left out of the choice (`--max-tilt-rate {max_tilt_rate:g}`): "
+                 + ", ".join(f"{c[1].name} ({c[3]['tilt_over_5deg_rate']:.2f})" for c in gated)
+                 + f"; the median is that of the other {len(kept)}." if gated else "")
+    why = {"median": f"its final actor at step {m['steps']:,}; the median of {len(kept)} seeds on the held-out evaluation"
+                     f"{f' ({len(gated)} more left out for tilting the machine)' if gated else ''}",
            "best": f"its best training-time evaluation at step {m['steps']:,}; the best of {len(cands)} seeds",
            "best-final": (f"its final actor at step {m['steps']:,}, no checkpoint picking; the best of {len(cands)} seeds' "
                           f"final actors on the held-out seed {HELD_OUT_SEED:,}: a selection, not what a retraining "
@@ -207,10 +241,10 @@ share of attempts above 5 deg.
 {deploy_note}{robust}
 ## Across seeds
 
-Held-out evaluation of each seed's {sub} actor ({'the shipped one is the median seed by success, then ASL, then AR' if select == 'median' else 'the shipped one is the best of them: not what a retraining user should expect'}; seed {HELD_OUT_SEED:,}):
+Held-out evaluation of each seed's {sub} actor ({'the shipped one is the median seed by success, then ASL, then AR' if select == 'median' else 'the shipped one is the best of them: not what a retraining user should expect'}; seed {HELD_OUT_SEED:,}).{gate_note}
 
-| seed | success | ASL | AML [kg] | AR | |
-|---|---|---|---|---|---|
+| seed | success | ASL | AML [kg] | AR | tilt > 5 deg | |
+|---|---|---|---|---|---|---|
 {seeds_rows}
 
 Final training-time evaluation (step {min(summary['final_steps']):,}, evaluation seed 1,000,000), {len(runs)} seeds:
@@ -230,4 +264,5 @@ Not yet run on the scaled machine.
 """
     (out / "README.md").write_text(card)
     return {"variant": variant, "shipped_from": str(best_dir / sub), "select": select, "evaluation": ev,
+            "left_out_for_tilt": [str(c[1]) for c in gated],
             "summary": summary}
