@@ -109,7 +109,7 @@ def test_a_randomised_card_from_before_the_change_is_still_randomised(cfg):
 def test_the_shipped_actors_run_on_the_config(cfg):
     """Every shipped card names this config, either as it is or as it was before a listed
     simulator change (then with the note)."""
-    for v in ("rld", "rlc", "rld_paper", "rld_dr", "rld_margin", "rld_tilt"):
+    for v in ("rld", "rlc", "rld_paper", "rld_dr", "rld_margin", "rld_tilt", "rld_dr_ramp", "rld_dr_midgoal"):
         pol = load_policy(default_policy_dir(v))
         assert pol.config_matches(cfg), v
         margin, tilt = pol._trained_with()
