@@ -65,7 +65,7 @@ def gate_tilt(cands: list, max_tilt_rate: float | None) -> tuple[list, list]:
     if not (0.0 <= max_tilt_rate <= 1.0):
         raise ValueError(f"max_tilt_rate = {max_tilt_rate!r}: expected a share in [0, 1]")
     kept = [c for c in cands if c[3].get("tilt_over_5deg_rate", 0.0) <= max_tilt_rate]
-    if not kept:
+    if cands and not kept:
         raise ValueError(f"every seed lifts the machine's rear over 5 deg in more than {max_tilt_rate:g} of its "
                          "held-out attempts (" + ", ".join(f"{c[1].name} {c[3].get('tilt_over_5deg_rate', 0.0):.2f}"
                                                            for c in cands) + "): nothing to ship under this gate")
@@ -107,6 +107,7 @@ def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=prin
 
     if select not in SELECTIONS:
         raise ValueError(f"select must be one of {SELECTIONS}, got {select!r}")
+    gate_tilt([], max_tilt_rate)          # a bad gate is refused before the seeds are evaluated
     sub = "best" if select == "best" else "final"
     cfg = load_config(config)
     runs = sorted(d for d in Path(runs_dir).glob("seed_*") if (d / sub / "policy.json").is_file())
