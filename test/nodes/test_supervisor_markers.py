@@ -42,6 +42,7 @@ class Feeder:
     def __init__(self, node):
         self.node = node
         self.base_x, self.boom, self.bucket = -TIP_AHEAD, 0.0, 0.0
+        self.slope = None                    # rad; once set, published at every tick, as the LiDAR node does per scan
         self.arrays = []                     # (arrival, MarkerArray)
         self.states = []
         self.lock = threading.Lock()
@@ -89,6 +90,8 @@ class Feeder:
         st = DiagnosticStatus(level=DiagnosticStatus.OK, name="/lhd_bridge: device", message="drive enabled")
         st.values = [KeyValue(key="estop", value="False")]
         self.pub_hw.publish(st)
+        if self.slope is not None:
+            self.pub_slope.publish(Float64(data=self.slope))
 
     def arm(self):
         assert self.arm_client.wait_for_service(timeout_sec=30.0), "no supervisor"
@@ -132,7 +135,10 @@ def feeder(tmp_path_factory):
 
 def test_zones_trajectory_and_clearing(feeder):
     f = feeder
-    f.pub_slope.publish(Float64(data=math.radians(20.0)))
+    # the slope as the LiDAR node gives it, every scan (a single latched sample was lost once in CI
+    # to a discovery race, leaving the supervisor without a slope at arming)
+    f.slope = math.radians(20.0)
+    f.pub_slope.publish(Float64(data=f.slope))
     f.pub_zones.publish(Float64MultiArray(data=ZONES))
 
     def zones_shown():
