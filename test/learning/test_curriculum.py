@@ -110,10 +110,11 @@ def test_config_hash_and_validation(cfg):
     # filled with their defaults (off), and the hash is the same
     old = copy.deepcopy(cfg)
     for k in ("twin_critics", "slope_curriculum", "slope_curriculum_bins", "slope_curriculum_window",
-              "slope_curriculum_uniform", "lr_final_scale", "lr_decay_from"):
+              "slope_curriculum_uniform", "lr_final_scale", "lr_decay_from", "demo_share", "demo_crowd_min",
+              "demo_crowd_max", "demo_pre_curl"):
         del old["training"][k]
     old = validate(old)
-    assert (old["training"]["twin_critics"], old["training"]["slope_curriculum"]) == (0, 0)
+    assert (old["training"]["twin_critics"], old["training"]["slope_curriculum"], old["training"]["demo_share"]) == (0, 0, 0)
     assert config_hash(old) == config_hash(cfg)
     # any other key is still required
     missing = copy.deepcopy(cfg)

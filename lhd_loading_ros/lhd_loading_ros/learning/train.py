@@ -36,6 +36,7 @@ import torch
 from lhd_loading_ros.task.config import config_hash, load_config
 from lhd_loading_ros.task.metrics import result_from_status
 from lhd_loading_ros.learning.curriculum import CurriculumConfig, SlopeCurriculum
+from lhd_loading_ros.learning.demonstrations import DemoConfig, demo_action
 from lhd_loading_ros.learning.ddpg import DdpgAgent, DdpgConfig, OUNoise, ReplayBuffer, TiltRamp, lr_scale, noise_scale
 from lhd_loading_ros.learning.evaluate import evaluate
 from lhd_loading_ros.learning.export import export_actor
@@ -44,7 +45,8 @@ EVAL_FIELDS = ("step", "ar", "aml", "aff", "asl", "success_rate", "end_zone_rate
                "front_drift_pct", "rear_drift_pct", "noise_scale", "critic_loss", "q_mean", "episodes_done",
                "wall_s", "eval_wall_s")
 EPISODE_FIELDS = ("episode", "step", "return", "loaded", "outcome", "steps", "alpha_deg", "material", "noise_scale",
-                  "source", "success")     # success: the paper's test (SL >= 1), what the slope curriculum counts
+                  "source", "success", "driver")     # success: the paper's test (SL >= 1), what the slope curriculum
+# counts; driver: "actor", or "scripted" for a demonstration (training.demo_share, learning/demonstrations.py)
 ENV_KINDS = ("local", "ros")
 
 
@@ -61,17 +63,18 @@ def reset_or_redraw(env, seed_k: int, options: dict, log=print):
     ones, stalls a few mm short of d_init) the episode's pile and conditions are drawn again from
     the seeds (seed_k, r), r = 1..ATTACK_REDRAWS, deterministically (a resume replays them), at the
     same slope. A stalled attack is not a transition the learner can use; it must not end the run.
+    MuJoCo finding the attack drive unstable (SimulationError) is redrawn in the same way.
     Returns the first observation."""
-    from lhd_sim_node.simulator import AttackError
+    from lhd_sim_node.simulator import AttackError, SimulationError
 
     try:
         return env.reset(seed=seed_k, options=options)[0]
-    except AttackError as e:
+    except (AttackError, SimulationError) as e:
         first = e
     for r in range(1, ATTACK_REDRAWS + 1):
         try:
             obs = env.reset(seed=int(np.random.default_rng([seed_k, r]).integers(2**31 - 1)), options=options)[0]
-        except AttackError:
+        except (AttackError, SimulationError):
             continue
         log(f"episode seed {seed_k}: {first}; its pile drawn again ({r} redraw{'s' if r > 1 else ''})")
         return obs
@@ -206,6 +209,12 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
         raise ValueError("training.slope_curriculum = 1 draws each training pile's slope in the learner: it needs the "
                          "in-process environment (the sim nodes draw their own piles); set it to 0 or train with "
                          "--env local")
+    demos = DemoConfig.from_training(cfg["training"])
+    if demos is not None and env_kind != "local":
+        raise ValueError("training.demo_share > 0 drives some training episodes with the scripted maneuver, which reads "
+                         "the in-process simulator's state: it needs the in-process environment; set it to 0 or "
+                         "train with --env local")
+    demo_crowd: dict = {}              # slot -> the crowd of the demonstration it runs (absent: the actor drives)
     ep_cfg = cfg["paper"]["episode"]
     curriculum = (SlopeCurriculum(float(ep_cfg["alpha_min_deg"]), float(ep_cfg["alpha_max_deg"]), cur_cfg)
                   if cur_cfg is not None else None)
@@ -241,10 +250,20 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
             if curriculum is not None:
                 # the slope from the curriculum, on its own stream of the episode's seed
                 opts["slope_deg"] = curriculum.draw(np.random.default_rng([seed_k, 0x5C]))
+            crowd = demos.draw(seed_k, step) if demos is not None else None
+            if crowd is None:
+                demo_crowd.pop(i, None)
+            else:
+                demo_crowd[i] = crowd
             return reset_or_redraw(env, seed_k, opts, log)
 
+        from lhd_sim_node.simulator import SimulationError
+
         def step_slots(actions: dict) -> dict:
-            return {0: env.step(actions[0])}
+            try:
+                return {0: env.step(actions[0])}
+            except SimulationError as e:      # MuJoCo reset an unstable state: no transition, the episode ends
+                return {0: e}
 
     slots = range(len(sources))
     agent = DdpgAgent(dc, seed)
@@ -317,6 +336,7 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
             "torch": torch.__version__, "command": sys.argv, "env": env_kind, "sources": sources,
             "transitions_by_source": contributed,
             **({"tilt_ramp": ramp.state_dict()} if ramp.enabled else {}),
+            **({"demonstrations": demos.to_dict()} if demos is not None else {}),
             **({"slope_curriculum": {**cur_cfg.to_dict(), "probabilities": curriculum.probabilities().round(4).tolist()}}
                if curriculum is not None else {})}, indent=2) + "\n")
 
@@ -382,10 +402,29 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
     try:
         while step < dc.total_steps:
             scale = noise_scale(step, dc.noise_decay_steps, dc.noise_final_scale)
-            acts = {i: np.clip(agent.act(obs[i]) + scale * noises[i].sample(), -1.0, 1.0)
+            acts = {i: (demo_action(env, demo_crowd[i], demos.pre_curl) if i in demo_crowd
+                        else np.clip(agent.act(obs[i]) + scale * noises[i].sample(), -1.0, 1.0))
                     for i in slots[: dc.total_steps - step]}
             results = step_slots(acts)
             for i, a in acts.items():        # each source's transition in turn, as one environment's
+                if isinstance(results[i], Exception):
+                    # MuJoCo found the state unstable and reset it (SimulationError): the step has no next
+                    # state to learn from, so it gives no transition; the episode ends as `aborted` in
+                    # episodes.csv and the next one starts. It must not end a run of hours
+                    log(f"{variant} seed {seed}: episode {slot_episode[i]} aborted after {env.steps} steps "
+                        f"({results[i]}); no transition from it, the next episode starts")
+                    _append_csv(out / "episodes.csv", EPISODE_FIELDS, {
+                        "episode": slot_episode[i], "step": step, "return": f"{ep_ret[i]:.3f}",
+                        "loaded": f"{env.sim.loaded_mass:.3f}", "outcome": "aborted", "steps": env.steps,
+                        "alpha_deg": f"{math.degrees(env.sim.pile.alpha):.2f}", "material": env.sim.material,
+                        "noise_scale": f"{scale:.4f}", "source": sources[i], "success": 0,
+                        "driver": f"scripted crowd {demo_crowd[i]:.3f}" if i in demo_crowd else "actor"})
+                    episode += 1
+                    ep_ret[i] = 0.0
+                    noises[i].reset()
+                    slot_episode[i] = next_index()
+                    obs[i] = reset_slot(i, episode_seed(seed, slot_episode[i]))
+                    continue
                 obs2, r, term, trunc, info = results[i]
                 if ramp.enabled:             # the tilt term (and a ramped margin's cut) apart, weighted when sampled
                     aux = float(info["terms"].get("tilt", 0.0))
@@ -405,13 +444,15 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
                 obs[i] = obs2
                 if term or trunc:
                     res = info["episode_result"]
-                    if curriculum is not None:
+                    demo = i in demo_crowd
+                    if curriculum is not None and not demo:      # the actor's failures, not the teacher's
                         curriculum.record(res.alpha_deg, res.success)     # the paper's test (SL >= 1)
                     _append_csv(out / "episodes.csv", EPISODE_FIELDS, {
                         "episode": slot_episode[i], "step": step, "return": f"{ep_ret[i]:.3f}",
                         "loaded": f"{res.loaded:.3f}", "outcome": info["outcome"] if term else "timeout",
                         "steps": res.steps, "alpha_deg": f"{res.alpha_deg:.2f}", "material": res.material,
-                        "noise_scale": f"{scale:.4f}", "source": sources[i], "success": int(res.success)})
+                        "noise_scale": f"{scale:.4f}", "source": sources[i], "success": int(res.success),
+                        "driver": f"scripted crowd {demo_crowd[i]:.3f}" if demo else "actor"})
                     episode += 1
                     ep_ret[i] = 0.0
                     noises[i].reset()

@@ -137,11 +137,15 @@ SCHEMA: dict[str, Any] = {
         "twin_critics": _i(0, 1), "slope_curriculum": _i(0, 1), "slope_curriculum_bins": _i(1, 100),
         "slope_curriculum_window": _i(1, 100_000), "slope_curriculum_uniform": _f(0.01, 1.0),
         "lr_final_scale": _f(0.01, 1.0), "lr_decay_from": _i(0, 100_000_000),
+        "demo_share": _f(0.0, 0.9), "demo_crowd_min": _f(0.05, 1.0), "demo_crowd_max": _f(0.05, 1.0),
+        "demo_pre_curl": _f(0.0, 1.4),
     },
 }
 
 # Relations between keys: (description, predicate).
 _RELATIONS = [
+    ("training.demo_crowd_min <= training.demo_crowd_max",
+     lambda c: c["training"]["demo_crowd_min"] <= c["training"]["demo_crowd_max"]),
     ("paper.end_zone.m_min < paper.end_zone.m_max", lambda c: c["paper"]["end_zone"]["m_min"] < c["paper"]["end_zone"]["m_max"]),
     ("paper.episode.alpha_min_deg < paper.episode.alpha_max_deg",
      lambda c: c["paper"]["episode"]["alpha_min_deg"] < c["paper"]["episode"]["alpha_max_deg"]),
@@ -236,7 +240,9 @@ OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curric
                      ("training", "slope_curriculum_bins"): 6, ("training", "slope_curriculum_window"): 100,
                      ("training", "slope_curriculum_uniform"): 0.5, ("training", "lr_final_scale"): 1.0,
                      ("training", "lr_decay_from"): 0, ("machine", "rear_differential"): 0,
-                     ("task", "midgoal_from_pile"): 0}
+                     ("task", "midgoal_from_pile"): 0, ("training", "demo_share"): 0.0,
+                     ("training", "demo_crowd_min"): 0.5, ("training", "demo_crowd_max"): 0.75,
+                     ("training", "demo_pre_curl"): 0.3}
 
 
 def validate(cfg: Any) -> dict:
@@ -327,7 +333,9 @@ TILT_SCHEDULE_KEYS = ("r_tilt_ramp_after_success", "r_tilt_ramp_steps", "r_tilt_
 # how the learner learned (never in the hash; the card's trained_with records them): clipped double Q
 # and the slope curriculum (learning/curriculum.py), which draws training piles, never evaluation ones
 TRAINING_SCHEDULE_KEYS = ("twin_critics", "slope_curriculum", "slope_curriculum_bins", "slope_curriculum_window",
-                          "slope_curriculum_uniform", "lr_final_scale", "lr_decay_from")
+                          "slope_curriculum_uniform", "lr_final_scale", "lr_decay_from",
+                          # scripted demonstrations in the replay (learning/demonstrations.py)
+                          "demo_share", "demo_crowd_min", "demo_crowd_max", "demo_pre_curl")
 
 
 def _with(cfg: dict, section: str, key: str, value) -> dict:

@@ -1,0 +1,69 @@
+"""Scripted demonstrations in the replay (training.demo_share; not in the paper's DDPG).
+
+Every RLD actor trained on the paper's reward drives at full wheel speed while it lifts, and on
+15 deg piles the tip leaves the face with 21-23 kg. The scripted maneuver of the simulator
+(lhd_sim_node.scripted: drive in, curl the bucket to `pre_curl`, then lift and curl at full rate
+from the pile's x_min or the first wheel drift, the wheels at a share `crowd` of full speed) loads
+33-41 kg on the same piles, at a higher return under the training reward, a maneuver that the
+actor's exploration (OU noise around a saturated wheel command) hardly ever tries. With
+demo_share > 0 that share of the training episodes, up to noise_decay_steps, is driven by the
+scripted maneuver, each with its own crowd drawn from [demo_crowd_min, demo_crowd_max]; its
+transitions go into the one replay like the actor's (DDPG is off-policy), so the critic sees what
+the slower, longer crowd is worth and the actor may learn it (Vecerik et al. 2017 keep
+demonstrations in the replay in the same way). The demonstration reads the simulator's state
+(the tip's x, the pile's x_min, the drift flags), which the actor never sees: it is a teacher in
+training only, and no actor depends on it at run time.
+
+Which episodes are demonstrations and their crowd follow from the episode's seed alone (a stream
+of its own), so a run without demonstrations draws exactly what it drew before, and a resumed run
+the same as an uninterrupted one.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+DEMO_STREAM = 0xDE
+
+
+@dataclass(frozen=True)
+class DemoConfig:
+    share: float          # share of training episodes driven by the scripted maneuver
+    crowd_min: float      # wheel speed while lifting, share of full speed, drawn per episode
+    crowd_max: float
+    pre_curl: float       # rad: bucket curl before the lift
+    until_step: int       # no demonstration starts at or after this step (noise_decay_steps)
+
+    @classmethod
+    def from_training(cls, t: dict) -> "DemoConfig | None":
+        share = float(t.get("demo_share", 0.0))
+        if share <= 0.0:
+            return None
+        lo, hi = float(t.get("demo_crowd_min", 0.5)), float(t.get("demo_crowd_max", 0.75))
+        if not (0.0 < lo <= hi <= 1.0):
+            raise ValueError(f"training.demo_crowd_min / demo_crowd_max = {lo:g} / {hi:g}: expected "
+                             "0 < demo_crowd_min <= demo_crowd_max <= 1 (shares of full wheel speed)")
+        return cls(share, lo, hi, float(t.get("demo_pre_curl", 0.3)), int(t["noise_decay_steps"]))
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    def draw(self, seed_k: int, step: int) -> float | None:
+        """The crowd of the demonstration that episode `seed_k` (starting at `step`) is, or None
+        when the actor drives it."""
+        if step >= self.until_step:
+            return None
+        rng = np.random.default_rng([int(seed_k), DEMO_STREAM])
+        if rng.random() >= self.share:
+            return None
+        return float(rng.uniform(self.crowd_min, self.crowd_max))
+
+
+def demo_action(env, crowd: float, pre_curl: float) -> np.ndarray:
+    """The scripted maneuver's normalised action for env's current state: arm still and wheels
+    full until the tip passes the pile's x_min or a wheel drifts, then curl to pre_curl and lift
+    and curl at full rate with the wheels at `crowd` of full speed."""
+    from lhd_sim_node.scripted import scripted_action
+
+    return scripted_action(env.state, env.sim.zones.x_min, crowd=crowd, pre_curl=pre_curl, lift_on_drift=True)
