@@ -65,3 +65,26 @@ def test_a_small_study_end_to_end(tmp_path):
     p = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "experiment", "paper", "--slopes", "20,x",
                         "--out", str(tmp_path / "bad")], capture_output=True, text=True, timeout=60)
     assert p.returncode != 0 and "expected comma-separated numbers" in p.stderr
+
+
+def test_the_teacher_is_the_demonstrations_maneuver(cfg):
+    """The `teacher` controller drives the training demonstrations' maneuver at the middle of their
+    crowd range: its attempt equals one driven here with scripted_action at the pile's x_min,
+    crowd (0.5 + 0.75) / 2 and pre-curl 0.3, step for step; on a 15 deg pile it loads over 30 kg."""
+    from lhd_sim_node.env import LhdLoadingEnv
+    from lhd_sim_node.scripted import scripted_action
+
+    assert ex.teacher_setting(cfg) == (0.625, 0.3)
+    ex._setup(None, {})
+    job = ex.Job("controllers", "teacher", 15.0, 15.0, "homogeneous", 3_150_000)   # the first pile of the 15 deg cell
+    row = ex.run_job(job)
+    env = LhdLoadingEnv("rld", cfg)
+    env.reset(seed=job.seed, options={"slope_deg": 15.0, "material": "homogeneous"})
+    while True:
+        _, _, term, trunc, info = env.step(scripted_action(env.state, env.sim.zones.x_min, crowd=0.625, pre_curl=0.3,
+                                                           lift_on_drift=True))
+        if term or trunc or env.steps >= 100:
+            break
+    assert row["loaded_kg"] == pytest.approx(env.sim.loaded_mass, abs=1e-9)
+    assert row["elapsed_s"] == pytest.approx(env.steps * env.p.control_dt)
+    assert row["success"] and row["loaded_kg"] > 30.0

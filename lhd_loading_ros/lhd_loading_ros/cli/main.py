@@ -400,7 +400,7 @@ def main(argv=None) -> int:
     p_paper.add_argument("--episodes", type=int, default=10, help="attempts per cell (default 10)")
     p_paper.add_argument("--out", default="runs/experiment_paper", help="folder for tables, CSV and figures")
     p_paper.add_argument("--jobs", type=int, default=0, help="processes (0: one per core)")
-    p_paper.add_argument("--controllers", default="rld,rlc,tampier,scripted")
+    p_paper.add_argument("--controllers", default="rld,rlc,tampier,scripted,teacher")
     p_paper.add_argument("--slopes", default="15,20,25,30", help="pile slopes of table (a), degrees")
     p_paper.add_argument("--materials", default="homogeneous,nonhomogeneous")
     p_paper.add_argument("--errors", default="-15,-10,-5,0,5,10,15",

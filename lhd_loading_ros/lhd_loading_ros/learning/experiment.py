@@ -10,8 +10,12 @@
     deg entries of a sweep over `errors`.
 
 Controllers: `rld`, `rlc` (the shipped actors, policies/; RLC with the deployment filter, as on the
-machine), `tampier` (the Tampier-style heuristic, config/tampier.yaml) and `scripted` (the fixed
-maneuver of lhd_sim_node.scripted). Every attempt is limited to the paper's real-world 10 s.
+machine), `tampier` (the Tampier-style heuristic, config/tampier.yaml), `scripted` (the fixed
+maneuver of lhd_sim_node.scripted, lifting at the paper's x_midgoal) and `teacher` (the same
+maneuver as the training demonstrations drive it, learning/demonstrations.py: lifting at the pile's
+x_min or the first wheel drift, the bucket curled to training.demo_pre_curl first, the wheels at the
+middle of [demo_crowd_min, demo_crowd_max] while lifting; it reads the simulator's state, the pile's
+x_min included, which no machine-side controller has). Every attempt is limited to the paper's real-world 10 s.
 Each attempt has its own seed (base seed + index in the grid), so a cell is the same set of piles
 for every controller; the attempts run on a process pool (`jobs`) and print their progress.
 
@@ -37,7 +41,7 @@ import numpy as np
 
 from lhd_loading_ros.task.cores import usable_cores
 
-CONTROLLERS = ("rld", "rlc", "tampier", "scripted")
+CONTROLLERS = ("rld", "rlc", "tampier", "scripted", "teacher")
 SLOPES = (15.0, 20.0, 25.0, 30.0)
 MATERIALS = ("homogeneous", "nonhomogeneous")
 ERRORS = (-15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0)
@@ -120,6 +124,13 @@ def told_observation(obs: np.ndarray, told_rad: float, p) -> np.ndarray:
     return out
 
 
+def teacher_setting(cfg: dict) -> tuple[float, float]:
+    """(crowd, pre_curl) of the `teacher` controller: the middle of the demonstrations' crowd range
+    and their pre-curl (config training.demo_*)."""
+    t = cfg["training"]
+    return 0.5 * (float(t["demo_crowd_min"]) + float(t["demo_crowd_max"])), float(t["demo_pre_curl"])
+
+
 def run_job(job: Job) -> dict:
     """One attempt; a row of attempts.csv (and the tip's path when job.trace)."""
     from lhd_sim_node.scripted import scripted_action
@@ -148,6 +159,10 @@ def run_job(job: Job) -> dict:
             obs, _, term, trunc, info = env.step(a)
         elif c == "scripted":
             obs, _, term, trunc, info = env.step(scripted_action(env.state, env.p.x_midgoal, lift_on_drift=True))
+        elif c == "teacher":
+            from lhd_loading_ros.learning.demonstrations import demo_action
+            t = _WORKER["teacher"] if "teacher" in _WORKER else _WORKER.setdefault("teacher", teacher_setting(env.cfg))
+            obs, _, term, trunc, info = env.step(demo_action(env, t[0], t[1]))
         else:
             obs, _, term, trunc, info = env.step_actuator(np.asarray(ctl.step(env.state, end_zone)))
         path.append((env.state.x_shovel, env.state.z_shovel))
