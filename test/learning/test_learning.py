@@ -334,6 +334,18 @@ def test_ship_picks_a_seed_and_writes_the_model_card(cfg, tmp_path):
     assert ev["randomized"]["episodes"] == ev["stress_placement"]["episodes"] == 4
     assert "| randomised |" in card and "| placement corners |" in card
     assert "Trained without domain randomisation" in card
+    # RLC's seeds are ranked as the policy node runs them, with the deployment filter: the median of
+    # two is the lower of the two by (success, ASL, AR) of evaluations with the filter, done here by hand
+    from lhd_loading_ros.learning.evaluate import evaluate as _evaluate
+    from lhd_sim_node.env import LhdLoadingEnv as _Env
+
+    keys = {}
+    for s_ in (0, 1):
+        e = _evaluate(_Env("rlc", cfg, deploy_filter=True), load_policy(tmp_path / "runs" / f"seed_{s_}" / "final").actor,
+                      4, 2_000_000, cfg["task"]["bucket_capacity"])
+        keys[s_] = (e["success_rate"], e["asl"], e["ar"])
+    assert res["shipped_from"].endswith(f"seed_{min(keys, key=keys.get)}/final")
+    assert "| success with the filter | ASL with the filter |" in card and "with the deployment filter, as the policy node" in card
     # lhd report --held-out: every seed's final actor under each condition, the same figures as an
     # evaluation of that actor by hand (RLC with the deployment filter, as on the machine)
     from lhd_loading_ros.learning.evaluate import evaluate
