@@ -145,6 +145,9 @@ def run_job(job: Job) -> dict:
         from lhd_sim_node.sim_sensors import pile_profile
         profile = pile_profile(env.sim.pile).tolist()
     told = math.radians(job.told_deg)
+    if c == "teacher":
+        from lhd_loading_ros.learning.demonstrations import demo_action
+        teacher = teacher_setting(env.cfg)
     if c == "tampier":
         if ("tampier",) not in _WORKER:
             _WORKER[("tampier",)] = TampierController(load_tampier_config(), env.p)
@@ -160,9 +163,7 @@ def run_job(job: Job) -> dict:
         elif c == "scripted":
             obs, _, term, trunc, info = env.step(scripted_action(env.state, env.p.x_midgoal, lift_on_drift=True))
         elif c == "teacher":
-            from lhd_loading_ros.learning.demonstrations import demo_action
-            t = _WORKER["teacher"] if "teacher" in _WORKER else _WORKER.setdefault("teacher", teacher_setting(env.cfg))
-            obs, _, term, trunc, info = env.step(demo_action(env, t[0], t[1]))
+            obs, _, term, trunc, info = env.step(demo_action(env, *teacher))
         else:
             obs, _, term, trunc, info = env.step_actuator(np.asarray(ctl.step(env.state, end_zone)))
         path.append((env.state.x_shovel, env.state.z_shovel))

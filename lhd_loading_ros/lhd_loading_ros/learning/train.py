@@ -46,7 +46,7 @@ EVAL_FIELDS = ("step", "ar", "aml", "aff", "asl", "success_rate", "end_zone_rate
                "wall_s", "eval_wall_s")
 EPISODE_FIELDS = ("episode", "step", "return", "loaded", "outcome", "steps", "alpha_deg", "material", "noise_scale",
                   "source", "success", "driver")     # success: the paper's test (SL >= 1), what the slope curriculum
-# counts; driver: "actor", or "scripted" for a demonstration (training.demo_share, learning/demonstrations.py)
+# counts; driver: "actor", or "scripted crowd c" for a demonstration (training.demo_share, learning/demonstrations.py)
 ENV_KINDS = ("local", "ros")
 
 
