@@ -44,6 +44,7 @@ class DdpgConfig:
     twin_critics: int = 0          # 1: clipped double Q (two critics, the target's min; Fujimoto et al. 2018)
     lr_final_scale: float = 1.0    # both learning rates fall linearly to this share of theirs ...
     lr_decay_from: int = 0         # ... from this step to total_steps (1.0: constant, the paper)
+    demo_bc: float = 0.0           # > 0: weight of the actor's Q-filtered behaviour cloning on demonstrations (DDPGfD)
 
     @classmethod
     def from_config(cls, cfg: dict) -> "DdpgConfig":
@@ -58,6 +59,7 @@ class DdpgConfig:
             eval_seed=t["eval_seed"], checkpoint_every=t["checkpoint_every"],
             twin_critics=int(t.get("twin_critics", 0)),
             lr_final_scale=float(t.get("lr_final_scale", 1.0)), lr_decay_from=int(t.get("lr_decay_from", 0)),
+            demo_bc=float(t.get("demo_bc", 0.0)),
         )
 
     def to_dict(self) -> dict:
@@ -108,14 +110,19 @@ class ReplayBuffer:
     [o (12) | a (3) | r | not_terminal | o' (12)], sampled uniformly with replacement.
     aux=True adds a last column, a reward term stored apart (the tilt penalty under a training
     schedule, TiltRamp): a sample's reward is then r + aux_weight * aux, with the weight of the
-    moment, so every transition in the buffer is relabelled when the weight changes."""
+    moment, so every transition in the buffer is relabelled when the weight changes.
+    demo=True adds a last column (after aux), 1 for a scripted demonstration's transition
+    (training.demo_bc); sample() then returns that column as a fifth tensor."""
 
-    def __init__(self, capacity: int, obs_dim: int = OBS_DIM, act_dim: int = ACT_DIM, aux: bool = False):
+    def __init__(self, capacity: int, obs_dim: int = OBS_DIM, act_dim: int = ACT_DIM, aux: bool = False,
+                 demo: bool = False):
         if capacity < 1:
             raise ValueError(f"replay capacity must be >= 1, got {capacity}")
         self.obs_dim, self.act_dim = obs_dim, act_dim
         self.aux = bool(aux)
-        self.width = 2 * obs_dim + act_dim + 2 + int(self.aux)
+        self.demo = bool(demo)
+        self.width = 2 * obs_dim + act_dim + 2 + int(self.aux) + int(self.demo)
+        self._aux_col = 2 * obs_dim + act_dim + 2 if self.aux else None
         self.data = torch.zeros(capacity, self.width, dtype=torch.float32)
         self._np = self.data.numpy()      # shares memory: writes without torch overhead
         self.capacity = capacity
@@ -123,7 +130,7 @@ class ReplayBuffer:
         self.pos = 0
         self.aux_weight = 0.0
 
-    def add(self, o, a, r: float, terminated: bool, o2, aux: float = 0.0) -> None:
+    def add(self, o, a, r: float, terminated: bool, o2, aux: float = 0.0, demo: bool = False) -> None:
         row = self._np[self.pos]
         k = self.obs_dim
         row[:k] = o
@@ -133,9 +140,13 @@ class ReplayBuffer:
         row[k + 1] = 0.0 if terminated else 1.0
         row[k + 2:k + 2 + self.obs_dim] = o2
         if self.aux:
-            row[-1] = aux
+            row[self._aux_col] = aux
         elif aux != 0.0:
             raise ValueError("this replay buffer stores no aux reward term (ReplayBuffer(aux=True))")
+        if self.demo:
+            row[-1] = 1.0 if demo else 0.0
+        elif demo:
+            raise ValueError("this replay buffer stores no demonstration flag (ReplayBuffer(demo=True))")
         self.pos = (self.pos + 1) % self.capacity
         self.size = min(self.size + 1, self.capacity)
 
@@ -145,7 +156,9 @@ class ReplayBuffer:
         k = self.obs_dim + self.act_dim
         r = b[:, k:k + 1]
         if self.aux and self.aux_weight != 0.0:
-            r = r + self.aux_weight * b[:, -1:]
+            r = r + self.aux_weight * b[:, self._aux_col:self._aux_col + 1]
+        if self.demo:      # (o|a), r, not_terminal, o', demonstration flag
+            return b[:, :k], r, b[:, k + 1:k + 2], b[:, k + 2:k + 2 + self.obs_dim], b[:, -1:]
         return b[:, :k], r, b[:, k + 1:k + 2], b[:, k + 2:k + 2 + self.obs_dim]   # (o|a), r, not_terminal, o'
 
     def state_dict(self) -> dict:
@@ -155,8 +168,8 @@ class ReplayBuffer:
         n = int(d["size"])
         if d["data"].shape[1] != self.width or n > self.capacity:
             raise ValueError("replay checkpoint does not match this buffer's layout or capacity (a run with the tilt "
-                             "penalty's ramp stores one more column: resume it with the same task.r_tilt_ramp_* "
-                             "settings)")
+                             "penalty's ramp stores one more column, and one with training.demo_bc > 0 another: "
+                             "resume it with the same task.r_tilt_ramp_* and training.demo_bc settings)")
         self.data[:n].copy_(d["data"])
         self.size, self.pos = n, int(d["pos"])
 
@@ -237,6 +250,8 @@ class DdpgAgent:
             self.critic2_t.copy_from(self.critic2)
             self.critic2_opt = FlatAdam(self.critic2, cfg.critic_lr)
         self.updates = 0
+        # behaviour cloning (cfg.demo_bc): demonstration rows sampled, and those the Q-filter let through
+        self.bc_rows, self.bc_passed = 0, 0
 
     def set_lr_scale(self, scale: float) -> None:
         """Both optimisers' learning rates at `scale` times the configured ones."""
@@ -256,13 +271,19 @@ class DdpgAgent:
         from lhd_loading_ros.policy.actor_file import NumpyActor
         return NumpyActor(self.actor.numpy_weights())
 
-    def update(self, oa: torch.Tensor, r: torch.Tensor, not_term: torch.Tensor, o2: torch.Tensor) -> tuple[float, float]:
+    def update(self, oa: torch.Tensor, r: torch.Tensor, not_term: torch.Tensor, o2: torch.Tensor,
+               demo: torch.Tensor | None = None) -> tuple[float, float]:
         """One critic step on the TD target and one actor step on -Q(o, mu(o)); then the
         soft target updates. Returns the TD errors and Q(o, mu(o)) of the batch (tensors).
         With twin critics the target is the smaller of the two target critics' values (the
         overestimation that made seeds collapse late feeds on the max), both critics learn
         it, and the actor follows the first (clipped double Q, without TD3's delayed actor
-        and target smoothing)."""
+        and target smoothing).
+        demo (B x 1, 1 for a demonstration's transition) with cfg.demo_bc = w > 0: the actor's
+        loss gains w / B * sum_i f_i ||mu(o_i) - a_i||^2 over the batch's demonstration rows
+        whose action the updated critic values above the actor's, f_i = 1[Q(o_i, a_i) >
+        Q(o_i, mu(o_i))] (the Q-filter of DDPGfD, Nair et al. 2018): the actor is pulled to the
+        teacher only where the critic says the teacher does better."""
         cfg = self.cfg
         B = oa.shape[0]
         # TD target y = s r + gamma (1 - terminated) Q'(o', mu'(o'))
@@ -287,7 +308,16 @@ class DdpgAgent:
         qpi, ccache = self.critic.forward(torch.cat((o, pi), 1))
         dq = torch.full_like(qpi, -1.0 / B)
         dx = self.critic.backward(ccache, dq, weight_grads=False, input_grad=True)
-        self.actor.backward(acache, dx[:, self.obs_dim:])
+        da = dx[:, self.obs_dim:]
+        if demo is not None and cfg.demo_bc > 0.0:
+            with torch.no_grad():
+                q_demo = self.critic(oa)             # Q(o, a) of the stored action, by the updated critic
+            passed = demo * (q_demo > qpi)
+            # d/dmu of w/B sum f ||mu - a||^2 = 2 w f (mu - a) / B
+            da = da + (2.0 * cfg.demo_bc / B) * passed * (pi - oa[:, self.obs_dim:])
+            self.bc_rows += int(demo.sum())
+            self.bc_passed += int(passed.sum())
+        self.actor.backward(acache, da)
         self.actor_opt.step()
         self.actor_t.soft_update_from(self.actor, cfg.tau)
         self.critic_t.soft_update_from(self.critic, cfg.tau)

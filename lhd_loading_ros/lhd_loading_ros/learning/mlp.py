@@ -96,7 +96,10 @@ class FlatMlp:
             if j > 0 or input_grad:
                 dh = dz.mm(self.W[j])
                 if j > 0:
-                    dz = dh.mul_(h_in > 0)   # relu'(z) = 1 where the layer's output is positive
+                    # relu'(z) = 1 where the layer's output is positive: dh where h_in > 0, else 0. One
+                    # fused kernel; dh.mul_(h_in > 0) gives the same values at 8 times the cost (the
+                    # bool mask's conversion to float was a third of a DDPG update)
+                    dz = torch.ops.aten.threshold_backward(dh, h_in, 0.0)
                 else:
                     dx = dh
         return dx

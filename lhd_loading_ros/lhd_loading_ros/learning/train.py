@@ -214,6 +214,9 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
         raise ValueError("training.demo_share > 0 drives some training episodes with the scripted maneuver, which reads "
                          "the in-process simulator's state: it needs the in-process environment; set it to 0 or "
                          "train with --env local")
+    if dc.demo_bc > 0.0 and demos is None:
+        raise ValueError(f"training.demo_bc = {dc.demo_bc:g} clones the scripted demonstrations' actions, but "
+                         "training.demo_share = 0 gives none: set demo_share > 0 (e.g. 0.2), or demo_bc to 0")
     demo_crowd: dict = {}              # slot -> the crowd of the demonstration it runs (absent: the actor drives)
     ep_cfg = cfg["paper"]["episode"]
     curriculum = (SlopeCurriculum(float(ep_cfg["alpha_min_deg"]), float(ep_cfg["alpha_max_deg"]), cur_cfg)
@@ -267,7 +270,8 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
 
     slots = range(len(sources))
     agent = DdpgAgent(dc, seed)
-    replay = ReplayBuffer(dc.replay_size, aux=ramp.enabled)   # the tilt term apart while it is ramped in
+    # the tilt term apart while it is ramped in; the demonstration flag for behaviour cloning
+    replay = ReplayBuffer(dc.replay_size, aux=ramp.enabled, demo=dc.demo_bc > 0.0)
     rng = np.random.default_rng(seed)
     noise = OUNoise(3, dc.ou_mu, dc.ou_sigma, dc.ou_theta, dc.ou_dt, rng)
     # one OU process per source (the first draws from the run's rng, as with one environment)
@@ -430,10 +434,10 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
                     aux = float(info["terms"].get("tilt", 0.0))
                     if ramp.pitch_margin:
                         aux += float(info["success_margin_cut"])
-                    replay.add(obs[i], a, r - aux, term, obs2, aux=aux)
+                    replay.add(obs[i], a, r - aux, term, obs2, aux=aux, demo=replay.demo and i in demo_crowd)
                     replay.aux_weight = ramp.weight(step)
                 else:
-                    replay.add(obs[i], a, r, term, obs2)
+                    replay.add(obs[i], a, r, term, obs2, demo=replay.demo and i in demo_crowd)
                 contributed[sources[i]] += 1
                 ep_ret[i] += r
                 step += 1
@@ -477,6 +481,11 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
                         for k in ("ar", "aml", "aff", "asl", "success_rate", "critic_loss", "q_mean"):
                             tb.add_scalar(f"eval/{k}", row[k], step)
                     last_eval = {k: row[k] for k in EVAL_FIELDS if k in row}
+                    if dc.demo_bc > 0.0 and agent.bc_rows:
+                        log(f"{variant} seed {seed}: step {step:,}: behaviour cloning on "
+                            f"{agent.bc_passed / agent.bc_rows:.1%} of the {agent.bc_rows:,} demonstration rows sampled "
+                            "since the last evaluation (the others failed the Q-filter)")
+                        agent.bc_rows, agent.bc_passed = 0, 0
                     if ramp.evaluated(ev["success_rate"], step):
                         log(f"{variant} seed {seed}: evaluation success {ev['success_rate']:.2f} at step {step:,}: the "
                             f"tilt penalty{' and the pitch margin are' if ramp.pitch_margin else ' is'} ramped in "
