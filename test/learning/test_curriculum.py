@@ -111,7 +111,7 @@ def test_config_hash_and_validation(cfg):
     old = copy.deepcopy(cfg)
     for k in ("twin_critics", "slope_curriculum", "slope_curriculum_bins", "slope_curriculum_window",
               "slope_curriculum_uniform", "lr_final_scale", "lr_decay_from", "demo_share", "demo_crowd_min",
-              "demo_crowd_max", "demo_pre_curl"):
+              "demo_crowd_max", "demo_pre_curl", "demo_bc"):
         del old["training"][k]
     old = validate(old)
     assert (old["training"]["twin_critics"], old["training"]["slope_curriculum"], old["training"]["demo_share"]) == (0, 0, 0)

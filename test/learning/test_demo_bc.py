@@ -1,0 +1,135 @@
+"""Q-filtered behaviour cloning on the scripted demonstrations (training.demo_bc, DDPGfD):
+the replay's demonstration flag, the update against a reference written with autograd and
+torch.optim.Adam (the Q-filter evaluated independently), that a batch without demonstrations
+updates exactly as plain DDPG, what is refused, and a short real run whose replay flags exactly
+the demonstrations' transitions."""
+PARALLEL_SAFE = True
+
+import copy
+import csv
+import dataclasses
+
+import numpy as np
+import pytest
+import torch
+
+from lhd_loading_ros.learning.ddpg import DdpgAgent, DdpgConfig, ReplayBuffer
+from lhd_loading_ros.task.config import config_hash, validate
+
+
+def small_cfg(cfg, **training):
+    c = copy.deepcopy(cfg)
+    c["training"].update({"learning_starts": 256, "eval_episodes": 2, "eval_every": 400, "checkpoint_every": 400,
+                          "hidden_sizes": [32, 32], **training})
+    return c
+
+
+def test_the_replay_flags_demonstrations_beside_the_aux_column():
+    rb = ReplayBuffer(8, aux=True, demo=True)
+    assert rb.width == 2 * 12 + 3 + 2 + 2
+    o = np.arange(12) / 12.0
+    for k in range(8):
+        rb.add(o + k, np.full(3, 0.1 * k), float(k), False, o - k, aux=10.0 * k, demo=k % 3 == 0)
+    rb.aux_weight = 0.5
+    oa, r, nt, o2, d = rb.sample(64, torch.Generator().manual_seed(0))
+    k = oa[:, 12] / 0.1                                    # each row's k, read back from its action
+    kk = torch.round(k)
+    torch.testing.assert_close(r[:, 0], kk + 0.5 * 10.0 * kk)          # r + w aux: the aux column, not the flag
+    torch.testing.assert_close(d[:, 0], (kk % 3 == 0).float())
+    torch.testing.assert_close(o2[:, 0], -kk)
+    plain = ReplayBuffer(4)
+    plain.add(o, np.zeros(3), 0.0, False, o)
+    assert len(plain.sample(2, torch.Generator().manual_seed(0))) == 4     # no flag column, no fifth tensor
+    with pytest.raises(ValueError, match="no demonstration flag"):
+        plain.add(o, np.zeros(3), 0.0, False, o, demo=True)
+
+
+def reference_update_bc(actor, critic, actor_t, critic_t, oa, r, nd, o2, demo, cfg, w):
+    """DDPG (CleanRL's update) plus DDPGfD's Q-filtered behaviour cloning, with autograd."""
+    with torch.no_grad():
+        y = cfg.reward_scale * r + cfg.gamma * nd * critic_t(torch.cat([o2, actor_t(o2)], 1))
+    critic.opt.zero_grad()
+    ((critic(oa) - y) ** 2).mean().backward()
+    critic.opt.step()
+    o, a = oa[:, :12], oa[:, 12:]
+    pi = actor(o)
+    with torch.no_grad():           # the filter, by the updated critic: the demonstration's action valued higher
+        f = demo * (critic(oa) > critic(torch.cat([o, pi], 1))).float()
+    loss = -critic(torch.cat([o, pi], 1)).mean() + w * (f * ((pi - a) ** 2).sum(1, keepdim=True)).sum() / oa.shape[0]
+    actor.opt.zero_grad()
+    loss.backward()
+    actor.opt.step()
+    with torch.no_grad():
+        for net, tgt in ((actor, actor_t), (critic, critic_t)):
+            for p, tp in zip(net.parameters(), tgt.parameters()):
+                tp.mul_(1 - cfg.tau).add_(cfg.tau * p)
+    return int(f.sum()), int(demo.sum())
+
+
+def test_the_update_matches_an_autograd_reference(cfg):
+    dc = dataclasses.replace(DdpgConfig.from_config(small_cfg(cfg)), demo_bc=2.0, batch_size=128)
+    agent = DdpgAgent(dc, seed=5)
+    nets = [agent.actor.to_sequential(), agent.critic.to_sequential(), agent.actor_t.to_sequential(),
+            agent.critic_t.to_sequential()]
+    nets[0].opt = torch.optim.Adam(nets[0].parameters(), lr=dc.actor_lr)
+    nets[1].opt = torch.optim.Adam(nets[1].parameters(), lr=dc.critic_lr)
+    g = torch.Generator().manual_seed(6)
+    passed = rows = 0
+    for _ in range(5):
+        oa, o2 = torch.rand(dc.batch_size, 15, generator=g) * 2 - 1, torch.rand(dc.batch_size, 12, generator=g)
+        r = torch.randn(dc.batch_size, 1, generator=g) * 500
+        nd = (torch.rand(dc.batch_size, 1, generator=g) > 0.2).float()
+        demo = (torch.rand(dc.batch_size, 1, generator=g) < 0.4).float()
+        agent.update(oa, r, nd, o2, demo)
+        p, n = reference_update_bc(*nets, oa, r, nd, o2, demo, dc, dc.demo_bc)
+        passed, rows = passed + p, rows + n
+        torch.testing.assert_close(agent.actor.flat, torch.cat([q.detach().reshape(-1) for q in nets[0].parameters()]),
+                                   rtol=1e-4, atol=1e-5)
+    # the filter let some rows through and held others back (so both branches were tested), and
+    # the agent's own count of them is the reference's
+    assert 0 < passed < rows
+    assert (agent.bc_passed, agent.bc_rows) == (passed, rows)
+
+
+def test_no_demonstration_in_the_batch_is_plain_ddpg(cfg):
+    dc = dataclasses.replace(DdpgConfig.from_config(small_cfg(cfg)), demo_bc=5.0)
+    a, b = DdpgAgent(dc, seed=1), DdpgAgent(dataclasses.replace(dc, demo_bc=0.0), seed=1)
+    g = torch.Generator().manual_seed(2)
+    for _ in range(3):
+        oa, o2 = torch.rand(dc.batch_size, 15, generator=g), torch.rand(dc.batch_size, 12, generator=g)
+        r, nd = torch.randn(dc.batch_size, 1, generator=g), torch.ones(dc.batch_size, 1)
+        a.update(oa, r, nd, o2, torch.zeros(dc.batch_size, 1))
+        b.update(oa, r, nd, o2)
+    assert torch.equal(a.actor.flat, b.actor.flat) and torch.equal(a.critic.flat, b.critic.flat)
+
+
+def test_behaviour_cloning_needs_demonstrations(cfg, tmp_path):
+    from lhd_loading_ros.learning.train import train
+
+    with pytest.raises(ValueError, match="demo_bc = 1 clones .* training.demo_share = 0 gives none"):
+        train("rld", 0, tmp_path, steps=10, config=small_cfg(cfg, demo_bc=1.0), resume=False, progress=False)
+
+
+def test_a_short_run_flags_exactly_the_demonstrations(cfg, tmp_path):
+    from lhd_loading_ros.learning.train import train
+    from lhd_loading_ros.policy.actor_file import load_policy
+
+    c = small_cfg(cfg, demo_share=0.5, demo_bc=1.0)
+    logs = []
+    train("rld", 3, tmp_path, steps=400, config=c, resume=False, progress=False, log=logs.append)
+    with open(tmp_path / "episodes.csv") as f:
+        rows = list(csv.DictReader(f))
+    demo_steps = sum(int(r["steps"]) for r in rows if r["driver"] != "actor")
+    actor_steps = sum(int(r["steps"]) for r in rows if r["driver"] == "actor")
+    assert demo_steps > 0 and actor_steps > 0
+    st = torch.load(tmp_path / "checkpoint.pt", weights_only=True)
+    flags = st["replay"]["data"][:, -1]
+    assert set(flags.unique().tolist()) == {0.0, 1.0}
+    # every transition of a finished episode is in the replay; the episode still running at the
+    # end adds at most 400 - (finished steps) more, flagged or not
+    rest = 400 - demo_steps - actor_steps
+    assert demo_steps <= int(flags.sum()) <= demo_steps + rest
+    assert any("behaviour cloning on" in line for line in logs)
+    meta = load_policy(tmp_path / "final").meta
+    assert meta["trained_with"]["demo_bc"] == 1.0 and meta["trained_with"]["demonstrations"]["demo_share"] == 0.5
+    assert meta["config_hash"] == config_hash(validate(small_cfg(cfg)))      # never in the hash
