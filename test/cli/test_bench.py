@@ -60,3 +60,24 @@ def test_lhd_bench_node_runs_and_leaves_no_temporary_folder(tmp_path):
     assert res["cycles"] >= 20 and res["rate_hz"] == 10.0
     assert 0 < res["latency_p50_ms"] <= res["latency_p99_ms"]
     assert list(tmp.iterdir()) == []
+
+
+def test_lhd_bench_train_jobs_projects_the_study(tmp_path, cfg):
+    """Two processes timed at once (as a study runs its trials), randomised: the study's
+    projection is its rounds (ceil(10 / 2) = 5) times one run's protocol."""
+    import math
+
+    import yaml
+
+    cfg["training"]["learning_starts"] = 256
+    path = tmp_path / "p.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    out = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "bench", "train", "--json", "--steps", "60",
+                          "--jobs", "2", "--randomize", "--config", str(path)], capture_output=True, text=True,
+                         check=True).stdout
+    res = json.loads(out)
+    assert res["jobs"] == 2 and res["randomize"] is True and res["steps"] == 60
+    assert res["updates_per_s"] > 0 and res["env_steps_per_s"] > 0 and res["loop_steps_per_s"] > 0
+    assert res["projected_study_min"] == pytest.approx(math.ceil(10 / 2) * res["projected_protocol_min"], abs=0.06)
+    # the protocol's time is at least its 300,000 steps at the measured loop rate
+    assert res["projected_protocol_min"] >= cfg["training"]["total_steps"] / res["loop_steps_per_s"] / 60 - 0.01

@@ -8,9 +8,19 @@ projected_protocol_min = total_steps / loop_steps_per_s
                          + evaluations x eval_episodes x eval_episode_steps / env_steps_per_s
 With --vs-sb3, Stable-Baselines3's DDPG (same networks, hyperparameters, OU noise and
 environment; an optional extra, not a dependency) is timed the same way in the same run.
+
+With --jobs N (N > 1) the same measurement runs in N processes at once, as a study runs its
+trials (`lhd sweep --jobs N`, `lhd train --seeds --jobs N`): the rates are the processes' mean,
+so they include what the runs cost each other (caches, memory bandwidth), and
+projected_study_min = ceil(10 / N) x projected_protocol_min is issue 14's whole study (2
+variants x 5 seeds) run N at a time. --config / --randomize time the recipe a study trains.
+The projection is a lower bound: it times the loop's first few thousand steps, and a measured
+study (docs/training.md) shows what it leaves out.
 """
 from __future__ import annotations
 
+import math
+import multiprocessing
 import time
 
 import numpy as np
@@ -22,10 +32,41 @@ from lhd_loading_ros.learning.ddpg import DdpgAgent, DdpgConfig, OUNoise, Replay
 EVAL_EPISODE_STEPS = 40     # a trained policy's episode (about 4 s at 10 Hz); see docs/training.md
 
 
-def bench_train(steps: int = 3000, seed: int = 0, config=None, variant: str = "rld", vs_sb3: bool = False) -> dict:
+STUDY_RUNS = 10        # issue 14's study: 2 variants x 5 seeds
+
+
+def bench_train_jobs(jobs: int = 1, steps: int = 3000, seed: int = 0, config=None, randomize: bool = False) -> dict:
+    """bench_train in `jobs` processes at once (one per seed seed..seed+jobs-1); the mean of their
+    rates, and the projected time of the whole study run `jobs` at a time."""
+    if jobs < 1:
+        raise ValueError(f"jobs must be >= 1, got {jobs}")
+    if jobs == 1:
+        res = bench_train(steps=steps, seed=seed, config=config, randomize=randomize)
+        runs = [res]
+    else:
+        if isinstance(config, dict):
+            raise ValueError("bench_train_jobs with jobs > 1 takes a parameter file's path (or None), not a dict")
+        with multiprocessing.get_context("spawn").Pool(jobs) as pool:
+            runs = pool.starmap(_bench_one, [(steps, seed + i, config, randomize) for i in range(jobs)])
+        res = dict(runs[0])
+        for k in ("updates_per_s", "env_steps_per_s", "loop_steps_per_s", "projected_protocol_min"):
+            res[k] = round(sum(r[k] for r in runs) / jobs, 2)
+    res["jobs"] = jobs
+    res["projected_study_min"] = round(math.ceil(STUDY_RUNS / jobs) * res["projected_protocol_min"], 1)
+    return res
+
+
+def _bench_one(steps, seed, config, randomize):
+    return bench_train(steps=steps, seed=seed, config=config, randomize=randomize)
+
+
+def bench_train(steps: int = 3000, seed: int = 0, config=None, variant: str = "rld", vs_sb3: bool = False,
+                randomize: bool = False) -> dict:
     from lhd_sim_node.env import LhdLoadingEnv
 
     cfg = config if isinstance(config, dict) else load_config(config)
+    if randomize:
+        cfg = {**cfg, "randomization": {**cfg["randomization"], "enabled": 1}}
     dc = DdpgConfig.from_config(cfg)
     torch.set_num_threads(cfg["training"]["torch_threads"])
     env = LhdLoadingEnv(variant, cfg)
@@ -69,7 +110,7 @@ def bench_train(steps: int = 3000, seed: int = 0, config=None, variant: str = "r
         "loop_steps_per_s": round(loop_rate, 1),
         "projected_protocol_min": round((dc.total_steps / loop_rate + eval_s) / 60.0, 2),
         "hidden_sizes": list(dc.hidden_sizes), "batch_size": dc.batch_size, "torch_threads": torch.get_num_threads(),
-        "steps": steps,
+        "steps": steps, "randomize": bool(int(cfg["randomization"].get("enabled", 0))),
     }
     if vs_sb3:
         res.update(_bench_sb3(cfg, dc, variant, steps, seed))

@@ -16,7 +16,8 @@
                                            the paper's real-world tables in simulation: controllers x slopes x
                                            materials, and the slope-error table (markdown, CSV, figures)
   lhd ship --variant V RUNS_DIR            ship a variant's median seed (final actor) to policies/V with its model card
-  lhd bench train [--json] [--vs-sb3]      training-loop speed and the projected protocol time
+  lhd bench train [--json] [--vs-sb3] [--jobs N] [--config F] [--randomize]
+                                           training-loop speed, the projected protocol and study times
   lhd bench node [--json]                  policy node latency and 10 Hz jitter against the sim node
   lhd config check [PATH]                  validate a parameter file
   lhd mjcf [--out FILE]                    the MJCF of the scaled LHD, generated from the parameters
@@ -59,7 +60,16 @@ def _bench(args) -> int:
     elif args.what == "train":
         from lhd_loading_ros.cli.bench_train import bench_train
 
-        res = bench_train(steps=args.steps if args.steps is not None else 3000, seed=args.seed, config=args.config, vs_sb3=args.vs_sb3)
+        steps = args.steps if args.steps is not None else 3000
+        if args.vs_sb3 and args.jobs > 1:
+            print("lhd bench train: --vs-sb3 times one process; leave --jobs out", file=sys.stderr)
+            return 2
+        if args.vs_sb3:
+            res = bench_train(steps=steps, seed=args.seed, config=args.config, vs_sb3=True, randomize=args.randomize)
+        else:
+            from lhd_loading_ros.cli.bench_train import bench_train_jobs
+
+            res = bench_train_jobs(args.jobs, steps=steps, seed=args.seed, config=args.config, randomize=args.randomize)
     elif args.what == "node":
         from lhd_loading_ros.cli.bench_node import bench_node
 
@@ -349,6 +359,10 @@ def main(argv=None) -> int:
     p_bench.add_argument("--seed", type=int, default=0)
     p_bench.add_argument("--rounds", type=int, default=3, help="alternating runs; the best of each is reported")
     p_bench.add_argument("--config", default=None, help="parameter file (default: config/lhd_params.yaml)")
+    p_bench.add_argument("--jobs", type=int, default=1, help="train: time N processes at once, as a study runs "
+                         "its trials, and project the whole study (2 variants x 5 seeds) N at a time")
+    p_bench.add_argument("--randomize", action="store_true", help="train: with domain randomisation (lhd train "
+                         "--randomize)")
     p_sweep = sub.add_parser("sweep", help="a study (variants x seeds x randomisation x overrides) on Ray; "
                              "resumable; run folders for lhd report")
     p_sweep.add_argument("study", help="study file (YAML; lhd_loading_ros/learning/sweep.py, docs/training.md)")
