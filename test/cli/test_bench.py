@@ -63,13 +63,14 @@ def test_lhd_bench_node_runs_and_leaves_no_temporary_folder(tmp_path):
 
 
 def test_lhd_bench_train_jobs_projects_the_study(tmp_path, cfg):
-    """Two processes timed at once (as a study runs its trials), randomised: the study's
-    projection is its rounds (ceil(10 / 2) = 5) times one run's protocol."""
+    """Two processes timed at once (as a study runs its trials), randomised, with the behaviour
+    cloning recipe's replay: the study's projection is its rounds (ceil(10 / 2) = 5) times one
+    run's protocol."""
     import math
 
     import yaml
 
-    cfg["training"]["learning_starts"] = 256
+    cfg["training"].update({"learning_starts": 256, "demo_share": 0.2, "demo_bc": 1.0})
     path = tmp_path / "p.yaml"
     path.write_text(yaml.safe_dump(cfg))
     out = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "bench", "train", "--json", "--steps", "60",
@@ -81,3 +82,16 @@ def test_lhd_bench_train_jobs_projects_the_study(tmp_path, cfg):
     assert res["projected_study_min"] == pytest.approx(math.ceil(10 / 2) * res["projected_protocol_min"], abs=0.06)
     # the protocol's time is at least its 300,000 steps at the measured loop rate
     assert res["projected_protocol_min"] >= cfg["training"]["total_steps"] / res["loop_steps_per_s"] / 60 - 0.01
+
+
+def test_lhd_bench_train_names_bad_input(tmp_path):
+    def run(*extra):
+        return subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "bench", "train", "--steps", "10",
+                               *extra], capture_output=True, text=True)
+
+    r = run("--jobs", "0")
+    assert r.returncode == 2 and "--jobs must be >= 1, got 0" in r.stderr
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("paper: {}\n")
+    r = run("--jobs", "2", "--config", str(bad))
+    assert r.returncode == 2 and "lhd bench train:" in r.stderr and "Traceback" not in r.stderr

@@ -37,6 +37,19 @@ def test_the_replay_flags_demonstrations_beside_the_aux_column():
     torch.testing.assert_close(r[:, 0], kk + 0.5 * 10.0 * kk)          # r + w aux: the aux column, not the flag
     torch.testing.assert_close(d[:, 0], (kk % 3 == 0).float())
     torch.testing.assert_close(o2[:, 0], -kk)
+    # an aux column and a flag column have the same width: a checkpoint of one never loads into the other
+    aux_only, demo_only = ReplayBuffer(8, aux=True), ReplayBuffer(8, demo=True)
+    assert aux_only.width == demo_only.width
+    aux_only.add(o, np.zeros(3), 0.0, False, o, aux=-7.5)
+    with pytest.raises(ValueError, match="holds the tilt term apart .* this run's replay the demonstration flag"):
+        demo_only.load_state_dict(aux_only.state_dict())
+    with pytest.raises(ValueError, match="holds the demonstration flag .* this run's replay the tilt term apart"):
+        aux_only.load_state_dict(demo_only.state_dict())
+    # a checkpoint written before the flag existed (no "aux"/"demo" keys): its width says aux or not
+    old = {k: v for k, v in aux_only.state_dict().items() if k not in ("aux", "demo")}
+    ReplayBuffer(8, aux=True).load_state_dict(old)
+    with pytest.raises(ValueError, match="holds the tilt term apart"):
+        demo_only.load_state_dict(old)
     plain = ReplayBuffer(4)
     plain.add(o, np.zeros(3), 0.0, False, o)
     assert len(plain.sample(2, torch.Generator().manual_seed(0))) == 4     # no flag column, no fifth tensor
@@ -125,10 +138,15 @@ def test_a_short_run_flags_exactly_the_demonstrations(cfg, tmp_path):
     st = torch.load(tmp_path / "checkpoint.pt", weights_only=True)
     flags = st["replay"]["data"][:, -1]
     assert set(flags.unique().tolist()) == {0.0, 1.0}
-    # every transition of a finished episode is in the replay; the episode still running at the
-    # end adds at most 400 - (finished steps) more, flagged or not
+    # every transition of a finished episode is in the replay, and so are the steps of the episode
+    # still running at the end, flagged if it is a demonstration (its index follows the last one)
+    from lhd_loading_ros.learning.demonstrations import DemoConfig
+    from lhd_loading_ros.learning.train import episode_seed
+
     rest = 400 - demo_steps - actor_steps
-    assert demo_steps <= int(flags.sum()) <= demo_steps + rest
+    last_is_demo = DemoConfig.from_training(validate(c)["training"]).draw(episode_seed(3, len(rows)), 0) is not None
+    assert [int(r["episode"]) for r in rows] == list(range(len(rows)))
+    assert int(flags.sum()) == demo_steps + (rest if last_is_demo else 0)
     assert any("behaviour cloning on" in line for line in logs)
     meta = load_policy(tmp_path / "final").meta
     assert meta["trained_with"]["demo_bc"] == 1.0 and meta["trained_with"]["demonstrations"]["demo_share"] == 0.5

@@ -46,8 +46,11 @@ def bench_train_jobs(jobs: int = 1, steps: int = 3000, seed: int = 0, config=Non
     else:
         if isinstance(config, dict):
             raise ValueError("bench_train_jobs with jobs > 1 takes a parameter file's path (or None), not a dict")
-        with multiprocessing.get_context("spawn").Pool(jobs) as pool:
-            runs = pool.starmap(_bench_one, [(steps, seed + i, config, randomize) for i in range(jobs)])
+        ctx = multiprocessing.get_context("spawn")
+        with ctx.Manager() as manager, ctx.Pool(jobs) as pool:
+            # the processes start timing together (their imports take different times)
+            barrier = manager.Barrier(jobs)
+            runs = pool.starmap(_bench_one, [(steps, seed + i, config, randomize, barrier) for i in range(jobs)])
         res = dict(runs[0])
         for k in ("updates_per_s", "env_steps_per_s", "loop_steps_per_s", "projected_protocol_min"):
             res[k] = round(sum(r[k] for r in runs) / jobs, 2)
@@ -56,12 +59,12 @@ def bench_train_jobs(jobs: int = 1, steps: int = 3000, seed: int = 0, config=Non
     return res
 
 
-def _bench_one(steps, seed, config, randomize):
-    return bench_train(steps=steps, seed=seed, config=config, randomize=randomize)
+def _bench_one(steps, seed, config, randomize, barrier):
+    return bench_train(steps=steps, seed=seed, config=config, randomize=randomize, barrier=barrier)
 
 
 def bench_train(steps: int = 3000, seed: int = 0, config=None, variant: str = "rld", vs_sb3: bool = False,
-                randomize: bool = False) -> dict:
+                randomize: bool = False, barrier=None) -> dict:
     from lhd_sim_node.env import LhdLoadingEnv
 
     cfg = config if isinstance(config, dict) else load_config(config)
@@ -71,7 +74,13 @@ def bench_train(steps: int = 3000, seed: int = 0, config=None, variant: str = "r
     torch.set_num_threads(cfg["training"]["torch_threads"])
     env = LhdLoadingEnv(variant, cfg)
     agent = DdpgAgent(dc, seed)
-    replay = ReplayBuffer(dc.replay_size)
+    # the replay as train() builds it: the tilt term apart under its ramp, the demonstration flag
+    # for behaviour cloning (a share training.demo_share of the rows flagged, so that the update
+    # timed is the recipe's, its Q-filter and cloning term included)
+    ramp = float(cfg["task"].get("r_tilt_per_deg", 0.0)) > 0 and float(cfg["task"].get("r_tilt_ramp_after_success", 0.0)) > 0
+    replay = ReplayBuffer(dc.replay_size, aux=ramp, demo=dc.demo_bc > 0.0)
+    demo_share = float(cfg["training"].get("demo_share", 0.0))
+    flag_rng = np.random.default_rng([seed, 0xDE])
     noise = OUNoise(3, dc.ou_mu, dc.ou_sigma, dc.ou_theta, dc.ou_dt, np.random.default_rng(seed))
     obs, _ = env.reset(seed=seed)
     ep = 0
@@ -80,7 +89,7 @@ def bench_train(steps: int = 3000, seed: int = 0, config=None, variant: str = "r
         nonlocal obs, ep
         a = np.clip(agent.act(obs) + noise.sample(), -1.0, 1.0)
         obs2, r, term, trunc, _ = env.step(a)
-        replay.add(obs, a, r, term, obs2)
+        replay.add(obs, a, r, term, obs2, demo=replay.demo and flag_rng.random() < demo_share)
         obs = obs2
         if term or trunc:
             ep += 1
@@ -88,6 +97,8 @@ def bench_train(steps: int = 3000, seed: int = 0, config=None, variant: str = "r
             obs, _ = env.reset(seed=seed + ep)
 
     n_warm = max(dc.learning_starts, dc.batch_size)
+    if barrier is not None:
+        barrier.wait()
     t = time.perf_counter()
     for _ in range(n_warm):
         env_step()

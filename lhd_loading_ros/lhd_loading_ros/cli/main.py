@@ -64,6 +64,19 @@ def _bench(args) -> int:
         if args.vs_sb3 and args.jobs > 1:
             print("lhd bench train: --vs-sb3 times one process; leave --jobs out", file=sys.stderr)
             return 2
+        if args.jobs < 1:
+            print(f"lhd bench train: --jobs must be >= 1, got {args.jobs}", file=sys.stderr)
+            return 2
+        if args.jobs > usable_cores():
+            print(f"lhd bench train: --jobs {args.jobs} is more than this machine's {usable_cores()} usable cores: the "
+                  "processes share them, and the projection is of that oversubscribed study", file=sys.stderr)
+        from lhd_loading_ros.task.config import ConfigError, load_config
+
+        try:
+            load_config(args.config)        # a bad parameter file is named here, not in a worker's traceback
+        except (ConfigError, OSError, ValueError) as exc:
+            print(f"lhd bench train: {exc}", file=sys.stderr)
+            return 2
         if args.vs_sb3:
             res = bench_train(steps=steps, seed=args.seed, config=args.config, vs_sb3=True, randomize=args.randomize)
         else:

@@ -162,14 +162,28 @@ class ReplayBuffer:
         return b[:, :k], r, b[:, k + 1:k + 2], b[:, k + 2:k + 2 + self.obs_dim]   # (o|a), r, not_terminal, o'
 
     def state_dict(self) -> dict:
-        return {"data": self.data[: self.size].clone(), "pos": self.pos, "size": self.size}
+        return {"data": self.data[: self.size].clone(), "pos": self.pos, "size": self.size,
+                "aux": self.aux, "demo": self.demo}
 
     def load_state_dict(self, d: dict) -> None:
         n = int(d["size"])
+        # which extra columns the checkpoint's rows hold: saved since the demonstration flag exists;
+        # before it, a row one wider than the plain layout held the tilt ramp's aux term. The widths
+        # alone cannot tell an aux column from a flag column (the same width), so both are named
+        base = 2 * self.obs_dim + self.act_dim + 2
+        theirs = (bool(d.get("aux", d["data"].shape[1] == base + 1)), bool(d.get("demo", False)))
+        mine = (self.aux, self.demo)
+        if theirs != mine:
+            what = {(True, False): "the tilt term apart (task.r_tilt_ramp_after_success > 0)",
+                    (False, True): "the demonstration flag (training.demo_bc > 0)",
+                    (True, True): "the tilt term apart and the demonstration flag",
+                    (False, False): "neither the tilt term apart nor the demonstration flag"}
+            raise ValueError(f"the replay checkpoint holds {what[theirs]}, this run's replay {what[mine]}: resume it "
+                             "with the same task.r_tilt_ramp_* and training.demo_bc settings, or use another --out")
         if d["data"].shape[1] != self.width or n > self.capacity:
-            raise ValueError("replay checkpoint does not match this buffer's layout or capacity (a run with the tilt "
-                             "penalty's ramp stores one more column, and one with training.demo_bc > 0 another: "
-                             "resume it with the same task.r_tilt_ramp_* and training.demo_bc settings)")
+            raise ValueError(f"replay checkpoint does not match this buffer's layout or capacity ({d['data'].shape[1]} "
+                             f"columns, {n:,} rows; this buffer: {self.width} columns, capacity {self.capacity:,}): "
+                             "resume it with the same paper.ddpg.replay_size")
         self.data[:n].copy_(d["data"])
         self.size, self.pos = n, int(d["pos"])
 

@@ -299,7 +299,7 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
         elif st.get("slope_curriculum"):
             raise ValueError(f"{ckpt} was trained with training.slope_curriculum: resume with it on, or use another "
                              "--out")
-        if ramp.enabled and st.get("tilt_ramp"):      # (the replay's layout already refused a ramp switched on/off)
+        if ramp.enabled and st.get("tilt_ramp"):      # (the replay's columns already refused a ramp switched on/off)
             ramp.load_state_dict(json.loads(st["tilt_ramp"]))
         rng.bit_generator.state = json.loads(st["rng"])
         noise.x[:] = st["noise_x"].numpy()
