@@ -50,6 +50,10 @@ def test_the_replay_flags_demonstrations_beside_the_aux_column():
     ReplayBuffer(8, aux=True).load_state_dict(old)
     with pytest.raises(ValueError, match="holds the tilt term apart"):
         demo_only.load_state_dict(old)
+    both = ReplayBuffer(8, aux=True, demo=True)         # the first flag checkpoints: two extra columns, unnamed
+    both.add(o, np.zeros(3), 0.0, False, o, aux=-1.0, demo=True)
+    ReplayBuffer(8, aux=True, demo=True).load_state_dict({k: v for k, v in both.state_dict().items()
+                                                          if k not in ("aux", "demo")})
     plain = ReplayBuffer(4)
     plain.add(o, np.zeros(3), 0.0, False, o)
     assert len(plain.sample(2, torch.Generator().manual_seed(0))) == 4     # no flag column, no fifth tensor

@@ -167,11 +167,13 @@ class ReplayBuffer:
 
     def load_state_dict(self, d: dict) -> None:
         n = int(d["size"])
-        # which extra columns the checkpoint's rows hold: saved since the demonstration flag exists;
-        # before it, a row one wider than the plain layout held the tilt ramp's aux term. The widths
-        # alone cannot tell an aux column from a flag column (the same width), so both are named
+        # which extra columns the checkpoint's rows hold: named in the checkpoint since 2026-11-27. The
+        # widths alone cannot tell an aux column from a flag column (the same width), so both are
+        # named; before that, one extra column was the tilt ramp's aux term (the flag did not exist)
+        # and two were aux and flag (the first checkpoints with the flag)
         base = 2 * self.obs_dim + self.act_dim + 2
-        theirs = (bool(d.get("aux", d["data"].shape[1] == base + 1)), bool(d.get("demo", False)))
+        extra = d["data"].shape[1] - base
+        theirs = (bool(d.get("aux", extra >= 1)), bool(d.get("demo", extra == 2)))
         mine = (self.aux, self.demo)
         if theirs != mine:
             what = {(True, False): "the tilt term apart (task.r_tilt_ramp_after_success > 0)",
