@@ -175,6 +175,38 @@ def test_stress_cases_in_the_evaluation(cfg):
         stress_conditions("wind", 0, cfg)
 
 
+def test_rocky_stress_case_puts_the_most_rocks_in_every_pile(cfg):
+    """`--stress rocky`: every evaluation pile nonhomogeneous, holding randomization.rocks_max
+    rocks (as many as fit: counted here from the voxels that took the rock density), where the
+    nominal evaluation alternates gravel-only and 3-8-rock piles."""
+    from lhd_loading_ros.learning.evaluate import evaluate
+
+    env = LhdLoadingEnv("rld", cfg)
+    piles = []
+
+    def policy(obs):
+        if env.steps == 0:
+            p = env.sim.pile
+            piles.append((env.sim.material, p.rocks, int((p.density == cfg["pile"]["rock_density"]).sum())))
+        return np.array([1.0, 1.0, 1.0])
+
+    evaluate(env, policy, 8, 11, cfg["task"]["bucket_capacity"], breakdown=False, stress="rocky")
+    n_max = cfg["randomization"]["rocks_max"]
+    assert len(piles) == 8 and all(m == "nonhomogeneous" for m, _, _ in piles)
+    assert all(8 < n <= n_max for _, n, _ in piles), piles      # more than any nominal pile's 3-8
+    assert all(vox > 0 for _, _, vox in piles)
+    nominal = []
+
+    def policy_nominal(obs):
+        if env.steps == 0:
+            nominal.append((env.sim.material, env.sim.pile.rocks))
+        return np.array([1.0, 1.0, 1.0])
+
+    evaluate(env, policy_nominal, 8, 11, cfg["task"]["bucket_capacity"], breakdown=False)
+    assert {m for m, _ in nominal} == {"homogeneous", "nonhomogeneous"}
+    assert all(n <= cfg["pile"]["rocks_max"] for _, n in nominal)
+
+
 def test_lhd_eval_refuses_actor_only_options_for_the_heuristic(capsys):
     from lhd_loading_ros.cli.main import main
 

@@ -415,7 +415,7 @@ def main(argv=None) -> int:
     p_eval.add_argument("--stress", choices=list(STRESS_CASES), default=None,
                         help="actor: every episode under a named stress case (placement: heading +-3 deg, lip +-5 cm "
                              "off axis, camera noise/dropouts/delay, 100 ms actuator dead time; sensors; delay; light / dense gravel: "
-                             "the density range's ends)")
+                             "the density range's ends; rocky: every pile with randomization.rocks_max rocks)")
     p_eval.add_argument("--randomize", action="store_true",
                         help="actor: every episode under drawn conditions (config section randomization): how the "
                              "actor fares when the machine differs from the simulator")
@@ -443,7 +443,7 @@ def main(argv=None) -> int:
     p_report.add_argument("--json", action="store_true")
     p_report.add_argument("--held-out", metavar="CONDITIONS",
                           help="also evaluate each run's final actor on the held-out piles (seed 2,000,000) under these "
-                               "comma-separated conditions: nominal, randomized, placement, sensors, delay, light, dense")
+                               "comma-separated conditions: nominal, randomized, placement, sensors, delay, light, dense, rocky")
     p_report.add_argument("--episodes", type=int, default=120, help="--held-out: episodes per actor and condition")
     p_report.add_argument("--config", default=None, help="--held-out: parameter file (default config/lhd_params.yaml)")
     p_report.add_argument("--jobs", type=int, default=0,

@@ -14,7 +14,7 @@ from typing import Callable
 import numpy as np
 
 from lhd_loading_ros.task.metrics import EpisodeResult, aggregate
-from lhd_loading_ros.task.randomization import stress_conditions
+from lhd_loading_ros.task.randomization import STRESS_MATERIAL, stress_conditions
 
 EVAL_SLOPES = (15.0, 20.0, 25.0, 30.0)
 EVAL_MATERIALS = ("homogeneous", "nonhomogeneous")
@@ -46,6 +46,7 @@ def evaluate(env, policy: Callable[[np.ndarray], np.ndarray], episodes: int, see
         s, opts = episode_conditions(i, seed)
         if stress is not None:
             opts["conditions"] = stress_conditions(stress, i, env.cfg)
+            opts["material"] = STRESS_MATERIAL.get(stress, opts["material"])
         results.append(run_policy_episode(env, policy, s, opts))
     out = aggregate(results, bucket_capacity)
     if breakdown:

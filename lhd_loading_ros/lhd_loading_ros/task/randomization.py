@@ -169,6 +169,10 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
     light      gravel at the light end of the section's density range (its lowest 100 kg/m^3:
                loose, dry), the pile's other ranges as configured
     dense      gravel at the dense end (its highest 100 kg/m^3: dense, moist)
+    rocky      every pile nonhomogeneous (STRESS_MATERIAL) with the section's rocks_max rocks of
+               8-15 cm (12, against the paper's piles' 3-8; a rock that finds no room in a shallow
+               wedge is left out, as in every pile): the nominal evaluation puts rocks in half its
+               piles, this case in all of them, as many as training ever drew
     """
     r = cfg["randomization"]
     sensors = dict(vx_noise=r["vx_noise"], vx_dropout_probability=r["vx_dropout_probability"],
@@ -186,7 +190,12 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
         lo, hi = r["density_min"], r["density_max"]
         band = (lo, min(hi, lo + 100.0)) if name == "light" else (max(lo, hi - 100.0), hi)
         return Conditions(soil=replace(SoilRanges.from_config(cfg), density=band))
+    if name == "rocky":
+        n = int(r["rocks_max"])
+        return Conditions(soil=replace(SoilRanges.from_config(cfg), rocks=(n, n)))
     raise ValueError(f"unknown stress case {name!r}; expected one of {', '.join(STRESS_CASES)}")
 
 
-STRESS_CASES = ("placement", "sensors", "delay", "light", "dense")
+STRESS_CASES = ("placement", "sensors", "delay", "light", "dense", "rocky")
+# the material a stress case puts every episode on (the others keep the evaluation's alternation)
+STRESS_MATERIAL = {"rocky": "nonhomogeneous"}
