@@ -284,6 +284,38 @@ def test_policy_node_without_actor_reports_error(ros, tmp_path):
         ros.destroy_publisher(pub_status)
 
 
+def test_policy_node_refuses_an_actor_trained_with_another_observation_scaling(ros, tmp_path, cfg):
+    """An actor trained on 10-35 deg piles under the shipped 15-30 deg parameter file would read
+    every slope and d_end scaled otherwise: the node loads no actor, says why on /diagnostics and in
+    its log, and commands zero (test/policy/test_observation_scaling.py has the check itself)."""
+    import copy
+
+    import torch
+
+    from lhd_loading_ros.learning.export import export_actor
+    from lhd_loading_ros.learning.mlp import FlatMlp
+
+    c = copy.deepcopy(cfg)
+    c["paper"]["episode"]["alpha_min_deg"], c["paper"]["episode"]["alpha_max_deg"] = 10.0, 35.0
+    d = export_actor(tmp_path / "wide", FlatMlp([12, 8, 3], "tanh", generator=torch.Generator().manual_seed(0)), c,
+                     {"variant": "rld", "seed": 0})
+    diag = DiagWatch(ros)
+    pub_status = running_status(ros)
+    cmds = []
+    sub = ros.create_subscription(Float64MultiArray, "/lhd/cmd", lambda m: cmds.append(list(m.data)), 10)
+    pol = RosProcess(POLICY, {"policy_dir": str(d)}, tmp_path / "pol.log")
+    try:
+        assert spin_until(ros, lambda: diag.has("/lhd_policy: decision", ERROR, "zero command: no actor loaded")
+                          and len(cmds) >= 3, 60), pol.log()
+        assert all(c == [0.0, 0.0, 0.0] for c in cmds)
+        assert "another observation scaling" in pol.log() and "alpha_min" in pol.log()
+    finally:
+        assert pol.stop() == 0
+        ros.destroy_subscription(sub)
+        ros.destroy_subscription(diag.sub)
+        ros.destroy_publisher(pub_status)
+
+
 # ------------------------------------------------------------------ whole episodes: use_sim_time, namespaces, start
 def run_pair(tmp_path, tag, sim_params, pol_params, ns="", remap_clock=False):
     remaps = {"__ns": ns, **({"/clock": f"{ns}/clock"} if remap_clock else {})} if ns else None

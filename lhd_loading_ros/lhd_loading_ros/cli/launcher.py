@@ -387,8 +387,10 @@ def main(argv=None, demo: bool = False) -> int:
 
     policy = args.policy or str(default_policy_dir("rld"))
     try:
-        pol = load_policy(policy)
-    except PolicyFileError as exc:
+        from lhd_loading_ros.task.config import load_config
+
+        pol = load_policy(policy).check_config(load_config(args.config))
+    except (PolicyFileError, ValueError) as exc:
         print(f"{ap.prog}: {exc}", file=sys.stderr)
         return 1
 

@@ -181,6 +181,7 @@ def _eval(args) -> int:
     try:
         pol = load_policy(args.policy)
         cfg = load_config(args.config)
+        pol.check_config(cfg)
     except (PolicyFileError, ConfigError) as exc:
         print(f"lhd eval: {exc}", file=sys.stderr)
         return 1

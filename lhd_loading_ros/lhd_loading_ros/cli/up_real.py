@@ -312,9 +312,11 @@ def check_args(ap: argparse.ArgumentParser, args) -> None:
     if args.policy:
         from lhd_loading_ros.policy.actor_file import PolicyFileError, load_policy
 
+        from lhd_loading_ros.task.config import load_config
+
         try:
-            load_policy(args.policy)
-        except PolicyFileError as exc:
+            load_policy(args.policy).check_config(load_config(args.config))
+        except (PolicyFileError, ValueError) as exc:
             ap.error(str(exc))
 
 

@@ -192,6 +192,11 @@ def run(jobs: list[Job], jobs_n: int = 0, config=None, policy_dirs: dict | None 
     from lhd_loading_ros.policy.actor_file import default_policy_dir
     dirs = {v: str(default_policy_dir(v)) for v in ("rld", "rlc")}
     dirs.update(policy_dirs or {})
+    from lhd_loading_ros.policy.actor_file import load_policy
+    from lhd_loading_ros.task.config import load_config
+    cfg = config if isinstance(config, dict) else load_config(config)
+    for c in sorted({j.controller for j in jobs} & {"rld", "rlc"}):
+        load_policy(dirs[c]).check_config(cfg)    # before the pool: an actor trained with another scaling is refused
     n = jobs_n or usable_cores()
     rows: list = [None] * len(jobs)
     t0 = time.monotonic()

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from lhd_loading_ros.task.actions import ACT_NAMES
 from lhd_loading_ros.task.config import config_hash
-from lhd_loading_ros.task.observation import OBS_HIGH, OBS_LOW, OBS_NAMES
+from lhd_loading_ros.task.observation import OBS_HIGH, OBS_LOW, OBS_NAMES, normalisers
 from lhd_loading_ros.task.params import TaskParams
 from lhd_loading_ros.policy.actor_file import save_policy
 from lhd_loading_ros.learning.curriculum import CurriculumConfig
@@ -15,7 +15,9 @@ def export_actor(directory, actor: FlatMlp, cfg: dict, meta: dict):
     curriculum = CurriculumConfig.from_training(cfg.get("training", {}))
     full = {
         "observation": {"names": list(OBS_NAMES), "low": OBS_LOW.tolist(), "high": OBS_HIGH.tolist(),
-                        "normalization": "lhd_loading_ros.task.observation.build_observation (docs/modeling.md)"},
+                        "normalization": "lhd_loading_ros.task.observation.build_observation (docs/modeling.md)",
+                        # the constants it scaled by in training (SI, rad): the nodes refuse other ones
+                        "normalisers": normalisers(p)},
         "action": {"names": list(ACT_NAMES), "range": [-1.0, 1.0],
                    "actuator_low": [p.wheels_min, p.boom_min, p.bucket_min],
                    "actuator_high": [p.wheels_max, p.boom_max, p.bucket_max], "actuator_units": "rad/s"},

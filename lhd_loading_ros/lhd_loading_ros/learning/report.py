@@ -78,8 +78,9 @@ def _held_out_one(job: tuple) -> dict:
     from lhd_loading_ros.task.config import load_config
 
     run_dir, condition, episodes, seed, config = job
-    pol = load_policy(Path(run_dir) / "final")
-    ev = evaluate_under(condition, pol.variant, pol.actor, load_config(config), episodes, seed, breakdown=True)
+    cfg = load_config(config)
+    pol = load_policy(Path(run_dir) / "final").check_config(cfg)      # --config: the scaling it was trained with
+    ev = evaluate_under(condition, pol.variant, pol.actor, cfg, episodes, seed, breakdown=True)
     out = {m: ev[m] for m in HELD_OUT_METRICS}
     out["by_slope"] = {k: v["success_rate"] for k, v in ev["by_slope"].items()}
     return out

@@ -119,7 +119,7 @@ def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=prin
     env_deploy = LhdLoadingEnv(variant, cfg, deploy_filter=True) if variant == "rlc" else None
     cands = []
     for d in runs:
-        pol = load_policy(d / sub)
+        pol = load_policy(d / sub).check_config(cfg)
         if pol.variant != variant:
             raise ValueError(f"{d}/{sub} is a {pol.variant} actor, not {variant}")
         ev = evaluate(env, pol.actor, episodes, HELD_OUT_SEED, cfg["task"]["bucket_capacity"])

@@ -176,7 +176,9 @@ class PolicyNode(Node):
             path = gp("policy_dir") or str(default_policy_dir("rld"))
             actor, variant, slope_range = None, "rld", None
             try:
-                pol = load_policy(path)
+                # an actor trained with another observation scaling (e.g. 10-35 deg piles) is refused:
+                # it would read this config's inputs as others
+                pol = load_policy(path).check_config(cfg)
                 lo, hi, source = pol.trained_slope_range_deg(cfg)
                 actor, variant, slope_range = pol.actor, pol.variant, (lo, hi)
                 if pol.meta.get("config_hash") not in (None, "") and not pol.config_matches(cfg):

@@ -130,7 +130,7 @@ class SupervisorNode(Node):
         self.prefix = ns = topic_prefix(self, gp("namespace_prefix"))
         if gp("policy_dir"):
             try:
-                lo, hi, source = load_policy(gp("policy_dir")).trained_slope_range_deg(cfg)
+                lo, hi, source = load_policy(gp("policy_dir")).check_config(cfg).trained_slope_range_deg(cfg)
             except PolicyFileError as exc:
                 raise ValueError(f"parameter 'policy_dir' = {gp('policy_dir')!r}: {exc}") from None
             source = f"{gp('policy_dir')}: {source}"

@@ -120,6 +120,46 @@ class LoadedPolicy:
         h = self.meta.get("config_hash")
         return hash_matches(h, cfg, margin, tilt) or sim_change_note(h, cfg, margin, tilt) is not None
 
+    def observation_mismatch(self, cfg: dict) -> str | None:
+        """Why this actor would see its observation scaled otherwise under `cfg` than in training,
+        or None. The card's `observation.normalisers` (every constant build_observation scales by)
+        against `cfg`'s; a card from before that record: its trained slope range, over which alpha
+        is normalised, against `cfg`'s alpha_min_deg / alpha_max_deg. Other differences of the
+        parameter file (the reward, the simulator) leave what the actor sees as it was."""
+        from lhd_loading_ros.task.observation import normaliser_differences
+        from lhd_loading_ros.task.params import TaskParams
+
+        hint = ("; run it with the parameter file it was trained with (config hash "
+                f"{str(self.meta.get('config_hash', '?'))[:12]}; e.g. --config, or the nodes' `config` parameter)")
+        rec = (self.meta.get("observation") or {}).get("normalisers")
+        if isinstance(rec, dict) and rec:
+            bad = [k for k, v in rec.items() if isinstance(v, bool) or not isinstance(v, (int, float))
+                   or not math.isfinite(v)]
+            if bad:
+                raise PolicyFileError(f"{self.path / META_FILE}: observation.normalisers {', '.join(bad)} are not "
+                                      "finite numbers")
+            diffs = normaliser_differences(rec, TaskParams.from_config(cfg))
+            if not diffs:
+                return None
+            return (f"policy {self.path} was trained with another observation scaling than this parameter file "
+                    f"gives: " + ", ".join(f"{k} {a:.6g} in training, {b:.6g} here" for k, a, b in diffs) + hint)
+        lo, hi, _ = self.trained_slope_range_deg(cfg)
+        ep = cfg["paper"]["episode"]
+        if "slope_deg" in (self.meta.get("trained_ranges") or {}) and (
+                not math.isclose(lo, float(ep["alpha_min_deg"])) or not math.isclose(hi, float(ep["alpha_max_deg"]))):
+            return (f"policy {self.path} was trained on {lo:g}-{hi:g} deg piles, over which its observation "
+                    f"normalises the slope; this parameter file normalises it over "
+                    f"{float(ep['alpha_min_deg']):g}-{float(ep['alpha_max_deg']):g} deg" + hint)
+        return None
+
+    def check_config(self, cfg: dict) -> "LoadedPolicy":
+        """Raise PolicyFileError when the actor would see another observation scaling under `cfg`
+        (observation_mismatch); return self."""
+        why = self.observation_mismatch(cfg)
+        if why is not None:
+            raise PolicyFileError(why)
+        return self
+
     def sim_change_note(self, cfg: dict) -> str | None:
         """task.config.sim_change_note for this card: trained on the simulator before a change."""
         margin, tilt = self._trained_with()

@@ -28,6 +28,27 @@ _LOW = OBS_LOW.astype(np.float64)
 _HIGH = OBS_HIGH.astype(np.float64)
 
 
+# The constants build_observation scales by (TaskParams fields; SI units, angles in rad). An actor's
+# card records them (learning/export.py); an actor run under other values sees inputs it was never
+# trained on (e.g. alpha over 10-35 deg read as over 15-30), so the nodes and the CLI refuse it
+# (policy.actor_file.LoadedPolicy.observation_mismatch)
+NORMALISER_FIELDS = ("x_init_obs", "x_obs", "y_obs", "z_obs", "phi_shovel_min", "phi_shovel_max", "v_x_max",
+                     "boom_angle_min", "boom_angle_max", "boom_min", "boom_max", "bucket_angle_min",
+                     "bucket_angle_max", "bucket_min", "bucket_max", "d_end_max", "alpha_min", "alpha_max")
+
+
+def normalisers(p: TaskParams) -> dict:
+    """{field: value} of NORMALISER_FIELDS for these task parameters (what an actor's card records)."""
+    return {f: float(getattr(p, f)) for f in NORMALISER_FIELDS}
+
+
+def normaliser_differences(recorded: dict, p: TaskParams, rel_tol: float = 1e-6) -> list[tuple[str, float, float]]:
+    """(field, recorded, these parameters') for each recorded constant that differs from p's."""
+    here = normalisers(p)
+    return [(k, float(v), here[k]) for k, v in recorded.items()
+            if k in here and not math.isclose(float(v), here[k], rel_tol=rel_tol, abs_tol=1e-9)]
+
+
 def _to_pm1(v: float, lo: float, hi: float) -> float:
     return 2.0 * (v - lo) / (hi - lo) - 1.0
 
