@@ -96,11 +96,18 @@ def test_older_cards_are_checked_by_their_trained_slope_range(cfg, tmp_path):
         load_policy(d).observation_mismatch(cfg)
 
 
-def test_every_shipped_actor_runs_under_the_shipped_config(cfg):
+def test_every_shipped_actor_runs_under_the_shipped_config_or_its_own(cfg):
+    """An actor shipped with its own parameter file (policies/rld_wide: 10-35 deg) runs under that
+    file and is refused under the shipped one; every other runs under the shipped one."""
     dirs = [d for d in sorted((ROOT / "policies").iterdir()) if (d / META_FILE).is_file()]
-    assert len(dirs) >= 2
+    assert len(dirs) >= 2 and (ROOT / "policies" / "rld_wide" / "lhd_params.yaml").is_file()
     for d in dirs:
-        assert load_policy(d).observation_mismatch(cfg) is None, d
+        own = d / "lhd_params.yaml"
+        if own.is_file():
+            assert load_policy(d).observation_mismatch(load_config(own)) is None, d
+            assert load_policy(d).observation_mismatch(cfg) is not None, d
+        else:
+            assert load_policy(d).observation_mismatch(cfg) is None, d
 
 
 def test_cli_refuses_a_mismatched_actor(cfg, wide_actor, tmp_path, capsys):
