@@ -386,11 +386,17 @@ def main(argv=None, demo: bool = False) -> int:
     from lhd_loading_ros.nodes.policy_node import default_policy_dir
 
     policy = args.policy or str(default_policy_dir("rld"))
-    try:
-        from lhd_loading_ros.task.config import load_config
+    from lhd_loading_ros.task.config import ConfigError, load_config
 
-        pol = load_policy(policy).check_config(load_config(args.config))
-    except (PolicyFileError, ValueError) as exc:
+    try:
+        pol = load_policy(policy)
+        try:
+            cfg_checked = load_config(args.config)
+        except ConfigError:
+            cfg_checked = None        # a bad parameter file: the nodes refuse it and say why (their logs kept)
+        if cfg_checked is not None:
+            pol.check_config(cfg_checked)
+    except PolicyFileError as exc:
         print(f"{ap.prog}: {exc}", file=sys.stderr)
         return 1
 

@@ -312,11 +312,17 @@ def check_args(ap: argparse.ArgumentParser, args) -> None:
     if args.policy:
         from lhd_loading_ros.policy.actor_file import PolicyFileError, load_policy
 
-        from lhd_loading_ros.task.config import load_config
+        from lhd_loading_ros.task.config import ConfigError, load_config
 
         try:
-            load_policy(args.policy).check_config(load_config(args.config))
-        except (PolicyFileError, ValueError) as exc:
+            pol = load_policy(args.policy)
+            try:
+                cfg_checked = load_config(args.config)
+            except ConfigError:
+                cfg_checked = None    # a bad parameter file: the nodes refuse it and say why
+            if cfg_checked is not None:
+                pol.check_config(cfg_checked)
+        except PolicyFileError as exc:
             ap.error(str(exc))
 
 
