@@ -133,14 +133,22 @@ def _train(args) -> int:
         extra = (["--steps", str(args.steps)] if args.steps else []) + (["--config", args.config] if args.config else [])
         extra += ["--no-resume"] if not args.resume else []
         extra += ["--randomize"] if args.randomize else []
-        return run_seeds(args.variant, seeds, out, args.jobs or usable_cores(), extra)
+        for k in args.keep_checkpoint:
+            extra += ["--keep-checkpoint", str(k)]
+        if args.branch_from and "{seed}" not in args.branch_from:
+            print("lhd train: with --seeds, --branch-from names each seed's checkpoint with {seed}, e.g. "
+                  "runs/x/seed_{seed}/checkpoint_step250000.pt", file=sys.stderr)
+            return 2
+        per_seed = (lambda s: ["--branch-from", args.branch_from.format(seed=s)]) if args.branch_from else None
+        return run_seeds(args.variant, seeds, out, args.jobs or usable_cores(), extra, per_seed=per_seed)
     from lhd_loading_ros.learning.train import train
 
     run_dir = out if args.out and not args.seeds else out / f"seed_{seeds[0]}"
     try:
         ev = train(args.variant, seeds[0], run_dir, steps=args.steps, config=args.config, resume=args.resume,
                    progress=args.progress, randomize=args.randomize, env_kind=args.env, namespaces=namespaces,
-                   ros_timeout=args.ros_timeout)
+                   ros_timeout=args.ros_timeout, keep_checkpoints=args.keep_checkpoint,
+                   branch_from=args.branch_from.format(seed=seeds[0]) if args.branch_from else None)
     except (ConfigError, ValueError) as exc:
         print(f"lhd train: {exc}", file=sys.stderr)
         return 1
@@ -396,6 +404,14 @@ def main(argv=None) -> int:
                          "/sim0,/sim1; '/' for the un-namespaced node)")
     p_train.add_argument("--ros-timeout", type=float, default=30.0, help="--env ros: seconds to wait for a sim node")
     p_train.add_argument("--no-resume", dest="resume", action="store_false", help="start over even if a checkpoint exists")
+    p_train.add_argument("--keep-checkpoint", type=int, action="append", default=[], metavar="STEP",
+                         help="also keep the checkpoint of this step as checkpoint_step<STEP>.pt (repeatable), for "
+                              "--branch-from")
+    p_train.add_argument("--branch-from", metavar="CHECKPOINT",
+                         help="start a new --out from a kept checkpoint of the same variant, seed and config hash "
+                              "(with --seeds: a file name under each seed's directory of another run, e.g. "
+                              "runs/x/seed_{seed}/checkpoint_step250000.pt) and go on under this --config: a late "
+                              "change of the training schedule compared pairwise at the cost of the remaining steps")
     p_train.add_argument("--no-progress", dest="progress", action="store_false")
     p_train.add_argument("--randomize", action="store_true",
                          help="domain randomisation (config section randomization: slope-estimate error, sensor noise, "

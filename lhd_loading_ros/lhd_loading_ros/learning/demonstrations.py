@@ -6,7 +6,8 @@ Every RLD actor trained on the paper's reward drives at full wheel speed while i
 from the pile's x_min or the first wheel drift, the wheels at a share `crowd` of full speed) loads
 33-41 kg on the same piles, at a higher return under the training reward, a maneuver that the
 actor's exploration (OU noise around a saturated wheel command) hardly ever tries. With
-demo_share > 0 that share of the training episodes, up to noise_decay_steps, is driven by the
+demo_share > 0 that share of the training episodes, up to training.demo_until_step (0: up to
+noise_decay_steps, where the exploration noise reaches its floor), is driven by the
 scripted maneuver, each with its own crowd drawn from [demo_crowd_min, demo_crowd_max]; its
 transitions go into the one replay like the actor's (DDPG is off-policy), so the critic sees what
 the slower, longer crowd is worth and the actor may learn it (Vecerik et al. 2017 keep
@@ -33,7 +34,7 @@ class DemoConfig:
     crowd_min: float      # wheel speed while lifting, share of full speed, drawn per episode
     crowd_max: float
     pre_curl: float       # rad: bucket curl before the lift
-    until_step: int       # no demonstration starts at or after this step (noise_decay_steps)
+    until_step: int       # no demonstration starts at or after this step (demo_until_step, 0: noise_decay_steps)
 
     @classmethod
     def from_training(cls, t: dict) -> "DemoConfig | None":
@@ -44,7 +45,8 @@ class DemoConfig:
         if not (0.0 < lo <= hi <= 1.0):
             raise ValueError(f"training.demo_crowd_min / demo_crowd_max = {lo:g} / {hi:g}: expected "
                              "0 < demo_crowd_min <= demo_crowd_max <= 1 (shares of full wheel speed)")
-        return cls(share, lo, hi, float(t.get("demo_pre_curl", 0.3)), int(t["noise_decay_steps"]))
+        until = int(t.get("demo_until_step", 0)) or int(t["noise_decay_steps"])
+        return cls(share, lo, hi, float(t.get("demo_pre_curl", 0.3)), until)
 
     def to_dict(self) -> dict:
         return asdict(self)

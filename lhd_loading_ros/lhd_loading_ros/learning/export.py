@@ -39,7 +39,10 @@ def export_actor(directory, actor: FlatMlp, cfg: dict, meta: dict):
                                                 ("demo_share", "demo_crowd_min", "demo_crowd_max", "demo_pre_curl")},
                              # the actor's Q-filtered behaviour cloning on them (training.demo_bc)
                              **({"demo_bc": float(cfg["training"]["demo_bc"])}
-                                if float(cfg["training"].get("demo_bc", 0.0)) > 0 else {})}
+                                if float(cfg["training"].get("demo_bc", 0.0)) > 0 else {}),
+                             # the step demonstrations stop at (recorded only when not noise_decay_steps)
+                             **({"demo_until_step": int(cfg["training"]["demo_until_step"])}
+                                if int(cfg["training"].get("demo_until_step", 0)) > 0 else {})}
                             if float(cfg.get("training", {}).get("demo_share", 0.0)) > 0 else {}),
                          "r_success_pitch_margin_deg": float(cfg["task"].get("r_success_pitch_margin_deg", 0.0)),
                          "r_tilt_per_deg": float(cfg["task"].get("r_tilt_per_deg", 0.0)),

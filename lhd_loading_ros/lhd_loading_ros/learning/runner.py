@@ -30,9 +30,10 @@ def parse_seeds(text: str) -> list[int]:
     return seeds
 
 
-def run_seeds(variant: str, seeds: list[int], out: Path, jobs: int, extra: list[str]) -> int:
+def run_seeds(variant: str, seeds: list[int], out: Path, jobs: int, extra: list[str], per_seed=None) -> int:
     """Run `lhd train` for each seed as a child process, at most `jobs` at a time. Logs go to
-    out/seed_N.log. Ctrl-C stops every child (their checkpoints let them resume)."""
+    out/seed_N.log. Ctrl-C stops every child (their checkpoints let them resume). per_seed(seed):
+    further arguments for that seed's child (e.g. its --branch-from)."""
     out.mkdir(parents=True, exist_ok=True)
     pending = list(seeds)
     running: dict[int, subprocess.Popen] = {}
@@ -42,7 +43,8 @@ def run_seeds(variant: str, seeds: list[int], out: Path, jobs: int, extra: list[
             while pending and len(running) < jobs:
                 s = pending.pop(0)
                 cmd = [sys.executable, "-m", "lhd_loading_ros.cli.main", "train", "--variant", variant, "--seed", str(s),
-                       "--out", str(out / f"seed_{s}"), "--no-progress", *extra]
+                       "--out", str(out / f"seed_{s}"), "--no-progress", *extra,
+                       *(per_seed(s) if per_seed else [])]
                 log = open(out / f"seed_{s}.log", "ab")
                 running[s] = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
                 log.close()

@@ -26,6 +26,7 @@ import csv
 import json
 import math
 import os
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -155,17 +156,43 @@ def _rank(ev: dict) -> tuple:
     return (round(ev["asl"], 6), round(ev["success_rate"], 6), ev["ar"])
 
 
+def _branch(src: Path, out: Path, ckpt: Path, log) -> None:
+    """Start run directory `out` from the kept checkpoint `src` (see train's branch_from): copy it to
+    out/checkpoint.pt with the source run's evals / episodes / curriculum logs (the resume cuts them
+    at its step). A directory that already has a checkpoint goes on from it (the branch was made)."""
+    if ckpt.exists():
+        log(f"{out} already has a checkpoint; going on from it (not branching again from {src})")
+        return
+    if not src.is_file():
+        raise ValueError(f"branch source {src} does not exist: expected a kept checkpoint "
+                         "(checkpoint_step<N>.pt, written by `lhd train --keep-checkpoint N`)")
+    for f in ("evals.csv", "episodes.csv", "curriculum.csv"):
+        if (src.parent / f).is_file():
+            shutil.copyfile(src.parent / f, out / f)
+    shutil.copyfile(src, ckpt)
+    log(f"branched {out} from {src}")
+
+
 def train(variant: str, seed: int, out, steps: int | None = None, config=None, resume: bool = True,
           progress: bool = True, eval_episodes: int | None = None, eval_every: int | None = None,
           checkpoint_every: int | None = None, log=print, randomize: bool = False, env_kind: str = "local",
-          namespaces: list[str] | None = None, ros_timeout: float = 30.0) -> dict:
+          namespaces: list[str] | None = None, ros_timeout: float = 30.0, keep_checkpoints=(),
+          branch_from=None) -> dict:
     """Train one DDPG agent; return the last evaluation (dict). See the module docstring.
     randomize: domain randomisation (config section `randomization`, task/randomization.py) in
     training and in the periodic evaluations; it enters the config hash of the run and its actor.
     env_kind "local": the in-process LhdLoading-v0; "ros": one lockstep sim node per namespace in
     `namespaces` (lhd_sim_node.ros_env.SimNodePool), stepped together, each transition into the
     one replay buffer (one update per transition, as with one environment); the evaluations stay
-    in-process. run.json and episodes.csv (`source`) say which node gave what."""
+    in-process. run.json and episodes.csv (`source`) say which node gave what.
+    keep_checkpoints: steps at which a copy of the checkpoint is kept as checkpoint_step<N>.pt
+    (the checkpoint itself is overwritten every checkpoint_every steps).
+    branch_from: a kept checkpoint (checkpoint_step<N>.pt) of the same variant, seed and config
+    hash, which a new run directory `out` starts from, with the source's logs up to step N; the
+    run then goes on like a resumed one under `config`, whose training schedule (not in the hash:
+    demonstrations, learning rates, ...) may differ. A paired comparison of a late change costs
+    only the steps after N (training is deterministic per seed; a resume restarts the episodes
+    in progress at the checkpoint, so the branch is not bit-identical to an uninterrupted run)."""
     from lhd_sim_node.env import LhdLoadingEnv   # the simulator is only needed to train
 
     cfg = config if isinstance(config, dict) else load_config(config)
@@ -281,6 +308,13 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
     contributed = {src: 0 for src in sources}
 
     ckpt = out / "checkpoint.pt"
+    keep = sorted({int(k) for k in keep_checkpoints})
+    if any(k < 1 or k > dc.total_steps or k % dc.checkpoint_every for k in keep):
+        raise ValueError(f"checkpoints to keep {keep}: expected steps in 1..{dc.total_steps:,} that are multiples of "
+                         f"checkpoint_every ({dc.checkpoint_every:,})")
+    if branch_from is not None:
+        _branch(Path(branch_from), out, ckpt, log)
+        resume = True
     if resume and ckpt.exists():
         st = torch.load(ckpt, weights_only=True)
         if st["variant"] != variant or st["seed"] != seed:
@@ -368,6 +402,8 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
               "lr_total_steps": dc.total_steps if dc.lr_final_scale < 1.0 else 0}
         tmp = out / "checkpoint.pt.tmp"
         torch.save(st, tmp)
+        if step in keep:
+            shutil.copyfile(tmp, out / f"checkpoint_step{step}.pt")
         os.replace(tmp, ckpt)
 
     tb = _tensorboard(out)
