@@ -133,6 +133,10 @@ def test_noise_schedule_is_the_papers():
     assert noise_scale(125_000, 250_000, 0.05) == pytest.approx(0.525)
     assert noise_scale(250_000, 250_000, 0.05) == pytest.approx(0.05)
     assert noise_scale(300_000, 250_000, 0.05) == pytest.approx(0.05)
+    # training.noise_after_decay: the same decay, another factor from its end on
+    assert noise_scale(249_999, 250_000, 0.05, 0.2) == noise_scale(249_999, 250_000, 0.05)
+    assert noise_scale(250_000, 250_000, 0.05, 0.2) == noise_scale(300_000, 250_000, 0.05, 0.2) == 0.2
+    assert noise_scale(10, 0, 0.05, 0.2) == 0.2 and noise_scale(10, 0, 0.05) == 0.05
 
 
 def test_ou_noise_stationary_spread():

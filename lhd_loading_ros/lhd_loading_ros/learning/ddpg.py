@@ -45,6 +45,8 @@ class DdpgConfig:
     lr_final_scale: float = 1.0    # both learning rates fall linearly to this share of theirs ...
     lr_decay_from: int = 0         # ... from this step to total_steps (1.0: constant, the paper)
     demo_bc: float = 0.0           # > 0: weight of the actor's Q-filtered behaviour cloning on demonstrations (DDPGfD)
+    critic_huber: float = 0.0      # > 0: the critics' loss is Huber with this delta (scaled returns), else squared
+    noise_after_decay: float = 0.0  # > 0: the noise factor from noise_decay_steps on, in place of noise_final_scale
 
     @classmethod
     def from_config(cls, cfg: dict) -> "DdpgConfig":
@@ -59,7 +61,8 @@ class DdpgConfig:
             eval_seed=t["eval_seed"], checkpoint_every=t["checkpoint_every"],
             twin_critics=int(t.get("twin_critics", 0)),
             lr_final_scale=float(t.get("lr_final_scale", 1.0)), lr_decay_from=int(t.get("lr_decay_from", 0)),
-            demo_bc=float(t.get("demo_bc", 0.0)),
+            demo_bc=float(t.get("demo_bc", 0.0)), critic_huber=float(t.get("critic_huber", 0.0)),
+            noise_after_decay=float(t.get("noise_after_decay", 0.0)),
         )
 
     def to_dict(self) -> dict:
@@ -86,10 +89,13 @@ class OUNoise:
         return self.x.copy()
 
 
-def noise_scale(step: int, decay_steps: int, final: float) -> float:
-    """Linear decay from 1 at step 0 to `final` at `decay_steps`, then constant."""
+def noise_scale(step: int, decay_steps: int, final: float, after: float = 0.0) -> float:
+    """Linear decay from 1 at step 0 to `final` at `decay_steps`, then constant: `final`, or
+    `after` when it is > 0 (training.noise_after_decay)."""
     if decay_steps <= 0:
-        return final
+        return after if after > 0.0 else final
+    if after > 0.0 and step >= decay_steps:
+        return after
     f = min(1.0, max(0.0, step / decay_steps))
     return 1.0 + (final - 1.0) * f
 
@@ -276,6 +282,11 @@ class DdpgAgent:
         if self.twin:
             self.critic2_opt.lr = self.cfg.critic_lr * scale
 
+    def _td_grad(self, err: torch.Tensor) -> torch.Tensor:
+        """d/dQ of the critic's loss per row, over 2 / B: the TD error, clipped to +-critic_huber."""
+        d = self.cfg.critic_huber
+        return err.clamp(-d, d) if d > 0.0 else err
+
     def act(self, obs: np.ndarray) -> np.ndarray:
         """Deterministic action mu(o) in [-1, 1]^3 (float64)."""
         with torch.no_grad():
@@ -309,14 +320,17 @@ class DdpgAgent:
         if self.twin:
             q2 = torch.minimum(q2, self.critic2_t(o2a2))
         y = torch.addcmul(r * cfg.reward_scale, not_term, q2, value=cfg.gamma)
-        # critic: L = mean (Q(o, a) - y)^2
+        # critic: L = mean (Q(o, a) - y)^2, or with cfg.critic_huber = d > 0 the Huber loss
+        # L = mean 2 h_d(Q - y), h_d(e) = e^2 / 2 for |e| <= d, d (|e| - d / 2) beyond (twice
+        # torch's huber_loss, so that it is the squared loss inside d): its gradient is the TD
+        # error clipped to [-d, d], as DQN clips it
         q, cache = self.critic.forward(oa)
         err = q - y
-        self.critic.backward(cache, err * (2.0 / B))
+        self.critic.backward(cache, self._td_grad(err) * (2.0 / B))
         self.critic_opt.step()
         if self.twin:
             qb, cache_b = self.critic2.forward(oa)
-            self.critic2.backward(cache_b, (qb - y) * (2.0 / B))
+            self.critic2.backward(cache_b, self._td_grad(qb - y) * (2.0 / B))
             self.critic2_opt.step()
         # actor: maximise Q(o, mu(o)) through the updated critic (as CleanRL / Lillicrap)
         o = oa[:, : self.obs_dim]

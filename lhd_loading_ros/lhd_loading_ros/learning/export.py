@@ -30,6 +30,10 @@ def export_actor(directory, actor: FlatMlp, cfg: dict, meta: dict):
         # training-only settings (task.config.TRAINING_ONLY): not in what the actor sees, but in its card
         "trained_with": {"randomize": bool(int(cfg.get("randomization", {}).get("enabled", 0))),
                          **({"twin_critics": 1} if int(cfg.get("training", {}).get("twin_critics", 0)) else {}),
+                         **({"critic_huber": float(cfg["training"]["critic_huber"])}
+                            if float(cfg.get("training", {}).get("critic_huber", 0.0)) > 0 else {}),
+                         **({"noise_after_decay": float(cfg["training"]["noise_after_decay"])}
+                            if float(cfg.get("training", {}).get("noise_after_decay", 0.0)) > 0 else {}),
                          **({"slope_curriculum": curriculum.to_dict()} if curriculum is not None else {}),
                          **({"lr_final_scale": float(cfg["training"]["lr_final_scale"]),
                              "lr_decay_from": int(cfg["training"].get("lr_decay_from", 0))}

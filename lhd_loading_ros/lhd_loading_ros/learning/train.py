@@ -441,7 +441,7 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
     bucket = cfg["task"]["bucket_capacity"]
     try:
         while step < dc.total_steps:
-            scale = noise_scale(step, dc.noise_decay_steps, dc.noise_final_scale)
+            scale = noise_scale(step, dc.noise_decay_steps, dc.noise_final_scale, dc.noise_after_decay)
             acts = {i: (demo_action(env, demo_crowd[i], demos.pre_curl) if i in demo_crowd
                         else np.clip(agent.act(obs[i]) + scale * noises[i].sample(), -1.0, 1.0))
                     for i in slots[: dc.total_steps - step]}

@@ -139,6 +139,7 @@ SCHEMA: dict[str, Any] = {
         "lr_final_scale": _f(0.01, 1.0), "lr_decay_from": _i(0, 100_000_000),
         "demo_share": _f(0.0, 0.9), "demo_crowd_min": _f(0.05, 1.0), "demo_crowd_max": _f(0.05, 1.0),
         "demo_pre_curl": _f(0.0, 1.4), "demo_bc": _f(0.0, 100.0), "demo_until_step": _i(0, 100_000_000),
+        "critic_huber": _f(0.0, 1e6), "noise_after_decay": _f(0.0, 1.0),
     },
 }
 
@@ -243,7 +244,8 @@ OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curric
                      ("task", "midgoal_from_pile"): 0, ("training", "demo_share"): 0.0,
                      ("training", "demo_crowd_min"): 0.5, ("training", "demo_crowd_max"): 0.75,
                      ("training", "demo_pre_curl"): 0.3, ("training", "demo_bc"): 0.0,
-                     ("training", "demo_until_step"): 0}
+                     ("training", "demo_until_step"): 0, ("training", "critic_huber"): 0.0,
+                     ("training", "noise_after_decay"): 0.0}
 
 
 def validate(cfg: Any) -> dict:
@@ -338,7 +340,12 @@ TRAINING_SCHEDULE_KEYS = ("twin_critics", "slope_curriculum", "slope_curriculum_
                           # scripted demonstrations in the replay (learning/demonstrations.py)
                           "demo_share", "demo_crowd_min", "demo_crowd_max", "demo_pre_curl",
                           # the actor's Q-filtered behaviour-cloning term on them (DDPGfD)
-                          "demo_bc", "demo_until_step")
+                          "demo_bc", "demo_until_step",
+                          # the critics' Huber loss (learning/ddpg.py)
+                          "critic_huber",
+                          # the exploration noise after its decay, when not noise_final_scale (a late change
+                          # for paired branches; noise_final_scale itself is in the hash)
+                          "noise_after_decay")
 
 
 def _with(cfg: dict, section: str, key: str, value) -> dict:
