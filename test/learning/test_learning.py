@@ -338,6 +338,9 @@ def test_ship_picks_a_seed_and_writes_the_model_card(cfg, tmp_path):
     assert ev["randomized"]["episodes"] == ev["stress_placement"]["episodes"] == 4
     assert "| randomised |" in card and "| placement corners |" in card
     assert "Trained without domain randomisation" in card
+    # the default parameter file scales its observation as training did: no copy, no --config
+    assert not (out / "lhd_params.yaml").exists() and "--config" not in card
+    assert "Trained on piles of 15-30 deg" in card and "gravel piles of 15-30\ndeg" in card
     # RLC's seeds are ranked as the policy node runs them, with the deployment filter: the median of
     # two is the lower of the two by (success, ASL, AR) of evaluations with the filter, done here by hand
     from lhd_loading_ros.learning.evaluate import evaluate as _evaluate
@@ -392,6 +395,43 @@ def test_ship_picks_a_seed_and_writes_the_model_card(cfg, tmp_path):
     assert "paid only above 43 deg" in card2 and "five documented departures" in card2
     assert "and a 3 deg pitch margin" in card2 and "Trained without domain randomisation." in card2
     assert "--seed 3000000 --randomize" in card2
+
+
+def test_ship_copies_the_parameter_file_an_actor_needs(cfg, tmp_path):
+    """An actor trained on 10-35 deg piles normalises the slope otherwise than config/lhd_params.yaml
+    (15-30): lhd ship copies the parameter file it was shipped with next to it, and the card's
+    commands name it, with the recipe (demonstrations, cloning, two critics) and the slope range."""
+    import yaml
+
+    from lhd_loading_ros.learning.ship import ship
+    from lhd_loading_ros.learning.train import train
+    from lhd_loading_ros.policy.actor_file import PolicyFileError
+    from lhd_loading_ros.task.config import load_config
+
+    small_cfg(cfg, twin_critics=1, demo_share=0.4, demo_bc=1.0)
+    cfg["paper"]["episode"]["alpha_min_deg"], cfg["paper"]["episode"]["alpha_max_deg"] = 10.0, 35.0
+    train("rld", 0, tmp_path / "runs" / "seed_0", steps=300, config=cfg, progress=False)
+    cfg_path = tmp_path / "wide.yaml"
+    cfg_path.write_text(yaml.safe_dump(cfg))
+    logs = []
+    ship("rld", tmp_path / "runs", tmp_path / "pol", episodes=2, config=str(cfg_path), log=logs.append)
+    out = tmp_path / "pol"
+    copied = out / "lhd_params.yaml"
+    assert copied.is_file() and copied.read_text().startswith("# The parameter file the actor")
+    assert load_config(str(copied)) == load_config(str(cfg_path))
+    assert any("runs only with its own parameter file" in m for m in logs)
+    pol = load_policy(out)
+    pol.check_config(load_config(str(copied)))               # runs under its own file
+    with pytest.raises(PolicyFileError, match="10-35 deg|alpha"):
+        pol.check_config(load_config(None))                   # and is refused under the default,
+    with pytest.raises(PolicyFileError, match=f"shipped with it: --config {out}/lhd_params.yaml"):
+        pol.check_config(load_config(None))                   # naming the file that travels with it
+    card = (out / "README.md").read_text()
+    assert f"lhd up sim --policy {out} --config {out}/lhd_params.yaml" in card
+    assert f"-p config:={out}/lhd_params.yaml" in card and "`lhd_params.yaml` (the parameter file it runs under)" in card
+    assert "Trained on piles of 10-35 deg" in card and "gravel piles of 10-35\ndeg" in card
+    assert "scripted demonstrations in 40% of the training episodes with Q-filtered behaviour cloning" in card
+    assert "clipped double Q (two critics" in card
 
 
 def test_ship_selection_median_and_best():

@@ -101,6 +101,44 @@ def ramp_progress(run_dir: Path, meta: dict) -> tuple[int | None, float | None]:
     return int(start), (1.0 if steps == 0 else min(1.0, max(0.0, (at - int(start)) / steps)))
 
 
+PARAMS_FILE = "lhd_params.yaml"
+OWN_PARAMS_NOTE = (" Under any other parameter file every entry point refuses it and names the observation scaling "
+                   "that differs (docs/ros_nodes.md).")
+
+
+def ship_parameter_file(pol, config, out: Path) -> bool:
+    """Copy `config` into `out`/lhd_params.yaml when the shipped actor cannot run under the default
+    parameter file (config/lhd_params.yaml scales its observation otherwise, e.g. another slope
+    range); return whether it did. With the default file, or one that scales the observation as it
+    does, nothing is copied: the actor runs as every shipped actor does."""
+    if config is None:
+        return False
+    if pol.observation_mismatch(load_config(None)) is None:
+        return False
+    src = Path(config)
+    header = (f"# The parameter file the actor in this directory runs under (a copy of {src.as_posix()}, written by\n"
+              f"# lhd ship): the default config/lhd_params.yaml scales its observation otherwise. Pass it with\n"
+              f"# --config {PARAMS_FILE} (lhd) or the nodes' `config` parameter.\n")
+    (Path(out) / PARAMS_FILE).write_text(header + src.read_text())
+    return True
+
+
+def _recipe_note(tw: dict) -> str:
+    """The training settings beyond the paper's DDPG that the card names (trained_with)."""
+    parts = []
+    demo = tw.get("demonstrations") if isinstance(tw.get("demonstrations"), dict) else {}
+    share = float(demo.get("demo_share", 0.0) or 0.0)
+    if share > 0:
+        parts.append(f"scripted demonstrations in {share:.0%} of the training episodes"
+                     + (f" with Q-filtered behaviour cloning on them (weight {float(tw['demo_bc']):g})"
+                        if float(tw.get("demo_bc", 0.0) or 0.0) > 0 else ""))
+    if int(tw.get("twin_critics", 0) or 0):
+        parts.append("clipped double Q (two critics, the smaller target; Fujimoto et al. 2018)")
+    if isinstance(tw.get("slope_curriculum"), dict) and int(tw["slope_curriculum"].get("bins", 0) or 0) > 0:
+        parts.append("a slope curriculum")
+    return "".join(f", {p}" for p in parts)
+
+
 def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=print, select: str = "median",
          max_tilt_rate: float | None = None) -> dict:
     from lhd_sim_node.env import LhdLoadingEnv
@@ -172,6 +210,12 @@ def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=prin
     (out / "evaluation.json").write_text(json.dumps(ev, indent=1) + "\n")
     m = pol.meta
     shown = out.as_posix() if not out.is_absolute() else str(out)
+    own_params = ship_parameter_file(pol, config, out)
+    if own_params:
+        log(f"{shown} runs only with its own parameter file: copied {config} to {shown}/{PARAMS_FILE}")
+    run_cfg = f" --config {shown}/{PARAMS_FILE}" if own_params else ""
+    node_cfg = f" -p config:={shown}/{PARAMS_FILE}" if own_params else ""
+    lo_deg, hi_deg, _ = pol.trained_slope_range_deg(cfg)
     tw = m.get("trained_with")
     trained_dr = (bool(tw.get("randomize")) if isinstance(tw, dict)       # cards from before trained_with:
                   else trained_randomized(m.get("config_hash"), cfg))     # by their hash
@@ -179,7 +223,7 @@ def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=prin
                if trained_dr else "Trained without domain randomisation.")
     r, st = ev["randomized"], ev["stress_placement"]
     robust = f"""
-## When the machine differs (`lhd eval --policy {shown} --seed {eval_seed} --randomize` / `--stress placement`{' --deploy-filter' if deploy else ''})
+## When the machine differs (`lhd eval --policy {shown}{run_cfg} --seed {eval_seed} --randomize` / `--stress placement`{' --deploy-filter' if deploy else ''})
 
 {dr_note} The same piles under drawn conditions (slope-estimate error up to +-15 deg, camera
 noise, dropouts and delay, 0-100 ms actuator dead time, gravel of 1,500-2,200 kg/m^3, tyre friction,
@@ -231,17 +275,20 @@ dead time):
     tilt_note = (f"; and, not in the paper at all, r_tilt: -{tilt_per_deg:g} per degree of the machine's pitch "
                  f"beyond {tilt_free:g} deg at every step" if tilt_per_deg > 0 else "")
     n_departures = 4 + (margin > 0)
+    recipe = _recipe_note(tw)
     fin = summary["metrics"]
     card = f"""# {variant.upper()} loading policy ({'hybrid: continuous wheels, ternary arm' if variant == 'rld' else 'continuous actions, deployment filter on the machine'})
 
-Actor exported from `{best_dir}/{sub}` (seed {m['seed']}, {why}), DDPG with the paper's protocol{' and domain randomisation' if trained_dr else ''}{f' and a {margin:g} deg pitch margin' if margin > 0 else ''}{tilt_name} (docs/training.md). Files: `actor.npz`
+Actor exported from `{best_dir}/{sub}` (seed {m['seed']}, {why}), DDPG with the paper's protocol{' and domain randomisation' if trained_dr else ''}{f' and a {margin:g} deg pitch margin' if margin > 0 else ''}{tilt_name}{recipe} (docs/training.md). Files: `actor.npz`
 (float32 weights), `policy.json` (architecture {m['architecture']['sizes']}, observation and action
 normalisation, filter thresholds, config hash `{m['config_hash']}`, training evaluation),
-`evaluation.json` (the table below), `training_curves.png`.
+`evaluation.json` (the table below), `training_curves.png`{f", `{PARAMS_FILE}` (the parameter file it runs under)" if own_params else ""}.
 
-Run it: `lhd up sim --policy {shown}` or `ros2 run lhd_loading_ros policy_node --ros-args -p policy_dir:=...`.
+Run it: `lhd up sim --policy {shown}{run_cfg}` or `ros2 run lhd_loading_ros policy_node --ros-args -p policy_dir:={shown}{node_cfg}`.{OWN_PARAMS_NOTE if own_params else ""}
 
-## Evaluation in simulation (`lhd eval --policy {shown} --episodes {episodes} --seed {eval_seed}`{', piles that took no part in the selection' if select == 'best-final' else ', held-out seed'})
+Trained on piles of {lo_deg:g}-{hi_deg:g} deg (its observation normalises the slope over that range); the environment and the nodes refuse a slope outside it.
+
+## Evaluation in simulation (`lhd eval --policy {shown}{run_cfg} --episodes {episodes} --seed {eval_seed}`{', piles that took no part in the selection' if select == 'best-final' else ', held-out seed'})
 
 {_table(ev)}
 
@@ -268,7 +315,7 @@ AML {fin['aml']['mean']:.1f} ± {fin['aml']['sd']:.1f} kg, AR {fin['ar']['mean']
 ![training curves](training_curves.png)
 
 ## Limits
-Trained and evaluated in our simulator only (MuJoCo + extended FEE, gravel piles of 15-30
+Trained and evaluated in our simulator only (MuJoCo + extended FEE, gravel piles of {lo_deg:g}-{hi_deg:g}
 deg, docs/modeling.md). The reward is the paper's with {'five' if n_departures == 5 else 'four'} documented departures
 (docs/training.md): r_success's pitch target 47.5 deg instead of 40 and paid only on a
 successful attempt{margin_note}, r_weight paid on the material entering the bucket, and r_dump fining a

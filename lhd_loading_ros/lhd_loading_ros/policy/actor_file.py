@@ -129,8 +129,11 @@ class LoadedPolicy:
         from lhd_loading_ros.task.observation import normaliser_differences
         from lhd_loading_ros.task.params import TaskParams
 
+        own = self.path / "lhd_params.yaml"          # the file `lhd ship` copies next to such an actor
         hint = ("; run it with the parameter file it was trained with (config hash "
-                f"{str(self.meta.get('config_hash', '?'))[:12]}; e.g. --config, or the nodes' `config` parameter)")
+                f"{str(self.meta.get('config_hash', '?'))[:12]}; "
+                + (f"shipped with it: --config {own}, or the nodes' `config` parameter)" if own.is_file() else
+                   "e.g. --config, or the nodes' `config` parameter)"))
         rec = (self.meta.get("observation") or {}).get("normalisers")
         if isinstance(rec, dict) and rec:
             bad = [k for k, v in rec.items() if isinstance(v, bool) or not isinstance(v, (int, float))
