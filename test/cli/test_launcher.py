@@ -191,6 +191,25 @@ def test_up_sim_rejects_a_bad_namespace():
     assert "--namespace '/2bad'" in p.stderr and "number" in p.stderr and "Traceback" not in p.stderr
 
 
+@pytest.mark.parametrize("argv, msg", [
+    (["up", "sim", "--slope", "12"], "--slope 12: outside the pile range [15, 30] deg of config/lhd_params.yaml"),
+    (["demo", "--slopes", "20", "40", "nan"], "--slopes 40 nan: outside the pile range [15, 30] deg"),
+    (["demo", "--policy", "policies/rld_twin", "--config", "policies/rld_twin/lhd_params.yaml", "--slopes", "9.5", "35"],
+     "--slopes 9.5: outside the pile range [10, 35] deg of policies/rld_twin/lhd_params.yaml"),
+])
+def test_up_sim_refuses_a_slope_outside_the_pile_range_before_any_node_starts(argv, msg, tmp_path):
+    """A slope the parameter file's actors were never trained on is refused with the flag, the
+    range and the file that sets it, exit 2, before a node starts (no node log folder is made)."""
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    p = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", *argv, "--mode", "lockstep", "--episodes", "1"],
+                       capture_output=True, text=True, timeout=60, env=dict(env_with_domain(), TMPDIR=str(tmp)),
+                       cwd=os.path.join(os.path.dirname(__file__), "..", ".."))
+    assert p.returncode == 2, p.stderr
+    assert msg in p.stderr and "Traceback" not in p.stderr
+    assert list(tmp.iterdir()) == []
+
+
 def test_up_sim_stops_cleanly_on_ctrl_c():
     marker = "seed:=434343"
     # a terminal's Ctrl-C: SIGINT at its default in the launcher. An ignored SIGINT is inherited across

@@ -84,6 +84,8 @@ def test_colcon_install_has_ros2_run_entry_points():
     assert (install / "lhd_loading_ros/share/lhd_loading_ros/config/teleop/xbox.yaml").is_file()
     assert (install / "lhd_loading_ros/share/lhd_loading_ros/launch/real_machine.launch.py").is_file()
     assert (install / "lhd_loading_ros/share/lhd_loading_ros/policies/rld/policy.json").is_file()
+    # an actor with its own parameter file travels with it (policies/rld_twin: 10-35 deg piles)
+    assert (install / "lhd_loading_ros/share/lhd_loading_ros/policies/rld_twin/lhd_params.yaml").is_file()
 
 
 def sourced_workspace_env() -> dict:

@@ -61,10 +61,26 @@ def test_a_small_study_end_to_end(tmp_path):
     # the no-error rows are their own baseline: a mass change of 0 %
     err = list(csv.DictReader((out / "table_slope_error.csv").open()))
     assert {float(r["mass_change_pct"]) for r in err if float(r["error_deg"]) == 0.0} == {0.0}
+    # a told slope outside the config's 15-30 deg (a 30 deg pile told 45) is marked: the nodes refuse it
+    md = (out / "table_slope_error.md").read_text()
+    assert "| RLD | 30 | 45 * | +15 |" in md and "| RLD | 15 | 30 | +15 |" in md and "| RLD | 15 | 15 * |" not in md
+    assert "the policy node refuses such an estimate" in md and "(15-30 deg)" in md
     # bad input: one line, exit 2
     p = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "experiment", "paper", "--slopes", "20,x",
                         "--out", str(tmp_path / "bad")], capture_output=True, text=True, timeout=60)
     assert p.returncode != 0 and "expected comma-separated numbers" in p.stderr
+
+
+def test_slope_error_table_marks_told_slopes_outside_the_trained_range():
+    rows = [{"controller": "rld", "slope_deg": a, "told_deg": t, "error_deg": t - a, "attempts": 2, "success_rate": 1.0,
+             "loaded_kg": 30.0, "loaded_kg_sd": 0.0, "mass_change_pct": 0.0}
+            for a, t in ((15.0, 0.0), (15.0, 10.0), (15.0, 35.0), (30.0, 35.0), (30.0, 35.5))]
+    md = ex.markdown_slope_error(rows, (10.0, 35.0))
+    marked = [ln.split(" | ")[2] for ln in md.splitlines() if ln.startswith("| RLD")]
+    assert marked == ["0 *", "10", "35", "35", "35.5 *"]
+    assert "(10-35 deg)" in md
+    assert "*" not in ex.markdown_slope_error(rows[1:4], (10.0, 35.0))     # none outside: no mark, no note
+    assert "*" not in ex.markdown_slope_error(rows)                         # no range given: as before
 
 
 def test_the_teacher_is_the_demonstrations_maneuver(cfg):

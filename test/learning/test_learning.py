@@ -338,8 +338,17 @@ def test_ship_picks_a_seed_and_writes_the_model_card(cfg, tmp_path):
     assert ev["randomized"]["episodes"] == ev["stress_placement"]["episodes"] == 4
     assert "| randomised |" in card and "| placement corners |" in card
     assert "Trained without domain randomisation" in card
-    # the default parameter file scales its observation as training did: no copy, no --config
-    assert not (out / "lhd_params.yaml").exists() and "--config" not in card
+    # the default parameter file scales its observation as training did, but this file differs from it
+    # elsewhere (the training's sizes): the card's figures came from it, so it travels with the actor and
+    # the card's commands name it, saying the default would also run the actor
+    assert (out / "lhd_params.yaml").read_text().count("the figures of its card were computed under this file") == 1
+    assert f"--config {out}/lhd_params.yaml" in card and "also runs under it" in card
+    # shipped under the default file itself: nothing is copied, no --config
+    from lhd_loading_ros.learning.ship import parameter_file_need
+    from lhd_loading_ros.policy.shipped import shipped_config
+    from lhd_loading_ros.task.config import load_config as _load
+
+    assert parameter_file_need(load_policy(out), _load(str(shipped_config("lhd_params.yaml")))) == ""
     assert "Trained on piles of 15-30 deg" in card and "gravel piles of 15-30\ndeg" in card
     # RLC's seeds are ranked as the policy node runs them, with the deployment filter: the median of
     # two is the lower of the two by (success, ASL, AR) of evaluations with the filter, done here by hand
@@ -397,7 +406,7 @@ def test_ship_picks_a_seed_and_writes_the_model_card(cfg, tmp_path):
     assert "--seed 3000000 --randomize" in card2
 
 
-def test_ship_copies_the_parameter_file_an_actor_needs(cfg, tmp_path):
+def test_ship_copies_the_parameter_file_an_actor_needs(cfg, tmp_path, monkeypatch):
     """An actor trained on 10-35 deg piles normalises the slope otherwise than config/lhd_params.yaml
     (15-30): lhd ship copies the parameter file it was shipped with next to it, and the card's
     commands name it, with the recipe (demonstrations, cloning, two critics) and the slope range."""
@@ -417,20 +426,37 @@ def test_ship_copies_the_parameter_file_an_actor_needs(cfg, tmp_path):
     ship("rld", tmp_path / "runs", tmp_path / "pol", episodes=2, config=str(cfg_path), log=logs.append)
     out = tmp_path / "pol"
     copied = out / "lhd_params.yaml"
-    assert copied.is_file() and copied.read_text().startswith("# The parameter file the actor")
+    assert copied.is_file() and copied.read_text().startswith(f"#| The parameter file of the actor in {out} (a copy of {cfg_path}")
+    assert f"Pass it with --config {out}/lhd_params.yaml (lhd) or -p config:={out}/lhd_params.yaml" in copied.read_text()
     assert load_config(str(copied)) == load_config(str(cfg_path))
-    assert any("runs only with its own parameter file" in m for m in logs)
+    assert any(m.endswith("lhd_params.yaml: the actor runs only with it") for m in logs)
     pol = load_policy(out)
     pol.check_config(load_config(str(copied)))               # runs under its own file
     with pytest.raises(PolicyFileError, match="10-35 deg|alpha"):
         pol.check_config(load_config(None))                   # and is refused under the default,
     with pytest.raises(PolicyFileError, match=f"shipped with it: --config {out}/lhd_params.yaml"):
         pol.check_config(load_config(None))                   # naming the file that travels with it
+    with pytest.raises(PolicyFileError, match="trained on 10-35 deg piles, this file's are 15-30 deg"):
+        pol.check_config(load_config(None))                   # and the pile ranges, in degrees
+    # shipped again into the same folder, from the copy inside it: read before the folder is replaced,
+    # one header (not two), the same parameters
+    ship("rld", tmp_path / "runs", out, episodes=2, config=str(copied), log=logs.append)
+    again = copied.read_text()
+    assert again.count("written by lhd ship") == 1 and load_config(str(copied)) == load_config(str(cfg_path))
+    assert (out / "README.md").is_file()
+    # the default file is found in the source tree, not through $LHD_CONFIG: with LHD_CONFIG pointing at
+    # the actor's own file the copy is still made
+    monkeypatch.setenv("LHD_CONFIG", str(cfg_path))
+    ship("rld", tmp_path / "runs", tmp_path / "pol2", episodes=2, config=str(cfg_path), log=logs.append)
+    assert (tmp_path / "pol2" / "lhd_params.yaml").is_file()
     card = (out / "README.md").read_text()
     assert f"lhd up sim --policy {out} --config {out}/lhd_params.yaml" in card
     assert f"-p config:={out}/lhd_params.yaml" in card and "`lhd_params.yaml` (the parameter file it runs under)" in card
     assert "Trained on piles of 10-35 deg" in card and "gravel piles of 10-35\ndeg" in card
-    assert "scripted demonstrations in 40% of the training episodes with Q-filtered behaviour cloning" in card
+    assert "The evaluations below are on the paper's 15, 20, 25, 30 deg piles (`lhd experiment paper --slopes`" in card
+    assert "until the exploration noise's decay ends" in card
+    assert ("scripted demonstrations in 40% of the training episodes until the exploration noise's decay ends "
+            "with Q-filtered behaviour cloning") in card
     assert "clipped double Q (two critics" in card
 
 

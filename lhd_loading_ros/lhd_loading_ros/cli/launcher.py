@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import ctypes
 import json
+import math
 import os
 import shutil
 import signal
@@ -130,6 +131,19 @@ def namespace_ros_args(namespace: str | None, use_sim_time: bool) -> list[str]:
     if use_sim_time:
         args += ["-p", "use_sim_time:=true"]
     return args
+
+
+def slope_range_problem(slopes, cfg: dict, flag: str, config_name: str) -> str:
+    """Why these pile slopes cannot be loaded under `cfg` ("" if they can): each must lie in the
+    pile range the parameter file gives (paper.episode alpha_min_deg..alpha_max_deg, the range its
+    actors were trained on), as the sim node and the environment require; refused, not clipped."""
+    ep = cfg["paper"]["episode"]
+    lo, hi = float(ep["alpha_min_deg"]), float(ep["alpha_max_deg"])
+    out = [s for s in slopes if not (math.isfinite(s) and lo - 1e-9 <= s <= hi + 1e-9)]
+    if not out:
+        return ""
+    return (f"{flag} {' '.join(f'{s:g}' for s in out)}: outside the pile range [{lo:g}, {hi:g}] deg of {config_name} "
+            f"(paper.episode.alpha_min_deg / alpha_max_deg, the range its actors were trained on); expected slopes in it")
 
 
 def up_sim(policy: str | None, slopes: list[float] | None, episodes: int, material: str, mode: str, seed: int,
@@ -399,6 +413,12 @@ def main(argv=None, demo: bool = False) -> int:
     except PolicyFileError as exc:
         print(f"{ap.prog}: {exc}", file=sys.stderr)
         return 1
+    if slopes and cfg_checked is not None:    # before any node starts: the sim node would refuse it too
+        bad = slope_range_problem(slopes, cfg_checked, "--slopes" if args.slopes else "--slope",
+                                  args.config or "config/lhd_params.yaml")
+        if bad:
+            print(f"{ap.prog}: {bad}", file=sys.stderr)
+            return 2
 
     def show(ep, r):
         if not args.json:

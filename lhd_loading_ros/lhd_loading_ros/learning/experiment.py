@@ -310,15 +310,23 @@ def markdown_controllers(summary: list[dict]) -> str:
     return "\n".join(L)
 
 
-def markdown_slope_error(summary: list[dict]) -> str:
+def markdown_slope_error(summary: list[dict], told_range: tuple[float, float] | None = None) -> str:
+    """The slope-error table; with `told_range` (the parameter file's pile range, over which the
+    actors were trained), a told slope outside it is marked: the nodes refuse such an estimate (the
+    machine would not move), so that cell is what the actor alone would do, not what the machine does."""
     if not summary:
         return ""
+    out_of = (lambda t: told_range is not None and not (told_range[0] - 1e-9 <= t <= told_range[1] + 1e-9))  # noqa: E731
     L = ["| controller | pile [deg] | told [deg] | error [deg] | success [%] | loaded mass [kg] | vs no error [%] |",
          "|---|---|---|---|---|---|---|"]
     for r in summary:
-        L.append(f"| {r['controller'].upper()} | {r['slope_deg']:g} | {r['told_deg']:g} | {r['error_deg']:+g} | "
-                 f"{100 * r['success_rate']:.0f} | {_f(r['loaded_kg'])} ± {_f(r['loaded_kg_sd'])} | "
+        L.append(f"| {r['controller'].upper()} | {r['slope_deg']:g} | {r['told_deg']:g}{' *' if out_of(r['told_deg']) else ''} | "
+                 f"{r['error_deg']:+g} | {100 * r['success_rate']:.0f} | {_f(r['loaded_kg'])} ± {_f(r['loaded_kg_sd'])} | "
                  f"{_f(r['mass_change_pct'], '{:+.0f}')} |")
+    if any(out_of(r["told_deg"]) for r in summary):
+        L += ["", f"\\* told a slope outside the pile range the actors were trained on ({told_range[0]:g}-"
+                  f"{told_range[1]:g} deg): the policy node refuses such an estimate and commands zero, so on the "
+                  "machine these attempts would not start; the row is what the actor alone does with it."]
     return "\n".join(L) + "\n"
 
 
@@ -411,7 +419,11 @@ def paper(out: str | os.PathLike, episodes: int = 10, controllers=CONTROLLERS, s
     _write_csv(out / "attempts.csv", rows)
     _write_csv(out / "table_controllers.csv", ctl)
     _write_csv(out / "table_slope_error.csv", err)
-    md_c, md_e = markdown_controllers(ctl), markdown_slope_error(err)
+    from lhd_loading_ros.task.config import load_config
+
+    ep = (config if isinstance(config, dict) else load_config(config))["paper"]["episode"]
+    md_c = markdown_controllers(ctl)
+    md_e = markdown_slope_error(err, (float(ep["alpha_min_deg"]), float(ep["alpha_max_deg"])))
     (out / "table_controllers.md").write_text(md_c)
     (out / "table_slope_error.md").write_text(md_e)
     figs = figures(rows, err, out)

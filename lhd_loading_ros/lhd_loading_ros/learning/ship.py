@@ -24,7 +24,7 @@ from pathlib import Path
 
 from lhd_loading_ros.task.config import load_config, trained_randomized
 from lhd_loading_ros.policy.actor_file import load_policy
-from lhd_loading_ros.learning.evaluate import evaluate, evaluate_under
+from lhd_loading_ros.learning.evaluate import EVAL_SLOPES, evaluate, evaluate_under
 from lhd_loading_ros.learning.report import plot_curves, summarize
 
 HELD_OUT_SEED = 2_000_000
@@ -102,25 +102,44 @@ def ramp_progress(run_dir: Path, meta: dict) -> tuple[int | None, float | None]:
 
 
 PARAMS_FILE = "lhd_params.yaml"
-OWN_PARAMS_NOTE = (" Under any other parameter file every entry point refuses it and names the observation scaling "
-                   "that differs (docs/ros_nodes.md).")
+HEADER_PREFIX = "#| "     # the lines lhd ship puts above a copied parameter file (dropped when re-shipped)
 
 
-def ship_parameter_file(pol, config, out: Path) -> bool:
-    """Copy `config` into `out`/lhd_params.yaml when the shipped actor cannot run under the default
-    parameter file (config/lhd_params.yaml scales its observation otherwise, e.g. another slope
-    range); return whether it did. With the default file, or one that scales the observation as it
-    does, nothing is copied: the actor runs as every shipped actor does."""
-    if config is None:
-        return False
-    if pol.observation_mismatch(load_config(None)) is None:
-        return False
-    src = Path(config)
-    header = (f"# The parameter file the actor in this directory runs under (a copy of {src.as_posix()}, written by\n"
-              f"# lhd ship): the default config/lhd_params.yaml scales its observation otherwise. Pass it with\n"
-              f"# --config {PARAMS_FILE} (lhd) or the nodes' `config` parameter.\n")
-    (Path(out) / PARAMS_FILE).write_text(header + src.read_text())
-    return True
+def shown_path(out: Path) -> str:
+    """`out` as the card shows it: relative to the working directory when inside it (a card that
+    travels with the repository must not name one machine's folders), else as given."""
+    try:
+        return out.resolve().relative_to(Path.cwd().resolve()).as_posix()
+    except ValueError:
+        return out.as_posix()
+
+
+def parameter_file_need(pol, cfg: dict) -> str:
+    """What the shipped actor needs of its parameter file: "own" when the project's default file
+    (config/lhd_params.yaml of the source tree or the installed package, not $LHD_CONFIG) scales its
+    observation otherwise, so it runs only with `cfg`; "evaluated" when it would run under the
+    default but `cfg` differs from it elsewhere (its card's figures come from `cfg`); "" when `cfg`
+    is the default's."""
+    from lhd_loading_ros.policy.shipped import shipped_config
+    from lhd_loading_ros.task.config import config_hash
+
+    default = load_config(str(shipped_config("lhd_params.yaml")))
+    if pol.observation_mismatch(default) is not None:
+        return "own"
+    return "evaluated" if config_hash(default) != config_hash(cfg) else ""
+
+
+def write_parameter_file(text: str, src: str, out: Path, shown: str, need: str) -> None:
+    """Write `text` (the parameter file the actor was shipped with, read before `out` was
+    replaced) as `out`/lhd_params.yaml, under a header saying why it is there and how to pass it."""
+    body = "".join(ln for ln in text.splitlines(keepends=True) if not ln.startswith(HEADER_PREFIX))
+    why = ("the default config/lhd_params.yaml scales its observation otherwise: it runs only with this file"
+           if need == "own" else "the figures of its card were computed under this file (the default scales its "
+           "observation the same way)")
+    header = (f"{HEADER_PREFIX}The parameter file of the actor in {shown} (a copy of {src}, written by lhd ship):\n"
+              f"{HEADER_PREFIX}{why}.\n"
+              f"{HEADER_PREFIX}Pass it with --config {shown}/{PARAMS_FILE} (lhd) or -p config:={shown}/{PARAMS_FILE} (the nodes).\n")
+    (out / PARAMS_FILE).write_text(header + body)
 
 
 def _recipe_note(tw: dict) -> str:
@@ -129,11 +148,22 @@ def _recipe_note(tw: dict) -> str:
     demo = tw.get("demonstrations") if isinstance(tw.get("demonstrations"), dict) else {}
     share = float(demo.get("demo_share", 0.0) or 0.0)
     if share > 0:
-        parts.append(f"scripted demonstrations in {share:.0%} of the training episodes"
+        until = int(tw.get("demo_until_step", 0) or 0)
+        parts.append(f"scripted demonstrations in {share:.0%} of the training episodes "
+                     + (f"until step {until:,}" if until > 0 else "until the exploration noise's decay ends")
                      + (f" with Q-filtered behaviour cloning on them (weight {float(tw['demo_bc']):g})"
                         if float(tw.get("demo_bc", 0.0) or 0.0) > 0 else ""))
+    if int(tw.get("midgoal_from_pile", 0) or 0):
+        parts.append("the mid goal x_midgoal at the start of the pile's end zone (`task.midgoal_from_pile`, a "
+                     "departure from the paper's reward)")
     if int(tw.get("twin_critics", 0) or 0):
         parts.append("clipped double Q (two critics, the smaller target; Fujimoto et al. 2018)")
+    if float(tw.get("critic_huber", 0.0) or 0.0) > 0:
+        parts.append(f"a Huber critic loss (delta {float(tw['critic_huber']):g})")
+    if float(tw.get("noise_after_decay", 0.0) or 0.0) > 0:
+        parts.append(f"exploration noise {float(tw['noise_after_decay']):g} after its decay")
+    if tw.get("lr_final_scale") is not None and float(tw["lr_final_scale"]) != 1.0:
+        parts.append(f"learning rates falling to {float(tw['lr_final_scale']):g} of their start")
     if isinstance(tw.get("slope_curriculum"), dict) and int(tw["slope_curriculum"].get("bins", 0) or 0) > 0:
         parts.append("a slope curriculum")
     return "".join(f", {p}" for p in parts)
@@ -186,6 +216,7 @@ def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=prin
         log(f"{best_dir.name}/{sub} on the confirmation seed {eval_seed:,}: success {ev['success_rate']:.3f}, "
             f"ASL {ev['asl']:.2f}, AML {ev['aml']:.1f}")
     out = Path(out)
+    config_text = Path(config).read_text() if config is not None else None   # before `out` goes: it may hold it
     if out.exists():
         shutil.rmtree(out)
     shutil.copytree(best_dir / sub, out)
@@ -209,13 +240,28 @@ def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=prin
     ev["evaluation_seed"] = eval_seed
     (out / "evaluation.json").write_text(json.dumps(ev, indent=1) + "\n")
     m = pol.meta
-    shown = out.as_posix() if not out.is_absolute() else str(out)
-    own_params = ship_parameter_file(pol, config, out)
+    shown = shown_path(out)
+    need = parameter_file_need(pol, cfg) if config is not None else ""
+    own_params = bool(need)
     if own_params:
-        log(f"{shown} runs only with its own parameter file: copied {config} to {shown}/{PARAMS_FILE}")
+        src = shown_path(Path(config))
+        write_parameter_file(config_text, src, out, shown, need)
+        log(f"copied {src} to {shown}/{PARAMS_FILE}: "
+            + ("the actor runs only with it" if need == "own" else "the card's figures were computed under it"))
     run_cfg = f" --config {shown}/{PARAMS_FILE}" if own_params else ""
     node_cfg = f" -p config:={shown}/{PARAMS_FILE}" if own_params else ""
     lo_deg, hi_deg, _ = pol.trained_slope_range_deg(cfg)
+    own_note = {"own": (" Under a parameter file that scales the observation otherwise (the default "
+                        "config/lhd_params.yaml among them) `lhd` refuses it and names what differs; the policy node "
+                        "commands zero and says why on /diagnostics (docs/ros_nodes.md)."),
+                "evaluated": (" The default config/lhd_params.yaml scales the observation the same way, so the actor "
+                              "also runs under it, but the figures below were computed under this file."),
+                "": ""}[need]
+    ep_cfg = cfg["paper"]["episode"]
+    cfg_range = (float(ep_cfg["alpha_min_deg"]), float(ep_cfg["alpha_max_deg"]))
+    held_slopes = ", ".join(f"{x:g}" for x in EVAL_SLOPES)
+    other_piles = (f" (`lhd experiment paper --slopes` runs it on others of {cfg_range[0]:g}-{cfg_range[1]:g} deg)"
+                   if cfg_range != (min(EVAL_SLOPES), max(EVAL_SLOPES)) else "")
     tw = m.get("trained_with")
     trained_dr = (bool(tw.get("randomize")) if isinstance(tw, dict)       # cards from before trained_with:
                   else trained_randomized(m.get("config_hash"), cfg))     # by their hash
@@ -284,9 +330,9 @@ Actor exported from `{best_dir}/{sub}` (seed {m['seed']}, {why}), DDPG with the 
 normalisation, filter thresholds, config hash `{m['config_hash']}`, training evaluation),
 `evaluation.json` (the table below), `training_curves.png`{f", `{PARAMS_FILE}` (the parameter file it runs under)" if own_params else ""}.
 
-Run it: `lhd up sim --policy {shown}{run_cfg}` or `ros2 run lhd_loading_ros policy_node --ros-args -p policy_dir:={shown}{node_cfg}`.{OWN_PARAMS_NOTE if own_params else ""}
+Run it: `lhd up sim --policy {shown}{run_cfg}` or `ros2 run lhd_loading_ros policy_node --ros-args -p policy_dir:={shown}{node_cfg}`.{own_note}
 
-Trained on piles of {lo_deg:g}-{hi_deg:g} deg (its observation normalises the slope over that range); the environment and the nodes refuse a slope outside it.
+Trained on piles of {lo_deg:g}-{hi_deg:g} deg (its observation normalises the slope over that range); the environment and the nodes refuse a slope outside it. The evaluations below are on the paper's {held_slopes} deg piles{other_piles}.
 
 ## Evaluation in simulation (`lhd eval --policy {shown}{run_cfg} --episodes {episodes} --seed {eval_seed}`{', piles that took no part in the selection' if select == 'best-final' else ', held-out seed'})
 

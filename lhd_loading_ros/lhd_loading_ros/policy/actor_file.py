@@ -144,8 +144,16 @@ class LoadedPolicy:
             diffs = normaliser_differences(rec, TaskParams.from_config(cfg))
             if not diffs:
                 return None
+            ep = cfg["paper"]["episode"]
+            rng = (self.meta.get("trained_ranges") or {}).get("slope_deg")
+            piles = ""
+            if isinstance(rng, list) and len(rng) == 2 and not (
+                    math.isclose(float(rng[0]), float(ep["alpha_min_deg"]))
+                    and math.isclose(float(rng[1]), float(ep["alpha_max_deg"]))):
+                piles = (f" (it was trained on {float(rng[0]):g}-{float(rng[1]):g} deg piles, this file's are "
+                         f"{float(ep['alpha_min_deg']):g}-{float(ep['alpha_max_deg']):g} deg)")
             return (f"policy {self.path} was trained with another observation scaling than this parameter file "
-                    f"gives: " + ", ".join(f"{k} {a:.6g} in training, {b:.6g} here" for k, a, b in diffs) + hint)
+                    f"gives{piles}: " + ", ".join(f"{k} {a:.6g} in training, {b:.6g} here" for k, a, b in diffs) + hint)
         lo, hi, _ = self.trained_slope_range_deg(cfg)
         ep = cfg["paper"]["episode"]
         if "slope_deg" in (self.meta.get("trained_ranges") or {}) and (
