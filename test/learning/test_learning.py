@@ -343,6 +343,8 @@ def test_ship_picks_a_seed_and_writes_the_model_card(cfg, tmp_path):
     # the card's commands name it, saying the default would also run the actor
     assert (out / "lhd_params.yaml").read_text().count("the figures of its card were computed under this file") == 1
     assert f"--config {out}/lhd_params.yaml" in card and "also runs under it" in card
+    assert f"--config {out}/lhd_params.yaml --deploy-filter --seed 2000000`" in card        # every command names it
+    assert f"--config {out}/lhd_params.yaml --seed 2000000 --randomize --deploy-filter`" in card
     # shipped under the default file itself: nothing is copied, no --config
     from lhd_loading_ros.learning.ship import parameter_file_need
     from lhd_loading_ros.policy.shipped import shipped_config

@@ -222,24 +222,6 @@ def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=prin
     shutil.copytree(best_dir / sub, out)
     summary = summarize(runs)
     plot_curves({variant.upper(): runs}, out / "training_curves.png")
-    deploy_note = ""
-    if variant == "rlc":   # as the policy node runs it: with the deployment filter
-        if "with_deployment_filter" in ev:        # the ranking's evaluation, on these piles already
-            evd = ev["with_deployment_filter"]
-        else:                                     # best-final: on the confirmation seed
-            evd = evaluate(env_deploy, pol.actor, episodes, eval_seed, cfg["task"]["bucket_capacity"])
-            ev["with_deployment_filter"] = {k: evd[k] for k in ("success_rate", "asl", "aml", "ar", "elapsed_s")}
-        deploy_note = (f"\nWith the deployment filter, as the policy node and the machine run it (`lhd eval --policy "
-                       f"{out.as_posix()} --deploy-filter --seed {eval_seed}`): success {evd['success_rate']:.3f}, ASL {evd['asl']:.2f}, "
-                       f"AML {evd['aml']:.1f} kg, {evd['elapsed_s']:.2f} s.\n")
-    # what the machine will do differently (docs/training.md "Domain randomisation"): the same
-    # held-out piles under drawn conditions and at the placement corners, as the policy node runs it
-    deploy = variant == "rlc"
-    ev["randomized"] = _brief(evaluate_under("randomized", variant, pol.actor, cfg, episodes, eval_seed))
-    ev["stress_placement"] = _brief(evaluate_under("placement", variant, pol.actor, cfg, episodes, eval_seed))
-    ev["evaluation_seed"] = eval_seed
-    (out / "evaluation.json").write_text(json.dumps(ev, indent=1) + "\n")
-    m = pol.meta
     shown = shown_path(out)
     need = parameter_file_need(pol, cfg) if config is not None else ""
     own_params = bool(need)
@@ -250,6 +232,24 @@ def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=prin
             + ("the actor runs only with it" if need == "own" else "the card's figures were computed under it"))
     run_cfg = f" --config {shown}/{PARAMS_FILE}" if own_params else ""
     node_cfg = f" -p config:={shown}/{PARAMS_FILE}" if own_params else ""
+    deploy_note = ""
+    if variant == "rlc":   # as the policy node runs it: with the deployment filter
+        if "with_deployment_filter" in ev:        # the ranking's evaluation, on these piles already
+            evd = ev["with_deployment_filter"]
+        else:                                     # best-final: on the confirmation seed
+            evd = evaluate(env_deploy, pol.actor, episodes, eval_seed, cfg["task"]["bucket_capacity"])
+            ev["with_deployment_filter"] = {k: evd[k] for k in ("success_rate", "asl", "aml", "ar", "elapsed_s")}
+        deploy_note = (f"\nWith the deployment filter, as the policy node and the machine run it (`lhd eval --policy "
+                       f"{shown}{run_cfg} --deploy-filter --seed {eval_seed}`): success {evd['success_rate']:.3f}, ASL {evd['asl']:.2f}, "
+                       f"AML {evd['aml']:.1f} kg, {evd['elapsed_s']:.2f} s.\n")
+    # what the machine will do differently (docs/training.md "Domain randomisation"): the same
+    # held-out piles under drawn conditions and at the placement corners, as the policy node runs it
+    deploy = variant == "rlc"
+    ev["randomized"] = _brief(evaluate_under("randomized", variant, pol.actor, cfg, episodes, eval_seed))
+    ev["stress_placement"] = _brief(evaluate_under("placement", variant, pol.actor, cfg, episodes, eval_seed))
+    ev["evaluation_seed"] = eval_seed
+    (out / "evaluation.json").write_text(json.dumps(ev, indent=1) + "\n")
+    m = pol.meta
     lo_deg, hi_deg, _ = pol.trained_slope_range_deg(cfg)
     own_note = {"own": (" Under a parameter file that scales the observation otherwise (the default "
                         "config/lhd_params.yaml among them) `lhd` refuses it and names what differs; the policy node "
@@ -269,7 +269,7 @@ def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=prin
                if trained_dr else "Trained without domain randomisation.")
     r, st = ev["randomized"], ev["stress_placement"]
     robust = f"""
-## When the machine differs (`lhd eval --policy {shown}{run_cfg} --seed {eval_seed} --randomize` / `--stress placement`{' --deploy-filter' if deploy else ''})
+## When the machine differs (`lhd eval --policy {shown}{run_cfg} --seed {eval_seed} --randomize{' --deploy-filter' if deploy else ''}`, and with `--stress placement` in place of `--randomize`)
 
 {dr_note} The same piles under drawn conditions (slope-estimate error up to +-15 deg, camera
 noise, dropouts and delay, 0-100 ms actuator dead time, gravel of 1,500-2,200 kg/m^3, tyre friction,
