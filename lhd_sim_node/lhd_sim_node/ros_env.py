@@ -187,6 +187,31 @@ class SimNodePool:
             raise RuntimeError(f"sim node {link.label}: {what} failed: {exc}")
         return fut.result()
 
+    def _call_idempotent(self, make_future, what: str, link: _SimNodeLink, attempt_s: float = 3.0):
+        """An idempotent service call (reading or setting a parameter), sent again every
+        `attempt_s` until it is answered or self.timeout passes. A request that reaches a node
+        before its DDS participant has matched our reply reader gets no answer at all (Fast DDS
+        drops the response: "failed to send response (timeout)" in the node's log); at start-up,
+        with both sides still discovering each other, that happens, and waiting on the first
+        request alone would hang for the whole timeout."""
+        t_end = time.monotonic() + self.timeout
+        while True:
+            fut = make_future()
+            left = t_end - time.monotonic()
+            try:
+                self._spin_until(lambda: fut.done(), what, link, timeout=max(0.05, min(attempt_s, left)))
+            except TimeoutError:
+                fut.cancel()
+                if time.monotonic() >= t_end:
+                    raise TimeoutError(f"sim node {link.label}: no answer within {self.timeout:g} s while waiting for "
+                                       f"{what} (asked every {attempt_s:g} s). Is it running, in lockstep mode? "
+                                       + start_hint(link.namespace)) from None
+                continue
+            exc = fut.exception()
+            if exc is not None:
+                raise RuntimeError(f"sim node {link.label}: {what} failed: {exc}")
+            return fut.result()
+
     def _connect(self, link: _SimNodeLink) -> None:
         from rclpy.parameter import Parameter, parameter_value_to_python
 
@@ -213,8 +238,8 @@ class SimNodePool:
                                "another sim node (lhd up sim --count N) or stop the other publisher")
         if not link.params.wait_for_services(timeout_sec=self.timeout):
             raise TimeoutError(f"sim node {link.fqn}: its parameter services did not answer within {self.timeout:g} s")
-        res = self._future(link.params.get_parameters(["mode", "publish_transitions", "slopes_deg"]),
-                           "its parameters", link)
+        res = self._call_idempotent(lambda: link.params.get_parameters(["mode", "publish_transitions", "slopes_deg"]),
+                                    "its parameters", link)
         mode, pub, slopes = (parameter_value_to_python(v) for v in res.values)
         if slopes not in (None, "", []):
             raise RuntimeError(f"sim node {link.fqn} cycles through slopes_deg = {slopes!r}; a learner sets each "
@@ -225,8 +250,8 @@ class SimNodePool:
         if not pub:
             raise RuntimeError(f"sim node {link.fqn} was started with publish_transitions:=false; a learner needs "
                                "its <prefix>/rl/transition")
-        res = self._future(link.params.set_parameters([Parameter("auto_reset", value=False)]),
-                           "auto_reset:=false", link)
+        res = self._call_idempotent(lambda: link.params.set_parameters([Parameter("auto_reset", value=False)]),
+                                    "auto_reset:=false", link)
         if not res.results[0].successful:
             raise RuntimeError(f"sim node {link.fqn} refused auto_reset:=false: {res.results[0].reason}")
         kv = self._spin_until(link.latest_status, "its first /episode status", link)

@@ -144,3 +144,46 @@ def test_realtime_node_and_other_config_are_refused(sim_node, tmp_path):
     finally:
         rt.stop()
         oc.stop()
+
+
+def test_idempotent_parameter_calls_are_sent_again_until_answered():
+    """A parameter request that reaches a sim node before its DDS participant has matched the
+    learner's reply reader is never answered (Fast DDS drops the response); the pool sends such
+    idempotent calls again every few seconds instead of waiting the whole timeout on the first.
+    Real rclpy futures and executor; which request goes unanswered is chosen here."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.task import Future
+    from types import SimpleNamespace
+
+    from lhd_sim_node.ros_env import SimNodePool
+
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    try:
+        pool = SimpleNamespace(timeout=2.0, executor=SingleThreadedExecutor(context=ctx))
+        pool._spin_until = SimNodePool._spin_until.__get__(pool)
+        link = SimpleNamespace(label="/x", namespace="/x", last_error=None)
+        sent = []
+
+        def answered_third_time():
+            f = Future()
+            sent.append(f)
+            if len(sent) == 3:
+                f.set_result("params")
+            return f
+
+        t0 = time.monotonic()
+        assert SimNodePool._call_idempotent(pool, answered_third_time, "its parameters", link, attempt_s=0.2) == "params"
+        assert len(sent) == 3 and sent[0].cancelled() and sent[1].cancelled() and time.monotonic() - t0 < 1.5
+        sent.clear()
+        with pytest.raises(TimeoutError, match=r"no answer within 2 s while waiting for its parameters \(asked every 0.5 s\)"):
+            SimNodePool._call_idempotent(pool, lambda: sent.append(Future()) or sent[-1], "its parameters", link,
+                                         attempt_s=0.5)
+        assert 3 <= len(sent) <= 5            # 2 s at one request every 0.5 s
+        failing = Future()
+        failing.set_exception(ValueError("bad parameter"))
+        with pytest.raises(RuntimeError, match="its parameters failed: bad parameter"):
+            SimNodePool._call_idempotent(pool, lambda: failing, "its parameters", link)
+    finally:
+        rclpy.shutdown(context=ctx)
