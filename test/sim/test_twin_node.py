@@ -182,8 +182,23 @@ def test_wheel_command_drives_the_machine_and_the_command_timeout_stops_it(rig):
     a_imu = np.array([fwd(m) for m in imu[1:]]) - bias_x
     assert len(imu) > 20 and np.max(a_truth) > 0.3, (len(imu), np.max(a_truth))
     err = a_imu - a_truth
-    print(f"\ntwin accelerometer: RMS {math.sqrt(float(np.mean(err ** 2))):.3f} m/s^2 against the truth, peak {np.max(a_truth):.2f}")
-    assert math.sqrt(float(np.mean(err ** 2))) < 0.1, (a_imu.round(3).tolist(), a_truth.round(3).tolist())
+    # the truth is v_x of /odom interpolated at the IMU's stamps: where an odom sample is missing
+    # (a gap of more than twice the usual period around a stamp), that interpolation across the
+    # start's peak (several m/s^2 within 0.1 s), not the accelerometer, is wrong. So the samples whose
+    # two stamps both lie in usual odom intervals are compared (at least 3 in 4 of them and 15), their
+    # RMS within 2 sd of the 0.05 m/s^2 noise.
+    gaps = np.diff(tt)
+    usual = 2.0 * float(np.median(gaps))
+    j = np.clip(np.searchsorted(tt, ti), 1, len(tt) - 1)
+    known = (tt[j] - tt[j - 1]) <= usual                       # per IMU stamp: the truth is resolved there
+    valid = known[1:] & known[:-1]                              # per sample: both ends of its interval
+    rms = math.sqrt(float(np.mean(err[valid] ** 2)))
+    print(f"\ntwin accelerometer: RMS {rms:.3f} m/s^2 against the truth over {int(valid.sum())} of {len(err)} samples "
+          f"(all: {math.sqrt(float(np.mean(err ** 2))):.3f}), peak {np.max(a_truth):.2f}, largest odom gap "
+          f"{1e3 * float(np.max(gaps)):.0f} ms")
+    diag = (a_imu.round(3).tolist(), a_truth.round(3).tolist(), f"odom gaps ms: {np.round(1e3 * gaps, 1).tolist()}")
+    assert valid.sum() >= max(15, 0.75 * len(err)), diag
+    assert rms < 0.1, diag
     steady = [s for s in g["odom"] if t0 + 0.8 <= s[0] <= t_last]
     vx = [m.twist.twist.linear.x for _, m in steady]
     # on the flat before the pile the machine rolls at set-point x wheel radius: 1.0 x 0.137 m/s
