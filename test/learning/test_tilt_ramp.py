@@ -202,6 +202,50 @@ def test_the_margin_cut_by_hand(cfg):
     assert r_success_margin_cut(W, inside, replace(p, r_success_pitch_margin=0.0)) == 0.0
 
 
+def test_the_mass_margin_s_cut_by_hand(cfg):
+    """r_success_margin_cut with task.r_success_mass_margin_kg: zero at or above 20 kg + margin and
+    below 20 kg (the paper's test fails too), the whole of the paper's r_success for a load within
+    the margin, so that a ramped margin (r_tilt_ramp_pitch_margin) cuts exactly that."""
+    import math
+    from dataclasses import replace
+
+    from lhd_loading_ros.task.params import TaskParams
+    from lhd_loading_ros.task.reward import r_success, r_success_margin_cut
+
+    p = replace(TaskParams.from_config(cfg), r_success_pitch_margin=0.0, r_success_mass_margin=4.0)
+    phi = math.radians(45.0)
+    assert r_success_margin_cut(24.0, phi, p) == 0.0 and r_success_margin_cut(30.0, phi, p) == 0.0
+    assert r_success_margin_cut(19.9, phi, p) == 0.0
+    for W in (20.0, 22.0, 23.99):
+        full = r_success(W, phi, replace(p, r_success_mass_margin=0.0))
+        assert full > 0 and r_success(W, phi, p) == 0.0 and r_success_margin_cut(W, phi, p) == -full
+    # with the pitch margin as well, a load inside the mass margin at a pitch inside the pitch
+    # margin loses the same whole r_success, once
+    both = replace(p, r_success_pitch_margin=math.radians(3.0))
+    inside = math.radians(41.5)
+    assert r_success_margin_cut(22.0, inside, both) == -r_success(22.0, inside, replace(both, r_success_pitch_margin=0.0,
+                                                                                         r_success_mass_margin=0.0))
+
+
+def test_a_ramped_mass_margin_alone_is_accepted_and_no_margin_is_refused(cfg, tmp_path):
+    """r_tilt_ramp_pitch_margin = 1 needs a margin to ramp: the mass margin alone is one; with neither
+    margin training refuses to start and names the keys."""
+    import copy
+
+    from lhd_loading_ros.learning.train import train
+
+    base = copy.deepcopy(cfg)
+    base["task"].update(r_tilt_per_deg=10.0, r_tilt_ramp_after_success=0.5, r_tilt_ramp_steps=5000,
+                        r_tilt_ramp_pitch_margin=1, r_success_pitch_margin_deg=0.0, r_success_mass_margin_kg=0.0)
+    with pytest.raises(ValueError, match="r_success_mass_margin_kg"):
+        train("rld", 0, tmp_path / "none", steps=10, config=base, progress=False, log=lambda m: None)
+    mass = copy.deepcopy(base)
+    mass["task"]["r_success_mass_margin_kg"] = 4.0
+    train("rld", 0, tmp_path / "mass", steps=30, config=mass, progress=False, log=lambda m: None)
+    card = json.loads((tmp_path / "mass" / "final" / "policy.json").read_text())
+    assert card["trained_with"]["r_success_mass_margin_kg"] == 4.0
+
+
 def test_a_ramped_margin_pays_r_success_at_40_deg_until_the_ramp(cfg, tmp_path, monkeypatch):
     """task.r_tilt_ramp_pitch_margin = 1: the env's success_margin_cut goes into the aux column
     with the tilt term, so the stored reward is the paper's r_success (no margin) until the ramp

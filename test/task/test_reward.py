@@ -136,6 +136,51 @@ def test_training_pitch_margin_raises_only_r_success_s_pitch_test(params):
     assert R.r_success(30.0, r(41), paper) > 0.0
 
 
+def test_training_mass_margin_raises_only_r_success_s_mass_test(params):
+    """r_success_mass_margin (training, kg): with 4 kg nothing is paid at 20 or 23.9 kg, and from 24 kg
+    exactly what the paper's test pays: R_success (Delta_W + Delta_pitch) / 2 max(W, W_target), by hand
+    Delta_W(24) = 1 - ((6 + ln 6) - (1 + ln 1)) / ((30 + ln 30) - (1 + ln 1)) = 0.790383, Delta_pitch 1 at
+    44 deg (inside the 42.5-52.5 deg band), so 40 x 1.790383 / 2 x 30 = 1074.23. The paper's success
+    level of the same attempts is unchanged (SL 1 at 20 kg)."""
+    import dataclasses
+    m4 = dataclasses.replace(params, r_success_mass_margin=4.0)
+    m0 = dataclasses.replace(params, r_success_mass_margin=0.0)
+    assert R.r_success(20.0, r(44), m0) > 0.0
+    assert R.r_success(20.0, r(44), m4) == 0.0
+    assert R.r_success(23.9, r(44), m4) == 0.0
+    d_w = 1 - ((6 + math.log(6)) - 1) / ((30 + math.log(30)) - 1)
+    assert R.r_success(24.0, r(44), m4) == pytest.approx(40 * (d_w + 1) / 2 * 30) == pytest.approx(1074.2313, abs=1e-3)
+    assert R.r_success(24.0, r(44), m4) == R.r_success(24.0, r(44), m0)
+    assert R.r_success(30.0, r(44), m4) == pytest.approx(40 * 30)
+    assert success_level(20.0, r(44), m4.phi_thresh_pitch) == 1
+    # the two margins together: both tests must pass
+    both = dataclasses.replace(m4, r_success_pitch_margin=r(3.0))
+    assert R.r_success(30.0, r(42.9), both) == 0.0 and R.r_success(23.0, r(44), both) == 0.0
+    assert R.r_success(24.0, r(44), both) == pytest.approx(1074.2313, abs=1e-3)
+    # off when r_success does not require the success test (the paper's printed term)
+    assert R.r_success(21.0, r(44), dataclasses.replace(m4, r_success_requires_sl=0)) > 0.0
+
+
+def test_the_mass_margin_is_never_in_the_config_hash(cfg):
+    """task.r_success_mass_margin_kg is reward shaping, not what the actor sees: a parameter file
+    without the key reads as 0, and 0, 4 kg and an absent key give one hash, so an actor trained with
+    the margin runs on the project's file (and on the one shipped beside an actor trained without)."""
+    import copy
+    from lhd_loading_ros.task.config import config_hash, hash_matches, validate
+    assert cfg["task"]["r_success_mass_margin_kg"] == 0.0
+    stripped = copy.deepcopy(cfg)
+    del stripped["task"]["r_success_mass_margin_kg"]
+    assert validate(copy.deepcopy(stripped))["task"]["r_success_mass_margin_kg"] == 0.0
+    m4 = copy.deepcopy(cfg)
+    m4["task"]["r_success_mass_margin_kg"] = 4.0
+    assert config_hash(cfg) == config_hash(stripped) == config_hash(m4)
+    assert hash_matches(config_hash(m4), cfg)
+    bad = copy.deepcopy(cfg)
+    bad["task"]["r_success_mass_margin_kg"] = -1.0
+    with pytest.raises(Exception, match="r_success_mass_margin_kg"):
+        validate(bad)
+
+
 def test_success(params):
     import dataclasses
     params = dataclasses.replace(params, phi_target=r(40), r_success_requires_sl=0)   # the paper's printed term

@@ -49,6 +49,8 @@ def export_actor(directory, actor: FlatMlp, cfg: dict, meta: dict):
                                 if int(cfg["training"].get("demo_until_step", 0)) > 0 else {})}
                             if float(cfg.get("training", {}).get("demo_share", 0.0)) > 0 else {}),
                          "r_success_pitch_margin_deg": float(cfg["task"].get("r_success_pitch_margin_deg", 0.0)),
+                         **({"r_success_mass_margin_kg": float(cfg["task"]["r_success_mass_margin_kg"])}
+                            if float(cfg["task"].get("r_success_mass_margin_kg", 0.0)) > 0 else {}),
                          "r_tilt_per_deg": float(cfg["task"].get("r_tilt_per_deg", 0.0)),
                          "r_tilt_free_deg": float(cfg["task"].get("r_tilt_free_deg", 0.0)),
                          **({"r_tilt_ramp_after_success": float(cfg["task"]["r_tilt_ramp_after_success"]),

@@ -221,12 +221,13 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
     ramp = TiltRamp(float(task_cfg.get("r_tilt_ramp_after_success", 0.0)) if float(task_cfg.get("r_tilt_per_deg", 0.0)) > 0
                     else 0.0, int(task_cfg.get("r_tilt_ramp_steps", 0)),
                     pitch_margin=bool(int(task_cfg.get("r_tilt_ramp_pitch_margin", 0))))
-    if ramp.pitch_margin and not (ramp.enabled and float(task_cfg.get("r_success_pitch_margin_deg", 0.0)) > 0):
-        raise ValueError("task.r_tilt_ramp_pitch_margin = 1 ramps r_success's pitch margin in with the tilt penalty: it "
+    if ramp.pitch_margin and not (ramp.enabled and (float(task_cfg.get("r_success_pitch_margin_deg", 0.0)) > 0
+                                                    or float(task_cfg.get("r_success_mass_margin_kg", 0.0)) > 0)):
+        raise ValueError("task.r_tilt_ramp_pitch_margin = 1 ramps r_success's margins in with the tilt penalty: it "
                          "needs task.r_tilt_per_deg > 0, task.r_tilt_ramp_after_success > 0 and "
-                         "task.r_success_pitch_margin_deg > 0 (got "
+                         "task.r_success_pitch_margin_deg > 0 or task.r_success_mass_margin_kg > 0 (got "
                          f"{task_cfg.get('r_tilt_per_deg')}, {task_cfg.get('r_tilt_ramp_after_success')}, "
-                         f"{task_cfg.get('r_success_pitch_margin_deg')})")
+                         f"{task_cfg.get('r_success_pitch_margin_deg')}, {task_cfg.get('r_success_mass_margin_kg')})")
     if ramp.enabled and env_kind != "local":
         raise ValueError("task.r_tilt_ramp_after_success > 0 (the tilt penalty ramped in) needs the in-process "
                          "environment: the sim nodes' transitions do not give the reward's terms apart; set it "
@@ -524,7 +525,7 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
                         agent.bc_rows, agent.bc_passed = 0, 0
                     if ramp.evaluated(ev["success_rate"], step):
                         log(f"{variant} seed {seed}: evaluation success {ev['success_rate']:.2f} at step {step:,}: the "
-                            f"tilt penalty{' and the pitch margin are' if ramp.pitch_margin else ' is'} ramped in "
+                            f"tilt penalty{' and the success margins are' if ramp.pitch_margin else ' is'} ramped in "
                             f"over {ramp.steps:,} steps")
                         write_run_json()
                     if best is None or _rank(last_eval) > _rank(best):

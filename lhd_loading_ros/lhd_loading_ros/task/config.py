@@ -81,7 +81,7 @@ SCHEMA: dict[str, Any] = {
         "r_success_requires_sl": _i(0, 1), "success_pitch_margin_deg": _f(-45.0, 45.0),
         "r_success_pitch_margin_deg": _f(0.0, 20.0), "r_tilt_per_deg": _f(0.0, 1e4), "r_tilt_free_deg": _f(0.0, 45.0),
         "r_tilt_ramp_after_success": _f(0.0, 1.0), "r_tilt_ramp_steps": _i(0, 100_000_000),
-        "r_tilt_ramp_pitch_margin": _i(0, 1),
+        "r_tilt_ramp_pitch_margin": _i(0, 1), "r_success_mass_margin_kg": _f(0.0, 20.0),
         "bottom_tolerance": _f(0.0, 0.5),
         "bucket_repose_deg": _f(5.0, 60.0), "normalisers_from_pile": _i(0, 1),  # H4: capacity, derived normalisers
         "midgoal_from_pile": _i(0, 1),
@@ -233,7 +233,7 @@ def _describe(spec) -> str:
 
 
 # Keys a parameter file may leave out, with the value they then take: how the learner learns
-# (never in the config hash, TRAINING_SCHEDULE_KEYS), added after parameter files were written
+# (never in the config hash, TRAINING_SCHEDULE_KEYS) and r_success's mass margin (never in it either), added after parameter files were written
 # that trained fine without them; and machine.rear_differential, whose absence means the
 # simulator before it (SIM_CHANGES: every wheel its own motor), as in the parameter files of the
 # evidence written before it. Every other key is required.
@@ -245,7 +245,7 @@ OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curric
                      ("training", "demo_crowd_min"): 0.5, ("training", "demo_crowd_max"): 0.75,
                      ("training", "demo_pre_curl"): 0.3, ("training", "demo_bc"): 0.0,
                      ("training", "demo_until_step"): 0, ("training", "critic_huber"): 0.0,
-                     ("training", "noise_after_decay"): 0.0}
+                     ("training", "noise_after_decay"): 0.0, ("task", "r_success_mass_margin_kg"): 0.0}
 
 
 def validate(cfg: Any) -> dict:
@@ -330,6 +330,9 @@ TILT_KEYS = ("r_tilt_per_deg", "r_tilt_free_deg")     # the tilt penalty; both l
 # an actor was trained with (all of it once the ramp is through; none if it never began): the card
 # records the schedule and that weight (learning/ship.py), and `lhd ship` warns below the whole
 TILT_SCHEDULE_KEYS = ("r_tilt_ramp_after_success", "r_tilt_ramp_steps", "r_tilt_ramp_pitch_margin",
+                      # r_success's mass margin over the success test's 20 kg: a reward setting (what r_success
+                      # asks of the load), not what the actor sees; the card's trained_with records it
+                      "r_success_mass_margin_kg",
                       # where r_midgoal / r_inact switch (the paper's constant x_midgoal, or the episode pile's
                       # x_min): reward shaping, not what the actor sees; the card's trained_with records it
                       "midgoal_from_pile")

@@ -82,6 +82,7 @@ class TaskParams:
     bucket_repose: float = math.radians(35.0)   # angle of repose of the material (bucket capacity)
     normalisers_from_pile: int = 0              # 1: d_end_max / x_obs derived from the pile family (zones.py)
     r_success_pitch_margin: float = 0.0         # rad; r_success only when phi^T > phi_thresh_pitch + this (training)
+    r_success_mass_margin: float = 0.0          # kg; r_success only when W^T >= the success test's 20 kg + this (training)
     r_tilt_per_deg: float = 0.0                 # training: r_tilt = -this x (|machine pitch| - r_tilt_free) per step, deg
     r_tilt_free: float = 0.0                    # rad; a machine pitch this small costs nothing
     midgoal_from_pile: int = 0                  # 1: r_midgoal / r_inact switch at the episode pile's x_min (for_pile)
@@ -125,7 +126,8 @@ class TaskParams:
             drift_min_speed=t["drift_min_speed"], rlc_boom_saturate=t["rlc_boom_saturate"],
             rlc_bucket_saturate=t["rlc_bucket_saturate"], rld_threshold=t["rld_threshold"], r_dump_sign=t["r_dump_sign"], r_weight_increments=t["r_weight_increments"],
             r_success_requires_sl=t["r_success_requires_sl"],
-            r_success_pitch_margin=rad(t.get("r_success_pitch_margin_deg", 0.0)), bottom_tolerance=t["bottom_tolerance"],
+            r_success_pitch_margin=rad(t.get("r_success_pitch_margin_deg", 0.0)),
+            r_success_mass_margin=float(t.get("r_success_mass_margin_kg", 0.0)), bottom_tolerance=t["bottom_tolerance"],
             r_tilt_per_deg=t.get("r_tilt_per_deg", 0.0), r_tilt_free=rad(t.get("r_tilt_free_deg", 0.0)),
             bucket_repose=rad(t["bucket_repose_deg"]), normalisers_from_pile=t["normalisers_from_pile"],
             midgoal_from_pile=int(t.get("midgoal_from_pile", 0)),

@@ -12,7 +12,7 @@ import math
 from collections import deque
 from dataclasses import dataclass, field, replace
 
-from lhd_loading_ros.task.metrics import success_level
+from lhd_loading_ros.task.metrics import SL_BANDS, success_level
 from lhd_loading_ros.task.params import TaskParams
 from lhd_loading_ros.task.state import LhdState
 from lhd_loading_ros.task.zones import Zones
@@ -135,20 +135,24 @@ def r_success(W: float, phi: float, p: TaskParams) -> float:
     """R_success * (Delta_weight + Delta_pitch) / 2 * max(W^T, W_target), paid when the tip
     reaches the end zone; with r_success_requires_sl (default) only if the attempt also meets
     the paper's success test, SL >= 1 (W^T >= 20 kg, phi^T > phi_thresh), with the pitch test
-    raised by the training margin r_success_pitch_margin (the episode's own success test is not)."""
-    if p.r_success_requires_sl and success_level(W, phi, p.phi_thresh_pitch + p.r_success_pitch_margin) < 1:
+    raised by the training margin r_success_pitch_margin and the mass test by r_success_mass_margin
+    (the episode's own success test is not)."""
+    if p.r_success_requires_sl and (success_level(W, phi, p.phi_thresh_pitch + p.r_success_pitch_margin) < 1
+                                    or W < SL_BANDS[-1][0] + p.r_success_mass_margin):
         return 0.0
     d_w, d_p = success_deltas(W, phi, p)
     return p.R_success * (d_w + d_p) / 2.0 * max(W, p.W_target)
 
 
 def r_success_margin_cut(W: float, phi: float, p: TaskParams) -> float:
-    """What r_success_pitch_margin takes away from r_success (<= 0): r_success with the margin
-    minus r_success at the paper's pitch test. Nonzero only for a final pitch within the margin
-    above phi_thresh. Training keeps it apart when the margin is ramped in (learning/ddpg.TiltRamp)."""
-    if p.r_success_pitch_margin == 0.0:
+    """What the training margins (r_success_pitch_margin, r_success_mass_margin) take away from
+    r_success (<= 0): r_success with the margins minus r_success at the paper's success test.
+    Nonzero only for a final pitch within the pitch margin above phi_thresh or a load within the
+    mass margin above 20 kg. Training keeps it apart when the margins are ramped in
+    (learning/ddpg.TiltRamp)."""
+    if p.r_success_pitch_margin == 0.0 and p.r_success_mass_margin == 0.0:
         return 0.0
-    return r_success(W, phi, p) - r_success(W, phi, replace(p, r_success_pitch_margin=0.0))
+    return r_success(W, phi, p) - r_success(W, phi, replace(p, r_success_pitch_margin=0.0, r_success_mass_margin=0.0))
 
 
 def r_zone(restricted: bool, p: TaskParams) -> float:
