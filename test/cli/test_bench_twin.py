@@ -25,7 +25,8 @@ KEYS = ("latency_p50_ms", "latency_p99_ms", "latency_max_ms", "camera_to_decisio
     (["--duration", "nan"], "--duration must be a positive number of seconds"),
     (["--duration", "inf"], "--duration must be a positive number of seconds"),
     (["--timeout", "-5"], "--timeout must be a positive number of seconds"),
-    (["--slopes", "100"], "--slopes '100': expected degrees in the config's pile range [15, 30]"),
+    (["--slopes", "100"], "--slopes 100: outside the pile range [15, 30] deg of config/lhd_params.yaml"),
+    (["--slopes", "abc"], "--slopes 'abc': expected degrees, e.g. 20 or '15,30'"),
     (["--no-imu", "--imu", "100"], "not allowed with argument"),
 ])
 def test_bad_arguments_are_refused_before_anything_starts(argv, expected, capsys):

@@ -297,16 +297,17 @@ def main(argv=None) -> int:
         ap.error(f"--timeout must be a positive number of seconds (0: the default), got {args.timeout}")
     if args.camera_fps <= 0:
         ap.error(f"--camera-fps must be positive, got {args.camera_fps}")
-    from lhd_loading_ros.cli.up_twin import slope_range_deg
+    from lhd_loading_ros.cli.up_twin import slope_range_problem
 
     try:
         slopes = [float(v) for v in str(args.slopes).replace(",", " ").split()]
     except ValueError:
         slopes = []
-    lo, hi = slope_range_deg(args.config)
-    if not slopes or not all(math.isfinite(v) and lo <= v <= hi for v in slopes):
-        ap.error(f"--slopes {args.slopes!r}: expected degrees in the config's pile range [{lo:g}, {hi:g}], e.g. 20 "
-                 "or '15,30'")
+    if not slopes:
+        ap.error(f"--slopes {args.slopes!r}: expected degrees, e.g. 20 or '15,30'")
+    bad = slope_range_problem(slopes, args.config)
+    if bad:
+        ap.error(bad)
     args.slopes = ",".join(f"{v:g}" for v in slopes)
     if not (args.imu_hz == 0.0 or 1.0 <= args.imu_hz <= 200.0):
         ap.error(f"--imu {args.imu_hz:g}: expected an IMU rate in [1, 200] Hz (the twin's imu_hz; --no-imu: none)")

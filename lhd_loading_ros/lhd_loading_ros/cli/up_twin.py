@@ -704,12 +704,14 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
     return rc
 
 
-def slope_range_deg(config: str | None) -> tuple[float, float]:
-    """The piles' slope range of the config the twin will read (paper.episode alpha_min/max_deg)."""
+def slope_range_problem(slopes, config: str | None, flag: str = "--slopes") -> str:
+    """Why the twin cannot load these slopes under the config it will read ("" if it can): the
+    launcher's check (cli/launcher.slope_range_problem), one wording for `lhd up sim`, `lhd up
+    twin` and `lhd bench twin`."""
+    from lhd_loading_ros.cli.launcher import slope_range_problem as problem
     from lhd_loading_ros.task.config import load_config
 
-    ep = load_config(config or None)["paper"]["episode"]
-    return float(ep["alpha_min_deg"]), float(ep["alpha_max_deg"])
+    return problem(slopes, load_config(config or None), flag, config or "config/lhd_params.yaml")
 
 
 def main(argv=None) -> int:
@@ -765,11 +767,9 @@ def main(argv=None) -> int:
             ap.error(f"--twin-param {kv!r}: expected NAME=VALUE, e.g. camera_dropout=0.05")
     if args.arm_timeout <= 0:
         ap.error(f"--arm-timeout must be positive, got {args.arm_timeout}")
-    lo, hi = slope_range_deg(args.config)
-    bad = [s for s in args.slopes if not (math.isfinite(s) and lo <= s <= hi)]
+    bad = slope_range_problem(args.slopes, args.config)
     if bad:
-        ap.error(f"--slopes {' '.join(f'{s:g}' for s in bad)}: outside the config's pile range [{lo:g}, {hi:g}] deg "
-                 "(paper.episode alpha_min_deg, alpha_max_deg)")
+        ap.error(bad)
     if args.imu is not None and not (math.isfinite(args.imu) and 0.0 <= args.imu <= 45.0):
         ap.error(f"--imu {args.imu:g}: expected a tilt limit in [0, 45] deg (0 or no value: no limit)")
     # the real stack's options, parsed by `lhd up real`'s own parser: its defaults are the twin's
