@@ -312,7 +312,8 @@ def test_ship_picks_a_seed_and_writes_the_model_card(cfg, tmp_path):
     from lhd_loading_ros.learning.train import train
 
     small_cfg(cfg)
-    cfg["task"]["r_success_pitch_margin_deg"] = 3.0        # the card names the training's margin
+    cfg["task"]["r_success_pitch_margin_deg"] = 3.0        # the card names the training's margins
+    cfg["task"]["r_success_mass_margin_kg"] = 4.0
     for s in (0, 1):
         train("rlc", s, tmp_path / "runs" / f"seed_{s}", steps=300, config=cfg, progress=False)
     cfg_path = tmp_path / "cfg.yaml"
@@ -402,9 +403,10 @@ def test_ship_picks_a_seed_and_writes_the_model_card(cfg, tmp_path):
     # the training-only settings are on the card: the pitch margin of the config it was trained with
     meta = load_policy(res2["shipped_from"]).meta
     assert meta["trained_with"] == {"randomize": False, "r_success_pitch_margin_deg": 3.0, "r_tilt_per_deg": 0.0,
-                                    "r_tilt_free_deg": 3.0}
-    assert "paid only above 43 deg" in card2 and "five documented departures" in card2
-    assert "and a 3 deg pitch margin" in card2 and "Trained without domain randomisation." in card2
+                                    "r_tilt_free_deg": 3.0, "r_success_mass_margin_kg": 4.0}
+    assert "paid only above 43 deg" in card2 and "six documented departures" in card2
+    assert "and only from 24 kg (the training's mass margin" in card2
+    assert "and a 3 deg pitch margin and a 4 kg mass margin" in card2 and "Trained without domain randomisation." in card2
     assert "--seed 3000000 --randomize" in card2
 
 

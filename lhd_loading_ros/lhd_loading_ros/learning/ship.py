@@ -328,7 +328,7 @@ dead time):
     fin = summary["metrics"]
     card = f"""# {variant.upper()} loading policy ({'hybrid: continuous wheels, ternary arm' if variant == 'rld' else 'continuous actions, deployment filter on the machine'})
 
-Actor exported from `{best_dir}/{sub}` (seed {m['seed']}, {why}), DDPG with the paper's protocol{' and domain randomisation' if trained_dr else ''}{f' and a {margin:g} deg pitch margin' if margin > 0 else ''}{tilt_name}{recipe} (docs/training.md). Files: `actor.npz`
+Actor exported from `{best_dir}/{sub}` (seed {m['seed']}, {why}), DDPG with the paper's protocol{' and domain randomisation' if trained_dr else ''}{f' and a {margin:g} deg pitch margin' if margin > 0 else ''}{f' and a {mass_margin:g} kg mass margin' if mass_margin > 0 else ''}{tilt_name}{recipe} (docs/training.md). Files: `actor.npz`
 (float32 weights), `policy.json` (architecture {m['architecture']['sizes']}, observation and action
 normalisation, filter thresholds, config hash `{m['config_hash']}`, training evaluation),
 `evaluation.json` (the table below), `training_curves.png`{f", `{PARAMS_FILE}` (the parameter file it runs under)" if own_params else ""}.
