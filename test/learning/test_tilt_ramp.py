@@ -169,6 +169,25 @@ def test_a_ramp_that_begins_reaches_the_updates_and_the_card(cfg, tmp_path, monk
     assert ramp_progress(tmp_path / "off", {k: v for k, v in off.meta.items() if k != "tilt_ramp"}) == (None, 0.0)
 
 
+def test_a_resume_keeps_the_mass_margin(cfg, tmp_path):
+    """task.r_success_mass_margin_kg is not in the config hash, so the checkpoint records it: a resume
+    with another margin is refused with the key named; with the same margin it resumes."""
+    from lhd_loading_ros.learning.train import train
+
+    cfg["training"].update({"learning_starts": 256, "eval_episodes": 2, "eval_every": 300,
+                            "checkpoint_every": 300, "hidden_sizes": [16, 16]})
+    cfg["task"]["r_success_mass_margin_kg"] = 4.0
+    train("rld", 4, tmp_path / "r", steps=300, config=cfg, progress=False, log=lambda *a: None)
+    assert torch.load(tmp_path / "r" / "checkpoint.pt", weights_only=True)["r_success_mass_margin_kg"] == 4.0
+    cfg["task"]["r_success_mass_margin_kg"] = 0.0
+    with pytest.raises(ValueError, match="r_success_mass_margin_kg = 4, this config has 0"):
+        train("rld", 4, tmp_path / "r", steps=350, config=cfg, progress=False, log=lambda *a: None)
+    cfg["task"]["r_success_mass_margin_kg"] = 4.0
+    logs = []
+    train("rld", 4, tmp_path / "r", steps=350, config=cfg, progress=False, log=logs.append)
+    assert any("resumed" in m for m in logs), logs
+
+
 def test_a_run_without_the_ramp_resumes_whatever_its_unused_steps(cfg, tmp_path):
     """r_tilt_ramp_steps means nothing while the ramp is off: changing it must not stop a resume."""
     from lhd_loading_ros.learning.train import train

@@ -203,9 +203,10 @@ class TiltRamp:
     once). Why: with the whole penalty from the first step, 2 of 9 RLD seeds never found loading
     (docs/training.md "Tilt penalty"); the evaluation, not a training episode, says the actor
     has found it (a random actor's episode meets the success test now and then). R = 0: off,
-    the weight is 1 throughout. pitch_margin (task.r_tilt_ramp_pitch_margin): r_success's pitch
-    margin rides on the same schedule (until the ramp, r_success is paid at the paper's 40 deg;
-    the replay's aux column then also holds what the margin takes away from it)."""
+    the weight is 1 throughout. pitch_margin (task.r_tilt_ramp_pitch_margin): r_success's margins
+    (task.r_success_pitch_margin_deg and task.r_success_mass_margin_kg) ride on the same schedule
+    (until the ramp, r_success is paid at the paper's 40 deg and 20 kg; the replay's aux column then
+    also holds what the margins take away from it)."""
 
     def __init__(self, after_success: float, steps: int, pitch_margin: bool = False):
         if not (0.0 <= after_success <= 1.0) or steps < 0:
@@ -242,7 +243,7 @@ class TiltRamp:
         theirs = (float(d["after_success"]), int(d["steps"]), bool(d.get("pitch_margin", False)))
         if theirs != (self.after_success, self.steps, self.pitch_margin):
             raise ValueError(f"the checkpoint's tilt ramp (after an evaluation with success >= {d['after_success']}, "
-                             f"over {d['steps']} steps, pitch margin ramped: {theirs[2]}) is not this config's "
+                             f"over {d['steps']} steps, success margins ramped: {theirs[2]}) is not this config's "
                              f"({self.after_success}, {self.steps}, {self.pitch_margin}): "
                              "resume with the same task.r_tilt_ramp_* settings or use another --out")
         self.start_step = None if d["start_step"] is None else int(d["start_step"])

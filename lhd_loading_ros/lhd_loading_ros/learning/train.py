@@ -218,6 +218,7 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
     if env_kind not in ENV_KINDS:
         raise ValueError(f"env must be one of {ENV_KINDS}, got {env_kind!r}")
     task_cfg = cfg["task"]
+    mass_margin = float(task_cfg.get("r_success_mass_margin_kg", 0.0))
     ramp = TiltRamp(float(task_cfg.get("r_tilt_ramp_after_success", 0.0)) if float(task_cfg.get("r_tilt_per_deg", 0.0)) > 0
                     else 0.0, int(task_cfg.get("r_tilt_ramp_steps", 0)),
                     pitch_margin=bool(int(task_cfg.get("r_tilt_ramp_pitch_margin", 0))))
@@ -334,6 +335,10 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
         elif st.get("slope_curriculum"):
             raise ValueError(f"{ckpt} was trained with training.slope_curriculum: resume with it on, or use another "
                              "--out")
+        if "r_success_mass_margin_kg" in st and float(st["r_success_mass_margin_kg"]) != mass_margin:
+            raise ValueError(f"{ckpt} was trained with task.r_success_mass_margin_kg = "
+                             f"{float(st['r_success_mass_margin_kg']):g}, this config has {mass_margin:g}: resume with "
+                             "the same margin or use another --out")     # (checkpoints before the key: not checked)
         if ramp.enabled and st.get("tilt_ramp"):      # (the replay's columns already refused a ramp switched on/off)
             ramp.load_state_dict(json.loads(st["tilt_ramp"]))
         rng.bit_generator.state = json.loads(st["rng"])
@@ -400,7 +405,9 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
               "slope_curriculum": json.dumps(curriculum.state_dict()) if curriculum is not None else "",
               "best": json.dumps(best) if best else "", "wall_s": wall_before + time.perf_counter() - t0,
               # the step the learning-rate decay runs to (0: no decay): a resume must not move it
-              "lr_total_steps": dc.total_steps if dc.lr_final_scale < 1.0 else 0}
+              "lr_total_steps": dc.total_steps if dc.lr_final_scale < 1.0 else 0,
+              # r_success's mass margin (never in the config hash): a resume must keep it
+              "r_success_mass_margin_kg": mass_margin}
         tmp = out / "checkpoint.pt.tmp"
         torch.save(st, tmp)
         if step in keep:
