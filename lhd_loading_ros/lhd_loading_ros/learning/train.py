@@ -223,7 +223,7 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
                     else 0.0, int(task_cfg.get("r_tilt_ramp_steps", 0)),
                     pitch_margin=bool(int(task_cfg.get("r_tilt_ramp_pitch_margin", 0))))
     if ramp.pitch_margin and not (ramp.enabled and (float(task_cfg.get("r_success_pitch_margin_deg", 0.0)) > 0
-                                                    or float(task_cfg.get("r_success_mass_margin_kg", 0.0)) > 0)):
+                                                    or mass_margin > 0)):
         raise ValueError("task.r_tilt_ramp_pitch_margin = 1 ramps r_success's margins in with the tilt penalty: it "
                          "needs task.r_tilt_per_deg > 0, task.r_tilt_ramp_after_success > 0 and "
                          "task.r_success_pitch_margin_deg > 0 or task.r_success_mass_margin_kg > 0 (got "

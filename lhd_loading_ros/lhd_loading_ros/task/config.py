@@ -233,8 +233,8 @@ def _describe(spec) -> str:
 
 
 # Keys a parameter file may leave out, with the value they then take: how the learner learns
-# (never in the config hash, TRAINING_SCHEDULE_KEYS) and r_success's mass margin (never in it either), added after parameter files were written
-# that trained fine without them; and machine.rear_differential, whose absence means the
+# (never in the config hash, TRAINING_SCHEDULE_KEYS) and r_success's mass margin (never in it
+# either), added after parameter files were written that trained fine without them; and machine.rear_differential, whose absence means the
 # simulator before it (SIM_CHANGES: every wheel its own motor), as in the parameter files of the
 # evidence written before it. Every other key is required.
 OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curriculum"): 0,
