@@ -155,3 +155,133 @@ def test_a_short_run_flags_exactly_the_demonstrations(cfg, tmp_path):
     meta = load_policy(tmp_path / "final").meta
     assert meta["trained_with"]["demo_bc"] == 1.0 and meta["trained_with"]["demonstrations"]["demo_share"] == 0.5
     assert meta["config_hash"] == config_hash(validate(small_cfg(cfg)))      # never in the hash
+
+
+# ---------------------------------------------------------------- the return filter (demo_bc_return_filter)
+def test_the_replay_keeps_a_demonstrations_return_from_each_row():
+    gamma = 0.9
+    rb = ReplayBuffer(6, aux=True, demo=True, demo_return=True)
+    assert rb.width == 2 * 12 + 3 + 2 + 1 + 2 + 1           # aux, G, G_aux, the flag still last
+    o = np.zeros(12)
+    rows = []
+    for k in range(4):                                      # a demonstration of 4 steps: r = k + 1, aux = -k
+        t = rb.add(o + k, np.full(3, 0.1 * k), float(k + 1), k == 3, o, aux=-float(k), demo=True)
+        rows.append((t, float(k + 1), -float(k)))
+    actor_row = rb.add(o + 9, np.full(3, 0.9), 5.0, False, o, aux=0.0, demo=False)
+    rb.aux_weight = 0.5
+    _, _, _, _, d, g = rb.sample(64, torch.Generator().manual_seed(0))
+    assert torch.isinf(g).all() and (g < 0).all()           # nothing known yet: no row can pass the filter
+    assert rb.set_demo_return(rows, gamma) == 4
+    oa, r, nt, o2, d, g = rb.sample(256, torch.Generator().manual_seed(1))
+    k = torch.round(oa[:, 12] / 0.1).long()
+    # by hand: G_t = sum_{j >= t} gamma^(j - t) r_j, the same for aux, then G + w G_aux
+    rs, auxs = [1.0, 2.0, 3.0, 4.0], [0.0, -1.0, -2.0, -3.0]
+    want = {t: sum(gamma ** (j - t) * (rs[j] + 0.5 * auxs[j]) for j in range(t, 4)) for t in range(4)}
+    for row in range(256):
+        if int(k[row]) == 9:
+            assert d[row, 0] == 0.0 and g[row, 0] == -float("inf")     # the actor's row: no return, not cloned
+        else:
+            assert d[row, 0] == 1.0
+            assert abs(float(g[row, 0]) - want[int(k[row])]) < 1e-5
+    # a row the ring has overwritten since is skipped, the others written
+    rb2 = ReplayBuffer(3, demo=True, demo_return=True)
+    tickets = [rb2.add(o, np.zeros(3), 1.0, False, o, demo=True) for _ in range(4)]     # the first is gone
+    assert rb2.set_demo_return([(t, 1.0, 0.0) for t in tickets], 1.0) == 3
+    assert sorted(rb2.data[:, -2].tolist()) == [1.0, 2.0, 3.0]
+    # checkpoints: the same layout loads, the other is refused with the setting's name
+    rb3 = ReplayBuffer(6, aux=True, demo=True, demo_return=True)
+    rb3.load_state_dict(rb.state_dict())
+    assert torch.equal(rb3.data, rb.data) and rb3.added == rb.added == actor_row + 1
+    with pytest.raises(ValueError, match="holds the demonstrations' returns.*demo_bc_return_filter"):
+        ReplayBuffer(6, aux=True, demo=True).load_state_dict(rb.state_dict())
+    with pytest.raises(ValueError, match="does not hold the demonstrations' returns, this run's replay does"):
+        rb3.load_state_dict(ReplayBuffer(6, aux=True, demo=True).state_dict())
+    with pytest.raises(ValueError, match="needs the demonstration flag"):
+        ReplayBuffer(6, demo_return=True)
+
+
+def test_the_return_filter_update_matches_an_autograd_reference(cfg):
+    """The same update as the Q-filter's reference, with f_i = demo_i [reward_scale G_i > Q(o_i, mu(o_i))]
+    evaluated independently; the critic's step is unchanged."""
+    dc = dataclasses.replace(DdpgConfig.from_config(small_cfg(cfg)), demo_bc=2.0, batch_size=128,
+                             demo_bc_return_filter=1)
+    agent = DdpgAgent(dc, seed=5)
+    actor, critic, actor_t, critic_t = (agent.actor.to_sequential(), agent.critic.to_sequential(),
+                                        agent.actor_t.to_sequential(), agent.critic_t.to_sequential())
+    actor.opt = torch.optim.Adam(actor.parameters(), lr=dc.actor_lr)
+    critic.opt = torch.optim.Adam(critic.parameters(), lr=dc.critic_lr)
+    g = torch.Generator().manual_seed(6)
+    passed = rows = 0
+    for _ in range(5):
+        oa, o2 = torch.rand(dc.batch_size, 15, generator=g) * 2 - 1, torch.rand(dc.batch_size, 12, generator=g)
+        r = torch.randn(dc.batch_size, 1, generator=g) * 500
+        nd = (torch.rand(dc.batch_size, 1, generator=g) > 0.2).float()
+        demo = (torch.rand(dc.batch_size, 1, generator=g) < 0.4).float()
+        G = torch.randn(dc.batch_size, 1, generator=g) * 5.0        # unscaled returns around Q / reward_scale
+        G[::7] = -float("inf")                                        # some still unknown
+        agent.update(oa, r, nd, o2, demo, G)
+        with torch.no_grad():
+            y = dc.reward_scale * r + dc.gamma * nd * critic_t(torch.cat([o2, actor_t(o2)], 1))
+        critic.opt.zero_grad()
+        ((critic(oa) - y) ** 2).mean().backward()
+        critic.opt.step()
+        o, a = oa[:, :12], oa[:, 12:]
+        pi = actor(o)
+        with torch.no_grad():
+            f = demo * (dc.reward_scale * G > critic(torch.cat([o, pi], 1))).float()
+        loss = (-critic(torch.cat([o, pi], 1)).mean()
+                + dc.demo_bc * (f * ((pi - a) ** 2).sum(1, keepdim=True)).sum() / oa.shape[0])
+        actor.opt.zero_grad()
+        loss.backward()
+        actor.opt.step()
+        with torch.no_grad():
+            for net, tgt in ((actor, actor_t), (critic, critic_t)):
+                for p, tp in zip(net.parameters(), tgt.parameters()):
+                    tp.mul_(1 - dc.tau).add_(dc.tau * p)
+        passed, rows = passed + int(f.sum()), rows + int(demo.sum())
+        torch.testing.assert_close(agent.actor.flat, torch.cat([q.detach().reshape(-1) for q in actor.parameters()]),
+                                   rtol=1e-4, atol=1e-5)
+    assert 0 < passed < rows and (agent.bc_passed, agent.bc_rows) == (passed, rows)
+
+
+def test_the_return_filter_needs_behaviour_cloning(cfg):
+    from lhd_loading_ros.task.config import ConfigError
+
+    with pytest.raises(ConfigError, match="demo_bc_return_filter = 1 only with training.demo_bc > 0"):
+        validate(small_cfg(cfg, demo_bc_return_filter=1, demo_bc=0.0))
+
+
+def test_a_short_run_writes_each_finished_demonstrations_return(cfg, tmp_path):
+    """A real run: in the checkpoint's replay, the rows of every finished demonstration carry their
+    episode's discounted return to its end, summed here from the stored rewards; the actor's rows and
+    an unfinished demonstration's carry none; the card names the filter, the hash does not."""
+    from lhd_loading_ros.learning.train import train
+    from lhd_loading_ros.policy.actor_file import load_policy
+
+    c = small_cfg(cfg, demo_share=0.5, demo_bc=1.0, demo_bc_return_filter=1)
+    logs = []
+    train("rld", 3, tmp_path, steps=400, config=c, resume=False, progress=False, log=logs.append)
+    with open(tmp_path / "episodes.csv") as f:
+        eps = list(csv.DictReader(f))
+    data = torch.load(tmp_path / "checkpoint.pt", weights_only=True)["replay"]["data"].double()
+    r_col, flag, G = data[:, 15], data[:, -1], data[:, -2]
+    gamma = validate(c)["paper"]["ddpg"]["gamma"]
+    start, checked = 0, 0
+    for e in eps:
+        n = int(e["steps"])
+        rows = slice(start, start + n)
+        if e["driver"] == "actor":
+            assert (flag[rows] == 0).all() and torch.isinf(G[rows]).all()
+        else:
+            assert (flag[rows] == 1).all()
+            rr = r_col[rows].numpy()
+            want = [sum(gamma ** (j - t) * rr[j] for j in range(t, n)) for t in range(n)]
+            np.testing.assert_allclose(G[rows].numpy(), want, rtol=1e-5, atol=1e-3)
+            checked += 1
+        start += n
+    assert checked > 0
+    assert torch.isinf(G[start:400]).all()          # the episode still running at the end: no return yet
+    assert any("the others failed the return filter" in line for line in logs)
+    meta = load_policy(tmp_path / "final").meta
+    assert meta["trained_with"]["demo_bc_filter"] == "return"
+    assert meta["config_hash"] == config_hash(validate(small_cfg(cfg)))      # never in the hash

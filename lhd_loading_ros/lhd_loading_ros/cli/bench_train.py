@@ -78,7 +78,8 @@ def bench_train(steps: int = 3000, seed: int = 0, config=None, variant: str = "r
     # for behaviour cloning (a share training.demo_share of the rows flagged, so that the update
     # timed is the recipe's, its Q-filter and cloning term included)
     ramp = float(cfg["task"].get("r_tilt_per_deg", 0.0)) > 0 and float(cfg["task"].get("r_tilt_ramp_after_success", 0.0)) > 0
-    replay = ReplayBuffer(dc.replay_size, aux=ramp, demo=dc.demo_bc > 0.0)
+    replay = ReplayBuffer(dc.replay_size, aux=ramp, demo=dc.demo_bc > 0.0,
+                          demo_return=dc.demo_bc > 0.0 and bool(dc.demo_bc_return_filter))
     demo_share = float(cfg["training"].get("demo_share", 0.0))
     flag_rng = np.random.default_rng([seed, 0xDE])
     noise = OUNoise(3, dc.ou_mu, dc.ou_sigma, dc.ou_theta, dc.ou_dt, np.random.default_rng(seed))
@@ -89,7 +90,10 @@ def bench_train(steps: int = 3000, seed: int = 0, config=None, variant: str = "r
         nonlocal obs, ep
         a = np.clip(agent.act(obs) + noise.sample(), -1.0, 1.0)
         obs2, r, term, trunc, _ = env.step(a)
-        replay.add(obs, a, r, term, obs2, demo=replay.demo and flag_rng.random() < demo_share)
+        flag = replay.demo and flag_rng.random() < demo_share
+        ticket = replay.add(obs, a, r, term, obs2, demo=flag)
+        if flag and replay.demo_return:     # (a return for the flagged row, so that the filter sees numbers)
+            replay.set_demo_return([(ticket, r, 0.0)], dc.gamma)
         obs = obs2
         if term or trunc:
             ep += 1

@@ -47,6 +47,7 @@ class DdpgConfig:
     demo_bc: float = 0.0           # > 0: weight of the actor's Q-filtered behaviour cloning on demonstrations (DDPGfD)
     critic_huber: float = 0.0      # > 0: the critics' loss is Huber with this delta (scaled returns), else squared
     noise_after_decay: float = 0.0  # > 0: the noise factor from noise_decay_steps on, in place of noise_final_scale
+    demo_bc_return_filter: int = 0  # 1: clone a demonstration's row where its own return G beats Q(o, mu(o))
 
     @classmethod
     def from_config(cls, cfg: dict) -> "DdpgConfig":
@@ -63,6 +64,7 @@ class DdpgConfig:
             lr_final_scale=float(t.get("lr_final_scale", 1.0)), lr_decay_from=int(t.get("lr_decay_from", 0)),
             demo_bc=float(t.get("demo_bc", 0.0)), critic_huber=float(t.get("critic_huber", 0.0)),
             noise_after_decay=float(t.get("noise_after_decay", 0.0)),
+            demo_bc_return_filter=int(t.get("demo_bc_return_filter", 0)),
         )
 
     def to_dict(self) -> dict:
@@ -118,17 +120,29 @@ class ReplayBuffer:
     schedule, TiltRamp): a sample's reward is then r + aux_weight * aux, with the weight of the
     moment, so every transition in the buffer is relabelled when the weight changes.
     demo=True adds a last column (after aux), 1 for a scripted demonstration's transition
-    (training.demo_bc); sample() then returns that column as a fifth tensor."""
+    (training.demo_bc); sample() then returns that column as a fifth tensor.
+    demo_return=True (training.demo_bc_return_filter) adds, before the flag, the demonstration's
+    own discounted return from the row on, G = sum_k gamma^k r_{t+k} to its episode's end (and
+    with aux a second column, the same sum of the aux term), written by set_demo_return once the
+    demonstration has ended; until then (and for every other row) G = -inf. sample() then returns
+    G (+ aux_weight G_aux) as a sixth tensor."""
 
     def __init__(self, capacity: int, obs_dim: int = OBS_DIM, act_dim: int = ACT_DIM, aux: bool = False,
-                 demo: bool = False):
+                 demo: bool = False, demo_return: bool = False):
         if capacity < 1:
             raise ValueError(f"replay capacity must be >= 1, got {capacity}")
+        if demo_return and not demo:
+            raise ValueError("a demonstration's return column needs the demonstration flag (ReplayBuffer(demo=True))")
         self.obs_dim, self.act_dim = obs_dim, act_dim
         self.aux = bool(aux)
         self.demo = bool(demo)
-        self.width = 2 * obs_dim + act_dim + 2 + int(self.aux) + int(self.demo)
-        self._aux_col = 2 * obs_dim + act_dim + 2 if self.aux else None
+        self.demo_return = bool(demo_return)
+        base = 2 * obs_dim + act_dim + 2
+        self._aux_col = base if self.aux else None
+        # G (and G_aux with aux) between the aux column and the flag, which stays last
+        self._g_col = base + int(self.aux) if self.demo_return else None
+        self.width = base + int(self.aux) + (1 + int(self.aux)) * int(self.demo_return) + int(self.demo)
+        self.added = 0                    # rows ever added: set_demo_return's check that a row is still there
         self.data = torch.zeros(capacity, self.width, dtype=torch.float32)
         self._np = self.data.numpy()      # shares memory: writes without torch overhead
         self.capacity = capacity
@@ -153,8 +167,36 @@ class ReplayBuffer:
             row[-1] = 1.0 if demo else 0.0
         elif demo:
             raise ValueError("this replay buffer stores no demonstration flag (ReplayBuffer(demo=True))")
+        if self.demo_return:            # unknown until the demonstration ends (never, for the actor's rows)
+            row[self._g_col] = -np.inf
+            if self.aux:
+                row[self._g_col + 1] = 0.0
         self.pos = (self.pos + 1) % self.capacity
         self.size = min(self.size + 1, self.capacity)
+        self.added += 1
+        return self.added - 1
+
+    def set_demo_return(self, rows: list, gamma: float) -> int:
+        """A finished demonstration's rows, as (ticket, r, aux) in the order they were added (ticket:
+        what add returned): write each row's G = r_t + gamma G_{t+1} (G after the last row 0: the
+        realised return to the episode's end, without a bootstrap where the time limit cut it) and
+        the same sum of aux. Rows overwritten since (the ring went round) are skipped. Returns the
+        number written."""
+        if not self.demo_return:
+            raise ValueError("this replay buffer stores no demonstration returns (ReplayBuffer(demo_return=True))")
+        g = g_aux = 0.0
+        written = 0
+        for ticket, r, aux in reversed(rows):
+            g = float(r) + gamma * g
+            g_aux = float(aux) + gamma * g_aux
+            if self.added - ticket > self.capacity:
+                continue
+            row = self._np[ticket % self.capacity]
+            row[self._g_col] = g
+            if self.aux:
+                row[self._g_col + 1] = g_aux
+            written += 1
+        return written
 
     def sample(self, batch: int, generator: torch.Generator):
         idx = torch.randint(self.size, (batch,), generator=generator)
@@ -163,13 +205,18 @@ class ReplayBuffer:
         r = b[:, k:k + 1]
         if self.aux and self.aux_weight != 0.0:
             r = r + self.aux_weight * b[:, self._aux_col:self._aux_col + 1]
+        if self.demo_return:     # ..., the flag, the demonstration's return from the row (G + w G_aux)
+            g = b[:, self._g_col:self._g_col + 1]
+            if self.aux and self.aux_weight != 0.0:
+                g = g + self.aux_weight * b[:, self._g_col + 1:self._g_col + 2]
+            return b[:, :k], r, b[:, k + 1:k + 2], b[:, k + 2:k + 2 + self.obs_dim], b[:, -1:], g
         if self.demo:      # (o|a), r, not_terminal, o', demonstration flag
             return b[:, :k], r, b[:, k + 1:k + 2], b[:, k + 2:k + 2 + self.obs_dim], b[:, -1:]
         return b[:, :k], r, b[:, k + 1:k + 2], b[:, k + 2:k + 2 + self.obs_dim]   # (o|a), r, not_terminal, o'
 
     def state_dict(self) -> dict:
         return {"data": self.data[: self.size].clone(), "pos": self.pos, "size": self.size,
-                "aux": self.aux, "demo": self.demo}
+                "aux": self.aux, "demo": self.demo, "demo_return": self.demo_return, "added": self.added}
 
     def load_state_dict(self, d: dict) -> None:
         n = int(d["size"])
@@ -181,6 +228,10 @@ class ReplayBuffer:
         extra = d["data"].shape[1] - base
         theirs = (bool(d.get("aux", extra >= 1)), bool(d.get("demo", extra == 2)))
         mine = (self.aux, self.demo)
+        if theirs == mine and bool(d.get("demo_return", False)) != self.demo_return:
+            raise ValueError(f"the replay checkpoint {'holds' if d.get('demo_return') else 'does not hold'} the demonstrations' "
+                             f"returns, this run's replay {'does' if self.demo_return else 'does not'} "
+                             "(training.demo_bc_return_filter): resume it with the same setting, or use another --out")
         if theirs != mine:
             what = {(True, False): "the tilt term apart (task.r_tilt_ramp_after_success > 0)",
                     (False, True): "the demonstration flag (training.demo_bc > 0)",
@@ -194,6 +245,8 @@ class ReplayBuffer:
                              "resume it with the same paper.ddpg.replay_size")
         self.data[:n].copy_(d["data"])
         self.size, self.pos = n, int(d["pos"])
+        # (a checkpoint before the count: the smallest count that maps to the same ring position)
+        self.added = int(d.get("added", n if n < self.capacity else self.capacity + self.pos))
 
 
 class TiltRamp:
@@ -300,7 +353,7 @@ class DdpgAgent:
         return NumpyActor(self.actor.numpy_weights())
 
     def update(self, oa: torch.Tensor, r: torch.Tensor, not_term: torch.Tensor, o2: torch.Tensor,
-               demo: torch.Tensor | None = None) -> tuple[float, float]:
+               demo: torch.Tensor | None = None, demo_return: torch.Tensor | None = None) -> tuple[float, float]:
         """One critic step on the TD target and one actor step on -Q(o, mu(o)); then the
         soft target updates. Returns the TD errors and Q(o, mu(o)) of the batch (tensors).
         With twin critics the target is the smaller of the two target critics' values (the
@@ -311,7 +364,12 @@ class DdpgAgent:
         loss gains w / B * sum_i f_i ||mu(o_i) - a_i||^2 over the batch's demonstration rows
         whose action the updated critic values above the actor's, f_i = 1[Q(o_i, a_i) >
         Q(o_i, mu(o_i))] (the Q-filter of DDPGfD, Nair et al. 2018): the actor is pulled to the
-        teacher only where the critic says the teacher does better."""
+        teacher only where the critic says the teacher does better.
+        demo_return (B x 1, cfg.demo_bc_return_filter = 1): the demonstration's own discounted return
+        from the row (unscaled; -inf while unknown) in place of Q(o_i, a_i) in that test, f_i =
+        1[reward_scale G_i > Q(o_i, mu(o_i))] (the test of self-imitation learning, Oh et al. 2018):
+        what the teacher went on to earn, which a critic that values the actor's own continuation
+        cannot see."""
         cfg = self.cfg
         B = oa.shape[0]
         # TD target y = s r + gamma (1 - terminated) Q'(o', mu'(o'))
@@ -341,9 +399,12 @@ class DdpgAgent:
         dx = self.critic.backward(ccache, dq, weight_grads=False, input_grad=True)
         da = dx[:, self.obs_dim:]
         if demo is not None and cfg.demo_bc > 0.0:
-            with torch.no_grad():
-                q_demo = self.critic(oa)             # Q(o, a) of the stored action, by the updated critic
-            passed = demo * (q_demo > qpi)
+            if demo_return is not None:
+                passed = demo * (demo_return * cfg.reward_scale > qpi)     # the teacher's own return
+            else:
+                with torch.no_grad():
+                    q_demo = self.critic(oa)             # Q(o, a) of the stored action, by the updated critic
+                passed = demo * (q_demo > qpi)
             # d/dmu of w/B sum f ||mu - a||^2 = 2 w f (mu - a) / B
             da = da + (2.0 * cfg.demo_bc / B) * passed * (pi - oa[:, self.obs_dim:])
             self.bc_rows += int(demo.sum())

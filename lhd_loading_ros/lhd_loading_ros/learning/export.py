@@ -44,6 +44,9 @@ def export_actor(directory, actor: FlatMlp, cfg: dict, meta: dict):
                              # the actor's Q-filtered behaviour cloning on them (training.demo_bc)
                              **({"demo_bc": float(cfg["training"]["demo_bc"])}
                                 if float(cfg["training"].get("demo_bc", 0.0)) > 0 else {}),
+                             # its filter: the demonstration's own return in place of the critic's Q(o, a)
+                             **({"demo_bc_filter": "return"}
+                                if int(cfg["training"].get("demo_bc_return_filter", 0)) else {}),
                              # the step demonstrations stop at (recorded only when not noise_decay_steps)
                              **({"demo_until_step": int(cfg["training"]["demo_until_step"])}
                                 if int(cfg["training"].get("demo_until_step", 0)) > 0 else {})}

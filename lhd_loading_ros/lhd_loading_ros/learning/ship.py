@@ -151,7 +151,9 @@ def _recipe_note(tw: dict) -> str:
         until = int(tw.get("demo_until_step", 0) or 0)
         parts.append(f"scripted demonstrations in {share:.0%} of the training episodes "
                      + (f"until step {until:,}" if until > 0 else "until the exploration noise's decay ends")
-                     + (f" with Q-filtered behaviour cloning on them (weight {float(tw['demo_bc']):g})"
+                     + ((" with behaviour cloning on them where the demonstration's own return beat the critic's "
+                         f"value of the actor (weight {float(tw['demo_bc']):g})" if tw.get("demo_bc_filter") == "return"
+                         else f" with Q-filtered behaviour cloning on them (weight {float(tw['demo_bc']):g})")
                         if float(tw.get("demo_bc", 0.0) or 0.0) > 0 else ""))
     if int(tw.get("midgoal_from_pile", 0) or 0):
         parts.append("the mid goal x_midgoal at the start of the pile's end zone (`task.midgoal_from_pile`, a "

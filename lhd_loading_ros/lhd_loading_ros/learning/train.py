@@ -300,7 +300,11 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
     slots = range(len(sources))
     agent = DdpgAgent(dc, seed)
     # the tilt term apart while it is ramped in; the demonstration flag for behaviour cloning
-    replay = ReplayBuffer(dc.replay_size, aux=ramp.enabled, demo=dc.demo_bc > 0.0)
+    replay = ReplayBuffer(dc.replay_size, aux=ramp.enabled, demo=dc.demo_bc > 0.0,
+                          demo_return=dc.demo_bc > 0.0 and bool(dc.demo_bc_return_filter))
+    # training.demo_bc_return_filter: a running demonstration's rows (ticket, r, aux), whose returns are
+    # written into the replay when it ends (an aborted one's never: its rows are not cloned)
+    demo_rows: dict = {}
     rng = np.random.default_rng(seed)
     noise = OUNoise(3, dc.ou_mu, dc.ou_sigma, dc.ou_theta, dc.ou_dt, rng)
     # one OU process per source (the first draws from the run's rng, as with one environment)
@@ -470,18 +474,22 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
                     episode += 1
                     ep_ret[i] = 0.0
                     noises[i].reset()
+                    demo_rows.pop(i, None)       # an aborted demonstration's rows keep G = -inf: never cloned
                     slot_episode[i] = next_index()
                     obs[i] = reset_slot(i, episode_seed(seed, slot_episode[i]))
                     continue
                 obs2, r, term, trunc, info = results[i]
+                aux = 0.0
                 if ramp.enabled:             # the tilt term (and a ramped margin's cut) apart, weighted when sampled
                     aux = float(info["terms"].get("tilt", 0.0))
                     if ramp.pitch_margin:
                         aux += float(info["success_margin_cut"])
-                    replay.add(obs[i], a, r - aux, term, obs2, aux=aux, demo=replay.demo and i in demo_crowd)
+                    ticket = replay.add(obs[i], a, r - aux, term, obs2, aux=aux, demo=replay.demo and i in demo_crowd)
                     replay.aux_weight = ramp.weight(step)
                 else:
-                    replay.add(obs[i], a, r, term, obs2, demo=replay.demo and i in demo_crowd)
+                    ticket = replay.add(obs[i], a, r, term, obs2, demo=replay.demo and i in demo_crowd)
+                if replay.demo_return and i in demo_crowd:
+                    demo_rows.setdefault(i, []).append((ticket, r - aux, aux))
                 contributed[sources[i]] += 1
                 ep_ret[i] += r
                 step += 1
@@ -493,6 +501,8 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
                 if term or trunc:
                     res = info["episode_result"]
                     demo = i in demo_crowd
+                    if demo_rows.get(i):     # the demonstration's return from each of its rows, now known
+                        replay.set_demo_return(demo_rows.pop(i), dc.gamma)
                     if curriculum is not None and not demo:      # the actor's failures, not the teacher's
                         curriculum.record(res.alpha_deg, res.success)     # the paper's test (SL >= 1)
                     _append_csv(out / "episodes.csv", EPISODE_FIELDS, {
@@ -528,7 +538,8 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
                     if dc.demo_bc > 0.0 and agent.bc_rows:
                         log(f"{variant} seed {seed}: step {step:,}: behaviour cloning on "
                             f"{agent.bc_passed / agent.bc_rows:.1%} of the {agent.bc_rows:,} demonstration rows sampled "
-                            "since the last evaluation (the others failed the Q-filter)")
+                            "since the last evaluation (the others failed the "
+                            f"{'return filter' if replay.demo_return else 'Q-filter'})")
                         agent.bc_rows, agent.bc_passed = 0, 0
                     if ramp.evaluated(ev["success_rate"], step):
                         log(f"{variant} seed {seed}: evaluation success {ev['success_rate']:.2f} at step {step:,}: the "

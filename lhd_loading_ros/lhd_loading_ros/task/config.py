@@ -139,12 +139,14 @@ SCHEMA: dict[str, Any] = {
         "lr_final_scale": _f(0.01, 1.0), "lr_decay_from": _i(0, 100_000_000),
         "demo_share": _f(0.0, 0.9), "demo_crowd_min": _f(0.05, 1.0), "demo_crowd_max": _f(0.05, 1.0),
         "demo_pre_curl": _f(0.0, 1.4), "demo_bc": _f(0.0, 100.0), "demo_until_step": _i(0, 100_000_000),
-        "critic_huber": _f(0.0, 1e6), "noise_after_decay": _f(0.0, 1.0),
+        "critic_huber": _f(0.0, 1e6), "noise_after_decay": _f(0.0, 1.0), "demo_bc_return_filter": _i(0, 1),
     },
 }
 
 # Relations between keys: (description, predicate).
 _RELATIONS = [
+    ("training.demo_bc_return_filter = 1 only with training.demo_bc > 0 (it chooses which demonstration rows are "
+     "cloned)", lambda c: not c["training"]["demo_bc_return_filter"] or c["training"]["demo_bc"] > 0.0),
     ("training.demo_crowd_min <= training.demo_crowd_max",
      lambda c: c["training"]["demo_crowd_min"] <= c["training"]["demo_crowd_max"]),
     ("paper.end_zone.m_min < paper.end_zone.m_max", lambda c: c["paper"]["end_zone"]["m_min"] < c["paper"]["end_zone"]["m_max"]),
@@ -245,7 +247,8 @@ OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curric
                      ("training", "demo_crowd_min"): 0.5, ("training", "demo_crowd_max"): 0.75,
                      ("training", "demo_pre_curl"): 0.3, ("training", "demo_bc"): 0.0,
                      ("training", "demo_until_step"): 0, ("training", "critic_huber"): 0.0,
-                     ("training", "noise_after_decay"): 0.0, ("task", "r_success_mass_margin_kg"): 0.0}
+                     ("training", "noise_after_decay"): 0.0, ("task", "r_success_mass_margin_kg"): 0.0,
+                     ("training", "demo_bc_return_filter"): 0}
 
 
 def validate(cfg: Any) -> dict:
@@ -342,8 +345,8 @@ TRAINING_SCHEDULE_KEYS = ("twin_critics", "slope_curriculum", "slope_curriculum_
                           "slope_curriculum_uniform", "lr_final_scale", "lr_decay_from",
                           # scripted demonstrations in the replay (learning/demonstrations.py)
                           "demo_share", "demo_crowd_min", "demo_crowd_max", "demo_pre_curl",
-                          # the actor's Q-filtered behaviour-cloning term on them (DDPGfD)
-                          "demo_bc", "demo_until_step",
+                          # the actor's Q-filtered behaviour-cloning term on them (DDPGfD), and its filter
+                          "demo_bc", "demo_until_step", "demo_bc_return_filter",
                           # the critics' Huber loss (learning/ddpg.py)
                           "critic_huber",
                           # the exploration noise after its decay, when not noise_final_scale (a late change
