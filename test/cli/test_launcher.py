@@ -210,6 +210,19 @@ def test_up_sim_refuses_a_slope_outside_the_pile_range_before_any_node_starts(ar
     assert list(tmp.iterdir()) == []
 
 
+def test_the_slope_refusal_names_the_file_lhd_config_points_to(tmp_path):
+    """Without --config the parameter file is $LHD_CONFIG's where it is set: the refusal names that
+    file (and says it came from $LHD_CONFIG), not the source tree's config/lhd_params.yaml."""
+    root = os.path.join(os.path.dirname(__file__), "..", "..")
+    p = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "up", "sim", "--policy", "policies/rld_twin",
+                        "--slope", "9.5", "--mode", "lockstep", "--episodes", "1"],
+                       capture_output=True, text=True, timeout=60, cwd=root,
+                       env=dict(env_with_domain(), LHD_CONFIG="policies/rld_twin/lhd_params.yaml"))
+    assert p.returncode == 2, p.stderr
+    assert ("--slope 9.5: outside the pile range [10, 35] deg of policies/rld_twin/lhd_params.yaml ($LHD_CONFIG)"
+            in p.stderr), p.stderr
+
+
 def test_up_sim_stops_cleanly_on_ctrl_c():
     marker = "seed:=434343"
     # a terminal's Ctrl-C: SIGINT at its default in the launcher. An ignored SIGINT is inherited across

@@ -104,3 +104,14 @@ def test_bad_arguments_are_refused_before_anything_starts(argv, expected, capsys
     assert exc.value.code == 2
     assert expected in capsys.readouterr().err
 
+
+
+def test_the_twins_slope_refusal_names_the_file_lhd_config_points_to(monkeypatch):
+    """No --config: the twin reads $LHD_CONFIG's file where it is set, and its refusal names that one."""
+    from lhd_loading_ros.cli.up_twin import slope_range_problem
+
+    monkeypatch.setenv("LHD_CONFIG", os.path.join(os.path.dirname(__file__), "..", "..", "policies", "rld_twin",
+                                                  "lhd_params.yaml"))
+    msg = slope_range_problem([9.5, 20.0], None)
+    assert msg.startswith("--slopes 9.5: outside the pile range [10, 35] deg of ") and msg.count("($LHD_CONFIG)") == 1
+    assert "rld_twin" in msg and slope_range_problem([10.0, 35.0], None) == ""

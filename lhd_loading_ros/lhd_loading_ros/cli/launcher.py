@@ -400,7 +400,7 @@ def main(argv=None, demo: bool = False) -> int:
     from lhd_loading_ros.nodes.policy_node import default_policy_dir
 
     policy = args.policy or str(default_policy_dir("rld"))
-    from lhd_loading_ros.task.config import ConfigError, load_config
+    from lhd_loading_ros.task.config import ConfigError, config_name, load_config
 
     try:
         pol = load_policy(policy)
@@ -415,7 +415,7 @@ def main(argv=None, demo: bool = False) -> int:
         return 1
     if slopes and cfg_checked is not None:    # before any node starts: the sim node would refuse it too
         bad = slope_range_problem(slopes, cfg_checked, "--slopes" if args.slopes else "--slope",
-                                  args.config or "config/lhd_params.yaml")
+                                  config_name(args.config))
         if bad:
             print(f"{ap.prog}: {bad}", file=sys.stderr)
             return 2

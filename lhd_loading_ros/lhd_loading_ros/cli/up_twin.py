@@ -709,9 +709,9 @@ def slope_range_problem(slopes, config: str | None, flag: str = "--slopes") -> s
     launcher's check (cli/launcher.slope_range_problem), one wording for `lhd up sim`, `lhd up
     twin` and `lhd bench twin`."""
     from lhd_loading_ros.cli.launcher import slope_range_problem as problem
-    from lhd_loading_ros.task.config import load_config
+    from lhd_loading_ros.task.config import config_name, load_config
 
-    return problem(slopes, load_config(config or None), flag, config or "config/lhd_params.yaml")
+    return problem(slopes, load_config(config or None), flag, config_name(config))
 
 
 def main(argv=None) -> int:

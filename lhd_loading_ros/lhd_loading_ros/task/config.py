@@ -282,6 +282,15 @@ def _coerce(node, schema):
             node[key] = float(node[key])
 
 
+def config_name(config: str | os.PathLike | None) -> str:
+    """How a message names the parameter file load_config(config) reads: the path given, else
+    $LHD_CONFIG's (so named), else the source tree's config/lhd_params.yaml."""
+    if config:
+        return str(config)
+    env = os.environ.get("LHD_CONFIG")
+    return f"{env} ($LHD_CONFIG)" if env else "config/lhd_params.yaml"
+
+
 def default_config_path() -> Path:
     """$LHD_CONFIG, else config/lhd_params.yaml of the source tree, else the installed share copy."""
     env = os.environ.get("LHD_CONFIG")
