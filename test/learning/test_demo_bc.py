@@ -251,20 +251,41 @@ def test_the_return_filter_needs_behaviour_cloning(cfg):
         validate(small_cfg(cfg, demo_bc_return_filter=1, demo_bc=0.0))
 
 
-def test_a_short_run_writes_each_finished_demonstrations_return(cfg, tmp_path):
-    """A real run: in the checkpoint's replay, the rows of every finished demonstration carry their
-    episode's discounted return to its end, summed here from the stored rewards; the actor's rows and
-    an unfinished demonstration's carry none; the card names the filter, the hash does not."""
+def test_a_short_run_writes_each_finished_demonstrations_return(cfg, tmp_path, monkeypatch):
+    """A real run with the tilt ramp on (the reward split into a main part and the ramped part) and one
+    demonstration aborted by a real MuJoCo fault (a NaN in the velocities, as test_train_abort.py): in the
+    checkpoint's replay the rows of every finished demonstration carry their episode's discounted returns
+    to its end, main and ramped part apart, summed here from the stored rewards; the actor's rows, the
+    aborted demonstration's and the unfinished episode's carry none (-inf); the card names the filter,
+    the hash does not."""
+    import math
+
+    from lhd_loading_ros.learning.ship import _recipe_note
     from lhd_loading_ros.learning.train import train
     from lhd_loading_ros.policy.actor_file import load_policy
+    from lhd_sim_node.env import LhdLoadingEnv
 
     c = small_cfg(cfg, demo_share=0.5, demo_bc=1.0, demo_bc_return_filter=1)
+    c["task"].update({"r_tilt_per_deg": 10.0, "r_tilt_free_deg": 0.0, "r_tilt_ramp_after_success": 0.5})
+    calls = {"n": 0}
+    real_step = LhdLoadingEnv.step
+
+    def step(self, action):
+        calls["n"] += 1
+        if calls["n"] == 60 and self.steps > 0:        # the first episode, a demonstration, at its 60th step
+            self.sim.data.qvel[0] = math.nan
+        return real_step(self, action)
+
+    monkeypatch.setattr(LhdLoadingEnv, "step", step)
     logs = []
     train("rld", 3, tmp_path, steps=400, config=c, resume=False, progress=False, log=logs.append)
     with open(tmp_path / "episodes.csv") as f:
         eps = list(csv.DictReader(f))
+    assert eps[0]["outcome"] == "aborted" and eps[0]["driver"] != "actor"       # the case this test is about
     data = torch.load(tmp_path / "checkpoint.pt", weights_only=True)["replay"]["data"].double()
-    r_col, flag, G = data[:, 15], data[:, -1], data[:, -2]
+    assert data.shape[1] == 2 * 12 + 3 + 2 + 1 + 2 + 1
+    # [o (12) | a (3) | r | not_terminal | o' (12) | aux | G | G_aux | flag]
+    r_col, aux, G, G_aux, flag = data[:, 15], data[:, 29], data[:, 30], data[:, 31], data[:, 32]
     gamma = validate(c)["paper"]["ddpg"]["gamma"]
     start, checked = 0, 0
     for e in eps:
@@ -272,16 +293,24 @@ def test_a_short_run_writes_each_finished_demonstrations_return(cfg, tmp_path):
         rows = slice(start, start + n)
         if e["driver"] == "actor":
             assert (flag[rows] == 0).all() and torch.isinf(G[rows]).all()
+        elif e["outcome"] == "aborted":
+            assert (flag[rows] == 1).all() and torch.isinf(G[rows]).all() and (G[rows] < 0).all()
         else:
-            assert (flag[rows] == 1).all()
-            rr = r_col[rows].numpy()
-            want = [sum(gamma ** (j - t) * rr[j] for j in range(t, n)) for t in range(n)]
-            np.testing.assert_allclose(G[rows].numpy(), want, rtol=1e-5, atol=1e-3)
+            assert (flag[rows] == 1).all() and (aux[rows] != 0).any()       # the ramped part is there to split
+            for col, got in ((r_col, G), (aux, G_aux)):
+                rr = col[rows].numpy()
+                want = [sum(gamma ** (j - t) * rr[j] for j in range(t, n)) for t in range(n)]
+                np.testing.assert_allclose(got[rows].numpy(), want, rtol=1e-5, atol=1e-3)
             checked += 1
         start += n
-    assert checked > 0
+    assert checked > 0 and 0 < start < 400
     assert torch.isinf(G[start:400]).all()          # the episode still running at the end: no return yet
     assert any("the others failed the return filter" in line for line in logs)
     meta = load_policy(tmp_path / "final").meta
-    assert meta["trained_with"]["demo_bc_filter"] == "return"
-    assert meta["config_hash"] == config_hash(validate(small_cfg(cfg)))      # never in the hash
+    tw = meta["trained_with"]
+    assert tw["demo_bc_filter"] == "return"
+    assert "where the demonstration's own return beat the critic's value of the actor" in _recipe_note(tw)
+    assert "Q-filtered" in _recipe_note({k: v for k, v in tw.items() if k != "demo_bc_filter"})
+    c0 = copy.deepcopy(c)
+    c0["training"]["demo_bc_return_filter"] = 0
+    assert meta["config_hash"] == config_hash(validate(c0))      # never in the hash

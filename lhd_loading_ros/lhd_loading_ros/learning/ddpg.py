@@ -150,7 +150,9 @@ class ReplayBuffer:
         self.pos = 0
         self.aux_weight = 0.0
 
-    def add(self, o, a, r: float, terminated: bool, o2, aux: float = 0.0, demo: bool = False) -> None:
+    def add(self, o, a, r: float, terminated: bool, o2, aux: float = 0.0, demo: bool = False) -> int:
+        """Store one transition; returns its ticket (the count of rows added before it), which
+        set_demo_return takes."""
         row = self._np[self.pos]
         k = self.obs_dim
         row[:k] = o
