@@ -61,8 +61,9 @@ def test_the_replay_flags_demonstrations_beside_the_aux_column():
         plain.add(o, np.zeros(3), 0.0, False, o, demo=True)
 
 
-def reference_update_bc(actor, critic, actor_t, critic_t, oa, r, nd, o2, demo, cfg, w):
-    """DDPG (CleanRL's update) plus DDPGfD's Q-filtered behaviour cloning, with autograd."""
+def reference_update_bc(actor, critic, actor_t, critic_t, oa, r, nd, o2, demo, cfg, w, G=None):
+    """DDPG (CleanRL's update) plus DDPGfD's Q-filtered behaviour cloning, with autograd; with G (the
+    demonstrations' own returns, unscaled) the return filter in place of the Q-filter."""
     with torch.no_grad():
         y = cfg.reward_scale * r + cfg.gamma * nd * critic_t(torch.cat([o2, actor_t(o2)], 1))
     critic.opt.zero_grad()
@@ -71,7 +72,8 @@ def reference_update_bc(actor, critic, actor_t, critic_t, oa, r, nd, o2, demo, c
     o, a = oa[:, :12], oa[:, 12:]
     pi = actor(o)
     with torch.no_grad():           # the filter, by the updated critic: the demonstration's action valued higher
-        f = demo * (critic(oa) > critic(torch.cat([o, pi], 1))).float()
+        better = critic(oa) if G is None else cfg.reward_scale * G      # ... or its own return higher
+        f = demo * (better > critic(torch.cat([o, pi], 1))).float()
     loss = -critic(torch.cat([o, pi], 1)).mean() + w * (f * ((pi - a) ** 2).sum(1, keepdim=True)).sum() / oa.shape[0]
     actor.opt.zero_grad()
     loss.backward()
@@ -206,10 +208,10 @@ def test_the_return_filter_update_matches_an_autograd_reference(cfg):
     dc = dataclasses.replace(DdpgConfig.from_config(small_cfg(cfg)), demo_bc=2.0, batch_size=128,
                              demo_bc_return_filter=1)
     agent = DdpgAgent(dc, seed=5)
-    actor, critic, actor_t, critic_t = (agent.actor.to_sequential(), agent.critic.to_sequential(),
-                                        agent.actor_t.to_sequential(), agent.critic_t.to_sequential())
-    actor.opt = torch.optim.Adam(actor.parameters(), lr=dc.actor_lr)
-    critic.opt = torch.optim.Adam(critic.parameters(), lr=dc.critic_lr)
+    nets = [agent.actor.to_sequential(), agent.critic.to_sequential(), agent.actor_t.to_sequential(),
+            agent.critic_t.to_sequential()]
+    nets[0].opt = torch.optim.Adam(nets[0].parameters(), lr=dc.actor_lr)
+    nets[1].opt = torch.optim.Adam(nets[1].parameters(), lr=dc.critic_lr)
     g = torch.Generator().manual_seed(6)
     passed = rows = 0
     for _ in range(5):
@@ -220,26 +222,9 @@ def test_the_return_filter_update_matches_an_autograd_reference(cfg):
         G = torch.randn(dc.batch_size, 1, generator=g) * 5.0        # unscaled returns around Q / reward_scale
         G[::7] = -float("inf")                                        # some still unknown
         agent.update(oa, r, nd, o2, demo, G)
-        with torch.no_grad():
-            y = dc.reward_scale * r + dc.gamma * nd * critic_t(torch.cat([o2, actor_t(o2)], 1))
-        critic.opt.zero_grad()
-        ((critic(oa) - y) ** 2).mean().backward()
-        critic.opt.step()
-        o, a = oa[:, :12], oa[:, 12:]
-        pi = actor(o)
-        with torch.no_grad():
-            f = demo * (dc.reward_scale * G > critic(torch.cat([o, pi], 1))).float()
-        loss = (-critic(torch.cat([o, pi], 1)).mean()
-                + dc.demo_bc * (f * ((pi - a) ** 2).sum(1, keepdim=True)).sum() / oa.shape[0])
-        actor.opt.zero_grad()
-        loss.backward()
-        actor.opt.step()
-        with torch.no_grad():
-            for net, tgt in ((actor, actor_t), (critic, critic_t)):
-                for p, tp in zip(net.parameters(), tgt.parameters()):
-                    tp.mul_(1 - dc.tau).add_(dc.tau * p)
-        passed, rows = passed + int(f.sum()), rows + int(demo.sum())
-        torch.testing.assert_close(agent.actor.flat, torch.cat([q.detach().reshape(-1) for q in actor.parameters()]),
+        p, n = reference_update_bc(*nets, oa, r, nd, o2, demo, dc, dc.demo_bc, G)
+        passed, rows = passed + p, rows + n
+        torch.testing.assert_close(agent.actor.flat, torch.cat([q.detach().reshape(-1) for q in nets[0].parameters()]),
                                    rtol=1e-4, atol=1e-5)
     assert 0 < passed < rows and (agent.bc_passed, agent.bc_rows) == (passed, rows)
 
