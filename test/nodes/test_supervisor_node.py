@@ -6,6 +6,8 @@ timeout after attempt_timeout, lost input, e-stop, abort, `lhd attempts` on the 
 wrote, the load cell's mass, and an attempt cut short by stopping the node."""
 import io
 import math
+import os
+import signal
 import subprocess
 import sys
 import time
@@ -243,15 +245,41 @@ def test_lhd_attempts_on_the_record_the_node_wrote(rig):
     assert read_rows(rig.run_dir / "attempts.csv")[1].mass_kg == 24.5     # pitch 0 at the timeout: SL 0
 
 
+def test_a_paused_supervisor_does_not_take_queued_inputs_for_lost_ones(rig):
+    """The supervisor's process is paused for 1 s (SIGSTOP: what CPU starvation or a swap pause
+    does to it) while the machine keeps publishing at 50 Hz. On waking, its executor runs the
+    50 Hz check before it takes the queued messages; the inputs' ages then discount the pause
+    (task.attempt.STALL_S), so the attempt keeps running. Then the inputs really stop: lost
+    input, as before."""
+    n0 = len(rig.statuses)
+    assert rig.call(rig.arm_client).success          # attempt_timeout is 60 s since the CLI test
+    rig.wait_state("running", 6, since=n0)
+    pid = rig.proc.proc.pid
+    os.kill(pid, signal.SIGSTOP)
+    try:
+        time.sleep(1.0)
+    finally:
+        os.kill(pid, signal.SIGCONT)
+    n1 = len(rig.statuses)
+    time.sleep(1.5)
+    states = [(kv.get("state"), kv.get("episode")) for _, kv in rig.statuses[n1:]]
+    assert states and all(st == ("running", "6") for st in states), states
+    rig.feed["joints"] = False
+    _, kv = rig.wait_state("lost_input", 6, since=n1)
+    assert "joint states" in kv["reason"]
+    rig.feed["joints"] = True
+    time.sleep(0.1)
+
+
 def test_stopping_the_node_mid_attempt_records_it_aborted(rig):
     n0 = len(rig.statuses)
     assert rig.call(rig.arm_client).success
-    rig.wait_state("running", 6, since=n0)
+    rig.wait_state("running", 7, since=n0)
     assert rig.proc.stop() == 0, rig.proc.log()
-    _, kv = rig.wait_state("aborted", 6, since=n0)
+    _, kv = rig.wait_state("aborted", 7, since=n0)
     assert kv["reason"] == "supervisor stopped during the attempt"
     row = read_rows(rig.run_dir / "attempts.csv")[-1]
-    assert (row.attempt, row.outcome, row.reason) == (6, "aborted", "supervisor stopped during the attempt")
+    assert (row.attempt, row.outcome, row.reason) == (7, "aborted", "supervisor stopped during the attempt")
 
 
 def test_an_unreadable_record_stops_the_node_with_one_line(tmp_path):

@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from lhd_loading_ros.task.attempt import ERROR, OK, STALE, WARN, HwStatus, Settings, Supervisor
+from lhd_loading_ros.task.attempt import ERROR, OK, STALE, STALL_GRACE_S, STALL_S, WARN, HwStatus, Settings, Supervisor
 from lhd_loading_ros.task.kinematics import ArmKinematics
 from lhd_loading_ros.task.zones import Zones
 
@@ -230,8 +230,10 @@ def test_arming_needs_inputs_fresher_than_half_their_timeout(kin, name, what):
     r.feed(r.t + 0.30, **{silent: False})        # every input but that one
     r.sv.update(r.t)
     assert r.sv.state == "armed", r.sv.attempt.reason
-    r.sv.update(r.t + 0.25)       # 0.55 s: past the timeout
-    assert r.sv.state == "lost_input" and f"{what} 0.55 s old (timeout 0.5 s" in r.sv.attempt.reason
+    r.step(0.20, **{silent: False})   # 50 Hz ticks to 0.50 s old: not past the timeout yet
+    assert r.sv.state == "armed", r.sv.attempt.reason
+    r.step(0.02, **{silent: False})   # 0.52 s: past it
+    assert r.sv.state == "lost_input" and f"{what} 0.52 s old (timeout 0.5 s" in r.sv.attempt.reason
     # 0.20 s old: armed
     r2 = Rig(kin).ready()
     t = r2.t
@@ -448,6 +450,87 @@ def test_a_silent_input_is_lost_input_after_input_timeout(kin, silent):
     assert r.sv.state == "lost_input"
     assert 0.5 < r.sv.attempt.ended_at - t_last <= 0.52 + 1e-9
     assert "s old (timeout 0.5 s;" in r.sv.attempt.reason
+
+
+def test_a_stalled_caller_does_not_take_queued_inputs_for_silence(kin):
+    """The node's process stalls 0.8 s (CPU starvation): every input kept arriving but waits in
+    its queue, and the executor runs the 50 Hz check before it takes them (timers first). The
+    first update after the stall sees every input 0.8 s old; it must not end the attempt, nor must
+    the updates of the same pass that take the queued inputs one at a time."""
+    r = Rig(kin, arm_delay=0.0).ready()
+    r.arm()
+    r.step(0.3)
+    t_stall = r.t
+    r.t = round(t_stall + 0.8, 3)
+    r.sv.update(r.t)                           # the timer first: nothing taken yet, all 0.8 s old
+    assert r.sv.state == "running", r.sv.attempt.reason
+    for name in ("joints", "odom", "drift", "hw"):   # then each subscription's message, and its check
+        r.feed(**{k: k == name for k in ("joints", "odom", "drift", "hw")})
+        r.sv.update(r.t)
+        assert r.sv.state == "running", (name, r.sv.attempt.reason)
+    assert r.step(1.0) == "running"            # and on, as before the stall
+    # the same arrival pattern without the stall allowance would have ended the attempt
+    assert r.sv.s.input_timeout < 0.8
+
+
+@pytest.mark.parametrize("silent", ["joints", "odom", "drift", "hw"])
+def test_an_input_silent_across_a_stall_is_still_found(kin, silent):
+    """The input really stopped when the stall began: found as soon as the allowance for the
+    stall (attempt.STALL_GRACE_S after it) has passed, not never."""
+    r = Rig(kin, arm_delay=0.0).ready()
+    r.arm()
+    r.step(0.3)
+    t_last = r.t
+    r.t = round(t_last + 0.8, 3)
+    r.sv.update(r.t)
+    r.feed(**{silent: False})                  # the others were queued; this one sent nothing
+    r.sv.update(r.t)
+    assert r.sv.state == "running"
+    t_stall_end = r.t
+    r.step(STALL_GRACE_S - 0.02, **{silent: False})   # 0.8 s gap less its 0.7 s beyond STALL_S: 0.1-0.18 s old
+    assert r.sv.state == "running"
+    r.step(0.04, **{silent: False})            # the allowance over (its last tick, or the next): 0.90-0.92 s old
+    assert r.sv.state == "lost_input" and "s old (timeout 0.5 s;" in r.sv.attempt.reason
+    assert t_stall_end + STALL_GRACE_S - 1e-9 <= r.sv.attempt.ended_at <= t_stall_end + STALL_GRACE_S + 0.02 + 1e-9
+
+
+def test_a_caller_starved_all_the_time_still_finds_a_silent_input(kin):
+    """Updates only every 0.25 s (each gap 0.15 s beyond STALL_S = 0.1 s), the joint states stop
+    at d: by hand, the update at d + 0.25 k judges ages at d + 0.25 k - 0.15, i.e. 0.10, 0.35,
+    0.60 s: past the 0.5 s timeout first for k = 3, found at d + 0.75, one gap after the 0.52 s
+    an unstarved 50 Hz caller needs."""
+    assert STALL_S == 0.1
+    r = Rig(kin, arm_delay=0.0, attempt_timeout=60.0).ready()
+    r.arm()
+    r.step(0.3)
+    d = r.t
+    for k in range(1, 8):
+        r.t = round(d + 0.25 * k, 3)
+        r.feed(joints=False)
+        r.sv.update(r.t)
+        if r.sv.state != "running":
+            break
+    assert r.sv.state == "lost_input" and "joint states 0.60 s old (timeout 0.5 s;" in r.sv.attempt.reason
+    assert r.sv.attempt.ended_at == pytest.approx(d + 0.75)
+
+
+def test_a_stall_does_not_delay_the_estop_or_the_timeout(kin):
+    """The allowance is for the inputs' ages only: an e-stop heard after a stall ends the attempt
+    at once, and the attempt's own timeout counts the stalled time."""
+    r = Rig(kin, arm_delay=0.0).ready()
+    r.arm()
+    r.step(0.3)
+    r.t = round(r.t + 0.8, 3)
+    r.sv.inputs.estop = True
+    r.sv.update(r.t)
+    assert r.sv.state == "estop"
+    r2 = Rig(kin, arm_delay=0.0, attempt_timeout=1.0).ready()
+    r2.arm()
+    t_run = r2.t
+    r2.step(0.3)
+    r2.t = round(t_run + 1.2, 3)               # stalled across the timeout
+    r2.sv.update(r2.t)
+    assert r2.sv.state == "timeout" and r2.sv.attempt.ended_at == pytest.approx(t_run + 1.2)
 
 
 def test_nan_while_running_is_lost_input_not_a_zone(kin):

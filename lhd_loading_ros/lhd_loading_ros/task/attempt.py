@@ -9,7 +9,8 @@ Only `running` lets a controller move the machine; every other state means "stop
 controller (and the command mux). `idle` is the state before the first attempt; an ended
 state stays until the next arming. While armed or running:
   estop       /lhd/estop engaged, or the bridge reports the device's e-stop;
-  lost_input  joints, odometry, a drift flag or the bridge status older than its timeout,
+  lost_input  joints, odometry, a drift flag or the bridge status older than its timeout (a
+              stall of the caller itself not counted: STALL_S),
               a non-finite value, or the bridge reporting ERROR / STALE;
 and while running, checked in this order after those two:
   success     the bucket tip in the end zone (task.zones.classify), judged at the end of each
@@ -58,6 +59,15 @@ STOP_SPEED = 0.05          # rad/s: every joint slower than this = the machine s
 LOAD_CELL_MIN_SAMPLES = 3
 LOAD_CELL_RANGE = (-5.0, 200.0)   # kg: a reading outside is a broken amplifier, not a load (tare noise is < 0)
 RANGE_TOL_DEG = 1e-6       # a slope published in rad at exactly a range end is inside (policy core's rule)
+# The caller updates every 20 ms (the node's 50 Hz check) and on every joints / odometry arrival. A
+# gap longer than STALL_S between two updates means the caller's process itself did not run (CPU
+# starvation, a garbage-collection or swap pause): the inputs that arrived meanwhile wait in its
+# queues, and the executor runs the timer before it takes them (rclpy: timers, then subscriptions,
+# in one pass). For STALL_GRACE_S after such a gap the inputs' ages are judged with the stall's
+# excess over STALL_S taken off, so queued messages are not mistaken for silence; an input that
+# really stopped is still found, at most one gap late (docs/supervisor.md "A stalled supervisor").
+STALL_S = 0.1
+STALL_GRACE_S = 0.1
 ZONE_LIMITS = tuple(f.name for f in fields(Zones))
 ZONES_CHANGED_M = 0.02     # m: a zone limit republished this far from arming's = another pile estimate
 REASONS = {
@@ -203,6 +213,9 @@ class Supervisor:
         self.tip: LhdState | None = None         # the latest tip computed from fresh, finite inputs
         self._cell: deque = deque()              # (time, kg) load-cell samples, the last few seconds
         self._stopped_since: float | None = None
+        self._last_update: float | None = None   # time of the previous update()
+        self._stall_excess = 0.0                 # s of the latest stall beyond STALL_S, not counted in ages
+        self._stall_until = -math.inf            # ... until this time
 
     def set_attempt_timeout(self, seconds: float) -> None:
         """A new attempt_timeout, from the next arming on (a live attempt keeps its own)."""
@@ -426,18 +439,30 @@ class Supervisor:
         self.state = outcome
 
     # ------------------------------------------------------------------ the loop
+    def input_clock(self, now: float) -> float:
+        """The time the inputs' ages are judged at in update(now): now, less the excess over
+        STALL_S of a gap between updates for STALL_GRACE_S after it (a stalled caller; STALL_S)."""
+        prev, self._last_update = self._last_update, now
+        if prev is not None and now - prev > STALL_S:
+            self._stall_excess = now - prev - STALL_S
+            self._stall_until = now + STALL_GRACE_S
+        return now - self._stall_excess if now <= self._stall_until else now
+
     def update(self, now: float) -> bool:
-        """Check the end conditions (and the load-cell window); True when the state changed."""
+        """Check the end conditions (and the load-cell window); True when the state changed. The
+        inputs' ages are judged at input_clock(now) (a stalled caller); e-stop, the attempt's
+        timeout and the end-zone grid at now."""
         before = self.state
-        tip = self._compute_tip(now)
+        t_in = self.input_clock(now)
+        tip = self._compute_tip(t_in)
         self.tip = tip
         if self.state in LIVE:
-            self._update_live(now, tip)
+            self._update_live(now, tip, t_in)
         elif self.state in ENDED:
             self._update_load_cell(now)
         return self.state != before
 
-    def _update_live(self, now: float, tip: LhdState | None) -> None:
+    def _update_live(self, now: float, tip: LhdState | None, t_in: float) -> None:
         a, s, inp = self.attempt, self.s, self.inputs
         if self.state == "running":       # the drift flags at the end of each control period, up to now
             while a.running_at + (len(a.front) + 1) * s.control_dt <= now + 1e-9:
@@ -445,11 +470,11 @@ class Supervisor:
                 a.rear.append(bool(inp.values.get("drift_rear")))
         if tip is not None:
             a.last_state = tip
-        estop = self._estop_problem(now)
+        estop = self._estop_problem(t_in)
         if estop:
             self._end(now, "estop", estop)
             return
-        lost = self._input_problems(now)
+        lost = self._input_problems(t_in)
         if lost:
             self._end(now, "lost_input", "; ".join(lost))
             return
@@ -464,7 +489,7 @@ class Supervisor:
                 else:
                     self._start_running(now)
             return
-        tilt = self._tilt_problem(now)    # a safety end: before the end zone
+        tilt = self._tilt_problem(t_in)   # a safety end: before the end zone
         if tilt:
             self._end(now, "failure", tilt)
             return
