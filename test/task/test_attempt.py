@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from lhd_loading_ros.task.attempt import ERROR, OK, STALE, STALL_GRACE_S, STALL_S, WARN, HwStatus, Settings, Supervisor
+from lhd_loading_ros.task.attempt import ERROR, OK, STALE, STALL_S, WARN, HwStatus, Settings, Supervisor
 from lhd_loading_ros.task.kinematics import ArmKinematics
 from lhd_loading_ros.task.zones import Zones
 
@@ -452,85 +452,167 @@ def test_a_silent_input_is_lost_input_after_input_timeout(kin, silent):
     assert "s old (timeout 0.5 s;" in r.sv.attempt.reason
 
 
-def test_a_stalled_caller_does_not_take_queued_inputs_for_silence(kin):
-    """The node's process stalls 0.8 s (CPU starvation): every input kept arriving but waits in
+INPUTS = ("joints", "odom", "drift", "hw")
+
+
+def _pause(r, seconds):
+    """The caller's process does not run for `seconds`: no update, nothing taken."""
+    r.t = round(r.t + seconds, 3)
+
+
+def _take(r, name):
+    """One subscription callback: its queued message taken, then the node's check."""
+    r.feed(**{k: k == name for k in INPUTS})
+    r.sv.update(r.t)
+
+
+def test_a_paused_caller_does_not_take_queued_inputs_for_silence(kin):
+    """The node's process pauses 0.8 s (CPU starvation): every input kept arriving but waits in
     its queue, and the executor runs the 50 Hz check before it takes them (timers first). The
-    first update after the stall sees every input 0.8 s old; it must not end the attempt, nor must
-    the updates of the same pass that take the queued inputs one at a time."""
+    first update after the pause sees every input 0.8 s old; neither it nor the updates of the
+    same pass that take the queued inputs one at a time may end the attempt."""
     r = Rig(kin, arm_delay=0.0).ready()
     r.arm()
     r.step(0.3)
-    t_stall = r.t
-    r.t = round(t_stall + 0.8, 3)
+    _pause(r, 0.8)
     r.sv.update(r.t)                           # the timer first: nothing taken yet, all 0.8 s old
     assert r.sv.state == "running", r.sv.attempt.reason
-    for name in ("joints", "odom", "drift", "hw"):   # then each subscription's message, and its check
-        r.feed(**{k: k == name for k in ("joints", "odom", "drift", "hw")})
+    assert r.sv.held_inputs(r.t) == ["joints", "odom", "drift_front", "drift_rear", "hw"]
+    for name in INPUTS:
+        _take(r, name)
+        assert r.sv.state == "running", (name, r.sv.attempt.reason)
+    assert r.sv.held_inputs(r.t) == []
+    assert r.step(1.0) == "running"            # and on, as before the pause
+
+
+def test_a_second_short_pause_before_the_queue_is_taken(kin):
+    """Pause 1.0 s, the timer's check, then the process is preempted again for 0.15 s before its
+    callbacks take the queue, and the callbacks come one per 50 Hz tick with the timer between
+    them: the first pause still counts for the inputs taken before it (a later, shorter pause
+    does not replace it)."""
+    r = Rig(kin, arm_delay=0.0).ready()
+    r.arm()
+    r.step(0.3)
+    _pause(r, 1.0)
+    r.sv.update(r.t)
+    _pause(r, 0.15)
+    for name in INPUTS:
+        _take(r, name)
+        assert r.sv.state == "running", (name, r.sv.attempt.reason)
+        r.t = round(r.t + 0.04, 3)             # slow takes, timer ticks between them
         r.sv.update(r.t)
         assert r.sv.state == "running", (name, r.sv.attempt.reason)
-    assert r.step(1.0) == "running"            # and on, as before the stall
-    # the same arrival pattern without the stall allowance would have ended the attempt
-    assert r.sv.s.input_timeout < 0.8
+    assert r.step(1.0) == "running"
 
 
 @pytest.mark.parametrize("silent", ["joints", "odom", "drift", "hw"])
-def test_an_input_silent_across_a_stall_is_still_found(kin, silent):
-    """The input really stopped when the stall began: found as soon as the allowance for the
-    stall (attempt.STALL_GRACE_S after it) has passed, not never."""
+def test_an_input_silent_across_a_pause_is_still_found(kin, silent):
+    """The input really stopped when the pause began: by hand, its age leaves out the pause's
+    0.7 s beyond STALL_S, so it is lost 0.5 - 0.1 = 0.4 s of running after the pause (0.5 s of
+    the caller's running time in all), and the reason gives its real age and the pause."""
+    assert STALL_S == 0.1
     r = Rig(kin, arm_delay=0.0).ready()
     r.arm()
     r.step(0.3)
-    t_last = r.t
-    r.t = round(t_last + 0.8, 3)
+    _pause(r, 0.8)
     r.sv.update(r.t)
-    r.feed(**{silent: False})                  # the others were queued; this one sent nothing
-    r.sv.update(r.t)
+    t_resume = r.t
+    for name in INPUTS:
+        if name != silent:
+            _take(r, name)
     assert r.sv.state == "running"
-    t_stall_end = r.t
-    r.step(STALL_GRACE_S - 0.02, **{silent: False})   # 0.8 s gap less its 0.7 s beyond STALL_S: 0.1-0.18 s old
+    r.step(0.38, **{silent: False})            # 0.38 s of running: 0.48 s counted
     assert r.sv.state == "running"
-    r.step(0.04, **{silent: False})            # the allowance over (its last tick, or the next): 0.90-0.92 s old
-    assert r.sv.state == "lost_input" and "s old (timeout 0.5 s;" in r.sv.attempt.reason
-    assert t_stall_end + STALL_GRACE_S - 1e-9 <= r.sv.attempt.ended_at <= t_stall_end + STALL_GRACE_S + 0.02 + 1e-9
+    r.step(0.04, **{silent: False})            # 0.40 (the boundary tick) or 0.42 s
+    assert r.sv.state == "lost_input"
+    assert t_resume + 0.40 - 1e-9 <= r.sv.attempt.ended_at <= t_resume + 0.42 + 1e-9
+    assert "s old (timeout 0.5 s, 0.70 s of it a pause of the supervisor not counted;" in r.sv.attempt.reason
 
 
-def test_a_caller_starved_all_the_time_still_finds_a_silent_input(kin):
-    """Updates only every 0.25 s (each gap 0.15 s beyond STALL_S = 0.1 s), the joint states stop
-    at d: by hand, the update at d + 0.25 k judges ages at d + 0.25 k - 0.15, i.e. 0.10, 0.35,
-    0.60 s: past the 0.5 s timeout first for k = 3, found at d + 0.75, one gap after the 0.52 s
-    an unstarved 50 Hz caller needs."""
-    assert STALL_S == 0.1
+@pytest.mark.parametrize("gap, found, without", [(0.25, 0.75, 0.75), (0.3, 0.9, 0.6), (0.45, 0.9, 0.9)])
+def test_a_caller_paused_all_the_time_still_finds_a_silent_input(kin, gap, found, without):
+    """Updates only every `gap` s, the joint states stop at d. Every gap is a pause of gap - 0.1 s
+    beyond STALL_S that began after the last joint state, so by hand the update at d + gap k counts
+    an age of gap k - (gap - 0.1), past 0.5 s first at k = 3, 3, 2: found at d + 0.75, 0.9, 0.9
+    (`found`), where counting the pauses too would find it at the first update past 0.5 s real
+    age (`without`): at most one gap later."""
     r = Rig(kin, arm_delay=0.0, attempt_timeout=60.0).ready()
     r.arm()
     r.step(0.3)
     d = r.t
-    for k in range(1, 8):
-        r.t = round(d + 0.25 * k, 3)
+    for k in range(1, 10):
+        r.t = round(d + gap * k, 3)
         r.feed(joints=False)
         r.sv.update(r.t)
         if r.sv.state != "running":
             break
-    assert r.sv.state == "lost_input" and "joint states 0.60 s old (timeout 0.5 s;" in r.sv.attempt.reason
-    assert r.sv.attempt.ended_at == pytest.approx(d + 0.75)
+    assert r.sv.state == "lost_input" and "joint states" in r.sv.attempt.reason
+    assert r.sv.attempt.ended_at == pytest.approx(d + found)
+    assert found - without <= gap + 1e-9
 
 
-def test_a_stall_does_not_delay_the_estop_or_the_timeout(kin):
-    """The allowance is for the inputs' ages only: an e-stop heard after a stall ends the attempt
-    at once, and the attempt's own timeout counts the stalled time."""
+def test_a_pause_does_not_delay_a_device_estop_or_the_timeout(kin):
+    """Only the inputs' ages leave out a pause: the device's e-stop in a queued bridge status ends
+    the attempt as soon as it is taken (not lost_input), and the attempt's own timeout counts the
+    paused time."""
     r = Rig(kin, arm_delay=0.0).ready()
     r.arm()
     r.step(0.3)
-    r.t = round(r.t + 0.8, 3)
-    r.sv.inputs.estop = True
+    _pause(r, 0.8)
     r.sv.update(r.t)
-    assert r.sv.state == "estop"
+    r.hw = HwStatus(WARN, True, "emergency stop pressed")
+    _take(r, "hw")
+    assert r.sv.state == "estop" and r.sv.attempt.reason == "emergency stop pressed on the device (bridge status)"
     r2 = Rig(kin, arm_delay=0.0, attempt_timeout=1.0).ready()
     r2.arm()
     t_run = r2.t
     r2.step(0.3)
-    r2.t = round(t_run + 1.2, 3)               # stalled across the timeout
+    _pause(r2, 0.9)                            # paused across the timeout
     r2.sv.update(r2.t)
     assert r2.sv.state == "timeout" and r2.sv.attempt.ended_at == pytest.approx(t_run + 1.2)
+
+
+def test_a_pause_across_the_arm_delay_waits_for_the_queued_zones(kin):
+    """Armed, the arm delay ends inside a pause, and the end-zone node republished other zones
+    meanwhile (queued): the attempt does not start on the timer's check after the pause, but once
+    the queue is taken, where the moved zones abort it as without a pause."""
+    r = Rig(kin, arm_delay=1.0).ready()
+    r.arm()
+    assert r.step(0.5) == "armed"
+    _pause(r, 0.8)
+    r.sv.update(r.t)                           # 1.3 s after arming, inputs held: no start
+    assert r.sv.state == "armed"
+    moved = Zones(**{**{f: getattr(ZONES, f) for f in ("x_min", "x_max", "z_min", "x_cutoff", "x_obs_start",
+                                                      "x_obs_end", "y_half", "z_top")}, "x_max": 0.85})
+    r.sv.inputs.put("zones", moved, r.t)
+    for name in INPUTS:
+        _take(r, name)
+    assert r.sv.state == "aborted" and "the pile zones changed while armed (x_max 1.000 -> 0.850 m)" in \
+        r.sv.attempt.reason
+
+
+def test_success_after_a_pause_is_judged_on_the_present_tip(kin):
+    """The tip entered the end zone mid-period, then the caller paused 2 s: the check after the
+    pause does not judge the end zone on the tip from before it; the success comes once the
+    queued joint states and odometry are taken, with the tip they give (the bucket curled on)."""
+    r = Rig(kin, arm_delay=0.0).ready()
+    r.arm()
+    t_run = r.t
+    r.step(0.3)
+    r.base_x, (r.boom, r.bucket) = END_X, LIFT
+    r.feed(r.t + 0.05)
+    r.sv.update(r.t)
+    assert r.sv.state == "running"             # mid-period
+    _pause(r, 2.0)
+    r.sv.update(r.t)
+    assert r.sv.state == "running"             # no verdict on a 2 s old tip
+    r.bucket = LIFT[1] + 0.1
+    for name in INPUTS:
+        _take(r, name)
+    assert r.sv.state == "success"
+    row = r.sv.attempt.row()
+    assert row.elapsed_s == pytest.approx(r.t - t_run)
+    assert row.phi_final_deg == pytest.approx(math.degrees(LIFT[1] + 0.1 - LIFT[0]))
 
 
 def test_nan_while_running_is_lost_input_not_a_zone(kin):

@@ -10,7 +10,7 @@ controller (and the command mux). `idle` is the state before the first attempt; 
 state stays until the next arming. While armed or running:
   estop       /lhd/estop engaged, or the bridge reports the device's e-stop;
   lost_input  joints, odometry, a drift flag or the bridge status older than its timeout (a
-              stall of the caller itself not counted: STALL_S),
+              pause of the caller itself not counted: STALL_S),
               a non-finite value, or the bridge reporting ERROR / STALE;
 and while running, checked in this order after those two:
   success     the bucket tip in the end zone (task.zones.classify), judged at the end of each
@@ -59,15 +59,17 @@ STOP_SPEED = 0.05          # rad/s: every joint slower than this = the machine s
 LOAD_CELL_MIN_SAMPLES = 3
 LOAD_CELL_RANGE = (-5.0, 200.0)   # kg: a reading outside is a broken amplifier, not a load (tare noise is < 0)
 RANGE_TOL_DEG = 1e-6       # a slope published in rad at exactly a range end is inside (policy core's rule)
-# The caller updates every 20 ms (the node's 50 Hz check) and on every joints / odometry arrival. A
-# gap longer than STALL_S between two updates means the caller's process itself did not run (CPU
-# starvation, a garbage-collection or swap pause): the inputs that arrived meanwhile wait in its
-# queues, and the executor runs the timer before it takes them (rclpy: timers, then subscriptions,
-# in one pass). For STALL_GRACE_S after such a gap the inputs' ages are judged with the stall's
-# excess over STALL_S taken off, so queued messages are not mistaken for silence; an input that
-# really stopped is still found, at most one gap late (docs/supervisor.md "A stalled supervisor").
+# The caller updates every 20 ms (the node's 50 Hz check) and on every joints / odometry / bridge
+# status / e-stop arrival. A gap longer than STALL_S between two updates means the caller's process
+# itself did not run (CPU starvation, a garbage-collection or swap pause): the inputs that arrived
+# meanwhile wait in its queues, and the executor runs the timer before it takes them (rclpy: timers,
+# then subscriptions, in one pass). An input's age therefore leaves out the largest such pause
+# (beyond STALL_S) that began after the input was taken: input_timeout counts the caller's running
+# time. While an input is older than its timeout only by a pause ("held": its message may be
+# queued), nothing that needs the machine's present state is decided: no start after the arm delay,
+# no success (docs/supervisor.md "A stalled supervisor").
 STALL_S = 0.1
-STALL_GRACE_S = 0.1
+STALL_MEMORY_S = 30.0      # s: pauses older than this are forgotten (any input older is long lost)
 ZONE_LIMITS = tuple(f.name for f in fields(Zones))
 ZONES_CHANGED_M = 0.02     # m: a zone limit republished this far from arming's = another pile estimate
 REASONS = {
@@ -140,14 +142,30 @@ class Inputs:
     zones_error: str = ""             # the latest zones message was invalid: why
     estop: bool = False               # <prefix>/estop (latched); never received = released
 
+    pauses: deque = field(default_factory=deque)   # (start, excess over STALL_S) of the caller's pauses
+
     def put(self, name: str, value, now: float) -> None:
         self.values[name] = value
         self.arrival[name] = now
         if name == "zones":
             self.zones_error = ""
 
-    def age(self, name: str, now: float) -> float:
-        return now - self.arrival[name] if name in self.arrival else math.inf
+    def note_pause(self, start: float, excess: float, now: float) -> None:
+        """The caller did not run from `start` for STALL_S + excess (seconds)."""
+        self.pauses.append((start, excess))
+        while self.pauses and self.pauses[0][0] < now - STALL_MEMORY_S:
+            self.pauses.popleft()
+
+    def paused_since(self, name: str) -> float:
+        """The largest pause excess that began after the input was taken (0 if none)."""
+        t = self.arrival.get(name, math.inf)
+        return max((e for start, e in self.pauses if start >= t), default=0.0)
+
+    def age(self, name: str, now: float, discount: bool = True) -> float:
+        """Seconds since the input was taken; discount: less the caller's pause since then."""
+        if name not in self.arrival:
+            return math.inf
+        return now - self.arrival[name] - (self.paused_since(name) if discount else 0.0)
 
 
 def _finite(*xs) -> bool:
@@ -213,9 +231,7 @@ class Supervisor:
         self.tip: LhdState | None = None         # the latest tip computed from fresh, finite inputs
         self._cell: deque = deque()              # (time, kg) load-cell samples, the last few seconds
         self._stopped_since: float | None = None
-        self._last_update: float | None = None   # time of the previous update()
-        self._stall_excess = 0.0                 # s of the latest stall beyond STALL_S, not counted in ages
-        self._stall_until = -math.inf            # ... until this time
+        self._last_update: float | None = None   # time of the previous update() (pauses: STALL_S)
 
     def set_attempt_timeout(self, seconds: float) -> None:
         """A new attempt_timeout, from the next arming on (a live attempt keeps its own)."""
@@ -249,9 +265,12 @@ class Supervisor:
         for name, what, src, timeout in ages:
             if name not in inp.values:
                 out.append(f"no {what} received ({src})")
-            elif inp.age(name, now) > timeout:
-                out.append(f"{what} {inp.age(name, now):.2f} s old (timeout {timeout:g} s; {src})")
-            elif arming and inp.age(name, now) > timeout * s.arm_fresh_fraction:
+            elif inp.age(name, now, discount=not arming) > timeout:
+                paused = "" if arming else inp.paused_since(name)
+                paused = f", {paused:.2f} s of it a pause of the supervisor not counted" if paused else ""
+                out.append(f"{what} {inp.age(name, now, discount=False):.2f} s old (timeout {timeout:g} s{paused}; "
+                           f"{src})")
+            elif arming and inp.age(name, now, discount=False) > timeout * s.arm_fresh_fraction:
                 out.append(f"{what} {inp.age(name, now):.2f} s old: to arm, at most {timeout * s.arm_fresh_fraction:g} s "
                            f"({s.arm_fresh_fraction:g} of its {timeout:g} s timeout, a margin before a late message "
                            f"ends the attempt; {src})")
@@ -268,10 +287,10 @@ class Supervisor:
                 out.append(f"odometry v_x is not finite ({v_x!r})")
             if not _finite(*pos, *quat) or not any(quat):
                 out.append(f"odometry pose is not finite (position {pos}, orientation {quat})")
-        if s.max_tilt_deg > 0 and "imu" in inp.values and self._tilt(now) is None:
+        if s.max_tilt_deg > 0 and "imu" in inp.values and self._tilt(now, discount=not arming) is None:
             out.append(f"IMU orientation is not a finite, non-zero quaternion ({inp.values['imu']})")
         hw = inp.values.get("hw")
-        if hw is not None and inp.age("hw", now) <= s.hw_status_timeout and not hw.estop:
+        if hw is not None and inp.age("hw", now, discount=not arming) <= s.hw_status_timeout and not hw.estop:
             if hw.level in (ERROR, STALE):
                 out.append(f"bridge reports {LEVEL_NAMES[hw.level]}: {hw.message}")
         return out
@@ -284,11 +303,11 @@ class Supervisor:
             return "emergency stop pressed on the device (bridge status)"
         return ""
 
-    def _compute_tip(self, now: float) -> LhdState | None:
+    def _compute_tip(self, now: float, discount: bool = True) -> LhdState | None:
         """The task state from the latest joints + odometry, or None when either is missing,
-        stale or not finite."""
+        stale (discount: a pause of the caller not counted) or not finite."""
         inp = self.inputs
-        if any(inp.age(n, now) > self.s.input_timeout for n in ("joints", "odom")):
+        if any(inp.age(n, now, discount) > self.s.input_timeout for n in ("joints", "odom")):
             return None
         pos, quat, v_x = inp.values["odom"]
         j = inp.values["joints"]
@@ -297,7 +316,7 @@ class Supervisor:
         try:
             st = state_from_measurements(self.kin, pos, quat, v_x, j, bool(inp.values.get("drift_front")),
                                          bool(inp.values.get("drift_rear")))
-            if self._tilt(now) is not None:
+            if self._tilt(now, discount) is not None:
                 # the bucket's pitch with the machine's own roll and pitch (the IMU's); the tip's
                 # POSITION is the odometry's as published: the ArUco node with the IMU publishes the
                 # tilted pose with base_link raised about the front wheels, which puts the tip where
@@ -311,11 +330,11 @@ class Supervisor:
             return None
         return st if _finite(st.x_shovel, st.y_shovel, st.z_shovel, st.phi_shovel) else None
 
-    def _tilt(self, now: float) -> tuple[float, float] | None:
+    def _tilt(self, now: float, discount: bool = True) -> tuple[float, float] | None:
         """(tilt, nose-down pitch), rad, from a fresh, valid IMU orientation, else None. The tilt
         is the angle of the machine's up axis from the vertical (pitch and roll together)."""
         q = self.inputs.values.get("imu")
-        if q is None or self.inputs.age("imu", now) > self.s.input_timeout or not _finite(*q):
+        if q is None or self.inputs.age("imu", now, discount) > self.s.input_timeout or not _finite(*q):
             return None
         try:
             R = quat_to_mat(*q)
@@ -323,9 +342,9 @@ class Supervisor:
             return None
         return math.acos(max(-1.0, min(1.0, R[2, 2]))), nose_down_pitch(R)
 
-    def _tilt_problem(self, now: float) -> str:
+    def _tilt_problem(self, now: float, discount: bool = True) -> str:
         """With max_tilt_deg > 0: the machine tilted beyond it (the rear lifted, or on its side)."""
-        t = self._tilt(now) if self.s.max_tilt_deg > 0 else None
+        t = self._tilt(now, discount) if self.s.max_tilt_deg > 0 else None
         if t is None or t[0] <= math.radians(self.s.max_tilt_deg):
             return ""
         return (f"machine tilted {math.degrees(t[0]):.1f} deg (pitch {math.degrees(t[1]):+.1f} deg, nose down +; "
@@ -338,7 +357,7 @@ class Supervisor:
         if estop:
             out.append(estop + ": release it first")
         out += self._input_problems(now, arming=True)
-        tilt = self._tilt_problem(now)
+        tilt = self._tilt_problem(now, discount=False)
         if tilt:
             out.append(tilt)
         inp, p = self.inputs, self.s.prefix
@@ -353,7 +372,7 @@ class Supervisor:
             out.append(f"pile zones invalid ({p}/pile/zones): {inp.zones_error}")
         elif zones is None:
             out.append(f"no pile zones received ({p}/pile/zones, the end-zone node)")
-        tip = self._compute_tip(now)
+        tip = self._compute_tip(now, discount=False)
         if tip is not None and zones is not None and not inp.zones_error:
             where = classify(tip.x_shovel, tip.y_shovel, tip.z_shovel, zones)
             at = f"(x {tip.x_shovel:.3f}, y {tip.y_shovel:.3f}, z {tip.z_shovel:.3f} m)"
@@ -379,7 +398,7 @@ class Supervisor:
         self.attempt = Attempt(number=n, started_utc=utc, controller=self.controller, material=self.material,
                                slope_rad=float(inp.values["slope"]), zones=inp.values["zones"], armed_at=now,
                                timeout=self.s.attempt_timeout)
-        self.attempt.last_state = self._compute_tip(now)
+        self.attempt.last_state = self._compute_tip(now, discount=False)
         self._cell.clear()
         self._stopped_since = None
         self.state = "armed"
@@ -439,30 +458,33 @@ class Supervisor:
         self.state = outcome
 
     # ------------------------------------------------------------------ the loop
-    def input_clock(self, now: float) -> float:
-        """The time the inputs' ages are judged at in update(now): now, less the excess over
-        STALL_S of a gap between updates for STALL_GRACE_S after it (a stalled caller; STALL_S)."""
-        prev, self._last_update = self._last_update, now
-        if prev is not None and now - prev > STALL_S:
-            self._stall_excess = now - prev - STALL_S
-            self._stall_until = now + STALL_GRACE_S
-        return now - self._stall_excess if now <= self._stall_until else now
+    def held_inputs(self, now: float) -> list[str]:
+        """The inputs older than their timeout only by a pause of the caller since they were
+        taken: their next message may be waiting in its queue (STALL_S)."""
+        s, inp = self.s, self.inputs
+        names = [("joints", s.input_timeout), ("odom", s.input_timeout), ("drift_front", s.input_timeout),
+                 ("drift_rear", s.input_timeout), ("hw", s.hw_status_timeout)]
+        if s.max_tilt_deg > 0 or "imu" in inp.values:
+            names.append(("imu", s.input_timeout))
+        return [n for n, timeout in names if n in inp.arrival
+                and inp.age(n, now, discount=True) <= timeout < inp.age(n, now, discount=False)]
 
     def update(self, now: float) -> bool:
-        """Check the end conditions (and the load-cell window); True when the state changed. The
-        inputs' ages are judged at input_clock(now) (a stalled caller); e-stop, the attempt's
-        timeout and the end-zone grid at now."""
+        """Check the end conditions (and the load-cell window); True when the state changed. A
+        gap since the previous update longer than STALL_S is a pause of the caller (STALL_S)."""
+        prev, self._last_update = self._last_update, now
+        if prev is not None and now - prev > STALL_S:
+            self.inputs.note_pause(prev, now - prev - STALL_S, now)
         before = self.state
-        t_in = self.input_clock(now)
-        tip = self._compute_tip(t_in)
+        tip = self._compute_tip(now)
         self.tip = tip
         if self.state in LIVE:
-            self._update_live(now, tip, t_in)
+            self._update_live(now, tip)
         elif self.state in ENDED:
             self._update_load_cell(now)
         return self.state != before
 
-    def _update_live(self, now: float, tip: LhdState | None, t_in: float) -> None:
+    def _update_live(self, now: float, tip: LhdState | None) -> None:
         a, s, inp = self.attempt, self.s, self.inputs
         if self.state == "running":       # the drift flags at the end of each control period, up to now
             while a.running_at + (len(a.front) + 1) * s.control_dt <= now + 1e-9:
@@ -470,30 +492,39 @@ class Supervisor:
                 a.rear.append(bool(inp.values.get("drift_rear")))
         if tip is not None:
             a.last_state = tip
-        estop = self._estop_problem(t_in)
+        estop = self._estop_problem(now)
         if estop:
             self._end(now, "estop", estop)
             return
-        lost = self._input_problems(t_in)
+        lost = self._input_problems(now)
         if lost:
             self._end(now, "lost_input", "; ".join(lost))
             return
         if tip is None:                   # inputs fresh and finite, but no tip: a broken orientation
             self._end(now, "lost_input", "the bucket tip cannot be computed from the odometry and joint states")
             return
+        # after a pause, an input whose message may still be queued: nothing that needs the
+        # machine's present state is decided (the start, success) until it is taken or lost
+        waiting = bool(self.held_inputs(now))
         if self.state == "armed":
-            if now - a.armed_at >= s.arm_delay:
+            if now - a.armed_at >= s.arm_delay and not waiting:
                 why = self._start_problem(tip)
                 if why:
                     self._end(now, "aborted", why)
                 else:
                     self._start_running(now)
             return
-        tilt = self._tilt_problem(t_in)   # a safety end: before the end zone
+        tilt = self._tilt_problem(now)    # a safety end: before the end zone
         if tilt:
             self._end(now, "failure", tilt)
             return
         where = classify(tip.x_shovel, tip.y_shovel, tip.z_shovel, a.zones)
+        if waiting:                       # the safety ends only; the period is judged once settled
+            if where == "restricted":
+                self._end(now, "failure", REASONS["failure"])
+            elif now - a.running_at >= a.timeout:
+                self._end(now, "timeout", f"attempt_timeout {a.timeout:g} s passed")
+            return
         period_end = self._period_ended(now)
         timed_out = now - a.running_at >= a.timeout
         if where == "end" and (period_end or timed_out):   # the attempt's last instant is judged too
