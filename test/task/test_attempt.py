@@ -5,6 +5,7 @@ import math
 
 import pytest
 
+from lhd_loading_ros.task import attempt as attempt_module
 from lhd_loading_ros.task.attempt import ERROR, OK, STALE, STALL_S, WARN, HwStatus, Settings, Supervisor
 from lhd_loading_ros.task.kinematics import ArmKinematics
 from lhd_loading_ros.task.zones import Zones
@@ -529,26 +530,35 @@ def test_an_input_silent_across_a_pause_is_still_found(kin, silent):
     assert "s old (timeout 0.5 s, 0.70 s of it a pause of the supervisor not counted;" in r.sv.attempt.reason
 
 
-@pytest.mark.parametrize("gap, found, without", [(0.25, 0.75, 0.75), (0.3, 0.9, 0.6), (0.45, 0.9, 0.9)])
-def test_a_caller_paused_all_the_time_still_finds_a_silent_input(kin, gap, found, without):
-    """Updates only every `gap` s, the joint states stop at d. Every gap is a pause of gap - 0.1 s
-    beyond STALL_S that began after the last joint state, so by hand the update at d + gap k counts
-    an age of gap k - (gap - 0.1), past 0.5 s first at k = 3, 3, 2: found at d + 0.75, 0.9, 0.9
-    (`found`), where counting the pauses too would find it at the first update past 0.5 s real
-    age (`without`): at most one gap later."""
+def _silent_joints_found_after(kin, gap):
+    """Checks only every `gap` s, each the timer's first (after the pause), then the callbacks
+    of the inputs that still come; the joint states stop at d. Seconds from d to lost_input."""
     r = Rig(kin, arm_delay=0.0, attempt_timeout=60.0).ready()
     r.arm()
     r.step(0.3)
     d = r.t
     for k in range(1, 10):
         r.t = round(d + gap * k, 3)
-        r.feed(joints=False)
-        r.sv.update(r.t)
+        r.sv.update(r.t)                       # the timer, first in the pass
+        if r.sv.state == "running":
+            for name in ("odom", "drift", "hw"):
+                _take(r, name)
         if r.sv.state != "running":
             break
-    assert r.sv.state == "lost_input" and "joint states" in r.sv.attempt.reason
-    assert r.sv.attempt.ended_at == pytest.approx(d + found)
-    assert found - without <= gap + 1e-9
+    assert r.sv.state == "lost_input" and "joint states" in r.sv.attempt.reason, r.sv.attempt.reason
+    return r.sv.attempt.ended_at - d
+
+
+@pytest.mark.parametrize("gap, found, without", [(0.25, 0.75, 0.75), (0.3, 0.9, 0.6), (0.45, 0.9, 0.9)])
+def test_a_caller_paused_all_the_time_still_finds_a_silent_input(kin, monkeypatch, gap, found, without):
+    """Every gap is a pause of gap - 0.1 s beyond STALL_S that began after the last joint state,
+    so by hand the check at d + gap k counts an age of gap k - (gap - 0.1), past 0.5 s first at
+    k = 3, 3, 2: found at d + 0.75, 0.9, 0.9; without the allowance (STALL_S patched to infinity)
+    at the first check past 0.5 s real age: 0.75, 0.6, 0.9. At most one gap later."""
+    assert STALL_S == 0.1
+    assert _silent_joints_found_after(kin, gap) == pytest.approx(found)
+    monkeypatch.setattr(attempt_module, "STALL_S", math.inf)
+    assert _silent_joints_found_after(kin, gap) == pytest.approx(without)
 
 
 def test_a_pause_does_not_delay_a_device_estop_or_the_timeout(kin):
@@ -613,6 +623,84 @@ def test_success_after_a_pause_is_judged_on_the_present_tip(kin):
     row = r.sv.attempt.row()
     assert row.elapsed_s == pytest.approx(r.t - t_run)
     assert row.phi_final_deg == pytest.approx(math.degrees(LIFT[1] + 0.1 - LIFT[0]))
+
+
+def test_inputs_taken_after_the_last_check_count_a_pause_that_follows(kin):
+    """The drift flags taken 3 ms after the last check, then a 0.8 s pause: the pause began after
+    them too (it starts at the later of the last check and the last input taken), so the timer's
+    check after it does not call them lost. And a pause longer than STALL_MEMORY_S is kept."""
+    r = Rig(kin, arm_delay=0.0).ready()
+    r.arm()
+    r.step(0.3)
+    r.feed(round(r.t + 0.003, 3), joints=False, odom=False, hw=False)   # drift flags only, no check
+    _pause(r, 0.8)
+    r.sv.update(r.t)
+    assert r.sv.state == "running", r.sv.attempt.reason
+    for name in INPUTS:
+        _take(r, name)
+    _pause(r, 40.0)                            # beyond STALL_MEMORY_S (30 s)
+    r.sv.update(r.t)
+    assert r.sv.state == "timeout" and r.sv.attempt.reason == "attempt_timeout 10 s passed"   # not lost_input
+
+
+def test_a_short_pause_across_the_arm_delay_waits_for_the_queue(kin):
+    """A 0.45 s pause (under input_timeout: nothing is past its timeout) that spans the end of the
+    arm delay: the timer's check after it does not start the attempt on the state from before the
+    pause; the republished zones taken from the queue abort it."""
+    r = Rig(kin, arm_delay=1.0).ready()
+    r.arm()
+    assert r.step(0.7) == "armed"
+    _pause(r, 0.45)
+    r.sv.update(r.t)
+    assert r.sv.state == "armed" and r.sv.held_inputs(r.t) == ["joints", "odom", "drift_front", "drift_rear", "hw"]
+    r.sv.inputs.put("zones", Zones(**{**ZONES.__dict__, "x_max": 0.85}), r.t)
+    for name in INPUTS:
+        _take(r, name)
+    assert r.sv.state == "aborted" and "x_max 1.000 -> 0.850 m" in r.sv.attempt.reason
+
+
+def test_a_short_pause_defers_the_end_zone_to_the_queued_tip(kin):
+    """The tip entered the end zone mid-period, then a 0.45 s pause: no success on the tip from
+    before it; the success comes with the queued messages' tip."""
+    r = Rig(kin, arm_delay=0.0).ready()
+    r.arm()
+    r.step(0.3)
+    r.base_x, (r.boom, r.bucket) = END_X, LIFT
+    r.feed(r.t + 0.05)
+    r.sv.update(r.t)
+    _pause(r, 0.45)
+    r.sv.update(r.t)
+    assert r.sv.state == "running"
+    r.bucket = LIFT[1] + 0.1
+    for name in INPUTS:
+        _take(r, name)
+    assert r.sv.state == "success"
+    assert r.sv.attempt.row().phi_final_deg == pytest.approx(math.degrees(LIFT[1] + 0.1 - LIFT[0]))
+
+
+def test_the_restricted_zone_is_judged_while_waiting_for_the_queue(kin):
+    """After a pause, the odometry taken first puts the tip beyond the observation zone while the
+    other inputs are still queued: a safety end, judged at once (failure), not deferred."""
+    r = Rig(kin, arm_delay=0.0).ready()
+    r.arm()
+    r.step(0.3)
+    _pause(r, 0.8)
+    r.sv.update(r.t)
+    r.base_x = START_X + 1.2                   # tip at x = 1.2 m, beyond x_obs_end 1.1 m
+    _take(r, "odom")
+    assert r.sv.held_inputs(r.t) != []
+    assert r.sv.state == "failure" and r.sv.attempt.reason == "bucket tip entered the restricted zone"
+
+
+def test_arming_after_a_pause_judges_real_ages(kin):
+    """Idle, the caller paused 0.3 s: arming right after it (before the queue is taken) is refused
+    with the inputs' real age, 0.30 s against the 0.25 s arming margin."""
+    r = Rig(kin).ready()
+    r.sv.update(r.t)
+    _pause(r, 0.3)
+    r.sv.update(r.t)
+    ok, msg = r.sv.arm(r.t, "x")
+    assert not ok and "joint states 0.30 s old: to arm, at most 0.25 s" in msg, msg
 
 
 def test_nan_while_running_is_lost_input_not_a_zone(kin):

@@ -173,8 +173,10 @@ class SupervisorNode(Node):
         self.create_subscription(JointState, f"{ns}/joint_states", self._on_js, sd)
         self.create_subscription(Odometry, f"{ns}/odom", self._on_odom, sd)
         self.create_subscription(Imu, f"{ns}/imu", self._on_imu, sd)
-        self.create_subscription(Bool, f"{ns}/wheel_drift/front", lambda m: self._put("drift_front", bool(m.data)), sd)
-        self.create_subscription(Bool, f"{ns}/wheel_drift/rear", lambda m: self._put("drift_rear", bool(m.data)), sd)
+        self.create_subscription(Bool, f"{ns}/wheel_drift/front", lambda m: self._put_check("drift_front", bool(m.data)),
+                                 sd)
+        self.create_subscription(Bool, f"{ns}/wheel_drift/rear", lambda m: self._put_check("drift_rear", bool(m.data)),
+                                 sd)
         # a volatile publisher is incompatible with the latched subscription by design (the
         # sensor-data one takes it): no warning for that
         quiet = SubscriptionEventCallbacks(incompatible_qos=lambda _: None)
@@ -200,6 +202,13 @@ class SupervisorNode(Node):
     def _put(self, name: str, value) -> None:
         self.core.inputs.put(name, value, time.monotonic())
 
+    def _put_check(self, name: str, value) -> None:
+        """A fast input, then the check: after a pause of this process the check that follows
+        the last message taken in a pass is the one that sees the machine's state again
+        (task.attempt.STALL_S)."""
+        self._put(name, value)
+        self._check()
+
     def _on_imu(self, msg: Imu) -> None:
         """REP 145: orientation_covariance[0] = -1 means the driver gives no orientation (a raw
         imu/data_raw): not an input. The orientation is taken as the machine's (x forward, z up;
@@ -209,7 +218,7 @@ class SupervisorNode(Node):
         if msg.orientation_covariance[0] == -1.0:
             return
         q = msg.orientation
-        self._put("imu", (float(q.w), float(q.x), float(q.y), float(q.z)))
+        self._put_check("imu", (float(q.w), float(q.x), float(q.y), float(q.z)))
 
     def _on_js(self, msg: JointState) -> None:
         joints = {}

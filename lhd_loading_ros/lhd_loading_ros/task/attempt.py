@@ -143,18 +143,20 @@ class Inputs:
     estop: bool = False               # <prefix>/estop (latched); never received = released
 
     pauses: deque = field(default_factory=deque)   # (start, excess over STALL_S) of the caller's pauses
+    last_put: float = -math.inf       # the latest time an input was taken (the caller was running)
 
     def put(self, name: str, value, now: float) -> None:
         self.values[name] = value
         self.arrival[name] = now
+        self.last_put = max(self.last_put, now)
         if name == "zones":
             self.zones_error = ""
 
     def note_pause(self, start: float, excess: float, now: float) -> None:
         """The caller did not run from `start` for STALL_S + excess (seconds)."""
         self.pauses.append((start, excess))
-        while self.pauses and self.pauses[0][0] < now - STALL_MEMORY_S:
-            self.pauses.popleft()
+        while self.pauses and self.pauses[0][0] + STALL_S + self.pauses[0][1] < now - STALL_MEMORY_S:
+            self.pauses.popleft()          # ended STALL_MEMORY_S ago (the pause just noted never)
 
     def paused_since(self, name: str) -> float:
         """The largest pause excess that began after the input was taken (0 if none)."""
@@ -215,8 +217,10 @@ class Attempt:
 
 
 class Supervisor:
-    """One machine's attempts. The caller feeds `inputs`, calls `update(now)` on every joints /
-    odometry arrival and on a fast timer, and `arm`, `abort`, `set_mass`, `load_cell`."""
+    """One machine's attempts. The caller feeds `inputs`, calls `update(now)` after taking every
+    joints / odometry / drift / IMU / bridge status / e-stop message and on a fast timer (50 Hz),
+    and `arm`, `abort`, `set_mass`, `load_cell`. A gap between those calls longer than STALL_S
+    is taken for a pause of the caller (the rule above STALL_S)."""
 
     def __init__(self, settings: Settings, kin: ArmKinematics, controller: str, material: str,
                  first_attempt: int = 1):
@@ -271,7 +275,7 @@ class Supervisor:
                 out.append(f"{what} {inp.age(name, now, discount=False):.2f} s old (timeout {timeout:g} s{paused}; "
                            f"{src})")
             elif arming and inp.age(name, now, discount=False) > timeout * s.arm_fresh_fraction:
-                out.append(f"{what} {inp.age(name, now):.2f} s old: to arm, at most {timeout * s.arm_fresh_fraction:g} s "
+                out.append(f"{what} {inp.age(name, now, discount=False):.2f} s old: to arm, at most {timeout * s.arm_fresh_fraction:g} s "
                            f"({s.arm_fresh_fraction:g} of its {timeout:g} s timeout, a margin before a late message "
                            f"ends the attempt; {src})")
         if "joints" in inp.values:
@@ -295,11 +299,11 @@ class Supervisor:
                 out.append(f"bridge reports {LEVEL_NAMES[hw.level]}: {hw.message}")
         return out
 
-    def _estop_problem(self, now: float) -> str:
+    def _estop_problem(self, now: float, discount: bool = True) -> str:
         if self.inputs.estop:
             return f"emergency stop engaged ({self.s.prefix}/estop is true)"
         hw = self.inputs.values.get("hw")
-        if hw is not None and hw.estop and self.inputs.age("hw", now) <= self.s.hw_status_timeout:
+        if hw is not None and hw.estop and self.inputs.age("hw", now, discount) <= self.s.hw_status_timeout:
             return "emergency stop pressed on the device (bridge status)"
         return ""
 
@@ -316,7 +320,7 @@ class Supervisor:
         try:
             st = state_from_measurements(self.kin, pos, quat, v_x, j, bool(inp.values.get("drift_front")),
                                          bool(inp.values.get("drift_rear")))
-            if self._tilt(now, discount) is not None:
+            if self._tilt(now, discount and self.s.max_tilt_deg > 0) is not None:   # optional IMU: real age
                 # the bucket's pitch with the machine's own roll and pitch (the IMU's); the tip's
                 # POSITION is the odometry's as published: the ArUco node with the IMU publishes the
                 # tilted pose with base_link raised about the front wheels, which puts the tip where
@@ -353,7 +357,7 @@ class Supervisor:
     def preflight(self, now: float) -> list[str]:
         """Every reason not to start an attempt now, each a sentence; [] = ready."""
         out = []
-        estop = self._estop_problem(now)
+        estop = self._estop_problem(now, discount=False)
         if estop:
             out.append(estop + ": release it first")
         out += self._input_problems(now, arming=True)
@@ -459,22 +463,24 @@ class Supervisor:
 
     # ------------------------------------------------------------------ the loop
     def held_inputs(self, now: float) -> list[str]:
-        """The inputs older than their timeout only by a pause of the caller since they were
-        taken: their next message may be waiting in its queue (STALL_S)."""
+        """The inputs taken before a pause of the caller and not lost: their newer messages may be
+        waiting in its queue, so the machine's present state is not known yet (STALL_S)."""
         s, inp = self.s, self.inputs
         names = [("joints", s.input_timeout), ("odom", s.input_timeout), ("drift_front", s.input_timeout),
                  ("drift_rear", s.input_timeout), ("hw", s.hw_status_timeout)]
-        if s.max_tilt_deg > 0 or "imu" in inp.values:
+        if s.max_tilt_deg > 0:            # an optional IMU (no tilt limit) neither holds nor is discounted
             names.append(("imu", s.input_timeout))
-        return [n for n, timeout in names if n in inp.arrival
-                and inp.age(n, now, discount=True) <= timeout < inp.age(n, now, discount=False)]
+        return [n for n, timeout in names if n in inp.arrival and inp.paused_since(n) > 0.0
+                and inp.age(n, now, discount=True) <= timeout]
 
     def update(self, now: float) -> bool:
         """Check the end conditions (and the load-cell window); True when the state changed. A
         gap since the previous update longer than STALL_S is a pause of the caller (STALL_S)."""
         prev, self._last_update = self._last_update, now
-        if prev is not None and now - prev > STALL_S:
-            self.inputs.note_pause(prev, now - prev - STALL_S, now)
+        if prev is not None:              # the caller last ran at its previous update or input, the later
+            last = max(prev, self.inputs.last_put)
+            if now - last > STALL_S:
+                self.inputs.note_pause(last, now - last - STALL_S, now)
         before = self.state
         tip = self._compute_tip(now)
         self.tip = tip
