@@ -59,17 +59,18 @@ STOP_SPEED = 0.05          # rad/s: every joint slower than this = the machine s
 LOAD_CELL_MIN_SAMPLES = 3
 LOAD_CELL_RANGE = (-5.0, 200.0)   # kg: a reading outside is a broken amplifier, not a load (tare noise is < 0)
 RANGE_TOL_DEG = 1e-6       # a slope published in rad at exactly a range end is inside (policy core's rule)
-# The caller updates every 20 ms (the node's 50 Hz check) and on every joints / odometry / bridge
-# status / e-stop arrival. A gap longer than STALL_S between two updates means the caller's process
-# itself did not run (CPU starvation, a garbage-collection or swap pause): the inputs that arrived
-# meanwhile wait in its queues, and the executor runs the timer before it takes them (rclpy: timers,
-# then subscriptions, in one pass). An input's age therefore leaves out the largest such pause
-# (beyond STALL_S) that began after the input was taken: input_timeout counts the caller's running
-# time. While an input is older than its timeout only by a pause ("held": its message may be
-# queued), nothing that needs the machine's present state is decided: no start after the arm delay,
-# no success (docs/supervisor.md "A stalled supervisor").
+# The caller updates every 20 ms (the node's 50 Hz check) and after taking every joints / odometry /
+# drift / IMU / bridge status / e-stop message. A gap longer than STALL_S since the caller last ran
+# (its previous update or the last input it took) means its process did not run (CPU starvation, a
+# garbage-collection or swap pause): the inputs that arrived meanwhile wait in its queues, and the
+# executor runs the timer before it takes them (rclpy: timers, then subscriptions, in one pass). An
+# input's age therefore leaves out the largest such pause (beyond STALL_S) that began after the
+# input was taken: input_timeout counts the caller's running time. While an input taken before a
+# pause is not lost and not yet renewed ("held": newer messages may be queued), nothing that needs
+# the machine's present state is decided: no start after the arm delay, no success; the safety ends
+# stay (docs/supervisor.md "A stalled supervisor").
 STALL_S = 0.1
-STALL_MEMORY_S = 30.0      # s: pauses older than this are forgotten (any input older is long lost)
+STALL_MEMORY_S = 30.0      # s: a pause is forgotten this long after it ended (any input older is long lost)
 ZONE_LIMITS = tuple(f.name for f in fields(Zones))
 ZONES_CHANGED_M = 0.02     # m: a zone limit republished this far from arming's = another pile estimate
 REASONS = {
