@@ -228,10 +228,9 @@ def test_arming_needs_inputs_fresher_than_half_their_timeout(kin, name, what):
     r.feed(t + 1.0)
     r.arm()
     silent = {"odom": "odom", "joints": "joints", "drift_rear": "drift", "hw": "hw"}[name]
-    r.feed(r.t + 0.30, **{silent: False})        # every input but that one
-    r.sv.update(r.t)
+    r.step(0.30, **{silent: False})   # every input but that one, 50 Hz ticks (no pause of the caller)
     assert r.sv.state == "armed", r.sv.attempt.reason
-    r.step(0.20, **{silent: False})   # 50 Hz ticks to 0.50 s old: not past the timeout yet
+    r.step(0.20, **{silent: False})   # to 0.50 s old: not past the timeout yet
     assert r.sv.state == "armed", r.sv.attempt.reason
     r.step(0.02, **{silent: False})   # 0.52 s: past it
     assert r.sv.state == "lost_input" and f"{what} 0.52 s old (timeout 0.5 s" in r.sv.attempt.reason
@@ -467,18 +466,21 @@ def _take(r, name):
     r.sv.update(r.t)
 
 
-def test_a_paused_caller_does_not_take_queued_inputs_for_silence(kin):
+@pytest.mark.parametrize("timer_first", [True, False])
+def test_a_paused_caller_does_not_take_queued_inputs_for_silence(kin, timer_first):
     """The node's process pauses 0.8 s (CPU starvation): every input kept arriving but waits in
-    its queue, and the executor runs the 50 Hz check before it takes them (timers first). The
-    first update after the pause sees every input 0.8 s old; neither it nor the updates of the
-    same pass that take the queued inputs one at a time may end the attempt."""
+    its queue. On waking, the executor runs the 50 Hz check before it takes them (timers first),
+    or, when the timer was not due yet in that pass, a callback takes its message first and
+    checks. Either way the first check sees the other inputs 0.8 s old; neither it nor the
+    checks after each queued input taken one at a time may end the attempt."""
     r = Rig(kin, arm_delay=0.0).ready()
     r.arm()
     r.step(0.3)
     _pause(r, 0.8)
-    r.sv.update(r.t)                           # the timer first: nothing taken yet, all 0.8 s old
-    assert r.sv.state == "running", r.sv.attempt.reason
-    assert r.sv.held_inputs(r.t) == ["joints", "odom", "drift_front", "drift_rear", "hw"]
+    if timer_first:
+        r.sv.update(r.t)                       # nothing taken yet, all 0.8 s old
+        assert r.sv.state == "running", r.sv.attempt.reason
+        assert r.sv.held_inputs(r.t) == ["joints", "odom", "drift_front", "drift_rear", "hw"]
     for name in INPUTS:
         _take(r, name)
         assert r.sv.state == "running", (name, r.sv.attempt.reason)

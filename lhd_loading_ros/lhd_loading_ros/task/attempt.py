@@ -144,12 +144,21 @@ class Inputs:
     estop: bool = False               # <prefix>/estop (latched); never received = released
 
     pauses: deque = field(default_factory=deque)   # (start, excess over STALL_S) of the caller's pauses
-    last_put: float = -math.inf       # the latest time an input was taken (the caller was running)
+    last_active: float | None = None  # the caller's latest input taken or update (it was running)
+
+    def active(self, now: float) -> None:
+        """The caller runs at `now` (takes an input, or checks): a gap over STALL_S since it last
+        did is a pause. Called first by every put and update, so whichever runs first after a
+        pause (the timer's check, or a callback taking its message) notes it."""
+        if self.last_active is not None and now - self.last_active > STALL_S:
+            self.note_pause(self.last_active, now - self.last_active - STALL_S, now)
+        if self.last_active is None or now > self.last_active:
+            self.last_active = now
 
     def put(self, name: str, value, now: float) -> None:
+        self.active(now)
         self.values[name] = value
         self.arrival[name] = now
-        self.last_put = max(self.last_put, now)
         if name == "zones":
             self.zones_error = ""
 
@@ -236,7 +245,6 @@ class Supervisor:
         self.tip: LhdState | None = None         # the latest tip computed from fresh, finite inputs
         self._cell: deque = deque()              # (time, kg) load-cell samples, the last few seconds
         self._stopped_since: float | None = None
-        self._last_update: float | None = None   # time of the previous update() (pauses: STALL_S)
 
     def set_attempt_timeout(self, seconds: float) -> None:
         """A new attempt_timeout, from the next arming on (a live attempt keeps its own)."""
@@ -253,12 +261,9 @@ class Supervisor:
         return (f"pile slope {deg:.1f} deg is outside the controller's range [{lo:g}, {hi:g}] deg "
                 f"({self.s.slope_source}): reshape the pile or pick a controller trained for it")
 
-    def _input_problems(self, now: float, arming: bool = False) -> list[str]:
-        """Problems of the inputs an attempt needs all the time: joints, odometry, drift flags,
-        the bridge (age, and its level unless the device's e-stop explains it). arming: the
-        preflight's stricter age, arm_fresh_fraction of each timeout."""
-        inp, s, out = self.inputs, self.s, []
-        p = s.prefix
+    def _timed_inputs(self) -> tuple:
+        """(name, what, source, timeout) of the inputs an attempt needs all the time."""
+        s, p = self.s, self.s.prefix
         ages = (("joints", "joint states", f"{p}/joint_states, the bridge", s.input_timeout),
                 ("odom", "odometry v_x", f"{p}/odom, the ArUco node", s.input_timeout),
                 ("drift_front", "front drift flag", f"{p}/wheel_drift/front, the bridge", s.input_timeout),
@@ -267,7 +272,14 @@ class Supervisor:
         if s.max_tilt_deg > 0:            # the tilt limit needs the IMU all the time
             ages += (("imu", "machine orientation", f"{p}/imu, an IMU on the rear frame (max_tilt_deg > 0)",
                       s.input_timeout),)
-        for name, what, src, timeout in ages:
+        return ages
+
+    def _input_problems(self, now: float, arming: bool = False) -> list[str]:
+        """Problems of the inputs an attempt needs all the time: joints, odometry, drift flags,
+        the bridge (age, and its level unless the device's e-stop explains it). arming: the
+        preflight's stricter age, arm_fresh_fraction of each timeout."""
+        inp, s, out = self.inputs, self.s, []
+        for name, what, src, timeout in self._timed_inputs():
             if name not in inp.values:
                 out.append(f"no {what} received ({src})")
             elif inp.age(name, now, discount=not arming) > timeout:
@@ -466,22 +478,15 @@ class Supervisor:
     def held_inputs(self, now: float) -> list[str]:
         """The inputs taken before a pause of the caller and not lost: their newer messages may be
         waiting in its queue, so the machine's present state is not known yet (STALL_S)."""
-        s, inp = self.s, self.inputs
-        names = [("joints", s.input_timeout), ("odom", s.input_timeout), ("drift_front", s.input_timeout),
-                 ("drift_rear", s.input_timeout), ("hw", s.hw_status_timeout)]
-        if s.max_tilt_deg > 0:            # an optional IMU (no tilt limit) neither holds nor is discounted
-            names.append(("imu", s.input_timeout))
-        return [n for n, timeout in names if n in inp.arrival and inp.paused_since(n) > 0.0
+        inp = self.inputs                 # an optional IMU (no tilt limit) neither holds nor is discounted
+        return [n for n, _, _, timeout in self._timed_inputs() if n in inp.arrival and inp.paused_since(n) > 0.0
                 and inp.age(n, now, discount=True) <= timeout]
 
     def update(self, now: float) -> bool:
         """Check the end conditions (and the load-cell window); True when the state changed. A
-        gap since the previous update longer than STALL_S is a pause of the caller (STALL_S)."""
-        prev, self._last_update = self._last_update, now
-        if prev is not None:              # the caller last ran at its previous update or input, the later
-            last = max(prev, self.inputs.last_put)
-            if now - last > STALL_S:
-                self.inputs.note_pause(last, now - last - STALL_S, now)
+        gap since the caller last ran (an update or an input taken) longer than STALL_S is a pause
+        of the caller (STALL_S, Inputs.active)."""
+        self.inputs.active(now)
         before = self.state
         tip = self._compute_tip(now)
         self.tip = tip
@@ -526,15 +531,10 @@ class Supervisor:
             self._end(now, "failure", tilt)
             return
         where = classify(tip.x_shovel, tip.y_shovel, tip.z_shovel, a.zones)
-        if waiting:                       # the safety ends only; the period is judged once settled
-            if where == "restricted":
-                self._end(now, "failure", REASONS["failure"])
-            elif now - a.running_at >= a.timeout:
-                self._end(now, "timeout", f"attempt_timeout {a.timeout:g} s passed")
-            return
-        period_end = self._period_ended(now)
         timed_out = now - a.running_at >= a.timeout
-        if where == "end" and (period_end or timed_out):   # the attempt's last instant is judged too
+        # while waiting, only the safety ends; the period is judged once settled (not used up here)
+        judge_end = not waiting and (self._period_ended(now) or timed_out)
+        if where == "end" and judge_end:  # the attempt's last instant is judged too
             self._end(now, "success", REASONS["success"])
         elif where == "restricted":
             self._end(now, "failure", REASONS["failure"])
