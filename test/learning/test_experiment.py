@@ -55,8 +55,14 @@ def test_a_small_study_end_to_end(tmp_path):
         assert 0.0 < float(r["elapsed_s"]) <= ex.TIME_LIMIT_S + 1e-9
     summary = json.loads((out / "summary.json").read_text())
     assert summary["attempts"] == 6 and summary["time_limit_s"] == 10.0
+    # the paired table: RLD against the heuristic on the one pile they share, its masses from attempts.csv
+    (pr,) = [r for r in summary["paired_table"] if r["slope_deg"] == "all"]
+    a = {r["controller"]: r for r in rows if r["table"] == "controllers"}
+    assert pr["other"] == "tampier" and pr["pairs"] == 1
+    assert pr["mass_diff_all_kg"] == pytest.approx(float(a["rld"]["loaded_kg"]) - float(a["tampier"]["loaded_kg"]))
+    assert "RLD against the other controllers on the same piles" in p.stdout
     for f in ("table_controllers.md", "table_controllers.csv", "table_slope_error.md", "table_slope_error.csv",
-              "mass_vs_time.png", "tip_trajectories.png", "slope_error.png"):
+              "table_paired.md", "table_paired.csv", "mass_vs_time.png", "tip_trajectories.png", "slope_error.png"):
         assert (out / f).stat().st_size > 0, f
     # the no-error rows are their own baseline: a mass change of 0 %
     err = list(csv.DictReader((out / "table_slope_error.csv").open()))
@@ -104,3 +110,50 @@ def test_the_teacher_is_the_demonstrations_maneuver(cfg):
     assert row["loaded_kg"] == pytest.approx(env.sim.loaded_mass, abs=1e-9)
     assert row["elapsed_s"] == pytest.approx(env.steps * env.p.control_dt)
     assert row["success"] and row["loaded_kg"] > 30.0
+
+
+def _attempt(controller, slope, seed, success, kg, t=4.0, front=0.0, rear=50.0, material="homogeneous"):
+    return {"table": "controllers", "controller": controller, "slope_deg": slope, "told_deg": slope, "material": material,
+            "seed": seed, "success": success, "loaded_kg": kg, "elapsed_s": t, "front_drift_pct": front,
+            "rear_drift_pct": rear}
+
+
+def test_the_paired_table_compares_the_same_piles_where_both_succeeded():
+    rows = [
+        # 20 deg, three piles: both succeed on seeds 1 and 2; the heuristic fails on seed 3
+        _attempt("rld", 20.0, 1, True, 35.0, t=4.0, front=1.0), _attempt("tampier", 20.0, 1, True, 41.0, t=10.0, front=20.0),
+        _attempt("rld", 20.0, 2, True, 33.0, t=3.0, front=2.0), _attempt("tampier", 20.0, 2, True, 40.0, t=9.0, front=16.0),
+        _attempt("rld", 20.0, 3, True, 36.0), _attempt("tampier", 20.0, 3, False, 44.0),
+        # 30 deg, one pile, RLD fails: no successful pair there
+        _attempt("rld", 30.0, 4, False, 12.0), _attempt("tampier", 30.0, 4, True, 42.0),
+        # a heuristic attempt on a pile RLD never saw, and another material: neither pairs with the 20 deg cell
+        _attempt("tampier", 20.0, 9, True, 10.0), _attempt("rld", 20.0, 1, True, 99.0, material="nonhomogeneous"),
+        {"table": "slope_error", "controller": "rld", "slope_deg": 20.0, "told_deg": 35.0, "material": "homogeneous",
+         "seed": 1, "success": True, "loaded_kg": 0.0, "elapsed_s": 1.0, "front_drift_pct": 0.0, "rear_drift_pct": 0.0},
+    ]
+    out = ex.paired_comparison(rows, seed=1)
+    cell = {(r["material"], r["slope_deg"]): r for r in out if r["other"] == "tampier"}
+    c20 = cell[("homogeneous", 20.0)]
+    assert c20["pairs"] == 3 and c20["both_successful"] == 2
+    assert c20["loaded_kg_diff"] == pytest.approx(((35 - 41) + (33 - 40)) / 2)          # -6.5 kg, by hand
+    assert c20["loaded_kg_ref"] == pytest.approx(34.0) and c20["loaded_kg_other"] == pytest.approx(40.5)
+    assert c20["elapsed_s_diff"] == pytest.approx(-6.0) and c20["front_drift_pct_diff"] == pytest.approx(-16.5)
+    # two pairs (-6, -7): every resample's mean lies in [-7, -6]; the interval is inside and not a point
+    assert -7.0 <= c20["loaded_kg_diff_lo"] < c20["loaded_kg_diff_hi"] <= -6.0
+    assert c20["mass_diff_all_kg"] == pytest.approx(((35 - 41) + (33 - 40) + (36 - 44)) / 3)
+    c30 = cell[("homogeneous", 30.0)]
+    assert c30["pairs"] == 1 and c30["both_successful"] == 0 and math.isnan(c30["loaded_kg_diff"])
+    assert c30["mass_diff_all_kg"] == pytest.approx(12.0 - 42.0)
+    every = cell[("homogeneous", "all")]
+    assert every["pairs"] == 4 and every["both_successful"] == 2 and every["loaded_kg_diff"] == pytest.approx(-6.5)
+    assert ("nonhomogeneous", 20.0) not in cell            # the heuristic has no nonhomogeneous attempts
+    # one pair: a mean, no interval; the markdown says so with a dash
+    one = ex.paired_comparison([rows[0], rows[1]])
+    (r1,) = [r for r in one if r["slope_deg"] == 20.0]
+    assert r1["loaded_kg_diff"] == pytest.approx(-6.0) and math.isnan(r1["loaded_kg_diff_lo"])
+    md = ex.markdown_paired(out)
+    assert "| tampier | homogeneous | 20 | 3 (2) | 34.0 / 40.5 | -6.5 [" in md
+    assert "| tampier | homogeneous | 30 | 1 (0) | - / - | - |" in md
+    # deterministic for a seed; without the reference controller, nothing to compare
+    assert ex.paired_comparison(rows, seed=1) == out
+    assert ex.paired_comparison([r for r in rows if r["controller"] != "rld"]) == []

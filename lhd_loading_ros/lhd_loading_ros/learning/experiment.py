@@ -24,7 +24,8 @@ wrong LiDAR estimate would be: the normalised alpha then leaves [0, 1]. The node
 slope; this table shows what the actor alone would do.
 
 Writes to `out`: attempts.csv (one row per attempt), table_controllers.md/.csv,
-table_slope_error.md/.csv, mass_vs_time.png, tip_trajectories.png, slope_error.png, summary.json.
+table_slope_error.md/.csv, table_paired.md/.csv (RLD against each other controller on the same piles:
+paired_comparison), mass_vs_time.png, tip_trajectories.png, slope_error.png, summary.json.
 """
 from __future__ import annotations
 
@@ -279,6 +280,91 @@ def summarize_slope_error(rows: list[dict]) -> list[dict]:
     return out
 
 
+PAIRED_METRICS = ("loaded_kg", "elapsed_s", "front_drift_pct", "rear_drift_pct")
+BOOTSTRAP_RESAMPLES = 10_000
+
+
+def _bootstrap_mean_ci(d: np.ndarray, rng: np.random.Generator, level: float = 0.95) -> tuple[float, float]:
+    """Percentile bootstrap interval of the mean of `d` (resampling the pairs)."""
+    if len(d) < 2:
+        return math.nan, math.nan
+    means = d[rng.integers(0, len(d), size=(BOOTSTRAP_RESAMPLES, len(d)))].mean(axis=1)
+    lo, hi = np.quantile(means, [(1 - level) / 2, (1 + level) / 2])
+    return float(lo), float(hi)
+
+
+def paired_comparison(rows: list[dict], reference: str = "rld", seed: int = 0) -> list[dict]:
+    """The reference controller against every other one ON THE SAME PILES (the grid gives every
+    controller the same seeds, slopes and materials): per (other, material, slope or "all") the
+    piles on which BOTH attempts succeeded, and over them the mean of (reference - other) for mass,
+    time and drift, with a percentile-bootstrap 95 % interval (10,000 resamples of the pairs).
+
+    The paper's table compares means over each controller's own successful attempts; where one
+    controller succeeds on few piles (the Tampier heuristic here), those means are over different
+    piles. A difference over the same piles, with its interval, is the figure that says whether two
+    controllers load the same mass. `both_successful` counts the pairs; with fewer than 2 the interval
+    is NaN. Also per cell: the mean mass difference over ALL pairs (failed attempts count with the
+    load they ended with)."""
+    rs = [r for r in rows if r["table"] == "controllers"]
+    by = {(r["controller"], r["material"], r["slope_deg"], r["seed"]): r for r in rs}
+    rng = np.random.default_rng(seed)
+    out = []
+    others = [c for c in CONTROLLERS if c != reference and any(r["controller"] == c for r in rs)]
+    if not any(r["controller"] == reference for r in rs):
+        return out
+    for c in others:
+        for m in MATERIALS:
+            slopes = sorted({r["slope_deg"] for r in rs if r["controller"] == c and r["material"] == m})
+            for a in [*slopes, None] if slopes else []:
+                pairs = [(by[k], o) for (cc, mm, aa, sd), o in by.items()
+                         if cc == c and mm == m and (a is None or aa == a)
+                         for k in [(reference, m, aa, sd)] if k in by]
+                if not pairs:
+                    continue
+                ok = [(r, o) for r, o in pairs if r["success"] and o["success"]]
+                row = {"reference": reference, "other": c, "material": m, "slope_deg": "all" if a is None else a,
+                       "pairs": len(pairs), "both_successful": len(ok),
+                       "mass_diff_all_kg": float(np.mean([r["loaded_kg"] - o["loaded_kg"] for r, o in pairs]))}
+                for k in PAIRED_METRICS:
+                    d = np.array([r[k] - o[k] for r, o in ok], dtype=float)
+                    row[f"{k}_ref"] = float(np.mean([r[k] for r, _ in ok])) if ok else math.nan
+                    row[f"{k}_other"] = float(np.mean([o[k] for _, o in ok])) if ok else math.nan
+                    row[f"{k}_diff"] = float(d.mean()) if len(d) else math.nan
+                    row[f"{k}_diff_lo"], row[f"{k}_diff_hi"] = _bootstrap_mean_ci(d, rng)
+                out.append(row)
+    return out
+
+
+def markdown_paired(paired: list[dict]) -> str:
+    """One row per (other controller, material) over all slopes, then the per-slope rows."""
+    if not paired:
+        return ""
+    ref = paired[0]["reference"]
+    R = ref.upper() if ref.startswith("rl") else ref
+    L = [f"| {R} against | material | slope | piles (both successful) | mass {R} / other [kg] | "
+         f"{R} - other: mass [kg] | time [s] | front drift [pp] | rear drift [pp] | mass, all piles [kg] |",
+         "|---|---|---|---|---|---|---|---|---|---|"]
+
+    def ci(r, k):
+        if not math.isfinite(r[k + "_diff"]):
+            return "-"
+        lo, hi = r[k + "_diff_lo"], r[k + "_diff_hi"]
+        band = f" [{lo:+.1f}, {hi:+.1f}]" if math.isfinite(lo) else ""
+        return f"{r[k + '_diff']:+.1f}{band}"
+
+    for r in sorted(paired, key=lambda r: (r["other"], r["material"], r["slope_deg"] != "all",
+                                          0 if r["slope_deg"] == "all" else r["slope_deg"])):
+        o = r["other"].upper() if r["other"].startswith("rl") else r["other"]
+        a = "all" if r["slope_deg"] == "all" else f"{r['slope_deg']:g}"
+        L.append(f"| {o} | {r['material']} | {a} | {r['pairs']} ({r['both_successful']}) | "
+                 f"{_f(r['loaded_kg_ref'])} / {_f(r['loaded_kg_other'])} | {ci(r, 'loaded_kg')} | {ci(r, 'elapsed_s')} | "
+                 f"{ci(r, 'front_drift_pct')} | {ci(r, 'rear_drift_pct')} | {r['mass_diff_all_kg']:+.1f} |")
+    L += ["", f"Differences are {R} minus the other controller on the same piles where both succeeded, mean and "
+              "percentile-bootstrap 95 % interval over the pairs; the last column is over every pair, failures "
+              "included (with the load they ended with)."]
+    return "\n".join(L) + "\n"
+
+
 def _f(v, fmt="{:.1f}"):
     return "-" if v is None or (isinstance(v, float) and not math.isfinite(v)) else fmt.format(v)
 
@@ -424,13 +510,20 @@ def paper(out: str | os.PathLike, episodes: int = 10, controllers=CONTROLLERS, s
     ep = (config if isinstance(config, dict) else load_config(config))["paper"]["episode"]
     md_c = markdown_controllers(ctl)
     md_e = markdown_slope_error(err, (float(ep["alpha_min_deg"]), float(ep["alpha_max_deg"])))
+    paired = paired_comparison(rows)
+    md_p = markdown_paired(paired)
     (out / "table_controllers.md").write_text(md_c)
     (out / "table_slope_error.md").write_text(md_e)
+    if paired:
+        _write_csv(out / "table_paired.csv", paired)
+        (out / "table_paired.md").write_text(md_p)
     figs = figures(rows, err, out)
     summary = {"attempts": len(rows), "episodes_per_cell": episodes, "controllers": list(controllers),
                "slopes_deg": list(slopes), "materials": list(materials), "errors_deg": list(errors),
                "time_limit_s": TIME_LIMIT_S, "seed": seed, "wall_s": time.monotonic() - t0,
-               "jobs": jobs_n or usable_cores(), "figures": figs, "controllers_table": ctl, "slope_error_table": err}
+               "jobs": jobs_n or usable_cores(), "figures": figs, "controllers_table": ctl, "slope_error_table": err,
+               "paired_table": paired}
     (out / "summary.json").write_text(json.dumps(summary, indent=1))
-    summary["markdown"] = md_c + ("\n### Slope error (homogeneous piles, all attempts)\n\n" + md_e if md_e else "")
+    summary["markdown"] = (md_c + ("\n### RLD against the other controllers on the same piles\n\n" + md_p if md_p else "")
+                           + ("\n### Slope error (homogeneous piles, all attempts)\n\n" + md_e if md_e else ""))
     return summary
