@@ -160,9 +160,11 @@ class LhdSimulator:
 
     # ------------------------------------------------------------------ episode set-up
     def new_pile(self, rng: np.random.Generator, alpha: float | None = None, material: str | None = None,
-                 soil: SoilRanges | None = None) -> None:
+                 soil: SoilRanges | None = None, surface_sd: float = 0.0, surface_corr: float = 0.15) -> None:
         """A new pile of slope alpha and material (drawn when None); soil: ranges to draw its
-        parameters from (default the config's pile ranges; domain randomisation widens them)."""
+        parameters from (default the config's pile ranges; domain randomisation widens them);
+        surface_sd > 0: a random relief of that sd (m) and correlation length surface_corr about the
+        plane (VoxelPile.roughen; drawn from rng after the pile, so a plane pile draws as before)."""
         p = self.p
         if alpha is None:
             alpha = rng.uniform(p.alpha_min, p.alpha_max)
@@ -174,6 +176,8 @@ class LhdSimulator:
         self.pile = VoxelPile.generate(rng, alpha, p.h_pile, p.w_pile, vx["n_x"], vx["n_y"], vx["n_z"],
                                        self.soil if soil is None else soil,
                                        nonhomogeneous=(material == "nonhomogeneous"))
+        if surface_sd > 0.0:
+            self.pile.roughen(rng, surface_sd, surface_corr)
         self.material = material
         self.zones = Zones.for_pile(self.pile, p)
         s = self.soil
@@ -251,7 +255,7 @@ class LhdSimulator:
         p = self.p
         c = NOMINAL if conditions is None else conditions
         self.conditions = c
-        self.new_pile(rng, alpha, material, soil=c.soil)
+        self.new_pile(rng, alpha, material, soil=c.soil, surface_sd=c.surface_sd, surface_corr=c.surface_corr)
         if d_attack is None:
             d_attack = c.d_attack if c.d_attack is not None else rng.uniform(
                 self.cfg["paper"]["episode"]["d_attack_min"], self.cfg["paper"]["episode"]["d_attack_max"])

@@ -213,3 +213,33 @@ def test_lhd_eval_refuses_actor_only_options_for_the_heuristic(capsys):
     for opt in (["--randomize"], ["--stress", "delay"], ["--deploy-filter"]):
         assert main(["eval", "--controller", "tampier", *opt]) == 2
         assert "apply to --controller actor only" in capsys.readouterr().err
+
+
+def test_rough_stress_case_gives_every_pile_a_relief_and_nominal_piles_stay_planes(cfg):
+    """`--stress rough`: every evaluation pile's surface departs from its plane by about
+    ROUGH_SD (the first step sees the intact surface; the attack drive cut only near the toe, so
+    the back two thirds are compared); the nominal evaluation's piles are exact planes there, and a
+    rough episode still runs to its end."""
+    from lhd_loading_ros.learning.evaluate import evaluate
+    from lhd_loading_ros.task.randomization import ROUGH_CORR, ROUGH_SD, stress_conditions
+
+    c = stress_conditions("rough", 3, cfg)
+    assert (c.surface_sd, c.surface_corr) == (ROUGH_SD, ROUGH_CORR) == (0.03, 0.15)
+    env = LhdLoadingEnv("rld", cfg)
+    seen = []
+
+    def policy(obs):
+        if env.steps == 0:
+            p = env.sim.pile
+            plane = np.tile(np.clip(p.x_centers * math.tan(p.alpha), 0.0, p.h), (p.n_y, 1))
+            back = slice(p.n_x // 3, None)
+            inner = (plane[:, back] > 0.1) & (plane[:, back] < p.h - 0.1)
+            seen.append(float(np.std((p.top - plane)[:, back][inner])))
+        return np.array([1.0, 1.0, 1.0])
+
+    res = evaluate(env, policy, 8, 21, cfg["task"]["bucket_capacity"], breakdown=False, stress="rough")
+    assert res["episodes"] == 8 and len(seen) == 8
+    assert all(0.015 < s < 0.045 for s in seen), seen
+    seen.clear()
+    evaluate(env, policy, 4, 21, cfg["task"]["bucket_capacity"], breakdown=False)
+    assert seen == [0.0] * 4

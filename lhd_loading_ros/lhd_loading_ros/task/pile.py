@@ -124,6 +124,33 @@ class VoxelPile:
             pile._place_rocks(rng, soil)
         return pile
 
+    def roughen(self, rng: np.random.Generator, sd: float, corr: float) -> None:
+        """Give the intact surface a random relief: a Gaussian random field of standard deviation
+        `sd` (m) and correlation length `corr` (m) over the columns (both axes), added to the plane
+        and clipped to [0, h]: the bumps and hollows of a pile dumped by hand or by a recirculating
+        feeder, which a plane fit (the LiDAR slope node) averages out. Only the surface moves: the
+        voxels below the new surface fill, the zones (x_min, x_max from the intact pile's mass)
+        follow the new profile. The field is white noise smoothed by a Gaussian kernel of standard
+        deviation corr / 2 along each axis (correlation falls to exp(-1/2) at a distance corr / sqrt 2
+        ... exp(-1) at corr), then scaled to `sd` over the columns."""
+        if not (math.isfinite(sd) and sd >= 0.0 and math.isfinite(corr) and corr > 0.0):
+            raise ValueError(f"surface relief needs sd >= 0 and corr > 0 (m), got sd={sd!r}, corr={corr!r}")
+        if sd == 0.0:
+            return
+        noise = rng.standard_normal((self.n_y, self.n_x))
+        for axis, step in ((1, self.dx), (0, self.dy)):
+            s_cells = 0.5 * corr / step
+            half = max(1, int(math.ceil(3.0 * s_cells)))
+            k = np.exp(-0.5 * (np.arange(-half, half + 1) / max(s_cells, 1e-9)) ** 2)
+            k /= k.sum()
+            pad = [(0, 0), (0, 0)]
+            pad[axis] = (half, half)
+            padded = np.pad(noise, pad, mode="reflect" if noise.shape[axis] > half else "wrap")
+            noise = np.apply_along_axis(lambda v: np.convolve(v, k, mode="valid"), axis, padded)
+        noise *= sd / max(float(noise.std()), 1e-12)
+        self.top0 = np.clip(self.top0 + noise, 0.0, self.h)
+        self.top = self.top0.copy()
+
     def _place_rocks(self, rng: np.random.Generator, soil: SoilRanges) -> None:
         n = int(rng.integers(soil.rocks[0], soil.rocks[1] + 1))
         xc, yc, zc = self.x_centers, self.y_centers, (self.z_edges[:-1] + self.z_edges[1:]) / 2

@@ -43,6 +43,8 @@ class Conditions:
     attack_speed_fraction: float | None = None   # of wheels_max; None: U(sim.attack_speed_min_fraction, 1)
     heading_deg: float = 0.0            # start yaw of the machine (positive: nose to +y)
     lateral_offset: float = 0.0         # m, the lip's centre off the pile's axis at the start
+    surface_sd: float = 0.0             # m, sd of the pile surface's relief about its plane (0: a plane)
+    surface_corr: float = 0.15          # m, the relief's correlation length (VoxelPile.roughen)
 
     def summary(self) -> dict:
         """A flat dict of the drawn values (for info and CSVs)."""
@@ -173,6 +175,11 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
                8-15 cm (12, against the paper's piles' 3-8; a rock that finds no room in a shallow
                wedge is left out, as in every pile): the nominal evaluation puts rocks in half its
                piles, this case in all of them, as many as training ever drew
+    rough      the pile's surface not a plane: a random relief of sd ROUGH_SD (3 cm) and correlation
+               length ROUGH_CORR (15 cm) about it (VoxelPile.roughen). A pile dumped by a feeder or by
+               hand has bumps of about the size of its largest pieces (the paper's 8-15 cm rocks in 2-5
+               cm gravel); the simulator's piles, in training too, are planes. The observed slope is
+               the plane's, as a LiDAR fit over the face would give it
     """
     r = cfg["randomization"]
     sensors = dict(vx_noise=r["vx_noise"], vx_dropout_probability=r["vx_dropout_probability"],
@@ -193,9 +200,13 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
     if name == "rocky":
         n = int(r["rocks_max"])
         return Conditions(soil=replace(SoilRanges.from_config(cfg), rocks=(n, n)))
+    if name == "rough":
+        return Conditions(surface_sd=ROUGH_SD, surface_corr=ROUGH_CORR)
     raise ValueError(f"unknown stress case {name!r}; expected one of {', '.join(STRESS_CASES)}")
 
 
-STRESS_CASES = ("placement", "sensors", "delay", "light", "dense", "rocky")
+STRESS_CASES = ("placement", "sensors", "delay", "light", "dense", "rocky", "rough")
+ROUGH_SD = 0.03        # m: half the largest rock (8-15 cm) of the paper's pile, three 2-5 cm grains
+ROUGH_CORR = 0.15      # m: the largest rock's size
 # the material a stress case puts every episode on (the others keep the evaluation's alternation)
 STRESS_MATERIAL = {"rocky": "nonhomogeneous"}
