@@ -70,6 +70,7 @@ from lhd_loading_ros.ros.qos import LATCHED_QOS, MEASUREMENT_QOS, STATUS_QOS
 from lhd_loading_ros.ros.run import run_node
 from lhd_loading_ros.task.attempt import ENDED
 from lhd_loading_ros.task.config import load_config
+from lhd_loading_ros.task.randomization import Conditions
 
 from . import sim_sensors as ss
 from .sim_due import SimDue
@@ -134,6 +135,11 @@ class TwinNode(Node):
                   on_change=self._set_slopes),
             Param("material", "random", "pile material (random: drawn per pile); from the next pile",
                   choices=(*MATERIALS, "random"), on_change=self._set_material),
+            Param("pile_relief_sd", 0.0, "m, sd of a random relief of the pile's surface about its plane (0: a "
+                  "plane; task/pile.py VoxelPile.roughen; `lhd eval --stress rough` uses 0.03); from the next pile",
+                  lo=0.0, hi=0.2, on_change=lambda v: setattr(self, "relief_sd", v)),
+            Param("pile_relief_corr", 0.15, "m, the relief's correlation length; from the next pile", lo=0.01, hi=2.0,
+                  on_change=lambda v: setattr(self, "relief_corr", v)),
             Param("start_pose", "attack", "attack: the tip driven d_init into the pile (the simulator's reset); "
                   "approach: at rest, the tip d_attack before the toe", choices=START_POSES,
                   on_change=lambda v: setattr(self, "start_pose", v)),
@@ -192,6 +198,7 @@ class TwinNode(Node):
         self._set_slopes(gp("slopes_deg"))
         self._set_material(gp("material"))
         self.seed, self.start_pose, self.d_attack = gp("seed"), gp("start_pose"), gp("d_attack")
+        self.relief_sd, self.relief_corr = gp("pile_relief_sd"), gp("pile_relief_corr")
         self.auto_reset, self.reset_delay, self.weigh_timeout = gp("auto_reset"), gp("reset_delay"), gp("weigh_timeout")
         self.frame_id, self.base_frame_id = gp("frame_id"), gp("base_frame_id")
         aruco, lidar = machine_sections(gp("machine_params"))
@@ -322,9 +329,10 @@ class TwinNode(Node):
             lock.acquire()
         try:
             if self.start_pose == "attack":
-                self.sim.reset(rng, alpha=alpha, material=self.material, d_attack=d_attack)
+                self.sim.reset(rng, alpha=alpha, material=self.material, d_attack=d_attack,
+                               conditions=Conditions(surface_sd=self.relief_sd, surface_corr=self.relief_corr))
             else:
-                self.sim.new_pile(rng, alpha, self.material)
+                self.sim.new_pile(rng, alpha, self.material, surface_sd=self.relief_sd, surface_corr=self.relief_corr)
                 self.sim.place_machine(d_attack if d_attack is not None else rng.uniform(*self.d_attack_range))
             self.trail.clear()
             self.pile_slope_deg = math.degrees(self.sim.pile.alpha)

@@ -75,9 +75,14 @@ class DiagWatch:
         return st is not None and st.level == level and text in st.message
 
 
+ONCE = {"status_timeout": 0.0}
+
+
 def running_status(ros, episode="1"):
     """/lhd/episode saying an attempt runs (what the sim node or the supervisor publishes): the
-    policy node commands only then. Latched like theirs; returns the publisher."""
+    policy node commands only then. Latched like theirs, but sent once: the policy nodes of these
+    tests run with ONCE (status_timeout 0, no age limit on the status; the rule for a status that
+    stops arriving is test_policy_gating's). Returns the publisher."""
     pub = ros.create_publisher(DiagnosticStatus, "/lhd/episode", STATUS)
     pub.publish(DiagnosticStatus(name="test/episode", message="running",
                                  values=[KeyValue(key="state", value="running"), KeyValue(key="episode", value=episode)]))
@@ -222,7 +227,7 @@ def test_policy_node_latched_and_slow_inputs_slope_range_runtime_parameters_diag
         return len(cmds) >= 3 and all(c == ZERO for c in cmds[-3:])
 
     spin_until(ros, lambda: False, 1.0)
-    pol = RosProcess(POLICY, {}, tmp_path / "pol.log")
+    pol = RosProcess(POLICY, dict(ONCE), tmp_path / "pol.log")
     try:
         assert spin_until(ros, commanding, 60), pol.log()
         assert spin_until(ros, lambda: diag.has("/lhd_policy: decision", OK, "actor commanding")
@@ -274,7 +279,7 @@ def test_policy_node_latched_and_slow_inputs_slope_range_runtime_parameters_diag
 def test_policy_node_without_actor_reports_error(ros, tmp_path):
     diag = DiagWatch(ros)
     pub_status = running_status(ros)
-    pol = RosProcess(POLICY, {"policy_dir": str(tmp_path / "missing")}, tmp_path / "pol.log")
+    pol = RosProcess(POLICY, {"policy_dir": str(tmp_path / "missing"), **ONCE}, tmp_path / "pol.log")
     try:
         assert spin_until(ros, lambda: diag.has("/lhd_policy: actor", ERROR, "no actor loaded")
                           and diag.has("/lhd_policy: decision", ERROR, "zero command: no actor loaded"), 60), pol.log()
@@ -303,7 +308,7 @@ def test_policy_node_refuses_an_actor_trained_with_another_observation_scaling(r
     pub_status = running_status(ros)
     cmds = []
     sub = ros.create_subscription(Float64MultiArray, "/lhd/cmd", lambda m: cmds.append(list(m.data)), 10)
-    pol = RosProcess(POLICY, {"policy_dir": str(d)}, tmp_path / "pol.log")
+    pol = RosProcess(POLICY, {"policy_dir": str(d), **ONCE}, tmp_path / "pol.log")
     try:
         assert spin_until(ros, lambda: diag.has("/lhd_policy: decision", ERROR, "zero command: no actor loaded")
                           and len(cmds) >= 3, 60), pol.log()

@@ -71,6 +71,7 @@ class Rig:
         self.dsub = ros.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 50)
         self.timer = ros.create_timer(DT, self.tick)
         self.status_pub = None
+        self.status_msg = None        # repeated every tick, as the supervisor (2 Hz) and sim node (10 Hz) do
 
     def _on_diag(self, msg):
         for st in msg.status:
@@ -81,6 +82,8 @@ class Rig:
         return st is not None and st.level == level and text in st.message
 
     def tick(self):
+        if self.status_pub is not None and self.status_msg is not None:
+            self.status_pub.publish(self.status_msg)
         self.od.twist.twist.linear.x = self.v_x
         self.pubs[0].publish(self.js)
         self.pubs[1].publish(self.od)
@@ -88,10 +91,15 @@ class Rig:
         self.pubs[3].publish(Bool(data=False))
 
     def publish_status(self, state, episode="1"):
+        return self.send(status(state, episode))
+
+    def send(self, msg):
+        """Publish this status now, and again every tick until another replaces it."""
         if self.status_pub is None:
             self.status_pub = self.ros.create_publisher(DiagnosticStatus, "/lhd/episode", STATUS)
         t = time.monotonic()
-        self.status_pub.publish(status(state, episode))
+        self.status_msg = msg
+        self.status_pub.publish(msg)
         return t
 
     def watch(self, seconds):
@@ -207,7 +215,7 @@ def test_an_attempt_keeps_the_slope_it_was_armed_with(ros, tmp_path):
         st = status("running", episode)
         if slope_deg is not None:
             st.values.append(KeyValue(key="slope_deg", value=f"{slope_deg:.2f}"))
-        rig.status_pub.publish(st)
+        rig.send(st)
         return time.monotonic()
 
     try:
@@ -262,7 +270,7 @@ def test_an_attempt_keeps_the_end_zone_it_was_armed_with(ros, tmp_path):
         st.values.append(KeyValue(key="slope_deg", value="20.00"))
         if end_zone is not None:
             st.values.append(KeyValue(key="end_zone", value=",".join(f"{v:.4f}" for v in end_zone)))
-        rig.status_pub.publish(st)
+        rig.send(st)
         return time.monotonic()
 
     def d_ends(since):
@@ -292,5 +300,70 @@ def test_an_attempt_keeps_the_end_zone_it_was_armed_with(ros, tmp_path):
         rig.publish_status("success", "2")
     finally:
         ros.destroy_subscription(sub)
+        assert pol.stop() == 0, pol.log()
+        rig.close()
+
+
+def _stand_in(key):
+    """The supervisor's status from its own process (stand_in_supervisor.py), once publishing."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    proc = subprocess.Popen([sys.executable, str(Path(__file__).with_name("stand_in_supervisor.py")), key],
+                            start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    assert proc.stdout.readline().strip() == "publishing"
+    return proc
+
+
+def test_a_supervisor_that_dies_or_hangs_mid_attempt_stops_the_controller(ros, tmp_path):
+    """The supervisor's process is killed (SIGKILL: no DDS goodbye; the graph lists its publisher
+    for the ~20 s of its lease) or stopped (SIGSTOP: a hang) while its last status says running.
+    The policy node counts the attempt as ended once the status is older than status_timeout
+    (1.5 s): one zero, then silence, though every input stays fresh. Before, it drove on until the
+    lease expired (196 non-zero commands over 19.6 s). A hung supervisor that wakes up and says
+    `running` again for the same attempt does not restart it; the next attempt runs."""
+    import os
+    import signal
+
+    rig = Rig(ros)
+    pol = RosProcess(POLICY, {}, tmp_path / "pol.log")
+    procs = []
+    try:
+        assert spin_until(ros, lambda: rig.has("inputs", DiagnosticStatus.OK, "all inputs fresh"), 60), pol.log()
+        for key, sig in (("11", signal.SIGKILL), ("12", signal.SIGSTOP)):
+            sup = _stand_in(key)
+            procs.append(sup)
+            assert rig.wait_commanding(), pol.log()[-2000:]
+            rig.watch(1.0)
+            os.killpg(sup.pid, sig)
+            t_stop = time.monotonic()
+            assert spin_until(ros, lambda: any(c == ZERO for t, c in rig.cmds if t >= t_stop), 5), pol.log()[-2000:]
+            t_zero = next(t for t, c in rig.cmds if t >= t_stop and c == ZERO)
+            assert 1.0 < t_zero - t_stop <= 2.0, (key, t_zero - t_stop)
+            assert [c for t, c in rig.cmds if t > t_zero] == [] and rig.watch(1.0) == [], key
+            assert f"attempt {key} has ended for this node" in pol.log()
+        # the hung one wakes up: its `running` for attempt 12 again restarts nothing
+        os.killpg(procs[1].pid, signal.SIGCONT)
+        assert rig.watch(2.0) == [], pol.log()[-2000:]
+        assert "attempt 12's status came back after it had stopped arriving" in pol.log()
+        os.killpg(procs[1].pid, signal.SIGKILL)
+        procs[1].wait()
+        rig.publish_status("running", "13")           # the next attempt (the rig's publisher repeats it)
+        assert rig.wait_commanding(), pol.log()[-2000:]
+        # the policy node's OWN pause of 2 s (its statuses wait in its queue) ends nothing: after
+        # it the queued status is taken before the age is judged, and attempt 13 goes on
+        os.killpg(pol.proc.pid, signal.SIGSTOP)
+        time.sleep(2.0)
+        os.killpg(pol.proc.pid, signal.SIGCONT)
+        t_cont = time.monotonic()
+        assert rig.wait_commanding(5), pol.log()[-2000:]
+        assert [c for c in rig.watch(1.5) if c != ZERO], pol.log()[-2000:]
+        assert "attempt 13 has ended" not in pol.log()
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                os.killpg(p.pid, signal.SIGKILL)
+                p.wait()
         assert pol.stop() == 0, pol.log()
         rig.close()

@@ -48,13 +48,15 @@ def test_decides_on_fresh_odometry_at_most_rate_hz_then_falls_back_to_zero(ros, 
     p_st = ros.create_publisher(DiagnosticStatus, "/lhd/episode", LATCHED)
     p_sl.publish(Float64(data=math.radians(20.0)))
     p_ez.publish(Float64MultiArray(data=[0.52, 0.85, 0.35]))
-    p_st.publish(DiagnosticStatus(name="t", message="running", values=[KeyValue(key="state", value="running"),
-                                                                        KeyValue(key="episode", value="1")]))
+    running = DiagnosticStatus(name="t", message="running", values=[KeyValue(key="state", value="running"),
+                                                                     KeyValue(key="episode", value="1")])
+    p_st.publish(running)
     sent = set()                          # odometry stamps published (ns)
     odom_on = {"v": True}
     decisions, cmds = [], []
 
     def tick():
+        p_st.publish(running)             # repeated, as the supervisor does (status_timeout)
         p_js.publish(js)
         for p in p_dr:
             p.publish(Bool(data=False))

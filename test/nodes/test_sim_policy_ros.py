@@ -124,7 +124,9 @@ def test_policy_node_zero_command_without_actor_or_inputs(ros, tmp_path):
     status = ros.create_publisher(DiagnosticStatus, "/lhd/episode", STATUS)
     status.publish(DiagnosticStatus(message="running", values=[KeyValue(key="state", value="running"),
                                                                KeyValue(key="episode", value="1")]))
-    pol = RosProcess("lhd_loading_ros.nodes.policy_node", {"policy_dir": str(tmp_path / "missing")}, tmp_path / "p1.log")
+    # the status is sent once: no age limit on it (status_timeout 0; the rule is test_policy_gating's)
+    pol = RosProcess("lhd_loading_ros.nodes.policy_node", {"policy_dir": str(tmp_path / "missing"), "status_timeout": 0.0},
+                     tmp_path / "p1.log")
     try:
         assert spin_until(ros, lambda: len(cmds) >= 5, 60), pol.log()
         assert all(c == [0.0, 0.0, 0.0] for c in cmds)
@@ -133,7 +135,7 @@ def test_policy_node_zero_command_without_actor_or_inputs(ros, tmp_path):
         rc = pol.stop()
         assert rc == 0, pol.log()
     cmds.clear()
-    pol = RosProcess("lhd_loading_ros.nodes.policy_node", {}, tmp_path / "p2.log")      # shipped actor, no inputs
+    pol = RosProcess("lhd_loading_ros.nodes.policy_node", {"status_timeout": 0.0}, tmp_path / "p2.log")   # shipped actor, no inputs
     try:
         assert spin_until(ros, lambda: len(cmds) >= 5, 60), pol.log()
         assert all(c == [0.0, 0.0, 0.0] for c in cmds)

@@ -10,6 +10,7 @@ import math
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 import rclpy
@@ -61,6 +62,7 @@ class Rig:
         self.pub_fresh_auto = n.create_publisher(Float64MultiArray, "/fresh/cmd/auto", COMMAND_QOS)
         self.pub_episode = n.create_publisher(DiagnosticStatus, "/lhd/episode", STATUS_QOS)
         self.attempt = 0
+        self.status, self.status_t = None, 0.0   # repeated every 0.25 s, as the supervisor (2 Hz or more)
 
     def logs(self) -> str:
         return "\n".join(f"--- {k} (alive {p.alive()}):\n{p.log()[-2500:]}" for k, p in self.procs.items())
@@ -68,11 +70,18 @@ class Rig:
     def spin(self, seconds: float) -> None:
         t_end = time.monotonic() + seconds
         while time.monotonic() < t_end:
+            self._repeat_status()
             self.ex.spin_once(timeout_sec=min(0.005, max(t_end - time.monotonic(), 0.0)))
+
+    def _repeat_status(self) -> None:
+        if self.status is not None and time.monotonic() - self.status_t > 0.25:
+            self.pub_episode.publish(self.status)
+            self.status_t = time.monotonic()
 
     def wait(self, pred, timeout: float) -> bool:
         t_end = time.monotonic() + timeout
         while time.monotonic() < t_end:
+            self._repeat_status()
             self.ex.spin_once(timeout_sec=0.01)
             if pred():
                 return True
@@ -111,6 +120,7 @@ class Rig:
         st = DiagnosticStatus(name="lhd attempt", message=state)
         st.values = [KeyValue(key="state", value=state), KeyValue(key="episode", value=str(max(self.attempt, 1)))]
         self.pub_episode.publish(st)
+        self.status, self.status_t = st, time.monotonic()
         return time.monotonic()
 
     def after(self, key: str, t: float) -> list:
@@ -415,3 +425,44 @@ def test_bad_mapping_or_sources_end_the_nodes_with_one_line_and_exit_2(tmp_path)
         assert p.proc.wait(30) == 2, (what, p.log())
         log = p.log()
         assert needle in log and "Traceback" not in log, (what, log)
+
+
+
+
+def test_a_killed_supervisor_ends_the_attempt_in_the_mux(rig, tmp_path):
+    """The supervisor's process is killed mid-attempt (SIGKILL: no DDS goodbye, so the graph still
+    lists its publisher for the ~20 s of its lease): its last status says running. Within
+    status_timeout (1.5 s) plus a tick the mux sends a zero and forwards no more auto commands,
+    though the controller keeps sending them; before the fix it forwarded them for as long as it
+    was watched. Measured from the kill."""
+    import os
+    import signal
+
+    rig.reset()
+    rig.status = None                              # the stand-in process is the supervisor now
+    script = Path(__file__).with_name("stand_in_supervisor.py")
+    sup = subprocess.Popen([sys.executable, str(script), "77"], start_new_session=True,
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        assert sup.stdout.readline().strip() == "publishing"
+        t0 = time.monotonic()
+        while not any(c == tuple(AUTO) for _, c in rig.after("cmd", t0)):   # until the mux has heard it
+            assert time.monotonic() - t0 < 20.0, rig.logs()
+            rig.stream(0.2, auto=AUTO)
+        rig.stream(1.0, auto=AUTO)
+        os.killpg(sup.pid, signal.SIGKILL)
+        sup.wait()
+        t_kill = time.monotonic()
+        rig.stream(3.0, auto=AUTO)
+        after = rig.after("cmd", t_kill)
+        zero_at = next(t for t, c in after if c == ZERO) - t_kill
+        last_auto = max((t - t_kill for t, c in after if c == tuple(AUTO)), default=0.0)
+        assert 1.0 < zero_at <= 2.0, (zero_at, after, rig.logs())
+        assert last_auto <= zero_at, (last_auto, zero_at)
+        assert rig.active["/lhd"] == "none"
+        assert "status lost" in rig.procs["mux"].log() and "status_timeout 1.5 s" in rig.procs["mux"].log()
+        LATENCY["supervisor killed: mux zero after (s)"] = zero_at
+    finally:
+        if sup.poll() is None:
+            os.killpg(sup.pid, signal.SIGKILL)
+            sup.wait()

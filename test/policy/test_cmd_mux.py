@@ -130,3 +130,60 @@ def test_bad_commands_are_rejected_and_out_of_range_ones_clamped(mux):
 def test_bad_mux_configs_are_refused(doc, match):
     with pytest.raises(MuxConfigError, match=match):
         parse_sources(doc, "mux.yaml")
+
+
+def _drive(mux, t0, t1, status_every=None, auto=True):
+    """Ticks every 10 ms and auto commands every 100 ms from t0 to t1 (and a running status every
+    status_every s); returns what left the mux, with times."""
+    out = []
+    k = 0
+    while True:
+        t = round(t0 + 0.01 * k, 6)
+        if t > t1:
+            return out
+        if status_every and k % round(status_every / 0.01) == 0:
+            out += [(t, c) for c in mux.on_episode("running", t)]
+        if auto and k % 10 == 0:
+            out += [(t, c) for c in mux.on_command("auto", AUTO, t)]
+        out += [(t, c) for c in mux.tick(t)]
+        k += 1
+
+
+def test_a_running_attempt_whose_status_stops_arriving_ends(mux):
+    """The supervisor publishes its status at 2 Hz; killed or hung (its DDS lease outlives it by
+    about 20 s, so the graph still shows it), its last status says running for ever. After
+    status_timeout (1.5 s) without one the attempt has ended: a zero at once, auto and teleop cut
+    as after any end. Times by hand: the last status at 1.0 s, ticks every 10 ms: the first tick
+    with an age over 1.5 s is at 2.51 s."""
+    assert mux.status_timeout == 1.5
+    out = _drive(mux, 0.0, 1.0, status_every=0.5)
+    assert all(c == tuple(AUTO) for _, c in out if _ > 0.0) and mux.active == "auto"
+    out = _drive(mux, 1.01, 3.0)                                   # auto keeps commanding, no status
+    zeros = [t for t, c in out if c == ZERO]
+    assert zeros and zeros[0] == pytest.approx(2.51)
+    i = next(i for i, (t, c) in enumerate(out) if c == ZERO)
+    assert all(c == tuple(AUTO) for _, c in out[:i])               # (the one at 2.51 s came before the tick)
+    assert all(c == ZERO for _, c in out[i:]) and len(out[i:]) >= 4   # then only the idle zeros
+    assert mux.active == "none" and mux.episode_state == "status lost"
+    assert "the running attempt's status stopped arriving (1.5 s without one" in mux.explain(3.0)
+    assert mux.states["auto"].cut
+    assert mux.on_command("teleop", TELE, 3.0) == [tuple(TELE)]    # teleop was silent: the operator drives
+    # the next attempt runs normally once its status arrives
+    assert mux.on_episode("idle", 3.1) == [] and mux.on_episode("running", 3.2) == []
+
+
+def test_the_mux_s_own_pause_is_not_a_lost_status(mux):
+    """The mux's process stalls for 2 s (ticks stop; the supervisor's statuses wait in the queue):
+    the first tick after the gap does not judge the status' age, the queued status is taken, and
+    the attempt runs on. With the rule off (status_timeout 0), 3 s of silence end nothing."""
+    _drive(mux, 0.0, 1.0, status_every=0.5)
+    assert mux.tick(3.0) == [ZERO]                        # auto's own 0.3 s timeout: a zero, not an end
+    assert mux.episode_state == "running"
+    mux.on_episode("running", 3.0)                        # the queued statuses
+    out = _drive(mux, 3.01, 4.0, status_every=0.5)
+    assert mux.episode_state == "running" and mux.active == "auto"
+    assert [c for t, c in out if t >= 3.1] and all(c == tuple(AUTO) for t, c in out if t >= 3.1)
+    off = CommandMux(load_sources(ROOT / "config" / "cmd_mux.yaml"), LIMITS, idle_period=0.1, status_timeout=0.0)
+    _drive(off, 0.0, 0.1, status_every=0.5)
+    out = _drive(off, 0.11, 4.0)
+    assert off.episode_state == "running" and all(c == tuple(AUTO) for t, c in out if t > 0.2)

@@ -5,8 +5,9 @@ docs/teleop.md).
 In:  the sources of `sources_file` (config/cmd_mux.yaml: teleop <prefix>/cmd/teleop priority 100,
      not gated; auto <prefix>/cmd/auto priority 10, gated), std_msgs/Float64MultiArray
      [u_wheels, u_boom, u_bucket] rad/s; <prefix>/episode (diagnostic_msgs/DiagnosticStatus, key
-     `state`: gated sources pass only while it is `running`); <prefix>/estop (std_msgs/Bool, the
-     lock: true blocks every source).
+     `state`: gated sources pass only while it is `running`, and a running status older than
+     `status_timeout` ends the attempt); <prefix>/estop (std_msgs/Bool, the lock: true blocks every
+     source).
 Out: <prefix>/cmd                 every accepted message of the selected source at once (3 finite
                                   values, clamped to the task's actuator ranges; others rejected
                                   and counted); a zero at once when the selected source goes away
@@ -59,6 +60,10 @@ class CmdMuxNode(Node):
                   "shipped config/cmd_mux.yaml"),
             Param("idle_rate_hz", 10.0, "zero commands per second while no source is selected (the bridge holds "
                   "the machine stopped)", lo=1.0, hi=100.0, on_change=self._set_idle_rate),
+            Param("status_timeout", 1.5, "s: a running attempt whose <prefix>/episode status is older than this "
+                  "has ended (the supervisor crashed or hung; it publishes at least every 0.5 s): the gated sources "
+                  "stop, a zero at once; 0: never (a status publisher that sends only on change)", lo=0.0, hi=60.0,
+                  on_change=lambda v: setattr(self.mux, "status_timeout", v)),
             Param("namespace_prefix", "/lhd", "topic prefix in the root namespace (under a namespace, the "
                   "namespace is the prefix)"),
         ])
@@ -70,7 +75,7 @@ class CmdMuxNode(Node):
         except (MuxConfigError, FileNotFoundError) as exc:
             raise ValueError(f"parameter 'sources_file': {exc}") from None
         self.sources_file = path
-        self.mux = CommandMux(sources, limits, 1.0 / gp("idle_rate_hz"))
+        self.mux = CommandMux(sources, limits, 1.0 / gp("idle_rate_hz"), status_timeout=gp("status_timeout"))
         ns = topic_prefix(self, gp("namespace_prefix"))
         self.topics = {s.name: (s.topic if s.topic.startswith("/") else f"{ns}/{s.topic.strip('/')}") for s in sources}
         self.pub_cmd = self.create_publisher(Float64MultiArray, f"{ns}/cmd", COMMAND_QOS)
@@ -138,7 +143,12 @@ class CmdMuxNode(Node):
         self._emit(self.mux.on_estop(engaged, time.monotonic()))
 
     def _on_tick(self) -> None:
+        was = self.mux.episode_state
         self._emit(self.mux.tick(time.monotonic()))
+        if self.mux.episode_state != was:
+            self.get_logger().error(f"attempt state: {was} -> {self.mux.episode_state}: no <prefix>/episode status for "
+                                    f"{self.mux.status_lost_after:.1f} s (status_timeout {self.mux.status_timeout:g} s); "
+                                    "the supervisor stopped or hung, zero commands until the next attempt")
 
     def stop_commanding(self) -> None:
         """On the way out: one last zero, so the bridge stops now rather than at its timeout."""

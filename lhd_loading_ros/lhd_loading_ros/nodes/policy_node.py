@@ -4,7 +4,9 @@
 It moves the machine only while an attempt is running: /lhd/episode (published by the sim node in
 simulation, by the episode supervisor on hardware) must say state = running. Before any status has
 arrived (no sim node, no supervisor), in any other state (idle, armed, success, failure, timeout,
-estop, lost_input, aborted), or once the publisher of /lhd/episode is gone, it publishes nothing,
+estop, lost_input, aborted), once the publisher of /lhd/episode is gone, or once a running status
+is older than `status_timeout` (1.5 s: the publisher hung or crashed before DDS noticed; that
+attempt then never resumes), it publishes nothing,
 except ONE zero command on each transition out of running (sent when the status arrives, so the
 machine stops within one message, not one control period); /diagnostics `decision` says why
 ("no attempt running (no /lhd/episode publisher: ...)", "attempt <state>: waiting to be armed").
@@ -147,11 +149,17 @@ class PolicyNode(Node):
                   on_change=lambda v: setattr(self, "odom_margin", v)),
             Param("input_qos", "sensor_data", "sensor_data: best effort, matches any publisher; reliable: for "
                   "lockstep", choices=("sensor_data", "reliable")),
+            Param("status_timeout", 1.5, "s: a running attempt whose /lhd/episode status is older than this has "
+                  "ended (the supervisor or sim node crashed or hung; they publish at least every 0.5 s): one zero "
+                  "command, and that attempt does not resume; 0: never (a status publisher that sends only on "
+                  "change). Not in trigger lockstep, where the sim node waits for this node", lo=0.0, hi=60.0,
+                  on_change=lambda v: setattr(self, "status_timeout", v)),
             Param("namespace_prefix", "/lhd", "topic prefix in the root namespace (under a namespace, the "
                   "namespace is the prefix)"),
         ])
         gp = self.params.__getitem__
         self.rate_hz = gp("rate_hz")
+        self.status_timeout = gp("status_timeout")
         self.input_timeout = gp("input_timeout")
         self.slow_timeouts: dict[str, float] = {}
         for name in SLOW_INPUTS:
@@ -197,6 +205,10 @@ class PolicyNode(Node):
         self.episode_state = None        # None: no /lhd/episode status (or its publisher is gone): no motion
         self.episode_key = None
         self._status_publisher_seen = False
+        self._status_arrival = None      # monotonic time of the latest /lhd/episode status
+        self._last_status_check = None   # monotonic time of the latest _check_status_publisher
+        self._lost_key = None            # the attempt whose status stopped arriving: it does not resume
+        self._lost_key_heard = False     # its running status came back (warned once)
         self.attempts = 0                # running attempts begun (controller resets)
         self._status_stamp = None
         self._stamps = {"joints": None, "odom": None}
@@ -340,6 +352,12 @@ class PolicyNode(Node):
     def _set_episode(self, state, key) -> None:
         """The attempt's state changes: a new running attempt resets the controller; leaving
         running sends the one zero command (now, not at the next control period)."""
+        if state == RUNNING and key is not None and key == self._lost_key:
+            if not self._lost_key_heard:
+                self._lost_key_heard = True
+                self.get_logger().warn(f"attempt {key}'s status came back after it had stopped arriving: the attempt "
+                                       "is not resumed (arm a new one)")
+            state = "lost"                   # that attempt's running status no longer counts
         was = self.running()
         new_attempt = state == RUNNING and (not was or key != self.episode_key)
         self.episode_state, self.episode_key = state, key
@@ -354,6 +372,7 @@ class PolicyNode(Node):
                                    "the next attempt runs")
 
     def _on_status(self, msg) -> None:
+        self._status_arrival = time.monotonic()
         kv = {k.key: k.value for k in msg.values}
         self._set_episode(kv.get("state", msg.message), kv.get("episode"))
         self._hold_attempt_slope(kv)
@@ -368,10 +387,28 @@ class PolicyNode(Node):
             self._status_stamp = None
         self._maybe_lockstep()
 
-    def _check_status_publisher(self) -> None:
+    def _check_status_publisher(self, period: float) -> None:
         """The sim node or supervisor gone (crashed, stopped) while its last status said running:
         nobody says an attempt runs any more. Judged only once the publisher has been seen in
-        the graph (a status that arrived before discovery caught up is no loss)."""
+        the graph (a status that arrived before discovery caught up is no loss). A publisher that
+        is still in the graph but silent (hung, SIGSTOP, a crashed process whose DDS lease has not
+        expired yet: about 20 s) is found by the status' age: a running status older than
+        status_timeout ends the attempt, for good (`_lost_key`). The age is judged only when this
+        check ran on time (within 3 periods + 50 ms of the previous one): after this node's own
+        pause the status waiting in its queue is taken before the next check (rclpy runs the
+        ready timers first), so this node's pause is not taken for the supervisor's."""
+        now = time.monotonic()
+        on_time = self._last_status_check is not None and now - self._last_status_check <= 3.0 * period + 0.05
+        self._last_status_check = now
+        if (on_time and self.running() and self.status_timeout > 0.0 and self._status_arrival is not None
+                and now - self._status_arrival > self.status_timeout):
+            self.get_logger().error(f"no {self.episode_topic} status for {now - self._status_arrival:.1f} s "
+                                    f"(status_timeout {self.status_timeout:g} s): the supervisor or sim node stopped "
+                                    f"or hung; attempt {self.episode_key} has ended for this node")
+            self._lost_key, self._lost_key_heard = self.episode_key, False
+            self._set_episode("lost", self.episode_key)
+            self._hold_attempt_slope({})
+            return
         if self.episode_state is None:
             return
         n = self.count_publishers(self.episode_topic)
@@ -421,7 +458,7 @@ class PolicyNode(Node):
         the fallback's own decisions at rate_hz. An attempt that begins counts as an
         odometry-triggered decision then (the odometry gets its 1.5 periods first)."""
         now = time.monotonic()
-        self._check_status_publisher()
+        self._check_status_publisher(1.0 / (self.rate_hz * FALLBACK_CHECKS))
         if not self.running():
             self._last_decision_t = self._last_why = None
             return
@@ -435,7 +472,7 @@ class PolicyNode(Node):
 
     def _on_timer(self) -> None:
         now = time.monotonic()
-        self._check_status_publisher()
+        self._check_status_publisher(1.0 / self.rate_hz)
         if self._last_tick is not None:
             self.periods_ms.append((now - self._last_tick) * 1000.0)
         self._last_tick = now

@@ -16,6 +16,12 @@ What leaves the mux:
 * after an attempt ends (running -> anything else) and after the e-stop is released, every
   source is cut until it has been silent for its own timeout: the machine stays stopped until
   the next attempt, or until the operator releases and presses the deadman again.
+* a running attempt whose status stops arriving (no `<prefix>/episode` for `status_timeout`,
+  1.5 s: the supervisor publishes at least twice a second, the sim node every control period)
+  ends like any other: the supervisor crashed, hung or was cut off, and nothing judges the zones,
+  the timeout or the end any more. Judged by `tick` only after a tick that ran on time: when the
+  mux's own process did not run for PAUSE_S (a stall, a pause), the status that waited in its
+  queue is taken before the next tick judges, so the mux's own pause is not the supervisor's.
 Each method returns the commands to publish, in order.
 """
 from __future__ import annotations
@@ -29,6 +35,8 @@ import yaml
 from lhd_loading_ros.policy.actuator_limits import ZERO, ActuatorLimits, CommandInvalid
 
 RUNNING = "running"
+STATUS_LOST = "status lost"      # episode_state after a running status stopped arriving
+PAUSE_S = 0.1                    # a gap between two ticks longer than this: the mux itself did not run
 ESTOP = "estop"
 NONE = "none"
 RESERVED = (ESTOP, NONE)
@@ -118,6 +126,10 @@ class CommandMux:
     last_output: float | None = None
     zeros_at_once: int = 0
     states: dict = field(default_factory=dict)
+    status_timeout: float = 1.5       # s without an episode status that ends a running attempt; 0: never
+    episode_at: float | None = None   # arrival of the latest episode status
+    last_tick: float | None = None
+    status_lost_after: float | None = None   # the silence that ended the last attempt, for explain()
 
     def __post_init__(self):
         self.by_name = {s.name: s for s in self.sources}
@@ -163,6 +175,8 @@ class CommandMux:
         if st.cut:
             return "cut until silent for its timeout (an attempt ended or the e-stop was released)"
         if s.gated and not self.running:
+            if self.episode_state == STATUS_LOST:
+                return f"gated: {self._lost_text()}"
             return f"gated: attempt state is {self.episode_state or 'unknown (no /episode publisher)'}, not running"
         if self.selected and self.selected != s.name:
             return f"overridden by {self.selected}"
@@ -174,8 +188,13 @@ class CommandMux:
         if self.selected:
             s = self.by_name[self.selected]
             return f"{s.name} selected (priority {s.priority})"
-        return "no source selected, zero commands: " + "; ".join(f"{s.name}: {self.why_not(s, now)}"
-                                                                  for s in self.sources)
+        lost = f"{self._lost_text()}; " if self.episode_state == STATUS_LOST else ""
+        return f"no source selected, zero commands: {lost}" + "; ".join(f"{s.name}: {self.why_not(s, now)}"
+                                                                         for s in self.sources)
+
+    def _lost_text(self) -> str:
+        return (f"the running attempt's status stopped arriving ({self.status_lost_after:.1f} s without one, "
+                f"status_timeout {self.status_timeout:g} s): no attempt running")
 
     def _zero(self, now: float, out: list) -> None:
         out.append(ZERO)
@@ -226,6 +245,7 @@ class CommandMux:
         out: list = []
         was_running = self.running
         self.episode_state = state
+        self.episode_at = now
         if was_running and not self.running:     # the attempt ended: everything stops
             for st in self.states.values():
                 st.cut = True
@@ -250,9 +270,23 @@ class CommandMux:
         return out
 
     def tick(self, now: float) -> list:
-        """Timeouts (a zero at once when the selected source goes silent) and the idle zeros."""
+        """Timeouts (a zero at once when the selected source goes silent, and the end of a running
+        attempt whose status stopped arriving) and the idle zeros."""
         out: list = []
+        on_time = self.last_tick is not None and now - self.last_tick <= PAUSE_S
+        self.last_tick = now
+        if (on_time and self.running and self.status_timeout > 0.0 and self.episode_at is not None
+                and now - self.episode_at > self.status_timeout):
+            silent = now - self.episode_at
+            out += self.on_episode(STATUS_LOST, now)
+            self.episode_at = now - silent          # the status did not arrive: keep its age
+            self.status_lost_after = silent
+            return out + self.tick_idle(now)
         self._reselect(now, out)
+        return out + self.tick_idle(now)
+
+    def tick_idle(self, now: float) -> list:
+        out: list = []
         if self.selected is None and (self.last_output is None or now - self.last_output >= self.idle_period):
             out.append(ZERO)
             self.last_output = now
