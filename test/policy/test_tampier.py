@@ -227,7 +227,9 @@ def test_evaluation_uses_the_actors_stratified_set_and_reports_the_papers_metric
     env = LhdLoadingEnv("rld", cfg)
     res = evaluate_tampier(env, 2, 100, cfg["task"]["bucket_capacity"], tp, (20.0, 25.0), ("homogeneous",), 10.0)
     assert res["episodes"] == 2 and set(res["by_slope"]) == {"20", "25"}
-    assert sum(res["failures"][k] for k in ("restricted_zone", "timeout")) + round(res["end_zone_rate"] * 2) == 2
+    # every attempt ends one way: restricted zone, timeout (failed), success at the timeout, end zone
+    assert (sum(res["failures"][k] for k in ("restricted_zone", "timeout")) + res["successes_at_timeout"]
+            + round(res["end_zone_rate"] * 2)) == 2
     assert all(r["elapsed_s"] <= 10.0 + 1e-9 for r in res["episodes_list"])
     assert "Tampier-style heuristic, time limit 10 s" in format_tampier(res)
     with pytest.raises(ValueError, match="slope"):

@@ -49,6 +49,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lhd_loading_ros.cli.argtypes import nonneg_int
 from lhd_loading_ros.cli.launcher import Child, _StopOnSignals, check_children, stop_stack
 
 WHEEL_SCALE = 1e-3      # rad/s per count of the wheel set-point on the wire (docs/serial_protocol.md)
@@ -267,7 +268,7 @@ def main(argv=None) -> int:
     ap.add_argument("--timeout", type=float, default=0.0, help="s of wall time before giving up "
                     "(default: 60 + 3 x duration)")
     ap.add_argument("--slopes", default="20", help="pile slopes, degrees, cycled per attempt (default 20)")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=nonneg_int, default=0)
     ap.add_argument("--trigger", choices=("odom", "timer"), default="odom",
                     help="the policy node's trigger (timer: the 10 Hz steady timer, for comparison)")
     ap.add_argument("--camera-fps", type=float, default=30.0, help="the simulated camera's frame rate")

@@ -15,6 +15,8 @@ import sys
 import threading
 import time
 
+from lhd_loading_ros.cli.argtypes import nonneg_int
+
 
 class EchoError(Exception):
     """A failure to report on stderr with exit status 1."""
@@ -75,7 +77,7 @@ def main(argv=None) -> int:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("topic")
     ap.add_argument("--type", help="message type, e.g. std_msgs/msg/Float64 (default: from the graph)")
-    ap.add_argument("--count", type=int, default=0, help="exit after N messages (0: until Ctrl-C)")
+    ap.add_argument("--count", type=nonneg_int, default=0, help="exit after N messages (0: until Ctrl-C)")
     ap.add_argument("--wait", type=float, default=10.0, help="seconds to wait for the topic to appear")
     ap.add_argument("--best-effort", action="store_true", help="subscribe best effort whatever the publishers do")
     ap.add_argument("--transient-local", action="store_true",

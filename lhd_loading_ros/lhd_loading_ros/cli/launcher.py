@@ -31,6 +31,7 @@ import threading
 import time
 from pathlib import Path
 
+from lhd_loading_ros.cli.argtypes import nonneg_int
 from lhd_loading_ros.task.metrics import EpisodeResult, result_from_status
 
 PR_SET_PDEATHSIG = 1
@@ -330,12 +331,12 @@ def main(argv=None, demo: bool = False) -> int:
                     default="homogeneous" if demo else "random")
     ap.add_argument("--mode", choices=["realtime", "lockstep"], default=None,
                     help="sim node mode (default realtime; lockstep with --count)")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=nonneg_int, default=0)
     ap.add_argument("--config", default=None)
     ap.add_argument("--namespace", help="run both nodes in this ROS namespace (their topics move from /lhd to it); "
                     "with --count, the base of the sim nodes' namespaces (default /sim: /sim0, /sim1, ...)")
     if not demo:
-        ap.add_argument("--count", type=int, default=0, help="start N sim nodes for learners, in namespaces "
+        ap.add_argument("--count", type=nonneg_int, default=0, help="start N sim nodes for learners, in namespaces "
                         "/sim0../simN-1, lockstep unless --mode says otherwise, no policy node; they run until "
                         "Ctrl-C (then `lhd train --env ros --namespaces /sim0,/sim1,...`)")
         ap.add_argument("--run-s", type=float, default=0.0, help=argparse.SUPPRESS)

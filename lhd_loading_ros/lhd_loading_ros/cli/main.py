@@ -31,6 +31,7 @@ import json
 import sys
 from pathlib import Path
 
+from lhd_loading_ros.cli.argtypes import nonneg_int, pos_int
 from lhd_loading_ros.task.cores import usable_cores
 
 
@@ -171,6 +172,9 @@ def _eval(args) -> int:
     from lhd_loading_ros.learning.evaluate import evaluate
     from lhd_loading_ros.policy.actor_file import PolicyFileError, load_policy
 
+    if args.seed < 0:
+        print(f"lhd eval: --seed must be >= 0, got {args.seed}", file=sys.stderr)
+        return 2
     if args.controller == "tampier":
         from lhd_loading_ros.learning.baselines import run_cli
 
@@ -178,8 +182,22 @@ def _eval(args) -> int:
             print("lhd eval: --randomize, --stress and --deploy-filter apply to --controller actor only",
                   file=sys.stderr)
             return 2
-        return run_cli(args.episodes, args.seed, args.slopes, args.material, args.time_limit, args.config,
-                       args.tampier_config, args.json)
+        return run_cli(args.episodes, args.seed, args.slopes or "15,20,25,30", args.material or "both",
+                       10.0 if args.time_limit is None else args.time_limit, args.config, args.tampier_config,
+                       args.json)
+    tampier_only = [f for f, v in (("--slopes", args.slopes), ("--material", args.material),
+                                   ("--time-limit", args.time_limit), ("--tampier-config", args.tampier_config))
+                    if v is not None]
+    if tampier_only:
+        print(f"lhd eval: {', '.join(tampier_only)} appl{'ies' if len(tampier_only) == 1 else 'y'} to --controller "
+              "tampier only; an actor is evaluated on "
+              "the paper's stratified set (15-30 deg piles of both materials, the environment's 200 steps)",
+              file=sys.stderr)
+        return 2
+    if args.randomize and args.stress:
+        print("lhd eval: --randomize and --stress are alternatives: drawn conditions, or one named stress case "
+              "in every episode", file=sys.stderr)
+        return 2
     if args.episodes < 1:
         print(f"lhd eval: --episodes must be >= 1, got {args.episodes}", file=sys.stderr)
         return 2
@@ -370,16 +388,16 @@ def main(argv=None) -> int:
         sub.add_parser(name, help=hlp, add_help=False).add_argument("rest", nargs=argparse.REMAINDER)
     p_bench = sub.add_parser("bench", help="benchmarks that print their figures")
     p_bench.add_argument("what", help="sim | train | node | bridge | perception | twin (lhd bench twin --help)")
-    p_bench.add_argument("--cycles", type=int, default=1000, help="node: policy cycles measured (10 Hz)")
+    p_bench.add_argument("--cycles", type=pos_int, default=1000, help="node: policy cycles measured (10 Hz)")
     p_bench.add_argument("--vs-sb3", action="store_true", help="train: also time Stable-Baselines3's DDPG")
     p_bench.add_argument("--seconds", type=float, default=4.0, help="bridge: latency measurement time")
     p_bench.add_argument("--json", action="store_true")
-    p_bench.add_argument("--steps", type=int, default=None, help="sim, train: steps timed (default 3000; "
+    p_bench.add_argument("--steps", type=pos_int, default=None, help="sim, train: steps timed (default 3000; "
                          "sim --ros 1000)")
     p_bench.add_argument("--ros", action="store_true", help="sim: also through a lockstep sim node over DDS "
                          "(LhdLoadingRos-v0), next to the in-process figure")
-    p_bench.add_argument("--seed", type=int, default=0)
-    p_bench.add_argument("--rounds", type=int, default=3, help="alternating runs; the best of each is reported")
+    p_bench.add_argument("--seed", type=nonneg_int, default=0)
+    p_bench.add_argument("--rounds", type=pos_int, default=3, help="alternating runs; the best of each is reported")
     p_bench.add_argument("--config", default=None, help="parameter file (default: config/lhd_params.yaml)")
     p_bench.add_argument("--jobs", type=int, default=1, help="train: time N processes at once, as a study runs "
                          "its trials, and project the whole study (2 variants x 5 seeds) N at a time")
@@ -392,10 +410,10 @@ def main(argv=None) -> int:
     p_sweep.add_argument("--jobs", type=int, default=None, help="local Ray: trials at once (default: all cores)")
     p_train = sub.add_parser("train", help="train a DDPG loading policy (the paper's protocol)")
     p_train.add_argument("--variant", choices=["rld", "rlc"], required=True)
-    p_train.add_argument("--seed", type=int, default=0)
+    p_train.add_argument("--seed", type=nonneg_int, default=0)
     p_train.add_argument("--seeds", help="several seeds in parallel processes, e.g. 0-4 or 0,2,5")
     p_train.add_argument("--jobs", type=int, default=0, help="parallel processes for --seeds (default: cores)")
-    p_train.add_argument("--steps", type=int, default=None, help="environment steps (default: training.total_steps)")
+    p_train.add_argument("--steps", type=pos_int, default=None, help="environment steps (default: training.total_steps)")
     p_train.add_argument("--out", help="run directory (default runs/<variant>/seed_<N>; with --seeds, the parent)")
     p_train.add_argument("--config", default=None)
     p_train.add_argument("--env", choices=["local", "ros"], default="local",
@@ -420,14 +438,14 @@ def main(argv=None) -> int:
     p_eval.add_argument("--controller", choices=["actor", "tampier"], default="actor",
                         help="actor: an exported policy (--policy); tampier: the Tampier-style heuristic baseline")
     p_eval.add_argument("--policy", help="policy directory (actor.npz + policy.json)")
-    p_eval.add_argument("--slopes", default="15,20,25,30", help="tampier: pile slopes, degrees")
-    p_eval.add_argument("--material", choices=["both", "homogeneous", "nonhomogeneous"], default="both",
-                        help="tampier: pile material")
-    p_eval.add_argument("--time-limit", type=float, default=10.0,
-                        help="tampier: s per attempt (the paper's real-world timeout; 0: the environment's)")
+    p_eval.add_argument("--slopes", default=None, help="tampier: pile slopes, degrees (default 15,20,25,30)")
+    p_eval.add_argument("--material", choices=["both", "homogeneous", "nonhomogeneous"], default=None,
+                        help="tampier: pile material (default both)")
+    p_eval.add_argument("--time-limit", type=float, default=None,
+                        help="tampier: s per attempt (default 10, the paper's real-world timeout; 0: the environment's)")
     p_eval.add_argument("--tampier-config", help="tampier: thresholds file (default config/tampier.yaml)")
     p_eval.add_argument("--episodes", type=int, default=120)
-    p_eval.add_argument("--seed", type=int, default=2_000_000, help="evaluation seed (training evaluates on 1,000,000)")
+    p_eval.add_argument("--seed", type=nonneg_int, default=2_000_000, help="evaluation seed (training evaluates on 1,000,000)")
     p_eval.add_argument("--deploy-filter", action="store_true", help="RLC: apply the deployment filter, as on the machine")
     p_eval.add_argument("--stress", choices=list(STRESS_CASES), default=None,
                         help="actor: every episode under a named stress case (placement: heading +-3 deg, lip +-5 cm "
@@ -451,7 +469,7 @@ def main(argv=None) -> int:
                          help="slope errors (told - true) of table (b) on 15 and 30 deg piles, degrees")
     p_paper.add_argument("--rld", help="RLD policy directory (default policies/rld)")
     p_paper.add_argument("--rlc", help="RLC policy directory (default policies/rlc)")
-    p_paper.add_argument("--seed", type=int, default=3_000_000)
+    p_paper.add_argument("--seed", type=nonneg_int, default=3_000_000)
     p_paper.add_argument("--config", default=None)
     p_paper.add_argument("--json", action="store_true")
     p_report = sub.add_parser("report", help="aggregate training runs across seeds")

@@ -48,6 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lhd_loading_ros.cli.argtypes import nonneg_int
 from lhd_loading_ros.task.cores import usable_cores
 from lhd_loading_ros.cli.launcher import Child, _StopOnSignals, stop_stack
 from lhd_loading_ros.cli.up_real import ENDED, default_params_file, format_preflight, make_run_dir
@@ -724,7 +725,7 @@ def main(argv=None) -> int:
     ap.add_argument("--episodes", type=int, default=3, help="attempts PER SLOPE (default 3: 12 attempts on the "
                                                             "four default slopes)")
     ap.add_argument("--material", choices=["homogeneous", "nonhomogeneous"], default="homogeneous")
-    ap.add_argument("--seed", type=int, default=0, help="pile k uses seed + k")
+    ap.add_argument("--seed", type=nonneg_int, default=0, help="pile k uses seed + k")
     ap.add_argument("--attempt-timeout", type=float, default=10.0, help="s (the paper: 10 s)")
     ap.add_argument("--reset-delay", type=float, default=2.5, help="s from an attempt's end to the twin's new pile "
                                                                    "(the supervisor weighs over 1 s once still)")

@@ -108,10 +108,12 @@ def evaluate_tampier(env, episodes: int, seed: int, bucket_capacity: float, tp: 
     out["by_material"] = {m: group(rs) for m in materials if (rs := [r for r in results if r.material == m])}
     out["failures"] = {
         "restricted_zone": sum(r.failed for r in results),
-        "timeout": sum(r.truncated for r in results),
+        "timeout": sum(r.truncated and not r.success for r in results),
         "end_zone_low_level": sum(r.reached_end_zone and not r.success for r in results),
         "collision_not_detected": sum(row["collision_step"] is None for row in rows),
     }
+    # the paper's rule: an attempt that meets both success conditions at the timeout is a success
+    out["successes_at_timeout"] = sum(r.truncated and r.success for r in results)
     out["episodes_list"] = rows
     out["time_limit_s"] = time_limit_s
     out["wall_s"] = time.perf_counter() - t0
@@ -137,7 +139,8 @@ def format_tampier(res: dict) -> str:
     lines += [row(k, v) for k, v in res.get("by_material", {}).items()] if len(res.get("by_material", {})) > 1 else []
     f = res["failures"]
     lines.append(f"failures: restricted zone {f['restricted_zone']}, timeout {f['timeout']}, end zone below SL 1 "
-                 f"{f['end_zone_low_level']}; collision never detected in {f['collision_not_detected']}")
+                 f"{f['end_zone_low_level']}; collision never detected in {f['collision_not_detected']}; successes at "
+                 f"the timeout (both conditions met, the paper's rule) {res.get('successes_at_timeout', 0)}")
     return "\n".join(lines)
 
 
@@ -169,9 +172,11 @@ def run_cli(episodes: int, seed: int, slopes: str, material: str, time_limit: fl
         slope_list = tuple(float(v) for v in str(slopes).split(",") if v.strip())
     except ValueError:
         slope_list = ()
-    if episodes < 1 or not slope_list or not all(math.isfinite(v) for v in slope_list) or time_limit < 0:
-        print(f"tampier eval: expected --episodes >= 1 (got {episodes}), --slopes as comma-separated degrees "
-              f"(got {slopes!r}), --time-limit >= 0 (got {time_limit})", file=sys.stderr)
+    if (episodes < 1 or seed < 0 or not slope_list or not all(math.isfinite(v) for v in slope_list)
+            or not (math.isfinite(time_limit) and time_limit >= 0)):
+        print(f"tampier eval: expected --episodes >= 1 (got {episodes}), --seed >= 0 (got {seed}), --slopes as "
+              f"comma-separated degrees (got {slopes!r}), --time-limit a finite number of seconds >= 0, 0 for the "
+              f"environment's 200 steps (got {time_limit})", file=sys.stderr)
         return 2
     try:
         cfg = load_config(config)

@@ -56,7 +56,7 @@ def evaluate(env, policy: Callable[[np.ndarray], np.ndarray], episodes: int, see
                               for m in EVAL_MATERIALS if (rs := [r for r in results if r.material == m])}
     out["failures"] = {
         "restricted_zone": sum(r.failed for r in results),
-        "timeout": sum(r.truncated for r in results),
+        "timeout": sum(r.truncated and not r.success for r in results),
         "end_zone_low_level": sum(r.reached_end_zone and not r.success for r in results),
     }
     out["wall_s"] = time.perf_counter() - t0

@@ -260,7 +260,18 @@ def topic_prefix(node, namespace_prefix: str) -> str:
     if ns and ns != "/":
         return ns.rstrip("/")
     p = namespace_prefix.rstrip("/")
-    return p if p.startswith("/") else "/" + p
+    p = p if p.startswith("/") else "/" + p
+    from rclpy.validate_topic_name import validate_topic_name
+    from rclpy.exceptions import InvalidTopicNameException
+
+    try:
+        validate_topic_name(p + "/x")
+    except InvalidTopicNameException as exc:
+        # a ValueError: run_node ends the node with this one line and exit status 2
+        raise ValueError(f"parameter 'namespace_prefix' = {namespace_prefix!r} is invalid: expected a ROS topic "
+                         "prefix such as /lhd (letters, digits and underscores between slashes, no token "
+                         f"starting with a digit): {str(exc).splitlines()[0].rstrip(':')}") from None
+    return p
 
 
 def steady_timer(node, period_s: float, callback):

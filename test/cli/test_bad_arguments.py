@@ -1,0 +1,52 @@
+"""Bad command-line values are refused at once, naming the flag and what is expected, with exit
+status 2 and no traceback (found by a reviewer trying cases no test named, 2026-11-28): negative
+seeds and counts, zero steps, non-finite time limits, the heuristic's flags given to an actor's
+evaluation, --randomize with --stress, and a topic prefix that is no ROS name. Each case runs the
+real command in a process."""
+PARALLEL_SAFE = True   # command-line runs that only parse and exit (test/conftest.py)
+
+import subprocess
+import sys
+
+import pytest
+
+LHD = [sys.executable, "-m", "lhd_loading_ros.cli.main"]
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["train", "--variant", "rld", "--seed", "-1"], "argument --seed: expected an integer >= 0, got -1"),
+    (["eval", "--policy", "policies/rld", "--seed", "-5"], "argument --seed: expected an integer >= 0, got -5"),
+    (["eval", "--controller", "tampier", "--seed", "-1"], "argument --seed: expected an integer >= 0, got -1"),
+    (["experiment", "paper", "--seed", "x"], "argument --seed: expected an integer, got 'x'"),
+    (["demo", "--seed", "-1"], "argument --seed: expected an integer >= 0, got -1"),
+    (["bench", "sim", "--steps", "0"], "argument --steps: expected an integer >= 1, got 0"),
+    (["bench", "sim", "--steps", "-5"], "argument --steps: expected an integer >= 1, got -5"),
+    (["echo", "/lhd/cmd", "--count", "-1"], "argument --count: expected an integer >= 0, got -1"),
+    (["eval", "--controller", "tampier", "--time-limit", "inf", "--episodes", "1"],
+     "--time-limit a finite number of seconds >= 0"),
+    (["eval", "--controller", "tampier", "--time-limit", "nan", "--episodes", "1"],
+     "--time-limit a finite number of seconds >= 0"),
+    (["eval", "--policy", "policies/rld", "--episodes", "2", "--slopes", "20"],
+     "--slopes applies to --controller tampier only"),
+    (["eval", "--policy", "policies/rld", "--material", "homogeneous", "--time-limit", "5"],
+     "--material, --time-limit apply to --controller tampier only"),
+    (["eval", "--policy", "policies/rld", "--stress", "dense", "--randomize"],
+     "--randomize and --stress are alternatives"),
+])
+def test_a_bad_value_is_one_line_and_exit_2(args, needle):
+    p = subprocess.run(LHD + args, capture_output=True, text=True, timeout=120)
+    assert p.returncode == 2, (p.returncode, p.stdout[-500:], p.stderr[-1500:])
+    assert needle in p.stderr, p.stderr[-1500:]
+    assert "Traceback" not in p.stderr and p.stdout == ""
+
+
+@pytest.mark.parametrize("module", ["lhd_loading_ros.nodes.cmd_mux_node", "lhd_sim_node.sim_node"])
+@pytest.mark.parametrize("prefix, why", [("bad topic!", "must not contain characters other than alphanumerics"),
+                                         ("/lhd/9x", "must not start with a number")])
+def test_a_prefix_that_is_no_ros_name_ends_the_node_with_one_line(module, prefix, why):
+    p = subprocess.run([sys.executable, "-m", module, "--ros-args", "-p", f"namespace_prefix:={prefix}"],
+                       capture_output=True, text=True, timeout=120)
+    out = p.stdout + p.stderr
+    assert p.returncode == 2, out[-1500:]
+    assert f"parameter 'namespace_prefix' = {prefix!r} is invalid: expected a ROS topic prefix such as /lhd" in out
+    assert why in out and "Traceback" not in out
