@@ -22,6 +22,8 @@ LHD = [sys.executable, "-m", "lhd_loading_ros.cli.main"]
     (["bench", "sim", "--steps", "0"], "argument --steps: expected an integer >= 1, got 0"),
     (["bench", "sim", "--steps", "-5"], "argument --steps: expected an integer >= 1, got -5"),
     (["echo", "/lhd/cmd", "--count", "-1"], "argument --count: expected an integer >= 0, got -1"),
+    (["attempt", "mass", "23.4", "--attempt", "-1"], "argument --attempt: expected an integer >= 1, got -1"),
+    (["attempt", "mass", "23.4", "--attempt", "0"], "argument --attempt: expected an integer >= 1, got 0"),
     (["eval", "--controller", "tampier", "--time-limit", "inf", "--episodes", "1"],
      "--time-limit a finite number of seconds >= 0"),
     (["eval", "--controller", "tampier", "--time-limit", "nan", "--episodes", "1"],

@@ -306,3 +306,46 @@ def test_up_real_never_moves_the_machine_unarmed_or_with_a_bad_input(ros, tmp_pa
     frames = [f for _, f in dev.last_commands()]
     assert len(frames) > 100 and not any(moving(f) for f in frames)
     assert rc == 0, out()
+
+
+def test_a_node_that_dies_mid_attempt_is_recorded_as_the_cause(ros, tmp_path):
+    """The controller process is killed (SIGKILL) while an attempt runs: the launcher stops the stack
+    with exit status 1, the supervisor first, so the attempt ends at once; its row says which node
+    died, not "supervisor stopped during the attempt" (which read as an operator's stop), and the
+    attempt's bag closes after its end. Found by a reviewer helper on the twin (2026-11-28)."""
+    dev, node, statuses, arm, world, run_dir, out, stop = start_stack(tmp_path, attempt_timeout=20.0)
+
+    def state():
+        return statuses[-1][0].get("state") if statuses else None
+
+    try:
+        assert spin_until(node, lambda: arm.service_is_ready() and state() == "idle", 90.0), out()
+        t_ready, res = time.monotonic(), None
+        while time.monotonic() - t_ready < 40.0:
+            fut = arm.call_async(Trigger.Request())
+            assert spin_until(node, fut.done, 10.0), out()
+            res = fut.result()
+            if res.success:
+                break
+            spin_until(node, lambda: False, 1.0)
+        assert res is not None and res.success, out()
+        assert spin_until(node, lambda: state() == "running", 10.0), out()
+        spin_until(node, lambda: False, 0.5)
+        # the newest policy node: this stack's controller (this module runs alone, SERIAL)
+        pid = int(subprocess.run(["pgrep", "-n", "-f", "lhd_loading_ros.nodes.policy_node"], capture_output=True,
+                                 text=True).stdout.split()[0])
+        os.kill(pid, signal.SIGKILL)
+        t_kill = time.monotonic()
+        assert spin_until(node, lambda: state() in ENDED, 10.0), out()
+        t_end = statuses[-1][1]
+        assert t_end - t_kill < 2.0, (t_end - t_kill, out())
+    finally:
+        rc = stop()
+    assert rc == 1, out()
+    rows = list(csv.DictReader((run_dir / "attempts.csv").open()))
+    assert rows[-1]["outcome"] == "aborted", rows[-1]
+    assert rows[-1]["reason"].startswith("controller exited with status -9 during the attempt"), rows[-1]
+    assert float(rows[-1]["elapsed_s"]) < 3.0, rows[-1]
+    rep = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "replay", str(run_dir / "bags" / "attempt_0001")],
+                         capture_output=True, text=True, timeout=120)
+    assert rep.returncode == 0 and "aborted" in rep.stdout, rep.stdout + rep.stderr

@@ -1,7 +1,8 @@
 """The hardware side of the machine as the supervisor hears it, faked by a test: joint states,
 odometry, drift flags, the bridge's status (and optionally the load cell) at 50 Hz from a pose
-(base x, boom, bucket), latched pile slope / zones / e-stop publishers, the supervisor's arm and
-abort services, and its /lhd/episode statuses, spun in a background thread (test_supervisor_node.py)."""
+(base x, boom, bucket), latched pile slope / zones / e-stop publishers (the slope repeated at 5 Hz
+once published, as the LiDAR slope node sends one per scan), the supervisor's arm and abort services,
+and its /lhd/episode statuses, spun in a background thread (test_supervisor_node.py)."""
 import threading
 import time
 
@@ -21,13 +22,28 @@ STATUS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=Hi
 R_WHEEL = 0.137          # m, config machine.wheel_radius
 
 
+class _Repeating:
+    """A publisher whose latest message `repeat` sends again (the LiDAR node's one slope per scan)."""
+
+    def __init__(self, pub):
+        self.pub, self.last = pub, None
+
+    def publish(self, msg):
+        self.last = msg
+        self.pub.publish(msg)
+
+    def repeat(self):
+        if self.last is not None:
+            self.pub.publish(self.last)
+
+
 class FakeMachine:
     """A 50 Hz feeder from `pose` and the supervisor's outputs; `feed` switches each input off."""
 
     def __init__(self, node, pose, front=False, rear=False):
         self.node = node
         self.pose = pose                   # (base x, boom, bucket)
-        self.feed = {"joints": True, "odom": True, "drift": True, "hw": True}
+        self.feed = {"joints": True, "odom": True, "drift": True, "hw": True, "slope": True}
         self.front, self.rear = front, rear
         self.load_cell = None              # kg to publish on /lhd/load_cell/mass at 50 Hz, or None
         self.imu = None                    # (w, x, y, z) to publish on /lhd/imu at 50 Hz, or None
@@ -39,7 +55,8 @@ class FakeMachine:
         self.pub_front = node.create_publisher(Bool, "/lhd/wheel_drift/front", REL)
         self.pub_rear = node.create_publisher(Bool, "/lhd/wheel_drift/rear", REL)
         self.pub_hw = node.create_publisher(DiagnosticStatus, "/lhd/hw/status", REL)
-        self.pub_slope = node.create_publisher(Float64, "/lhd/pile/slope", LATCHED)
+        self.pub_slope = _Repeating(node.create_publisher(Float64, "/lhd/pile/slope", LATCHED))
+        self._ticks = 0
         self.pub_zones = node.create_publisher(Float64MultiArray, "/lhd/pile/zones", LATCHED)
         self.pub_estop = node.create_publisher(Bool, "/lhd/estop", LATCHED)
         self.pub_cell = node.create_publisher(Float64, "/lhd/load_cell/mass", REL)
@@ -57,6 +74,9 @@ class FakeMachine:
         self.statuses.append((time.monotonic(), {k.key: k.value for k in msg.values}))
 
     def _tick(self):
+        self._ticks += 1
+        if self.feed["slope"] and self._ticks % 10 == 0:
+            self.pub_slope.repeat()
         base_x, boom, bucket = self.pose
         stamp = self.node.get_clock().now().to_msg()
         if self.feed["odom"]:

@@ -71,7 +71,8 @@ class Rig:
         self.dsub = ros.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 50)
         self.timer = ros.create_timer(DT, self.tick)
         self.status_pub = None
-        self.status_msg = None        # repeated every tick, as the supervisor (2 Hz) and sim node (10 Hz) do
+        self.status_msg = None        # repeated every status_every ticks, as the supervisor (2 Hz: 5) and the
+        self.status_every, self._ticks = 1, 0   # sim node (10 Hz: 1) do
 
     def _on_diag(self, msg):
         for st in msg.status:
@@ -82,7 +83,8 @@ class Rig:
         return st is not None and st.level == level and text in st.message
 
     def tick(self):
-        if self.status_pub is not None and self.status_msg is not None:
+        self._ticks += 1
+        if self.status_pub is not None and self.status_msg is not None and self._ticks % self.status_every == 0:
             self.status_pub.publish(self.status_msg)
         self.od.twist.twist.linear.x = self.v_x
         self.pubs[0].publish(self.js)
@@ -349,14 +351,24 @@ def test_a_supervisor_that_dies_or_hangs_mid_attempt_stops_the_controller(ros, t
         assert "attempt 12's status came back after it had stopped arriving" in pol.log()
         os.killpg(procs[1].pid, signal.SIGKILL)
         procs[1].wait()
-        rig.publish_status("running", "13")           # the next attempt (the rig's publisher repeats it)
+        rig.status_every = 5                          # the rig repeats it at the supervisor's 2 Hz
+        rig.publish_status("running", "13")           # the next attempt
         assert rig.wait_commanding(), pol.log()[-2000:]
-        # the policy node's OWN pause of 2 s (its statuses wait in its queue) ends nothing: after
-        # it the queued status is taken before the age is judged, and attempt 13 goes on
+        # the policy node's OWN pause of 2 s ends nothing: the statuses sent meanwhile are not in its
+        # queue when it wakes (the next comes with the 2 Hz repeat, up to 0.5 s later), and the
+        # status' age counts from the end of the pause; attempt 13 goes on
+        # (what reaches it after a pause is made explicit here: nothing is sent during the pause,
+        # and the next status 0.4 s after it, as the helper measured on the twin: 0.37-0.45 s)
+        rig.status_every = 10**9
+        rig.send(rig.status_msg)
+        rig.watch(0.3)                                # (taken by the node before it stops)
         os.killpg(pol.proc.pid, signal.SIGSTOP)
         time.sleep(2.0)
         os.killpg(pol.proc.pid, signal.SIGCONT)
         t_cont = time.monotonic()
+        rig.watch(0.4)
+        rig.status_every = 5
+        rig.send(rig.status_msg)
         assert rig.wait_commanding(5), pol.log()[-2000:]
         assert [c for c in rig.watch(1.5) if c != ZERO], pol.log()[-2000:]
         assert "attempt 13 has ended" not in pol.log()

@@ -271,15 +271,37 @@ def test_a_paused_supervisor_does_not_take_queued_inputs_for_lost_ones(rig):
     time.sleep(0.1)
 
 
-def test_stopping_the_node_mid_attempt_records_it_aborted(rig):
+def test_a_supervisor_stalled_past_the_controllers_status_timeout_aborts_the_attempt(rig):
+    """Paused for 2.5 s mid-attempt, the supervisor sent no status for longer than the controllers
+    wait for one (status_timeout 1.5 s): the policy node and the mux have stopped the machine. On
+    waking it must not run the attempt on to its timeout with nobody commanding (recorded as a plain
+    timeout, or a success by the timeout rule): the attempt is aborted, saying why. Found by a
+    reviewer helper on the twin (2026-11-28); the 1 s pause above still runs on."""
     n0 = len(rig.statuses)
     assert rig.call(rig.arm_client).success
     rig.wait_state("running", 7, since=n0)
-    assert rig.proc.stop() == 0, rig.proc.log()
+    pid = rig.proc.proc.pid
+    os.kill(pid, signal.SIGSTOP)
+    try:
+        time.sleep(2.5)
+    finally:
+        os.kill(pid, signal.SIGCONT)
     _, kv = rig.wait_state("aborted", 7, since=n0)
+    assert kv["reason"].startswith("the supervisor did not run for 2.") and "status_timeout (1.5 s)" in kv["reason"]
+    row = read_rows(rig.run_dir / "attempts.csv")[-1]
+    assert (row.attempt, row.outcome) == (7, "aborted") and "did not run for" in row.reason
+    time.sleep(0.5)                                   # fresh inputs again before the next test arms
+
+
+def test_stopping_the_node_mid_attempt_records_it_aborted(rig):
+    n0 = len(rig.statuses)
+    assert rig.call(rig.arm_client).success
+    rig.wait_state("running", 8, since=n0)
+    assert rig.proc.stop() == 0, rig.proc.log()
+    _, kv = rig.wait_state("aborted", 8, since=n0)
     assert kv["reason"] == "supervisor stopped during the attempt"
     row = read_rows(rig.run_dir / "attempts.csv")[-1]
-    assert (row.attempt, row.outcome, row.reason) == (7, "aborted", "supervisor stopped during the attempt")
+    assert (row.attempt, row.outcome, row.reason) == (8, "aborted", "supervisor stopped during the attempt")
 
 
 def test_an_unreadable_record_stops_the_node_with_one_line(tmp_path):

@@ -172,17 +172,41 @@ def test_a_running_attempt_whose_status_stops_arriving_ends(mux):
     assert mux.on_episode("idle", 3.1) == [] and mux.on_episode("running", 3.2) == []
 
 
+def test_an_attempt_whose_status_was_lost_does_not_run_again_when_it_comes_back(mux):
+    """A supervisor that hung for 2 s wakes up and says attempt 4 is running: the mux declared it
+    lost and keeps it ended (the policy node does the same); attempt 5 runs."""
+    mux.on_episode("running", 0.0, "4")
+    _drive(mux, 0.0, 2.0)                                  # no status after 0.0: lost at 1.51 s
+    assert mux.episode_state == "status lost" and mux.lost_key == "4"
+    assert mux.on_episode("running", 2.1, "4") == [] and mux.episode_state == "status lost"
+    out = _drive(mux, 2.11, 3.0, status_every=None)
+    assert not any(c == tuple(AUTO) for _, c in out)      # auto cut and gated: nothing forwarded
+    mux.on_episode("idle", 3.0, "4")
+    mux.on_episode("running", 3.1, "5")
+    assert mux.running
+    assert mux.on_command("auto", AUTO, 3.6) == [tuple(AUTO)]   # after 0.3 s of silence: uncut
+
+
 def test_the_mux_s_own_pause_is_not_a_lost_status(mux):
-    """The mux's process stalls for 2 s (ticks stop; the supervisor's statuses wait in the queue):
-    the first tick after the gap does not judge the status' age, the queued status is taken, and
-    the attempt runs on. With the rule off (status_timeout 0), 3 s of silence end nothing."""
+    """The mux's process stalls for 2 s (ticks stop). The statuses sent meanwhile do not wait in
+    its queue (the reliable transport repairs them at its next heartbeat), so the next one comes
+    with the supervisor's next 2 Hz publication, 0.45 s after the mux wakes: the status' age counts
+    from the end of the pause, and the attempt runs on. With the rule off (status_timeout 0), 3 s
+    of silence end nothing."""
     _drive(mux, 0.0, 1.0, status_every=0.5)
     assert mux.tick(3.0) == [ZERO]                        # auto's own 0.3 s timeout: a zero, not an end
+    assert mux.episode_state == "running" and mux.resumed_at == 3.0
+    out = _drive(mux, 3.01, 3.44)                         # ticks and auto commands, no status yet
     assert mux.episode_state == "running"
-    mux.on_episode("running", 3.0)                        # the queued statuses
-    out = _drive(mux, 3.01, 4.0, status_every=0.5)
+    out += _drive(mux, 3.45, 5.0, status_every=0.5)
     assert mux.episode_state == "running" and mux.active == "auto"
     assert [c for t, c in out if t >= 3.1] and all(c == tuple(AUTO) for t, c in out if t >= 3.1)
+    # but a supervisor that stops during the mux's pause is found 1.5 s of running time after it
+    m2 = CommandMux(load_sources(ROOT / "config" / "cmd_mux.yaml"), LIMITS, idle_period=0.1)
+    _drive(m2, 0.0, 1.0, status_every=0.5)
+    m2.tick(3.0)
+    out = _drive(m2, 3.01, 5.0)
+    assert next(t for t, c in out if c == ZERO) == pytest.approx(4.51) and m2.episode_state == "status lost"
     off = CommandMux(load_sources(ROOT / "config" / "cmd_mux.yaml"), LIMITS, idle_period=0.1, status_timeout=0.0)
     _drive(off, 0.0, 0.1, status_every=0.5)
     out = _drive(off, 0.11, 4.0)

@@ -968,3 +968,34 @@ def test_a_tilt_beyond_max_tilt_deg_ends_the_attempt_and_the_imu_becomes_require
         assert r.sv.state == "lost_input" and needle in r.sv.attempt.reason
     with pytest.raises(ValueError, match="max_tilt_deg"):
         settings(max_tilt_deg=-1.0)
+
+
+def test_arming_refuses_a_slope_the_lidar_stopped_sending(kin):
+    """A hung LiDAR node leaves the previous pile's slope and zones latched (a reviewer armed an
+    attempt on a 30 deg pile with the 20 deg pile's slope and end zone, 2026-11-28): with
+    slope_timeout 2 s the preflight refuses a slope not renewed for longer, naming it; a fresh one
+    passes; 0 (a surveyed slope, published once) sets no limit."""
+    r = Rig(kin, slope_timeout=2.0).ready()
+    assert r.sv.preflight(r.t) == []
+    r.step(2.5)                                            # joints, odometry, drift renewed; not the slope
+    why = r.sv.preflight(r.t)
+    assert len(why) == 1 and why[0].startswith("pile slope 2.5 s old (slope_timeout 2 s; /lhd/pile/slope"), why
+    ok, msg = r.sv.arm(r.t, "2025-01-01T00:00:00Z")
+    assert not ok and "pile slope 2.5 s old" in msg
+    r.sv.inputs.put("slope", DEG(20.0), r.t)              # the next scan
+    assert r.sv.preflight(r.t) == []
+    none = Rig(kin).ready()
+    none.step(30.0)
+    assert none.sv.preflight(none.t) == [] and none.sv.s.slope_timeout == 0.0
+    with pytest.raises(ValueError, match="slope_timeout = -1: expected seconds >= 0"):
+        settings(slope_timeout=-1)
+
+
+def test_a_slope_just_outside_the_range_is_shown_with_the_digits_that_decide(kin):
+    """14.98 deg against [15, 30]: "15.0 deg is outside [15, 30]" contradicted itself."""
+    r = Rig(kin).ready(slope_deg=14.98)
+    (why,) = [w for w in r.sv.preflight(r.t) if "outside" in w]
+    assert why.startswith("pile slope 14.980 deg is outside the controller's range [15, 30] deg"), why
+    r = Rig(kin).ready(slope_deg=35.0)
+    (why,) = [w for w in r.sv.preflight(r.t) if "outside" in w]
+    assert why.startswith("pile slope 35.0 deg is outside"), why

@@ -18,6 +18,7 @@ import json
 import sys
 import time
 
+from lhd_loading_ros.cli.argtypes import pos_int
 from lhd_loading_ros.task.attempt import ENDED
 from lhd_loading_ros.task.attempt_record import (CSV_NAME, check_mass, csv_path, format_table, read_rows,
                                                  summarize, weigh_row)
@@ -154,7 +155,7 @@ def attempt_mass_main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog=prog, description="the weighed mass (kg) of the latest ended attempt "
                                  "(or of attempt N), recorded by the supervisor")
     ap.add_argument("kg", help="the bucket's load on the scale, kg (0-200)")
-    ap.add_argument("--attempt", type=int, help="attempt number (default: the latest ended one)")
+    ap.add_argument("--attempt", type=pos_int, help="attempt number (default: the latest ended one)")
     ap.add_argument("--run-dir", help="edit this run's record directly, without a supervisor")
     _ros_args(ap)
     args = ap.parse_args(argv)

@@ -182,6 +182,7 @@ def up_real(args) -> int:
 
     children: list[Child] = []
     failed = True
+    crashed = ""
     console = Console(args.interactive if args.interactive is not None else sys.stdin.isatty())
     with _StopOnSignals(stop):
         rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
@@ -246,15 +247,42 @@ def up_real(args) -> int:
                     break
             failed = False
         except RuntimeError as exc:
+            crashed = str(exc).splitlines()[0]           # "<node> exited with status <rc>:"
             print(f"lhd up real: {exc}\n(node logs in {log_dir})", file=sys.stderr)
             return 1
         finally:
-            # controller and teleop first, the bridge last: its shutdown sends a stop frame
-            stop_stack(children, node)
+            # the supervisor first: it ends a running attempt (its status stops the controller and the
+            # mux) and records it; then the recorder, whose bag then holds that end; then the rest in
+            # reverse start order, controller and teleop first, the bridge last (its shutdown sends a
+            # stop frame)
+            first = [c for name in ("supervisor", "recorder") for c in children if c.name == name]
+            for c in first:
+                c.stop()
+            stop_stack([c for c in children if c not in first], node)
+            if crashed:
+                note_crash(run_dir, crashed.rstrip(":"))
             if not keep_logs and not failed and args.remove_logs:
                 shutil.rmtree(log_dir, ignore_errors=True)
     print(f"lhd up real: stopped; attempts in {run_dir / 'attempts.csv'} (`lhd attempts {run_dir}`)", flush=True)
     return 0
+
+
+def note_crash(run_dir: Path, what: str) -> None:
+    """A node process that died ended the stack: the attempt it interrupted was aborted by the
+    supervisor's stop ("supervisor stopped during the attempt"); the record says why instead."""
+    from lhd_loading_ros.task.attempt_record import csv_path, read_rows, upsert_row
+
+    try:
+        rows = read_rows(csv_path(run_dir))
+    except (OSError, ValueError):
+        return
+    if rows and rows[-1].outcome == "aborted" and rows[-1].reason == "supervisor stopped during the attempt":
+        from dataclasses import replace
+
+        row = replace(rows[-1], reason=f"{what} during the attempt: the launcher stopped the stack, the supervisor "
+                                       "first")
+        upsert_row(csv_path(run_dir), row)
+        print(f"lhd up real: attempt {row.attempt} recorded as aborted: {row.reason}", file=sys.stderr, flush=True)
 
 
 def format_preflight(st) -> str:

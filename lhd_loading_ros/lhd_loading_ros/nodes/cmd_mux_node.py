@@ -35,6 +35,7 @@ from lhd_loading_ros.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
 from lhd_loading_ros.ros.qos import COMMAND_QOS, LATCHED_QOS, STATUS_QOS
 from lhd_loading_ros.ros.run import run_node
+from lhd_loading_ros.task.attempt import STATUS_TIMEOUT_S
 from lhd_loading_ros.task.config import load_config
 from lhd_loading_ros.task.params import TaskParams
 
@@ -60,8 +61,8 @@ class CmdMuxNode(Node):
                   "shipped config/cmd_mux.yaml"),
             Param("idle_rate_hz", 10.0, "zero commands per second while no source is selected (the bridge holds "
                   "the machine stopped)", lo=1.0, hi=100.0, on_change=self._set_idle_rate),
-            Param("status_timeout", 1.5, "s: a running attempt whose <prefix>/episode status is older than this "
-                  "has ended (the supervisor crashed or hung; it publishes at least every 0.5 s): the gated sources "
+            Param("status_timeout", STATUS_TIMEOUT_S, "s: a running attempt whose <prefix>/episode status is older than this "
+                  "has ended (the supervisor crashed or hung; it publishes at least every 0.2 s): the gated sources "
                   "stop, a zero at once; 0: never (a status publisher that sends only on change)", lo=0.0, hi=60.0,
                   on_change=lambda v: setattr(self.mux, "status_timeout", v)),
             Param("namespace_prefix", "/lhd", "topic prefix in the root namespace (under a namespace, the "
@@ -88,6 +89,7 @@ class CmdMuxNode(Node):
         self.create_subscription(Bool, f"{ns}/estop", self._on_estop, LATCHED_QOS, event_callbacks=quiet)
         self.create_subscription(Bool, f"{ns}/estop", self._on_estop, ESTOP_ANY_QOS)
         self.published = 0
+        self._lost_back_warned = False
         self.forwarded_at: dict[str, float] = {}
         self._active = None
         self._rejected_at = -1e9
@@ -128,10 +130,16 @@ class CmdMuxNode(Node):
 
     def _on_episode(self, msg: DiagnosticStatus) -> None:
         kv = {k.key: k.value for k in msg.values}
-        state = kv.get("state", msg.message)
-        if state != self.mux.episode_state:
-            self.get_logger().info(f"attempt state: {self.mux.episode_state or 'unknown'} -> {state}")
-        self._emit(self.mux.on_episode(state, time.monotonic()))
+        state, was = kv.get("state", msg.message), self.mux.episode_state
+        self._emit(self.mux.on_episode(state, time.monotonic(), kv.get("episode")))
+        if self.mux.episode_state != state:     # a lost attempt's `running` again: it stays ended
+            if not self._lost_back_warned:
+                self._lost_back_warned = True
+                self.get_logger().warn(f"attempt {kv.get('episode')}'s status came back after it had stopped "
+                                       "arriving: not resumed, zero commands until the next attempt")
+        elif state != was:
+            self._lost_back_warned = False
+            self.get_logger().info(f"attempt state: {was or 'unknown'} -> {state}")
 
     def _on_estop(self, msg: Bool) -> None:
         engaged = bool(msg.data)

@@ -80,6 +80,7 @@ from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float32MultiArray, Float64, Float64MultiArray
 
+from lhd_loading_ros.task.attempt import STATUS_TIMEOUT_S
 from lhd_loading_ros.task.config import load_config
 from lhd_loading_ros.task.kinematics import ArmKinematics
 from lhd_loading_ros.task.params import TaskParams
@@ -149,8 +150,8 @@ class PolicyNode(Node):
                   on_change=lambda v: setattr(self, "odom_margin", v)),
             Param("input_qos", "sensor_data", "sensor_data: best effort, matches any publisher; reliable: for "
                   "lockstep", choices=("sensor_data", "reliable")),
-            Param("status_timeout", 1.5, "s: a running attempt whose /lhd/episode status is older than this has "
-                  "ended (the supervisor or sim node crashed or hung; they publish at least every 0.5 s): one zero "
+            Param("status_timeout", STATUS_TIMEOUT_S, "s: a running attempt whose /lhd/episode status is older than this has "
+                  "ended (the supervisor or sim node crashed or hung; they publish at least every 0.2 s): one zero "
                   "command, and that attempt does not resume; 0: never (a status publisher that sends only on "
                   "change). Not in trigger lockstep, where the sim node waits for this node", lo=0.0, hi=60.0,
                   on_change=lambda v: setattr(self, "status_timeout", v)),
@@ -207,6 +208,7 @@ class PolicyNode(Node):
         self._status_publisher_seen = False
         self._status_arrival = None      # monotonic time of the latest /lhd/episode status
         self._last_status_check = None   # monotonic time of the latest _check_status_publisher
+        self._resumed_at = -math.inf     # when this node's latest pause ended (a late check)
         self._lost_key = None            # the attempt whose status stopped arriving: it does not resume
         self._lost_key_heard = False     # its running status came back (warned once)
         self.attempts = 0                # running attempts begun (controller resets)
@@ -393,16 +395,21 @@ class PolicyNode(Node):
         the graph (a status that arrived before discovery caught up is no loss). A publisher that
         is still in the graph but silent (hung, SIGSTOP, a crashed process whose DDS lease has not
         expired yet: about 20 s) is found by the status' age: a running status older than
-        status_timeout ends the attempt, for good (`_lost_key`). The age is judged only when this
-        check ran on time (within 3 periods + 50 ms of the previous one): after this node's own
-        pause the status waiting in its queue is taken before the next check (rclpy runs the
-        ready timers first), so this node's pause is not taken for the supervisor's."""
+        status_timeout ends the attempt, for good (`_lost_key`). This node's own pause does not
+        count: a check that comes more than 3 periods + 50 ms after the previous one marks the end
+        of a pause (`_resumed_at`), and the status' age counts from then at the earliest. The
+        statuses sent during the pause are not waiting in the queue when it ends (the reliable
+        transport repairs them only at its next heartbeat), so the next one is awaited for a
+        whole status_timeout of this node's running time."""
         now = time.monotonic()
         on_time = self._last_status_check is not None and now - self._last_status_check <= 3.0 * period + 0.05
+        if self._last_status_check is not None and not on_time:
+            self._resumed_at = now
         self._last_status_check = now
-        if (on_time and self.running() and self.status_timeout > 0.0 and self._status_arrival is not None
-                and now - self._status_arrival > self.status_timeout):
-            self.get_logger().error(f"no {self.episode_topic} status for {now - self._status_arrival:.1f} s "
+        since = None if self._status_arrival is None else max(self._status_arrival, self._resumed_at)
+        if (on_time and self.running() and self.status_timeout > 0.0 and since is not None
+                and now - since > self.status_timeout):
+            self.get_logger().error(f"no {self.episode_topic} status for {now - since:.1f} s of this node's running time "
                                     f"(status_timeout {self.status_timeout:g} s): the supervisor or sim node stopped "
                                     f"or hung; attempt {self.episode_key} has ended for this node")
             self._lost_key, self._lost_key_heard = self.episode_key, False

@@ -51,7 +51,7 @@ from lhd_loading_ros.ros.markers import supervisor_markers
 from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
 from lhd_loading_ros.ros.qos import LATCHED_QOS, MEASUREMENT_QOS, STATUS_QOS
 from lhd_loading_ros.ros.run import run_node
-from lhd_loading_ros.task.attempt import ENDED, LIVE, HwStatus, Settings, Supervisor
+from lhd_loading_ros.task.attempt import ENDED, LIVE, STATUS_TIMEOUT_S, HwStatus, Settings, Supervisor
 from lhd_loading_ros.task.attempt_record import MATERIALS, csv_path, read_rows, upsert_row
 from lhd_loading_ros.task.config import load_config
 from lhd_loading_ros.task.kinematics import ArmKinematics
@@ -72,7 +72,8 @@ from lhd_loading_ros.task.zones import Zones
 MASS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
                       durability=DurabilityPolicy.VOLATILE)
 CHECK_HZ = 50.0          # end conditions on the steady clock (and on every joints / odom arrival)
-STATUS_HZ = 2.0          # <prefix>/episode at least this often
+STATUS_HZ = 5.0          # <prefix>/episode at least this often (the controllers' status_timeout is 1.5 s)
+STALL_MARGIN_S = 0.1     # a gap between two statuses longer than status_timeout minus this: our own stall
 OVERTAKEN_NS = 1_000_000_000
 LABEL = re.compile(r"^[A-Za-z0-9_.-]{1,32}$")
 
@@ -102,6 +103,11 @@ class SupervisorNode(Node):
             Param("attempt_timeout", 10.0, "s from running to timeout (paper: a timeout of 10 s); a change applies "
                   "from the next arming", lo=0.1, hi=600.0, on_change=lambda v: self.core.set_attempt_timeout(v)),
             Param("arm_delay", 1.0, "s between armed and running (0: at once)", lo=0.0, hi=60.0),
+            Param("status_timeout", STATUS_TIMEOUT_S, "s: the controllers' status_timeout (policy node, command mux: "
+                  "they stop a running attempt whose status is older). When this node did not publish its status for "
+                  "longer than that less 0.1 s (its process stalled), the running attempt is aborted with that reason, "
+                  "as the controllers have stopped the machine; 0: never", lo=0.0, hi=60.0,
+                  on_change=lambda v: setattr(self, "status_timeout", v)),
             Param("input_timeout", 0.5, "s: joints, odometry or a drift flag older than this while armed or running "
                   "ends the attempt (lost_input), and fails the preflight", lo=0.01, hi=60.0),
             Param("end_check_period", -1.0, "s: the end zone is judged at the end of each such period since "
@@ -110,6 +116,9 @@ class SupervisorNode(Node):
                   lo=-1.0, hi=10.0, check=lambda v: None if v == -1.0 or v >= 0.0 else
                   "expected -1 (the task's control period) or seconds >= 0"),
             Param("hw_status_timeout", 0.5, "s: the same for the bridge's hw/status", lo=0.01, hi=60.0),
+            Param("slope_timeout", 2.0, "s: to arm, the pile slope must be younger than this (the LiDAR node sends "
+                  "one per scan; a hung one leaves the previous pile's slope and zones latched); 0: no limit (a "
+                  "surveyed slope published once)", lo=0.0, hi=3600.0),
             Param("arm_fresh_fraction", 0.5, "to arm, every input must be younger than this fraction of its timeout "
                   "(an input nearly as old as its timeout would end the armed attempt one late message later)",
                   lo=0.05, hi=1.0),
@@ -143,7 +152,8 @@ class SupervisorNode(Node):
                             arm_delay=gp("arm_delay"), input_timeout=gp("input_timeout"),
                             hw_status_timeout=gp("hw_status_timeout"), mass_settle_s=gp("mass_settle_s"), prefix=ns,
                             end_check_period=p.control_dt if gp("end_check_period") < 0 else gp("end_check_period"),
-                            max_tilt_deg=gp("max_tilt_deg"), arm_fresh_fraction=gp("arm_fresh_fraction"))
+                            max_tilt_deg=gp("max_tilt_deg"), arm_fresh_fraction=gp("arm_fresh_fraction"),
+                            slope_timeout=gp("slope_timeout"))
         self.run_dir = Path(gp("run_dir")).expanduser().resolve()
         self.csv = csv_path(self.run_dir)
         try:
@@ -160,6 +170,8 @@ class SupervisorNode(Node):
         self.rows_written = 0
         self._slow_source_ns: dict[str, int] = {}
         self._recorded = None            # (attempt, mass) of the latest row handed to the record
+        self._status_sent = None         # monotonic time of the latest <prefix>/episode status
+        self.status_timeout = self.params["status_timeout"]
 
         self.pub_status = self.create_publisher(DiagnosticStatus, f"{ns}/episode", STATUS_QOS)
         self.frame_id = gp("frame_id")
@@ -308,8 +320,26 @@ class SupervisorNode(Node):
         return response
 
     # ------------------------------------------------------------------ the loop
+    def _own_stall(self, now: float) -> bool:
+        """This node did not run, and so sent no status, for longer than the controllers wait for one
+        (status_timeout, less STALL_MARGIN_S): they have ended the running attempt and stopped the
+        machine. The attempt is aborted with that reason (a set-up fault: repeated, not counted),
+        instead of running on to a timeout with nobody commanding."""
+        if (self.core.state != "running" or self._status_sent is None or self.status_timeout <= 0.0
+                or now - self._status_sent <= self.status_timeout - STALL_MARGIN_S):
+            return False
+        gap = now - self._status_sent
+        self.core.abort(now, f"the supervisor did not run for {gap:.1f} s (its process stalled): its status stopped "
+                             f"for longer than the controllers' status_timeout ({self.status_timeout:g} s), so they "
+                             "stopped the machine; repeat the attempt")
+        self.get_logger().error(f"attempt {self.core.attempt.number} aborted: this node did not run for {gap:.1f} s")
+        self._after_end()
+        return True
+
     def _check(self) -> None:
         c = self.core
+        if self._own_stall(time.monotonic()):
+            return
         changed = c.update(time.monotonic())
         tip = c.tip
         self.trail.update(c.attempt.number if c.attempt is not None else None, c.state in LIVE,
@@ -358,6 +388,9 @@ class SupervisorNode(Node):
             self.get_logger().error(self.record_error)
 
     def _publish_status(self) -> None:
+        if self._own_stall(time.monotonic()):
+            return                                  # (it published the aborted status)
+        self._status_sent = time.monotonic()
         now_ns = self.get_clock().now().nanoseconds
         values = self.core.status_values(time.monotonic())
         values["stamp_ns"] = str(now_ns)

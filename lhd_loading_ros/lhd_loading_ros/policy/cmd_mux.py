@@ -17,11 +17,13 @@ What leaves the mux:
   source is cut until it has been silent for its own timeout: the machine stays stopped until
   the next attempt, or until the operator releases and presses the deadman again.
 * a running attempt whose status stops arriving (no `<prefix>/episode` for `status_timeout`,
-  1.5 s: the supervisor publishes at least twice a second, the sim node every control period)
+  1.5 s: the supervisor publishes five times a second, the sim node every control period)
   ends like any other: the supervisor crashed, hung or was cut off, and nothing judges the zones,
-  the timeout or the end any more. Judged by `tick` only after a tick that ran on time: when the
-  mux's own process did not run for PAUSE_S (a stall, a pause), the status that waited in its
-  queue is taken before the next tick judges, so the mux's own pause is not the supervisor's.
+  the timeout or the end any more. The mux's own stall does not count: a tick more than PAUSE_S
+  after the previous one marks the end of a pause, and the status' age counts from then at the
+  earliest (the statuses sent during the pause are not waiting in the queue: the reliable
+  transport repairs them only at its next heartbeat). An attempt whose status was lost does not
+  run again when its `running` status comes back (same episode key): only a new attempt runs.
 Each method returns the commands to publish, in order.
 """
 from __future__ import annotations
@@ -33,6 +35,7 @@ from pathlib import Path
 import yaml
 
 from lhd_loading_ros.policy.actuator_limits import ZERO, ActuatorLimits, CommandInvalid
+from lhd_loading_ros.task.attempt import STATUS_TIMEOUT_S
 
 RUNNING = "running"
 STATUS_LOST = "status lost"      # episode_state after a running status stopped arriving
@@ -126,10 +129,13 @@ class CommandMux:
     last_output: float | None = None
     zeros_at_once: int = 0
     states: dict = field(default_factory=dict)
-    status_timeout: float = 1.5       # s without an episode status that ends a running attempt; 0: never
+    status_timeout: float = STATUS_TIMEOUT_S   # s without an episode status that ends a running attempt; 0: never
     episode_at: float | None = None   # arrival of the latest episode status
     last_tick: float | None = None
     status_lost_after: float | None = None   # the silence that ended the last attempt, for explain()
+    resumed_at: float = -math.inf     # when the mux's latest pause ended (a late tick)
+    episode_key: str | None = None    # the attempt the latest status is about
+    lost_key: str | None = None       # the attempt whose status stopped arriving: it does not run again
 
     def __post_init__(self):
         self.by_name = {s.name: s for s in self.sources}
@@ -241,10 +247,13 @@ class CommandMux:
             st.dropped_gated += 1
         return out
 
-    def on_episode(self, state: str, now: float) -> list:
+    def on_episode(self, state: str, now: float, key: str | None = None) -> list:
         out: list = []
+        if state == RUNNING and key is not None and key == self.lost_key:
+            state = STATUS_LOST                   # that attempt's status was lost: it stays ended
         was_running = self.running
         self.episode_state = state
+        self.episode_key = key
         self.episode_at = now
         if was_running and not self.running:     # the attempt ended: everything stops
             for st in self.states.values():
@@ -274,12 +283,16 @@ class CommandMux:
         attempt whose status stopped arriving) and the idle zeros."""
         out: list = []
         on_time = self.last_tick is not None and now - self.last_tick <= PAUSE_S
+        if self.last_tick is not None and not on_time:
+            self.resumed_at = now
         self.last_tick = now
-        if (on_time and self.running and self.status_timeout > 0.0 and self.episode_at is not None
-                and now - self.episode_at > self.status_timeout):
-            silent = now - self.episode_at
-            out += self.on_episode(STATUS_LOST, now)
-            self.episode_at = now - silent          # the status did not arrive: keep its age
+        since = None if self.episode_at is None else max(self.episode_at, self.resumed_at)
+        if (on_time and self.running and self.status_timeout > 0.0 and since is not None
+                and now - since > self.status_timeout):
+            silent, arrived = now - since, self.episode_at
+            self.lost_key = self.episode_key
+            out += self.on_episode(STATUS_LOST, now, self.episode_key)
+            self.episode_at = arrived               # the status did not arrive: keep its time
             self.status_lost_after = silent
             return out + self.tick_idle(now)
         self._reselect(now, out)

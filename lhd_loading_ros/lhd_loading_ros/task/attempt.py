@@ -70,6 +70,11 @@ RANGE_TOL_DEG = 1e-6       # a slope published in rad at exactly a range end is 
 # the machine's present state is decided: no start after the arm delay, no success; the safety ends
 # stay (docs/supervisor.md "A stalled supervisor").
 STALL_S = 0.1
+# s: the controllers (policy node, command mux; their `status_timeout`) end a running attempt whose
+# <prefix>/episode status is older than this: the supervisor crashed or hung. The supervisor, which
+# publishes its status at 5 Hz, aborts an attempt over which it did not run for nearly this long
+# (supervisor_node: its own stall), so that its record agrees with what the controllers did.
+STATUS_TIMEOUT_S = 1.5
 STALL_MEMORY_S = 30.0      # s: a pause is forgotten this long after it ended (any input older is long lost)
 ZONE_LIMITS = tuple(f.name for f in fields(Zones))
 ZONES_CHANGED_M = 0.02     # m: a zone limit republished this far from arming's = another pile estimate
@@ -113,6 +118,10 @@ class Settings:
     # Half leaves room for several messages of every input (10-30 Hz) and still refuses a stalling
     # one; the running checks keep the whole timeout
     arm_fresh_fraction: float = 0.5
+    # s: to arm, the pile slope must be younger than this (the LiDAR node sends one per scan; a hung
+    # LiDAR node would leave the previous pile's slope and zones latched); 0: no limit (a surveyed,
+    # latched slope). The supervisor node's default is 2 s
+    slope_timeout: float = 0.0
 
     def __post_init__(self):
         lo, hi = self.slope_range_deg
@@ -129,6 +138,8 @@ class Settings:
         if not (math.isfinite(self.arm_fresh_fraction) and 0.0 < self.arm_fresh_fraction <= 1.0):
             raise ValueError(f"arm_fresh_fraction = {self.arm_fresh_fraction!r}: expected a fraction of the input "
                              "timeouts in (0, 1]")
+        if not (math.isfinite(self.slope_timeout) and self.slope_timeout >= 0):
+            raise ValueError(f"slope_timeout = {self.slope_timeout!r}: expected seconds >= 0 (0: no limit)")
         if not (math.isfinite(self.end_check_period) and self.end_check_period >= 0):
             raise ValueError(f"end_check_period = {self.end_check_period!r}: expected seconds >= 0 (0: every update)")
 
@@ -258,7 +269,10 @@ class Supervisor:
         deg = math.degrees(slope)
         if lo - RANGE_TOL_DEG <= deg <= hi + RANGE_TOL_DEG:
             return ""
-        return (f"pile slope {deg:.1f} deg is outside the controller's range [{lo:g}, {hi:g}] deg "
+        shown = f"{deg:.1f}"
+        if float(shown) in (lo, hi) or lo <= float(shown) <= hi:     # rounding would put it inside: say more
+            shown = f"{deg:.3f}"
+        return (f"pile slope {shown} deg is outside the controller's range [{lo:g}, {hi:g}] deg "
                 f"({self.s.slope_source}): reshape the pile or pick a controller trained for it")
 
     def _timed_inputs(self) -> tuple:
@@ -380,6 +394,10 @@ class Supervisor:
         inp, p = self.inputs, self.s.prefix
         if "slope" not in inp.values:
             out.append(f"no pile slope received ({p}/pile/slope, the LiDAR node)")
+        elif self.s.slope_timeout > 0.0 and inp.age("slope", now, discount=False) > self.s.slope_timeout:
+            out.append(f"pile slope {inp.age('slope', now, discount=False):.1f} s old (slope_timeout "
+                       f"{self.s.slope_timeout:g} s; {p}/pile/slope, the LiDAR node): is the LiDAR node running and "
+                       "seeing the pile? The slope and zones it last sent may be of another pile")
         else:
             why = self.slope_problem(inp.values["slope"])
             if why:
