@@ -198,6 +198,19 @@ def start_stack(tmp_path, slope_deg=20.0, bucket_mass=BUCKET_MASS, attempt_timeo
     return dev, node, statuses, arm, world, run_dir, out, stop
 
 
+def arm_when_ready(node, arm, out, within=40.0):
+    """/lhd/arm, retried every second while the preflight refuses (the stack settling); the last answer."""
+    t_ready, res = time.monotonic(), None
+    while time.monotonic() - t_ready < within:
+        fut = arm.call_async(Trigger.Request())
+        assert spin_until(node, fut.done, 10.0), out()
+        res = fut.result()
+        if res.success:
+            break
+        spin_until(node, lambda: False, 1.0)
+    return res
+
+
 def test_up_real_arms_runs_stops_records_and_replays(ros, tmp_path):
     dev, node, statuses, arm, world, run_dir, out, stop = start_stack(tmp_path)
 
@@ -207,15 +220,7 @@ def test_up_real_arms_runs_stops_records_and_replays(ros, tmp_path):
     try:
         # the stack comes up: the supervisor is idle and its preflight passes with every input alive
         assert spin_until(node, lambda: arm.service_is_ready() and state() == "idle", 90.0), out()
-        t_ready = time.monotonic()
-        res = None
-        while time.monotonic() - t_ready < 40.0:
-            fut = arm.call_async(Trigger.Request())
-            assert spin_until(node, fut.done, 10.0), out()
-            res = fut.result()
-            if res.success:
-                break
-            spin_until(node, lambda: False, 1.0)
+        res = arm_when_ready(node, arm, out)
         # not armed yet until here: nothing asked the machine to move, though every input was alive
         t_armed_call = time.monotonic()
         before = [f for t, f in dev.last_commands() if t < t_armed_call]
@@ -320,14 +325,7 @@ def test_a_node_that_dies_mid_attempt_is_recorded_as_the_cause(ros, tmp_path):
 
     try:
         assert spin_until(node, lambda: arm.service_is_ready() and state() == "idle", 90.0), out()
-        t_ready, res = time.monotonic(), None
-        while time.monotonic() - t_ready < 40.0:
-            fut = arm.call_async(Trigger.Request())
-            assert spin_until(node, fut.done, 10.0), out()
-            res = fut.result()
-            if res.success:
-                break
-            spin_until(node, lambda: False, 1.0)
+        res = arm_when_ready(node, arm, out)
         assert res is not None and res.success, out()
         assert spin_until(node, lambda: state() == "running", 10.0), out()
         spin_until(node, lambda: False, 0.5)

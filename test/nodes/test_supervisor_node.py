@@ -245,6 +245,15 @@ def test_lhd_attempts_on_the_record_the_node_wrote(rig):
     assert read_rows(rig.run_dir / "attempts.csv")[1].mass_kg == 24.5     # pitch 0 at the timeout: SL 0
 
 
+def pause(proc, seconds):
+    """Stop the node's process (SIGSTOP: what CPU starvation or a swap pause does) for `seconds`."""
+    os.kill(proc.proc.pid, signal.SIGSTOP)
+    try:
+        time.sleep(seconds)
+    finally:
+        os.kill(proc.proc.pid, signal.SIGCONT)
+
+
 def test_a_paused_supervisor_does_not_take_queued_inputs_for_lost_ones(rig):
     """The supervisor's process is paused for 1 s (SIGSTOP: what CPU starvation or a swap pause
     does to it) while the machine keeps publishing at 50 Hz. On waking, its executor runs the
@@ -254,12 +263,7 @@ def test_a_paused_supervisor_does_not_take_queued_inputs_for_lost_ones(rig):
     n0 = len(rig.statuses)
     assert rig.call(rig.arm_client).success          # attempt_timeout is 60 s since the CLI test
     rig.wait_state("running", 6, since=n0)
-    pid = rig.proc.proc.pid
-    os.kill(pid, signal.SIGSTOP)
-    try:
-        time.sleep(1.0)
-    finally:
-        os.kill(pid, signal.SIGCONT)
+    pause(rig.proc, 1.0)
     n1 = len(rig.statuses)
     time.sleep(1.5)
     states = [(kv.get("state"), kv.get("episode")) for _, kv in rig.statuses[n1:]]
@@ -280,12 +284,7 @@ def test_a_supervisor_stalled_past_the_controllers_status_timeout_aborts_the_att
     n0 = len(rig.statuses)
     assert rig.call(rig.arm_client).success
     rig.wait_state("running", 7, since=n0)
-    pid = rig.proc.proc.pid
-    os.kill(pid, signal.SIGSTOP)
-    try:
-        time.sleep(2.5)
-    finally:
-        os.kill(pid, signal.SIGCONT)
+    pause(rig.proc, 2.5)
     _, kv = rig.wait_state("aborted", 7, since=n0)
     assert kv["reason"].startswith("the supervisor did not run for 2.") and "status_timeout (1.5 s)" in kv["reason"]
     # the status goes out first, then the record (the controllers stop on the status)
