@@ -84,6 +84,7 @@ from lhd_loading_ros.task.attempt import STATUS_TIMEOUT_S
 from lhd_loading_ros.task.config import load_config
 from lhd_loading_ros.task.kinematics import ArmKinematics
 from lhd_loading_ros.task.params import TaskParams
+from lhd_loading_ros.policy.status_watch import StatusWatch
 from lhd_loading_ros.policy.core import INPUTS, SLOW_INPUTS, Inputs, PolicyCore, ZERO_COMMAND
 from lhd_loading_ros.policy.actor_file import PolicyFileError, default_policy_dir, load_policy  # noqa: F401 (re-exported)
 from lhd_loading_ros.policy.tampier import TampierCore, default_tampier_path, load_tampier_config
@@ -206,9 +207,7 @@ class PolicyNode(Node):
         self.episode_state = None        # None: no /lhd/episode status (or its publisher is gone): no motion
         self.episode_key = None
         self._status_publisher_seen = False
-        self._status_arrival = None      # monotonic time of the latest /lhd/episode status
-        self._last_status_check = None   # monotonic time of the latest _check_status_publisher
-        self._resumed_at = -math.inf     # when this node's latest pause ended (a late check)
+        self.status_watch = StatusWatch()   # the /lhd/episode status' age in this node's running time
         self._lost_key = None            # the attempt whose status stopped arriving: it does not resume
         self._lost_key_heard = False     # its running status came back (warned once)
         self.attempts = 0                # running attempts begun (controller resets)
@@ -374,7 +373,7 @@ class PolicyNode(Node):
                                    "the next attempt runs")
 
     def _on_status(self, msg) -> None:
-        self._status_arrival = time.monotonic()
+        self.status_watch.heard(time.monotonic())
         kv = {k.key: k.value for k in msg.values}
         self._set_episode(kv.get("state", msg.message), kv.get("episode"))
         self._hold_attempt_slope(kv)
@@ -396,20 +395,11 @@ class PolicyNode(Node):
         is still in the graph but silent (hung, SIGSTOP, a crashed process whose DDS lease has not
         expired yet: about 20 s) is found by the status' age: a running status older than
         status_timeout ends the attempt, for good (`_lost_key`). This node's own pause does not
-        count: a check that comes more than 3 periods + 50 ms after the previous one marks the end
-        of a pause (`_resumed_at`), and the status' age counts from then at the earliest. The
-        statuses sent during the pause are not waiting in the queue when it ends (the reliable
-        transport repairs them only at its next heartbeat), so the next one is awaited for a
-        whole status_timeout of this node's running time."""
-        now = time.monotonic()
-        on_time = self._last_status_check is not None and now - self._last_status_check <= 3.0 * period + 0.05
-        if self._last_status_check is not None and not on_time:
-            self._resumed_at = now
-        self._last_status_check = now
-        since = None if self._status_arrival is None else max(self._status_arrival, self._resumed_at)
-        if (on_time and self.running() and self.status_timeout > 0.0 and since is not None
-                and now - since > self.status_timeout):
-            self.get_logger().error(f"no {self.episode_topic} status for {now - since:.1f} s of this node's running time "
+        count (policy/status_watch.py): a check more than 3 periods + 50 ms after the previous one
+        ends a pause, and the status' age counts from then at the earliest."""
+        age = self.status_watch.age(time.monotonic(), 3.0 * period + 0.05)
+        if self.running() and self.status_timeout > 0.0 and age is not None and age > self.status_timeout:
+            self.get_logger().error(f"no {self.episode_topic} status for {age:.1f} s of this node's running time "
                                     f"(status_timeout {self.status_timeout:g} s): the supervisor or sim node stopped "
                                     f"or hung; attempt {self.episode_key} has ended for this node")
             self._lost_key, self._lost_key_heard = self.episode_key, False

@@ -35,6 +35,7 @@ from pathlib import Path
 import yaml
 
 from lhd_loading_ros.policy.actuator_limits import ZERO, ActuatorLimits, CommandInvalid
+from lhd_loading_ros.policy.status_watch import StatusWatch
 from lhd_loading_ros.task.attempt import STATUS_TIMEOUT_S
 
 RUNNING = "running"
@@ -130,12 +131,14 @@ class CommandMux:
     zeros_at_once: int = 0
     states: dict = field(default_factory=dict)
     status_timeout: float = STATUS_TIMEOUT_S   # s without an episode status that ends a running attempt; 0: never
-    episode_at: float | None = None   # arrival of the latest episode status
-    last_tick: float | None = None
+    status: StatusWatch = field(default_factory=StatusWatch)   # the episode status' age (policy/status_watch.py)
     status_lost_after: float | None = None   # the silence that ended the last attempt, for explain()
-    resumed_at: float = -math.inf     # when the mux's latest pause ended (a late tick)
     episode_key: str | None = None    # the attempt the latest status is about
     lost_key: str | None = None       # the attempt whose status stopped arriving: it does not run again
+
+    @property
+    def resumed_at(self) -> float:
+        return self.status.resumed_at
 
     def __post_init__(self):
         self.by_name = {s.name: s for s in self.sources}
@@ -248,13 +251,16 @@ class CommandMux:
         return out
 
     def on_episode(self, state: str, now: float, key: str | None = None) -> list:
-        out: list = []
+        self.status.heard(now)
         if state == RUNNING and key is not None and key == self.lost_key:
             state = STATUS_LOST                   # that attempt's status was lost: it stays ended
+        return self._set_episode(state, now, key)
+
+    def _set_episode(self, state: str, now: float, key: str | None) -> list:
+        out: list = []
         was_running = self.running
         self.episode_state = state
         self.episode_key = key
-        self.episode_at = now
         if was_running and not self.running:     # the attempt ended: everything stops
             for st in self.states.values():
                 st.cut = True
@@ -282,24 +288,12 @@ class CommandMux:
         """Timeouts (a zero at once when the selected source goes silent, and the end of a running
         attempt whose status stopped arriving) and the idle zeros."""
         out: list = []
-        on_time = self.last_tick is not None and now - self.last_tick <= PAUSE_S
-        if self.last_tick is not None and not on_time:
-            self.resumed_at = now
-        self.last_tick = now
-        since = None if self.episode_at is None else max(self.episode_at, self.resumed_at)
-        if (on_time and self.running and self.status_timeout > 0.0 and since is not None
-                and now - since > self.status_timeout):
-            silent, arrived = now - since, self.episode_at
-            self.lost_key = self.episode_key
-            out += self.on_episode(STATUS_LOST, now, self.episode_key)
-            self.episode_at = arrived               # the status did not arrive: keep its time
-            self.status_lost_after = silent
-            return out + self.tick_idle(now)
-        self._reselect(now, out)
-        return out + self.tick_idle(now)
-
-    def tick_idle(self, now: float) -> list:
-        out: list = []
+        age = self.status.age(now, PAUSE_S)
+        if self.running and self.status_timeout > 0.0 and age is not None and age > self.status_timeout:
+            self.lost_key, self.status_lost_after = self.episode_key, age
+            out += self._set_episode(STATUS_LOST, now, self.episode_key)
+        else:
+            self._reselect(now, out)
         if self.selected is None and (self.last_output is None or now - self.last_output >= self.idle_period):
             out.append(ZERO)
             self.last_output = now
