@@ -205,11 +205,20 @@ def test_wheel_command_drives_the_machine_and_the_command_timeout_stops_it(rig):
     # (the median: a test process starved for 0.3 s on a loaded machine lets the bridge's timeout
     # brake the wheels for a moment, which is the bridge doing its job)
     assert float(np.median(vx)) == pytest.approx(1.0 * WHEEL_RADIUS, rel=0.1), (vx, rig.bridge.log()[-2000:])
-    # the truth's pose and speed agree: the distance over the window is the integral of v_x
-    ts = np.array([m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for _, m in steady])
-    xs = np.array([m.pose.pose.position.x for _, m in steady])
-    integral = float(np.sum(0.5 * (np.array(vx[1:]) + np.array(vx[:-1])) * np.diff(ts)))
-    assert xs[-1] - xs[0] == pytest.approx(integral, rel=0.05)
+    # the truth's pose and speed agree: the distance over each odom interval is the integral of v_x over
+    # it. Summed over the usual intervals only: across a missing sample (a starved test process, 258 ms
+    # once in CI) the bridge's command timeout may have braked the wheels and driven on again, which a
+    # trapezoid over the gap cannot see (it counted 0.199 m where the machine moved 0.165 m)
+    by_stamp = sorted(steady, key=lambda s: _stamp(s[1]))
+    ts = np.array([_stamp(m) for _, m in by_stamp])
+    xs = np.array([m.pose.pose.position.x for _, m in by_stamp])
+    vs = np.array([m.twist.twist.linear.x for _, m in by_stamp])
+    dt = np.diff(ts)
+    regular = dt <= usual
+    assert regular.sum() >= max(20, 0.75 * len(dt)), np.round(1e3 * dt, 1).tolist()
+    moved = float(np.sum(np.diff(xs)[regular]))
+    integral = float(np.sum((0.5 * (vs[1:] + vs[:-1]) * dt)[regular]))
+    assert moved == pytest.approx(integral, rel=0.05), (moved, integral, np.round(1e3 * dt, 1).tolist())
     assert rig.last("tip").point.x < -0.4                    # still on the flat
     # the bridge's joint states carry the wheels: front wheels and the rear differential at the set-point
     # (the median over the steady window, as for v_x: one frame can catch the wheels in a transient,
