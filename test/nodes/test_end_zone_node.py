@@ -118,7 +118,8 @@ def set_param(ros, target, name, value):
 
 
 def test_lidar_pile_to_latched_zones_threshold_stale_and_bad_input(ros, tmp_path):
-    lidar = RosProcess(LIDAR, {}, tmp_path / "lidar.log")
+    # each scan's own fit (filter_window 1): the scenario moves the pile scan by scan
+    lidar = RosProcess(LIDAR, {"filter_window": 1}, tmp_path / "lidar.log")
     ez = RosProcess(NODE, {"stale_warn_s": 2.0}, tmp_path / "end_zone.log")
     fits, published = [], []
     subs = [ros.create_subscription(Vector3Stamped, "/lhd/pile/slope_stamped", fits.append, REL),

@@ -126,8 +126,12 @@ class Rig:
         assert self.proc.stop() == 0, self.proc.log()
 
 
+# each scan's own fit (filter_window 1): these tests put piles of different slopes in front of one node
+SINGLE = {"filter_window": 1}
+
+
 def test_draw_point_clutter_does_not_move_the_slope(ros, tmp_path):
-    rig = Rig(tmp_path)
+    rig = Rig(tmp_path, SINGLE)
     try:
         for alpha in (15.0, 20.0, 25.0, 30.0):
             r, amin, inc, _ = synthetic_scan(math.radians(alpha), np.random.default_rng(int(alpha)))
@@ -196,7 +200,7 @@ def test_range_parameters_namespace_and_runtime_changes(ros, tmp_path):
     Started with ints for floats (`-p slope_max_deg:=50`) under `-r __ns:=/lhd2`, with
     use_sim_time and no /clock (diagnostics still come: a steady timer)."""
     rig = Rig(tmp_path, {"sensor_xyz": "[-0.3, 0.0, 1.6]", "slope_max_deg": 50, "slope_min_deg": 5,
-                         "inlier_threshold": 0.02, "use_sim_time": True}, ns="/lhd2", remaps=["__ns:=/lhd2"])
+                         "inlier_threshold": 0.02, "use_sim_time": True, **SINGLE}, ns="/lhd2", remaps=["__ns:=/lhd2"])
 
     def scan(alpha):
         r, amin, inc, _ = synthetic_scan(math.radians(alpha), np.random.default_rng(2), sensor_xyz=(-0.3, 0.0, 1.6),
@@ -220,6 +224,39 @@ def test_range_parameters_namespace_and_runtime_changes(ros, tmp_path):
         assert rig.no_fit(scan(45.0))
         r = rig.set("sensor_xyz", [0.0, 0.0, 1.0])
         assert not r.successful and "read-only" in r.reason
+    finally:
+        rig.close()
+
+
+def test_the_published_slope_is_the_median_of_the_latest_scans_and_follows_a_new_pile(ros, tmp_path):
+    """Default parameters (filter_window 5, new_pile_slope_deg 3, new_pile_scans 2): one scan of
+    another slope is held out (nothing published), two in a row are a new pile; the value published
+    is one scan's own fit (the median of the window), stamped with the newest scan that agrees."""
+    rig = Rig(tmp_path)
+
+    def scan(alpha, seed, t):
+        r, amin, inc, _ = synthetic_scan(math.radians(alpha), np.random.default_rng(seed))
+        return scan_msg(r, amin, inc, t=t)
+
+    try:
+        own = {}
+        for k in range(3):
+            got = rig.fit(scan(20.0, k, 70.0 + k))
+            assert got is not None and abs(got - 20.0) < 1.0
+            own[k] = got
+        assert rig.slopes[-1] in [math.radians(v) for v in own.values()]
+        # one scan of a 30 deg face: held out, nothing published (the 20 deg slope keeps its stamp)
+        assert rig.no_fit(scan(30.0, 10, 73.0))
+        assert rig.stamped[-1].header.stamp.sec == 72
+        assert abs(rig.fit(scan(20.0, 3, 74.0)) - 20.0) < 1.0          # back on the pile: the single scan is gone
+        assert rig.no_fit(scan(30.0, 11, 75.0))                         # a first 30 deg scan: held out
+        new = rig.fit(scan(30.0, 12, 76.0))                             # the second in a row: a new pile
+        assert new is not None and abs(new - 30.0) < 1.0, new
+        assert abs(rig.toes[-1].point.x) < 0.03 and rig.toes[-1].header.stamp.sec == 76
+        ok, seen = rig.wait_diag(OK, "slope 30.")
+        assert ok, seen
+        vals = {kv.key: kv.value for st in rig.diag[-1:] for kv in st.values}
+        assert vals["held_out"] == "2" and vals["fits_in_median"] == "2", vals
     finally:
         rig.close()
 

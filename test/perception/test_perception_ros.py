@@ -164,7 +164,8 @@ def cloud_msg(pts):
 
 
 def test_lidar_node_slope_from_scans_and_clouds(ros, tmp_path):
-    proc = RosProcess("lhd_loading_ros.nodes.lidar_slope_node", {}, tmp_path / "lidar.log")
+    # each scan's own fit (filter_window 1): piles of 15, 30 and 22 deg one scan after the other
+    proc = RosProcess("lhd_loading_ros.nodes.lidar_slope_node", {"filter_window": 1}, tmp_path / "lidar.log")
     node = rclpy.create_node("lidar_test")
     slopes, toes, res = [], [], []
     node.create_subscription(Float64, "/lhd/pile/slope", lambda m: slopes.append(m.data), 20)

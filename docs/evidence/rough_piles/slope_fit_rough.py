@@ -3,6 +3,8 @@ piles (2026-11-28): for each slope, 12 piles x 8 scans of the twin's LiDAR model
 2 % outliers, the draw point's clutter), the error of each scan's alpha against the pile's plane,
 and the spread of alpha over the 8 scans of one pile (the pile does not move between them). Next to
 it, what one scan line can know at best: the least-squares slope of the scanned slice's own profile.
+slope_fit_rough.txt is of the fit with its whole-face stage (perception/slope.refine_face, added the
+same day); the figures of the RANSAC stage alone are kept in docs/perception.md "Rough faces".
 
     .venv/bin/python docs/evidence/rough_piles/slope_fit_rough.py > docs/evidence/rough_piles/slope_fit_rough.txt
 """

@@ -57,6 +57,7 @@ from lhd_loading_ros.cli.up_real import check_args as real_check_args
 from lhd_loading_ros.cli.up_real import stack
 from lhd_loading_ros.ros.params import discovery_wait_s
 from lhd_loading_ros.task.config import load_config
+from lhd_loading_ros.task.end_zone import nominal_density
 from lhd_loading_ros.task.kinematics import ArmKinematics
 from lhd_loading_ros.task.params import TaskParams
 from lhd_loading_ros.task.zones import Zones
@@ -67,6 +68,8 @@ ARM_RETRY_S = 1.0          # s between /lhd/arm calls while the preflight refuse
 # up, or starved, would end the attempt as lost_input at once)
 STEADY_S, STEADY_N, STEADY_GAP_S = 1.0, 5, 0.25
 ZONES_CAUGHT_UP_M = 0.08            # m: the stack's zones are the current pile's (Watch.zones_caught_up)
+SLOPE_SETTLE_S = 2.0                # s after a new pile: the slope node's median (filter_max_age 2 s) holds
+                                    # only scans of it
 EPISODE_SUBSCRIBERS = 5
 TWIN_IMU_HZ = 50.0                  # the twin machine's IMU rate (`lhd up twin`, `lhd bench twin`)
 
@@ -310,6 +313,7 @@ class Watch:
         self.preflight = None
         self.slope = self.zones = None      # the stack's latest estimates
         self.slope_scan_t = -1.0            # ROS time (s) of the scan behind the latest slope
+        self.slope_fit = None               # (alpha rad, toe x m) of the latest slope_stamped
         self.truth_slope = self.truth_zones = None
         self.piles = 0                      # truth slope messages: one per new pile
         self.pile_t = 0.0                   # ROS time when the latest pile's truth arrived
@@ -379,6 +383,7 @@ class Watch:
 
         def on_slope_stamped(m):
             self.slope_scan_t = stamp(m.header)
+            self.slope_fit = (float(m.vector.x), float(m.vector.y))
 
         def on_truth_slope(m):
             self.mass_before_pile = self.truth_mass
@@ -410,18 +415,25 @@ class Watch:
         node.create_subscription(Float64MultiArray, "/lhd/twin/truth/zones",
                                  lambda m: setattr(self, "truth_zones", list(m.data)), LATCHED_QOS)
 
-    def zones_caught_up(self) -> bool:
+    def zones_caught_up(self, own=None) -> bool:
         """The stack's zones are those of the current pile: toe (x_obs_start), x_max and x_cutoff
-        within ZONES_CAUGHT_UP_M of the twin's truth (the stack's error is 2-4 cm; a previous pile's
-        differ by 0.1-1.4 m)."""
-        if self.zones is None or self.truth_zones is None:
+        within ZONES_CAUGHT_UP_M of the twin's truth (on a plane pile the stack's error is 2-4 cm; a
+        previous pile's differ by 0.1-1.4 m), or, given `own` ((alpha, toe) -> Zones: the end-zone
+        node's rule), within it of the zones of the slope node's latest fit, a scan taken
+        SLOPE_SETTLE_S after the pile was made. On a rough face one scan line's slope is the
+        scanned slice's, which differs from the pile's plane by up to 2-3 deg (docs/perception.md
+        "Rough faces"): the stack's zones are then this pile's, yet farther than 8 cm from the truth."""
+        if self.zones is None:
             return False
         try:
-            z, t = Zones.from_list(self.zones), Zones.from_list(self.truth_zones)
+            z = Zones.from_list(self.zones)
+            refs = [Zones.from_list(self.truth_zones)] if self.truth_zones is not None else []
+            if own is not None and self.slope_fit is not None and self.slope_scan_t > self.pile_t + SLOPE_SETTLE_S:
+                refs.append(own(*self.slope_fit))
         except ValueError:
             return False
-        return all(abs(a - b) <= ZONES_CAUGHT_UP_M for a, b in ((z.x_obs_start, t.x_obs_start), (z.x_max, t.x_max),
-                                                                  (z.x_cutoff, t.x_cutoff)))
+        return any(all(abs(a - b) <= ZONES_CAUGHT_UP_M for a, b in ((z.x_obs_start, t.x_obs_start), (z.x_max, t.x_max),
+                                                                      (z.x_cutoff, t.x_cutoff))) for t in refs)
 
     def odom_steady(self, t: float) -> bool:
         """STEADY_N odometry messages in the last STEADY_S s, none older than STEADY_GAP_S, all
@@ -452,6 +464,12 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
 
     out = sys.stderr if args.json else sys.stdout
     cfg = load_config(real_args.config or None)
+    tp_cfg, rho_nominal = TaskParams.from_config(cfg), nominal_density(cfg)
+
+    def own_zones(alpha: float, toe_x: float) -> Zones:
+        """The end-zone node's zones for a measured pile (its default density: the config's midpoint)."""
+        return Zones.for_measured_pile(alpha, toe_x, rho_nominal, tp_cfg)
+
     kin = ArmKinematics.from_config(cfg)                                   # the supervisor's kinematics
     phi_thresh_deg = math.degrees(TaskParams.from_config(cfg).phi_thresh_pitch)
 
@@ -553,8 +571,10 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                 # and zones of this pile: arming on the last attempt's (the end-zone node re-estimates
                 # the pile while the machine is in it, and publishes only when they move) failed an
                 # attempt 7 ms after its start. The end-zone node republishes on a change of 2 cm, so
-                # "this pile's" is: within ZONES_CAUGHT_UP_M of the twin's truth for this pile
-                spin(60.0, lambda: w.slope_scan_t > w.pile_t and w.zones_caught_up(),
+                # "this pile's" is: within ZONES_CAUGHT_UP_M of the twin's truth for this pile, or of
+                # the end-zone rule at the slope node's fit of a scan SLOPE_SETTLE_S after the pile
+                # was made (a rough face: Watch.zones_caught_up)
+                spin(60.0, lambda: w.slope_scan_t > w.pile_t and w.zones_caught_up(own_zones),
                      f"the LiDAR slope and end zone of pile {pile} (a scan after the pile was made)")
                 # the camera -> ArUco chain delivers odometry steadily, and every node that acts on
                 # the attempt status (mux, controller, recorder, twin) has joined the graph

@@ -13,7 +13,11 @@ and /diagnostics.
 
 The sensor's pose in the pile frame comes from parameters. The face is fitted robustly
 (perception/slope.py: only points between floor and `max_z` and near the scan plane; the face
-must rise from the floor). A scan without a face, or with a face outside [slope_min_deg,
+must rise from the floor; then the whole face at its own roughness). What is published is the
+median of the latest `filter_window` fits (perception/slope.SlopeFilter: a pile does not move
+between scans; one scan that disagrees by more than new_pile_slope_deg / new_pile_toe_m is held
+out and publishes nothing, `new_pile_scans` in a row that agree with each other are a new pile),
+stamped with the newest scan that agrees with it. A scan without a face, or with a face outside [slope_min_deg,
 slope_max_deg], publishes nothing and says why in /diagnostics and a throttled log; every output
 carries the scan's stamp, so the last value never looks fresh (consumers judge age by stamp).
 """
@@ -30,7 +34,8 @@ from sensor_msgs.msg import LaserScan, PointCloud2
 from std_msgs.msg import Float64
 
 from lhd_loading_ros.perception.geometry import apply, transform
-from lhd_loading_ros.perception.slope import NoSlope, SlopeOutOfRange, cloud_to_points, fit_slope, scan_to_points
+from lhd_loading_ros.perception.slope import (NoSlope, SlopeFilter, SlopeOutOfRange, cloud_to_points, fit_slope,
+                                             scan_to_points)
 from lhd_loading_ros.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from lhd_loading_ros.ros.params import Param, Params, topic_prefix
 from lhd_loading_ros.ros.qos import LATCHED_QOS
@@ -65,6 +70,14 @@ class LidarSlopeNode(Node):
             Param("scan_topic", "/lidar/scan", "LaserScan input (sensor-data QoS)"),
             Param("cloud_topic", "/lidar/points", "PointCloud2 input (sensor-data QoS)"),
             Param("seed", 0, "RANSAC random seed", lo=0, hi=2**31 - 1),
+            Param("filter_window", 5, "the slope published is the median of this many latest fits (1: every "
+                  "scan's own fit)", lo=1, hi=1000),
+            Param("filter_max_age", 2.0, "s: fits older than this leave the median", lo=0.01, hi=3600.0),
+            Param("new_pile_slope_deg", 3.0, "deg: a fit this far from the median in slope is held out, "
+                  "unless new_pile_scans in a row agree (a new pile)", lo=0.01, hi=90.0),
+            Param("new_pile_toe_m", 0.10, "m: the same for the toe", lo=0.001, hi=100.0),
+            Param("new_pile_scans", 2, "scans in a row that agree with each other and not with the median: "
+                  "a new pile", lo=1, hi=100),
             Param("namespace_prefix", "/lhd", "topic prefix when the node runs in the root namespace"),
         ])
         p = self.p
@@ -74,6 +87,8 @@ class LidarSlopeNode(Node):
                            threshold=p["inlier_threshold"], slope_min=math.radians(p["slope_min_deg"]),
                            slope_max=math.radians(p["slope_max_deg"]))
         self.rng = np.random.default_rng(p["seed"])
+        self.filter = SlopeFilter(p["filter_window"], p["filter_max_age"], p["new_pile_slope_deg"],
+                                  p["new_pile_toe_m"], p["new_pile_scans"])
         self.frame_id = p["frame_id"]
         ns = topic_prefix(self, p["namespace_prefix"])
         self.pub_slope = self.create_publisher(Float64, f"{ns}/pile/slope", LATCHED_QOS)
@@ -127,8 +142,16 @@ class LidarSlopeNode(Node):
         if not all(math.isfinite(v) for v in (f.alpha, f.toe_x, f.residual)):
             self._no_slope("fit not finite")
             return
+        fit_alpha, fit_toe = f.alpha, f.toe_x
         self.problem = None
         self.fits += 1
+        f = self.filter.add(self.last_scan, f)
+        if f is None:
+            self.get_logger().info(f"scan held out: its slope {math.degrees(fit_alpha):.1f} deg / toe {fit_toe:.3f} m "
+                                   f"disagrees with the median of the latest scans; published when "
+                                   f"{self.p['new_pile_scans']} scans in a row agree (a new pile)",
+                                   throttle_duration_sec=2.0)
+            return
         self.last_fit = (f, self.last_scan)
         self.pub_slope.publish(Float64(data=f.alpha))
         vs = Vector3Stamped()
@@ -147,7 +170,8 @@ class LidarSlopeNode(Node):
 
     def _report(self):
         now = time.monotonic()
-        values = {"scans": self.scans, "fits": self.fits}
+        values = {"scans": self.scans, "fits": self.fits, "held_out": self.filter.held_out,
+                  "fits_in_median": len(self.filter.fits)}
         if self.last_fit is not None:
             f, t = self.last_fit
             values.update(slope_deg=math.degrees(f.alpha), toe_x=f.toe_x, residual_m=f.residual, fit_age_s=now - t)

@@ -3,8 +3,15 @@
 Points (LaserScan in a vertical plane over the pile, or PointCloud2) are moved into the pile
 frame with the sensor's pose, floor points are dropped, and a line z = a x + b is fitted in
 the XZ plane by RANSAC restricted to plausible face slopes (so neither the floor nor the back
-wall can win), then refined by least squares on the inliers. alpha = atan(a); the toe is
-where the line meets the floor (x = -b / a).
+wall can win), then refined over the whole face at its own roughness (refine_face: the profile
+floor - face - crest, z = clip(a x + b, 0, h), by Tukey-weighted least squares). alpha = atan(a);
+the toe is where the line meets the floor (x = -b / a).
+
+Why the second stage (2026-11-28, docs/perception.md "Rough faces"): RANSAC's inlier band (2 cm,
+twice the range noise) fits a plane face, but on a face with bumps of a rock's size (3 cm sd) each
+scan's inliers are a different short run of the face, and alpha jumped by 2-4 deg between scans of
+a pile that does not move. The whole-face fit takes every point the profile model explains, so
+successive scans agree within 0.1-1 deg and the slope is the face's, not a bump's.
 """
 from __future__ import annotations
 
@@ -145,6 +152,9 @@ def fit_slope(pts_pile: np.ndarray, rng: np.random.Generator, floor_z: float = 0
         new = (dist < threshold) & span
         if new.sum() >= min_points:
             inl = new
+    refined = refine_face(x, z, float(sa), float(sb), threshold)
+    if refined is not None and refined[2].sum() >= min_points:
+        sa, sb, inl = refined
     alpha = math.atan(sa)
     if not slope_min <= alpha <= slope_max:
         raise SlopeOutOfRange(f"slope {math.degrees(alpha):.1f} deg outside "
@@ -152,6 +162,69 @@ def fit_slope(pts_pile: np.ndarray, rng: np.random.Generator, floor_z: float = 0
     res = float(np.sqrt(np.mean(((sa * x[inl] - z[inl] + sb) ** 2) / (1 + sa * sa))))
     return SlopeFit(alpha=alpha, toe_x=float(-sb / sa), residual=res, inliers=int(inl.sum()),
                     slope=float(sa), intercept=float(sb))
+
+
+TUKEY_C = 4.685        # Tukey biweight tuning constant (95 % efficiency under Gaussian residuals)
+RELIEF_START = 0.04    # m: the residual scale the whole-face fit starts from (a rough face's relief)
+RELIEF_MAX = 0.05      # m: the largest residual scale it accepts (more: clutter, not relief)
+CREST_STEP = 0.01      # m: the crest height h is searched on this grid
+REFINE_ROUNDS = 8
+
+
+def _tukey(u: np.ndarray) -> np.ndarray:
+    return np.where(np.abs(u) < 1.0, (1.0 - u * u) ** 2, 0.0)
+
+
+def refine_face(x: np.ndarray, z: np.ndarray, a: float, b: float, noise: float,
+                rounds: int = REFINE_ROUNDS) -> tuple[float, float, np.ndarray] | None:
+    """The face line over the whole face, from a first line z = a x + b (RANSAC's run).
+
+    The profile above the floor is modelled as floor - face - crest, z = clip(a x + b, 0, h),
+    and fitted robustly: each round (1) the crest height h minimises the Tukey cost of the whole
+    profile over a 1 cm grid (the crest plateau, where there is one, is then not taken for face);
+    (2) the points whose model height lies on the face (0 < a x + b < h) are fitted by iteratively
+    reweighted least squares with Tukey's biweight at scale sigma; (3) sigma is the face's own
+    robust residual scale (1.4826 MAD), between noise / 2 and RELIEF_MAX. It starts at RELIEF_START,
+    wide enough that the first round sees a rough face whole rather than the short run RANSAC
+    found. Returns (a, b, face inliers) or None when the face has vanished (fewer than 10 points)."""
+    if len(x) < 10:
+        return None
+    sig = RELIEF_START
+    floor_sig = max(noise / 2.0, 1e-3)
+    hs = np.arange(max(float(z.min()), 0.05), float(z.max()) + CREST_STEP, CREST_STEP)
+    zf = z.astype(np.float32)
+    m = None
+    for _ in range(rounds):
+        pred = a * x + b
+        # (1) the crest: cost of clip(pred, 0, h) for every h of the grid at once (a point whose
+        # model height is below the lowest h costs the same for every h: left out of the comparison)
+        up = pred > hs[0]
+        model = np.minimum(pred[up].astype(np.float32)[None, :], hs.astype(np.float32)[:, None])
+        u = (zf[up][None, :] - model) / np.float32(TUKEY_C * sig)
+        h = float(hs[int(np.argmin(np.minimum(u * u, 1.0).sum(axis=1)))])
+        # (2) the face: Tukey IRLS on the points the model puts on it
+        face = (pred > 0.0) & (pred < h)
+        w = _tukey((z - pred) / (TUKEY_C * sig)) * face
+        for _ in range(3):
+            m = w > 0.0
+            if m.sum() < 10:
+                return None
+            sw = np.sqrt(w[m])
+            A = np.column_stack([x[m], np.ones(m.sum())]) * sw[:, None]
+            (a, b), *_ = np.linalg.lstsq(A, z[m] * sw, rcond=None)
+            a, b = float(a), float(b)
+            w = _tukey((z - (a * x + b)) / (TUKEY_C * sig)) * face
+        m_prev, m = m, w > 0.0
+        if m.sum() < 10:
+            return None
+        # (3) the face's own scale
+        sig_prev = sig
+        sig = min(RELIEF_MAX, max(floor_sig, 1.4826 * float(np.median(np.abs(z[m] - (a * x[m] + b))))))
+        if m_prev is not None and np.array_equal(m, m_prev) and abs(sig - sig_prev) < 1e-4:
+            break       # converged: the same face points and scale as the round before
+    if not (math.isfinite(a) and math.isfinite(b)) or a <= 0.0:
+        return None
+    return a, b, m
 
 
 def _face_run(x: np.ndarray, z: np.ndarray, inl: np.ndarray, min_points: int) -> np.ndarray | None:
@@ -168,3 +241,65 @@ def _face_run(x: np.ndarray, z: np.ndarray, inl: np.ndarray, min_points: int) ->
             m[seg] = True
             return m
     return None
+
+
+class SlopeFilter:
+    """The pile's estimate over the last scans: a pile does not move between scans, so the fit
+    published is the median (in alpha) of the latest `window` fits no older than `max_age` s, a
+    whole fit (its alpha, toe and residual belong together). One scan that disagrees with it by more
+    than `jump_deg` in alpha or `jump_toe` in toe x is held out; `confirm` consecutive scans that
+    agree with each other and disagree with the window are a new pile, and replace the window.
+    window = 1 publishes every scan's own fit (no filtering).
+
+    Why (2026-11-28, docs/perception.md "Rough faces"): on a face with 3 cm of relief successive
+    scans still differ by up to 0.3 deg at 15 deg and 3 deg at 35 deg, and the end zone moves
+    0.18 m per degree on a 15 deg pile; the supervisor refuses to start an attempt whose zones
+    moved by more than 2 cm while it was armed.
+
+    A held-out scan publishes nothing, so the stamp of what is published is always that of a scan
+    which agrees with it: a new pile's first scan does not make the previous pile's slope look fresh."""
+
+    def __init__(self, window: int = 5, max_age: float = 2.0, jump_deg: float = 3.0, jump_toe: float = 0.10,
+                 confirm: int = 2):
+        if window < 1 or confirm < 1 or not (max_age > 0 and jump_deg > 0 and jump_toe > 0):
+            raise ValueError(f"SlopeFilter needs window >= 1, confirm >= 1 and positive max_age, jump_deg, jump_toe "
+                             f"(got {window}, {confirm}, {max_age}, {jump_deg}, {jump_toe})")
+        self.window, self.max_age, self.confirm = int(window), float(max_age), int(confirm)
+        self.jump_alpha, self.jump_toe = math.radians(jump_deg), float(jump_toe)
+        self.fits: list[tuple[float, SlopeFit]] = []       # (time, fit), oldest first
+        self.pending: list[tuple[float, SlopeFit]] = []    # consecutive scans that disagree with the window
+        self.held_out = 0                                   # scans held out so far
+
+    def _agree(self, f: SlopeFit, g: SlopeFit) -> bool:
+        return abs(f.alpha - g.alpha) <= self.jump_alpha and abs(f.toe_x - g.toe_x) <= self.jump_toe
+
+    def median(self) -> SlopeFit | None:
+        if not self.fits:
+            return None
+        order = sorted(self.fits, key=lambda tf: tf[1].alpha)
+        return order[(len(order) - 1) // 2][1]
+
+    def add(self, t: float, f: SlopeFit) -> SlopeFit | None:
+        """Takes a scan's fit at time t (s, monotonic) and returns the fit to publish, or None when
+        this scan is held out (nothing to publish: the last estimate keeps the stamp of the last scan
+        that agreed with it)."""
+        self.fits = [tf for tf in self.fits if t - tf[0] <= self.max_age]
+        self.pending = [tf for tf in self.pending if t - tf[0] <= self.max_age]
+        if self.window == 1:
+            self.fits = [(t, f)]
+            return f
+        med = self.median()
+        if med is None or self._agree(f, med):
+            self.pending = []
+            self.fits = (self.fits + [(t, f)])[-self.window:]
+        elif self.pending and not self._agree(f, self.pending[-1][1]):
+            self.pending = [(t, f)]          # disagrees with the window and with the scan before
+            self.held_out += 1
+            return None
+        else:
+            self.pending.append((t, f))
+            if len(self.pending) < self.confirm:
+                self.held_out += 1
+                return None
+            self.fits, self.pending = self.pending[-self.window:], []     # a new pile
+        return self.median()
