@@ -224,8 +224,13 @@ class SimNodePool:
         # one sim node serves one learner: another publisher on its /cmd (a learner, a policy node,
         # teleop) would step it between our commands (caught later too: every transition names
         # the command it was taken with)
-        t_pub = time.monotonic() + 0.3
-        while time.monotonic() < t_pub:
+        # This environment's own context is a new DDS participant: the others' endpoints arrive by
+        # discovery. Wait until the sim node's own /cmd subscription is known, then 1 s more for the
+        # other participants' (0.3 s in all, until 2026-11-28, missed a stray publisher on a loaded
+        # 2-core machine)
+        t_pub = time.monotonic() + 1.0
+        while (time.monotonic() < t_pub or self.node.count_subscribers(f"{link.prefix}/cmd") < 1) \
+                and time.monotonic() < t_end:
             self.executor.spin_once(timeout_sec=0.05)
         # (another environment of this same process is let through: gymnasium's check_env makes a
         # second one only to close it; one that steps is still caught by the command check)

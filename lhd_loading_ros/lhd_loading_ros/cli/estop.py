@@ -23,8 +23,12 @@ def main(argv=None) -> int:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("action", choices=("on", "off", "status"))
     ap.add_argument("--namespace", default="/lhd", help="topic prefix of the machine (default /lhd)")
-    ap.add_argument("--timeout", type=float, default=3.0,
-                    help="seconds to wait for the mux (default 3); status listens at least 1 s")
+    # 10 s: it returns as soon as the mux confirms; only a missing mux waits it out. 3 s (until
+    # 2026-11-28) was sometimes shorter than a new process's DDS discovery on a loaded 2-core
+    # machine, and a safety command must not report "no confirmation" for a mux that is there
+    ap.add_argument("--timeout", type=float, default=10.0,
+                    help="seconds to wait for the mux (default 10; it returns as soon as the mux confirms); "
+                         "status listens at least 1 s")
     args = ap.parse_args(argv)
     if not args.timeout > 0:
         print(f"lhd estop: --timeout must be > 0 s, got {args.timeout}", file=sys.stderr)
