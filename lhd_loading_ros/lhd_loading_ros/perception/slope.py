@@ -152,9 +152,16 @@ def fit_slope(pts_pile: np.ndarray, rng: np.random.Generator, floor_z: float = 0
         new = (dist < threshold) & span
         if new.sum() >= min_points:
             inl = new
-    refined = refine_face(x, z, float(sa), float(sb), threshold)
+    # the whole face, the points of the floor band (|z| <= floor_z) included: their model height is 0
+    # before the toe, but on a rough face the face's lowest part lies in that band too, and leaving it
+    # out (as RANSAC's search must, or the floor would win) cuts the face's bumps from below and
+    # moves the toe
+    band = (np.abs(pts_pile[:, 2]) <= floor_z) & (np.abs(pts_pile[:, 1]) <= max_abs_y)
+    xa, za = np.concatenate([x, pts_pile[band, 0]]), np.concatenate([z, pts_pile[band, 2]])
+    refined = refine_face(xa, za, float(sa), float(sb), threshold)
     if refined is not None and refined[2].sum() >= min_points:
         sa, sb, inl = refined
+        x, z = xa, za
     alpha = math.atan(sa)
     if not slope_min <= alpha <= slope_max:
         raise SlopeOutOfRange(f"slope {math.degrees(alpha):.1f} deg outside "
@@ -181,7 +188,7 @@ def refine_face(x: np.ndarray, z: np.ndarray, a: float, b: float, noise: float,
                 rounds: int = REFINE_ROUNDS) -> tuple[float, float, np.ndarray] | None:
     """The face line over the whole face, from a first line z = a x + b (RANSAC's run).
 
-    The profile above the floor is modelled as floor - face - crest, z = clip(a x + b, 0, h),
+    The profile (floor band included) is modelled as floor - face - crest, z = clip(a x + b, 0, h),
     and fitted robustly: each round (1) the crest height h minimises the Tukey cost of the whole
     profile over a 1 cm grid (the crest plateau, where there is one, is then not taken for face);
     (2) the points whose model height lies on the face (0 < a x + b < h) are fitted by iteratively
