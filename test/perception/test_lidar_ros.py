@@ -24,7 +24,7 @@ from lhd_loading_ros.perception.synthetic import DrawPoint, synthetic_cloud, syn
 from rosutil import RosProcess, init_ros, shutdown_ros, spin_until
 
 MODULE = "lhd_loading_ros.nodes.lidar_slope_node"
-OK, ERROR = DiagnosticStatus.OK, DiagnosticStatus.ERROR
+OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
 FULL_CIRCLE = dict(n=1440, angle_min=-math.pi, angle_max=math.pi * (1 - 1 / 720))   # a 360 deg scanner
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
@@ -257,6 +257,20 @@ def test_the_published_slope_is_the_median_of_the_latest_scans_and_follows_a_new
         assert ok, seen
         vals = {kv.key: kv.value for st in rig.diag[-1:] for kv in st.values}
         assert vals["held_out"] == "2" and vals["fits_in_median"] == "2", vals
+        # scans that disagree with the slope and with each other (40, 20, 40 deg right after a scan of the
+        # 30 deg pile, within filter_max_age of it): nothing published, and after three in a row
+        # /diagnostics warns
+        assert abs(rig.fit(scan(30.0, 19, 77.0)) - 30.0) < 1.0
+        n = len(rig.slopes)
+        for k, al in enumerate((40.0, 20.0, 40.0)):
+            rig.pub_scan.publish(scan(al, 20 + k, 78.0 + k))
+            spin_until(rig.node, lambda: False, 0.15)
+        ok, seen = rig.wait_diag(WARN, "3 scans in a row held out")
+        assert len(rig.slopes) == n
+        assert ok, seen
+        assert abs(rig.fit(scan(30.0, 30, 81.0)) - 30.0) < 1.0          # the pile again: published, and OK
+        ok, seen = rig.wait_diag(OK, "slope 30.")
+        assert ok, seen
     finally:
         rig.close()
 
@@ -272,3 +286,14 @@ def test_wrong_parameter_is_one_line_and_exit_2(tmp_path, params, needle):
     out = p.log().strip()
     p.stop()
     assert needle in out and len(out.splitlines()) == 1, out
+
+
+def test_a_malformed_ros_argument_is_a_clear_exit_2(tmp_path):
+    """`-p filter_window:=` (no value): rcl refuses to start. Every node (ros/run.py) says so in one
+    line of its own, exit status 2, no traceback (rcl adds its own log line)."""
+    p = RosProcess(MODULE, {"filter_window": ""}, tmp_path / "bad.log")
+    assert p.proc.wait(60) == 2, p.log()
+    out = p.log()
+    p.stop()
+    assert "lidar_slope_node: cannot start: failed to initialize rcl: Couldn't parse parameter override rule: " \
+           "'-p filter_window:='" in out and "Traceback" not in out, out

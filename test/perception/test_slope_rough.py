@@ -71,6 +71,22 @@ def test_refine_face_takes_the_face_not_the_crest_plateau():
     assert m[:80].all() and not m[80:].any()
 
 
+def test_a_bare_floor_is_no_slope_whatever_the_floor_band():
+    """A scan of the floor alone (no pile, nothing 5 cm above it) with floor_z 0 or 0.01, as the
+    parameter allows: the whole-face stage has no crest to search; the answer is NoSlope (the face
+    RANSAC may find in the floor's noise is out of range), never another exception (an IndexError
+    ended the node once: review of 2026-11-28)."""
+    from lhd_loading_ros.perception.slope import NoSlope
+    rng = np.random.default_rng(3)
+    x = np.linspace(-1.0, 3.0, 700)
+    pts = np.column_stack([x, np.zeros_like(x), rng.normal(0.0, 0.01, x.size)])
+    for floor_z in (0.0, 0.01, 0.03):
+        for k in range(10):
+            with pytest.raises(NoSlope):
+                fit_slope(pts, np.random.default_rng(k), floor_z=floor_z)
+    assert refine_face(x, np.full_like(x, 0.02), 0.3, 0.0, 0.02) is None
+
+
 def _fit(alpha_deg, toe=0.0):
     a = math.tan(math.radians(alpha_deg))
     return SlopeFit(alpha=math.radians(alpha_deg), toe_x=toe, residual=0.01, inliers=100, slope=a, intercept=-a * toe)

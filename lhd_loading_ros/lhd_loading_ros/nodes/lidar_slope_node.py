@@ -19,7 +19,10 @@ between scans; one scan that disagrees by more than new_pile_slope_deg / new_pil
 out and publishes nothing, `new_pile_scans` in a row that agree with each other are a new pile),
 stamped with the newest scan that agrees with it. A scan without a face, or with a face outside [slope_min_deg,
 slope_max_deg], publishes nothing and says why in /diagnostics and a throttled log; every output
-carries the scan's stamp, so the last value never looks fresh (consumers judge age by stamp).
+carries the stamp of the newest scan that agrees with it, so the last value never looks fresher than
+the scans behind it (consumers judge age by stamp). The fit published is the median of scans up to
+`filter_max_age` old (by arrival time here, not by stamp: a bag replayed at another speed changes
+which scans it spans); after a pause longer than that, the first scan stands alone.
 """
 from __future__ import annotations
 
@@ -42,6 +45,7 @@ from lhd_loading_ros.ros.qos import LATCHED_QOS
 from lhd_loading_ros.ros.run import run_node
 
 NO_SCAN_WARN_S = 5.0     # diagnostics: WARN when no scan came for this long
+HELD_WARN_SCANS = 3      # diagnostics: WARN when this many scans in a row were held out by the filter
 
 
 class LidarSlopeNode(Node):
@@ -101,6 +105,7 @@ class LidarSlopeNode(Node):
         self.last_fit = None                    # (SlopeFit, monotonic time)
         self.problem: str | None = None         # why the last scan gave no slope
         self.scans = self.fits = 0
+        self.held_in_a_row = 0                  # scans held out by the filter since the last publication
         self.diag = Diagnostics(self, {"slope": self._report})
 
     def _range_problem(self, lo_deg, hi_deg) -> str | None:
@@ -139,6 +144,10 @@ class LidarSlopeNode(Node):
         except NoSlope as exc:
             self._no_slope(f"no pile in scan: {exc}")
             return
+        except Exception as exc:        # a scan no test foresaw must not end the node: nothing published, said why
+            self._no_slope(f"slope fit failed on this scan ({type(exc).__name__}: {exc}); please report it with a "
+                           f"recording of the scan")
+            return
         if not all(math.isfinite(v) for v in (f.alpha, f.toe_x, f.residual)):
             self._no_slope("fit not finite")
             return
@@ -147,11 +156,13 @@ class LidarSlopeNode(Node):
         self.fits += 1
         f = self.filter.add(self.last_scan, f)
         if f is None:
+            self.held_in_a_row += 1
             self.get_logger().info(f"scan held out: its slope {math.degrees(fit_alpha):.1f} deg / toe {fit_toe:.3f} m "
                                    f"disagrees with the median of the latest scans; published when "
                                    f"{self.p['new_pile_scans']} scans in a row agree (a new pile)",
                                    throttle_duration_sec=2.0)
             return
+        self.held_in_a_row = 0
         self.last_fit = (f, self.last_scan)
         self.pub_slope.publish(Float64(data=f.alpha))
         vs = Vector3Stamped()
@@ -181,6 +192,10 @@ class LidarSlopeNode(Node):
             return WARN, f"no scan for {now - self.last_scan:.1f} s", values
         if self.problem is not None:
             return ERROR, self.problem, values
+        if self.held_in_a_row >= HELD_WARN_SCANS:
+            return WARN, (f"{self.held_in_a_row} scans in a row held out: they disagree with the published slope "
+                          f"{math.degrees(self.last_fit[0].alpha):.1f} deg and with each other (a changing or rough "
+                          f"pile); the slope keeps its older stamp"), values
         return OK, f"slope {math.degrees(self.last_fit[0].alpha):.1f} deg", values
 
 

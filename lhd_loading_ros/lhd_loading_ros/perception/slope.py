@@ -198,9 +198,11 @@ def refine_face(x: np.ndarray, z: np.ndarray, a: float, b: float, noise: float,
     found. Returns (a, b, face inliers) or None when the face has vanished (fewer than 10 points)."""
     if len(x) < 10:
         return None
+    hs = np.arange(max(float(z.min()), 0.05), float(z.max()) + CREST_STEP, CREST_STEP)
+    if len(hs) == 0:
+        return None         # nothing 5 cm above the floor (a bare floor with floor_z near 0): no crest to search
     sig = RELIEF_START
     floor_sig = max(noise / 2.0, 1e-3)
-    hs = np.arange(max(float(z.min()), 0.05), float(z.max()) + CREST_STEP, CREST_STEP)
     stride = max(1, -(-len(x) // CREST_POINTS))       # ceil: at most CREST_POINTS in the crest search
     xs, zs = x[::stride], z[::stride].astype(np.float32)
     m = None

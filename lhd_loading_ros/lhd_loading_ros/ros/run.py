@@ -17,6 +17,7 @@ import threading
 from typing import Callable
 
 import rclpy
+from rclpy._rclpy_pybind11 import RCLError
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
@@ -29,7 +30,12 @@ def run_node(make_node: Callable, name: str, args=None, before_destroy: Callable
     0 after a requested stop, 2 for a bad parameter (message printed). `before_destroy(node)`
     runs while the node can still publish and talk to its hardware."""
     stop = stop or threading.Event()
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    except RCLError as exc:
+        # a malformed --ros-args (`-p name:=` with no value, an unknown flag): rcl refuses to start
+        print(f"{name}: cannot start: {exc}".split(", at /")[0], flush=True)
+        return 2
     previous = {}
     if threading.current_thread() is threading.main_thread():
         for sig in (signal.SIGINT, signal.SIGTERM):
