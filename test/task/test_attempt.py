@@ -382,6 +382,15 @@ def test_an_attempt_whose_zones_changed_or_whose_tip_moved_while_armed_does_not_
     r.sv.inputs.put("zones", replace(ZONES, x_max=1.01, x_min=0.49), r.t + 0.5)
     assert r.step(1.0) == "running"
     assert r.sv.attempt.zones == ZONES                                     # still arming's
+    # zones_tolerance: a 3 cm re-estimate (a rough face's median moving) aborts at the default 2 cm
+    # and starts at 5 cm; 6 cm aborts at 5 cm
+    for tol, dx, end in ((0.02, 0.03, "aborted"), (0.05, 0.03, "running"), (0.05, 0.06, "aborted")):
+        r = Rig(kin, zones_tolerance=tol).ready()
+        r.arm()
+        r.sv.inputs.put("zones", replace(ZONES, x_cutoff=ZONES.x_cutoff + dx), r.t + 0.5)
+        assert r.step(1.0) == end, (tol, dx)
+    with pytest.raises(ValueError, match="zones_tolerance = 0.0: expected metres in"):
+        settings(zones_tolerance=0.0)
 
 
 def test_restricted_zone_is_a_failure_known_without_weighing(kin):

@@ -119,6 +119,10 @@ class SupervisorNode(Node):
             Param("slope_timeout", 2.0, "s: to arm, the pile slope must be younger than this (the LiDAR node sends "
                   "one per scan; a hung one leaves the previous pile's slope and zones latched); 0: no limit (a "
                   "surveyed slope published once)", lo=0.0, hi=3600.0),
+            Param("zones_tolerance", 0.02, "m: during the arm delay, a zone limit re-estimated farther than this "
+                  "from the one frozen at arming aborts the attempt before it starts (another pile estimate); on a "
+                  "rough face raise it with the end-zone node's republish_threshold, to about 0.05",
+                  lo=0.001, hi=1.0),
             Param("arm_fresh_fraction", 0.5, "to arm, every input must be younger than this fraction of its timeout "
                   "(an input nearly as old as its timeout would end the armed attempt one late message later)",
                   lo=0.05, hi=1.0),
@@ -153,7 +157,7 @@ class SupervisorNode(Node):
                             hw_status_timeout=gp("hw_status_timeout"), mass_settle_s=gp("mass_settle_s"), prefix=ns,
                             end_check_period=p.control_dt if gp("end_check_period") < 0 else gp("end_check_period"),
                             max_tilt_deg=gp("max_tilt_deg"), arm_fresh_fraction=gp("arm_fresh_fraction"),
-                            slope_timeout=gp("slope_timeout"))
+                            slope_timeout=gp("slope_timeout"), zones_tolerance=gp("zones_tolerance"))
         self.run_dir = Path(gp("run_dir")).expanduser().resolve()
         self.csv = csv_path(self.run_dir)
         try:

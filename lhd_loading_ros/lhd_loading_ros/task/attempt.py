@@ -78,6 +78,7 @@ STATUS_TIMEOUT_S = 1.5
 STALL_MEMORY_S = 30.0      # s: a pause is forgotten this long after it ended (any input older is long lost)
 ZONE_LIMITS = tuple(f.name for f in fields(Zones))
 ZONES_CHANGED_M = 0.02     # m: a zone limit republished this far from arming's = another pile estimate
+                           # (Settings.zones_tolerance's default; the end-zone node republishes on 2 cm)
 REASONS = {
     "success": "bucket tip reached the end zone",
     "failure": "bucket tip entered the restricted zone",
@@ -122,6 +123,12 @@ class Settings:
     # LiDAR node would leave the previous pile's slope and zones latched); 0: no limit (a surveyed,
     # latched slope). The supervisor node's default is 2 s
     slope_timeout: float = 0.0
+    # m: during the arm delay, a zone limit re-estimated farther than this from the one frozen at
+    # arming aborts the attempt before it starts (another pile estimate: a new pile, the machine
+    # moved). On a rough face the LiDAR's median can move the end zone by a few cm between scans
+    # (docs/perception.md "Rough faces"): an operator raises it, with the end-zone node's
+    # republish_threshold, to about 0.05 there
+    zones_tolerance: float = ZONES_CHANGED_M
 
     def __post_init__(self):
         lo, hi = self.slope_range_deg
@@ -131,6 +138,8 @@ class Settings:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} = {v!r}: expected a positive number of seconds")
+        if not (math.isfinite(self.zones_tolerance) and 0.0 < self.zones_tolerance <= 1.0):
+            raise ValueError(f"zones_tolerance = {self.zones_tolerance!r}: expected metres in (0, 1]")
         if not (math.isfinite(self.arm_delay) and self.arm_delay >= 0):
             raise ValueError(f"arm_delay = {self.arm_delay!r}: expected seconds >= 0")
         if not (math.isfinite(self.max_tilt_deg) and 0.0 <= self.max_tilt_deg <= 45.0):
@@ -468,7 +477,7 @@ class Supervisor:
         now_zones = inp.values.get("zones")       # the last valid zones heard
         if now_zones is not None:
             moved = {k: (getattr(a.zones, k), getattr(now_zones, k)) for k in ZONE_LIMITS
-                     if abs(getattr(a.zones, k) - getattr(now_zones, k)) > ZONES_CHANGED_M}
+                     if abs(getattr(a.zones, k) - getattr(now_zones, k)) > self.s.zones_tolerance}
             if moved:
                 what = ", ".join(f"{k} {old:.3f} -> {new:.3f} m" for k, (old, new) in moved.items())
                 return (f"not started: the pile zones changed while armed ({what}); the attempt would run on the "
