@@ -17,7 +17,6 @@ import threading
 from typing import Callable
 
 import rclpy
-from rclpy._rclpy_pybind11 import RCLError
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
@@ -32,7 +31,7 @@ def run_node(make_node: Callable, name: str, args=None, before_destroy: Callable
     stop = stop or threading.Event()
     try:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    except RCLError as exc:
+    except Exception as exc:        # rclpy's RCLError (a private module's class: not imported by name)
         # a malformed --ros-args (`-p name:=` with no value, an unknown flag): rcl refuses to start
         print(f"{name}: cannot start: {exc}".split(", at /")[0], flush=True)
         return 2
