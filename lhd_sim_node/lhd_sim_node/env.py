@@ -84,7 +84,13 @@ class LhdLoadingEnv(gym.Env):
         self.conditions = c
         self.sim.reset(self.np_random, alpha=alpha, material=options.get("material", self.material),
                        d_attack=options.get("d_attack"), attack_speed=options.get("attack_speed"), conditions=c)
-        self._sensors = None if c == NOMINAL else ObservationCorruptor(c, self.np_random)
+        c_obs = c
+        if c.surface_sd > 0.0:
+            # a rough face: the LiDAR scans one slice of it (the pile's XZ plane), whose own slope
+            # differs from the plane's; that difference is part of the slope the policy is told
+            slice_err = math.degrees(self.sim.pile.slice_slope(0.0) - self.sim.pile.alpha)
+            c_obs = replace(c, slope_error_deg=c.slope_error_deg + slice_err)
+        self._sensors = None if c_obs == NOMINAL else ObservationCorruptor(c_obs, self.np_random)
         s = self.sim.state()
         # the reward's x_midgoal: the paper's constant, or this pile's x_min (task.midgoal_from_pile)
         self.tracker = RewardTracker(self.p.for_pile(self.sim.zones), self.sim.zones, self.p.h_pile)

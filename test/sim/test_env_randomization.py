@@ -243,3 +243,29 @@ def test_rough_stress_case_gives_every_pile_a_relief_and_nominal_piles_stay_plan
     seen.clear()
     evaluate(env, policy, 4, 21, cfg["task"]["bucket_capacity"], breakdown=False)
     assert seen == [0.0] * 4
+
+
+def test_on_a_rough_pile_the_policy_is_told_the_scanned_slices_slope(cfg):
+    """A rough face's slope as the machine's LiDAR measures it is its XZ slice's (docs/perception.md
+    "Rough faces"): the observation's alpha on a `rough` stress pile is the least-squares slope of
+    the centre slice's column tops (computed here with numpy from the pile, between 3 cm above the
+    floor and 3 cm below the crest), not the plane's; on a plane pile both are alpha."""
+    from lhd_loading_ros.task.randomization import stress_conditions
+
+    env = LhdLoadingEnv("rld", cfg)
+    p = env.p
+    differs = []
+    for i in range(6):
+        obs, _ = env.reset(seed=40 + i, options={"slope_deg": 20.0, "conditions": stress_conditions("rough", i, cfg)})
+        pile = env.sim.pile
+        j = int(np.argmin(np.abs(pile.y_centers)))
+        top = pile.top0[j]
+        face = (top > 0.03) & (top < pile.h - 0.03)
+        own = math.atan(np.polyfit(pile.x_centers[face], top[face], 1)[0])
+        told = p.alpha_min + float(obs[11]) * (p.alpha_max - p.alpha_min)
+        assert told == pytest.approx(own, abs=1e-5), (math.degrees(told), math.degrees(own))
+        differs.append(abs(math.degrees(own - pile.alpha)))
+    assert max(differs) > 0.2                       # the relief really tilts the slices
+    obs, _ = env.reset(seed=40, options={"slope_deg": 20.0})
+    assert p.alpha_min + float(obs[11]) * (p.alpha_max - p.alpha_min) == pytest.approx(math.radians(20.0), abs=1e-6)
+    assert env.sim.pile.slice_slope() == pytest.approx(math.radians(20.0), abs=1e-9)

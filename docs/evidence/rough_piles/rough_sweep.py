@@ -3,7 +3,9 @@
 For each relief sd (m; correlation length 0.15 m, task/pile.py VoxelPile.roughen), 120 held-out
 episodes (seed 2,000,000, the evaluation's 15-30 deg / material stratification) per actor, RLC
 with the deployment filter as on the machine. An episode whose attack drive (the environment's
-approach at constant speed, before the actor acts) stalls on a bump at the toe is counted apart. Every other condition nominal. The `rough` stress
+approach at constant speed, before the actor acts) stalls on a bump at the toe is counted apart. The
+policy is told the centre slice's own slope (VoxelPile.slice_slope, what the LiDAR measures; since the
+rerun of 2026-11-28). Every other condition nominal. The `rough` stress
 case of `lhd eval --stress rough` is the 0.03 m row.
 
     .venv/bin/python docs/evidence/rough_piles/rough_sweep.py > docs/evidence/rough_piles/rough_sweep.txt

@@ -179,7 +179,9 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
                length ROUGH_CORR (15 cm) about it (VoxelPile.roughen). A pile dumped by a feeder or by
                hand has bumps of about the size of its largest pieces (the paper's 8-15 cm rocks in 2-5
                cm gravel); the simulator's piles, in training too, are planes. The observed slope is
-               the plane's, as a LiDAR fit over the face would give it
+               the centre slice's own (VoxelPile.slice_slope; the environment adds its difference
+               from the plane to the slope error): what the machine's LiDAR, scanning that slice,
+               measures at best
     """
     r = cfg["randomization"]
     sensors = dict(vx_noise=r["vx_noise"], vx_dropout_probability=r["vx_dropout_probability"],
