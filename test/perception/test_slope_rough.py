@@ -114,3 +114,27 @@ def test_slope_filter_median_hold_out_new_pile_and_age():
     assert [math.degrees(g.add(t, _fit(a)).alpha) for t, a in enumerate((20.0, 30.0, 20.0))] == pytest.approx([20, 30, 20])
     with pytest.raises(ValueError, match="window >= 1"):
         SlopeFilter(window=0)
+
+
+def test_a_dense_cloud_is_thinned_to_the_same_answer():
+    """A 3-D LiDAR can put 200,000 points in the band: the fit takes every k-th (MAX_FIT_POINTS),
+    and gives the full cloud's slope and toe (computed here with the cap lifted) within 0.05 deg and
+    5 mm, and the true ones within 0.2 deg and 1 cm, in the draw point's clutter."""
+    import lhd_loading_ros.perception.slope as S
+    from lhd_loading_ros.perception.synthetic import synthetic_cloud
+
+    T = transform((0.6, 0.0, 1.6), (math.pi / 2, 0.0, 0.0))
+    for alpha in (15.0, 30.0):
+        pts = synthetic_cloud(math.radians(alpha), np.random.default_rng(1), yaws_deg=tuple(np.linspace(-20, 20, 81)),
+                              n=2880, clutter=DrawPoint())
+        pile = apply(T, pts)
+        assert np.sum(np.abs(pile[:, 1]) <= 0.3) > 5 * S.MAX_FIT_POINTS
+        thin = fit_slope(pile, np.random.default_rng(0))
+        cap = S.MAX_FIT_POINTS
+        try:
+            S.MAX_FIT_POINTS = 10 ** 9
+            full = fit_slope(pile, np.random.default_rng(0))
+        finally:
+            S.MAX_FIT_POINTS = cap
+        assert math.degrees(abs(thin.alpha - full.alpha)) < 0.05 and abs(thin.toe_x - full.toe_x) < 0.005
+        assert math.degrees(abs(thin.alpha - math.radians(alpha))) < 0.2 and abs(thin.toe_x) < 0.01

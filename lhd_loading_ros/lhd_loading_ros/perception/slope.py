@@ -89,6 +89,8 @@ SEARCH_MIN, SEARCH_MAX = math.radians(2.0), math.radians(75.0)
 FOOT_MAX_Z = 0.15    # m: the face's lowest point must be this close to the floor (the toe is in view)
 MAX_GAP = 0.15       # m along x: a larger gap between points on a line ends a contiguous run
 MAX_CANDIDATES = 20  # lines (most inliers first) checked for a face before giving up
+MAX_FIT_POINTS = 12000  # points of the band a fit takes at most (every k-th of a denser cloud): a scan
+                        # line has 720-1440; a 3-D cloud can put 100,000 and more in the band
 
 
 def fit_slope(pts_pile: np.ndarray, rng: np.random.Generator, floor_z: float = 0.03, min_points: int = 30,
@@ -103,7 +105,13 @@ def fit_slope(pts_pile: np.ndarray, rng: np.random.Generator, floor_z: float = 0
     heaped bucket, the machine or a slope in the roof cannot pass for the face. Least squares on
     that run, twice. A face outside [slope_min, slope_max] raises SlopeOutOfRange; no face
     raises TooFewPoints: never a guess."""
-    keep = (pts_pile[:, 2] > floor_z) & (pts_pile[:, 2] < max_z) & (np.abs(pts_pile[:, 1]) <= max_abs_y)
+    in_band = np.abs(pts_pile[:, 1]) <= max_abs_y
+    if in_band.sum() > MAX_FIT_POINTS:
+        # a dense 3-D cloud: every k-th point of the band (RANSAC scores each of its `iterations` lines
+        # on every point: 200 x 178,000 float32 is 142 MB a scan)
+        pts_pile = pts_pile[in_band][:: -(-int(in_band.sum()) // MAX_FIT_POINTS)]
+        in_band = np.ones(len(pts_pile), bool)
+    keep = (pts_pile[:, 2] > floor_z) & (pts_pile[:, 2] < max_z) & in_band
     p = pts_pile[keep]
     if len(p) < min_points:
         raise TooFewPoints(f"{len(p)} points between the floor and {max_z:g} m; need at least {min_points}")
