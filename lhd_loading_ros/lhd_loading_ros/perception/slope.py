@@ -103,8 +103,9 @@ def fit_slope(pts_pile: np.ndarray, rng: np.random.Generator, floor_z: float = 0
     proposes lines; the face is the line with the most inliers whose lowest contiguous run of
     inliers (gaps < MAX_GAP) holds `min_points` and starts at the floor (below FOOT_MAX_Z), so a
     heaped bucket, the machine or a slope in the roof cannot pass for the face. Least squares on
-    that run, twice. A face outside [slope_min, slope_max] raises SlopeOutOfRange; no face
-    raises TooFewPoints: never a guess."""
+    that run, twice; then the whole face from that line (refine_face). A face outside [slope_min,
+    slope_max] raises SlopeOutOfRange; no face raises TooFewPoints: never a guess. A band of more
+    than MAX_FIT_POINTS points (a dense 3-D cloud) is thinned to every k-th point first."""
     in_band = np.abs(pts_pile[:, 1]) <= max_abs_y
     if in_band.sum() > MAX_FIT_POINTS:
         # a dense 3-D cloud: every k-th point of the band (RANSAC scores each of its `iterations` lines
@@ -183,8 +184,8 @@ TUKEY_C = 4.685        # Tukey biweight tuning constant (95 % efficiency under G
 RELIEF_START = 0.04    # m: the residual scale the whole-face fit starts from (a rough face's relief)
 RELIEF_MAX = 0.05      # m: the largest residual scale it accepts (more: clutter, not relief)
 CREST_STEP = 0.01      # m: the crest height h is searched on this grid
-CREST_POINTS = 3000    # the crest search uses at most this many points (every k-th): a 3-D cloud of 34,000
-                       # points in the band took 560 ms a fit with all of them, 2,000 points take 3 ms
+CREST_POINTS = 3000    # the crest search uses at most this many points (every k-th): it scores every point
+                       # for each of up to 150 crest heights (34,000 points took 560 ms a fit, 3,000 take ~3 ms)
 REFINE_ROUNDS = 8
 
 
@@ -275,7 +276,7 @@ class SlopeFilter:
     Why (2026-11-28, docs/perception.md "Rough faces"): on a face with 3 cm of relief successive
     scans still differ by up to 0.3 deg at 15 deg and 3 deg at 35 deg, and the end zone moves
     0.18 m per degree on a 15 deg pile; the supervisor refuses to start an attempt whose zones
-    moved by more than 2 cm while it was armed.
+    moved by more than its zones_tolerance (2 cm) while it was armed.
 
     A held-out scan publishes nothing, so the stamp of what is published is always that of a scan
     which agrees with it: a new pile's first scan does not make the previous pile's slope look fresh."""
