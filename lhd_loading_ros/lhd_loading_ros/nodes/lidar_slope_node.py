@@ -14,15 +14,15 @@ and /diagnostics.
 The sensor's pose in the pile frame comes from parameters. The face is fitted robustly
 (perception/slope.py: only points between floor and `max_z` and near the scan plane; the face
 must rise from the floor; then the whole face at its own roughness). What is published is the
-median of the latest `filter_window` fits (perception/slope.SlopeFilter: a pile does not move
-between scans; one scan that disagrees by more than new_pile_slope_deg / new_pile_toe_m is held
-out and publishes nothing, `new_pile_scans` in a row that agree with each other are a new pile),
-stamped with the newest scan that agrees with it. A scan without a face, or with a face outside [slope_min_deg,
-slope_max_deg], publishes nothing and says why in /diagnostics and a throttled log; every output
-carries the stamp of the newest scan that agrees with it, so the last value never looks fresher than
-the scans behind it (consumers judge age by stamp). The fit published is the median of scans up to
-`filter_max_age` old (by arrival time here, not by stamp: a bag replayed at another speed changes
-which scans it spans); after a pause longer than that, the first scan stands alone.
+median of the latest `filter_window` fits up to `filter_max_age` old (perception/slope.SlopeFilter:
+a pile does not move between scans; one scan that disagrees by more than new_pile_slope_deg /
+new_pile_toe_m is held out and publishes nothing, `new_pile_scans` in a row that agree with each
+other are a new pile). Ages are by arrival here, not by stamp (a bag replayed at another speed
+changes which scans the median spans); after a pause longer than filter_max_age the first scan
+stands alone. A scan without a face, or with a face outside [slope_min_deg, slope_max_deg],
+publishes nothing and says why in /diagnostics and a throttled log. Every output carries the stamp
+of the newest scan that agrees with it, so the last value never looks fresher than the scans behind
+it (consumers judge age by stamp).
 """
 from __future__ import annotations
 
