@@ -34,6 +34,10 @@ LHD = [sys.executable, "-m", "lhd_loading_ros.cli.main"]
      "--material, --time-limit apply to --controller tampier only"),
     (["eval", "--policy", "policies/rld", "--stress", "dense", "--randomize"],
      "--randomize and --stress are alternatives"),
+    # a misspelled twin parameter: ROS would drop an undeclared -p override silently (a plane pile
+    # where a rough one was asked for, found by a reviewer on 2026-11-28)
+    (["up", "twin", "--twin-param", "pile_releif_sd=0.03"],
+     "the twin node has no parameter 'pile_releif_sd'; did you mean 'pile_relief_sd'?"),
 ])
 def test_a_bad_value_is_one_line_and_exit_2(args, needle):
     p = subprocess.run(LHD + args, capture_output=True, text=True, timeout=120)

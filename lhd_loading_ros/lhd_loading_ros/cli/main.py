@@ -437,7 +437,8 @@ def main(argv=None) -> int:
     p_eval = sub.add_parser("eval", help="evaluate an exported policy on the simulator")
     p_eval.add_argument("--controller", choices=["actor", "tampier"], default="actor",
                         help="actor: an exported policy (--policy); tampier: the Tampier-style heuristic baseline")
-    p_eval.add_argument("--policy", help="policy directory (actor.npz + policy.json)")
+    p_eval.add_argument("--policy", help="policy directory (actor.npz + policy.json); required for --controller actor. "
+                        "An actor shipped with its own lhd_params.yaml (policies/*_twin*) needs --config DIR/lhd_params.yaml")
     p_eval.add_argument("--slopes", default=None, help="tampier: pile slopes, degrees (default 15,20,25,30)")
     p_eval.add_argument("--material", choices=["both", "homogeneous", "nonhomogeneous"], default=None,
                         help="tampier: pile material (default both)")
@@ -450,7 +451,8 @@ def main(argv=None) -> int:
     p_eval.add_argument("--stress", choices=list(STRESS_CASES), default=None,
                         help="actor: every episode under a named stress case (placement: heading +-3 deg, lip +-5 cm "
                              "off axis, camera noise/dropouts/delay, 100 ms actuator dead time; sensors; delay; light / dense gravel: "
-                             "the density range's ends; rocky: every pile with randomization.rocks_max rocks)")
+                             "the density range's ends; rocky: every pile with randomization.rocks_max rocks; rough: every pile's face "
+                             "with a 3 cm relief, the policy told the scanned slice's slope)")
     p_eval.add_argument("--randomize", action="store_true",
                         help="actor: every episode under drawn conditions (config section randomization): how the "
                              "actor fares when the machine differs from the simulator")

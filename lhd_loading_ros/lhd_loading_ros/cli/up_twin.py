@@ -36,6 +36,7 @@ argument, 130 interrupted. docs/twin.md is the guide.
 from __future__ import annotations
 
 import argparse
+import difflib
 import json
 import math
 import os
@@ -455,6 +456,24 @@ class Watch:
         return None
 
 
+def twin_parameter_names() -> set[str]:
+    """The parameters the twin node declares (its `Param("name", ...)` entries, read from its source
+    without starting it), so that a misspelled --twin-param is refused at once instead of being
+    ignored by ROS (an undeclared -p override is dropped silently). Empty when the source cannot
+    be read: then nothing is checked."""
+    import ast
+    import importlib.util
+
+    try:
+        origin = importlib.util.find_spec("lhd_sim_node.twin_node").origin
+        tree = ast.parse(Path(origin).read_text())
+    except (ImportError, AttributeError, OSError, SyntaxError, ValueError):
+        return set()
+    return {n.args[0].value for n in ast.walk(tree)
+            if isinstance(n, ast.Call) and getattr(n.func, "id", None) == "Param" and n.args
+            and isinstance(n.args[0], ast.Constant) and isinstance(n.args[0].value, str)}
+
+
 def run_twin(args, real_args, slopes: list[float]) -> int:
     import rclpy
     from rclpy.signals import SignalHandlerOptions
@@ -765,8 +784,9 @@ def main(argv=None) -> int:
                      help="the paper's machine: no IMU (v_x from the camera alone: 0.022-0.027 m/s RMS on the worst "
                           "attempt; with the IMU 0.012-0.028, within 0.02 on 71 of 72 attempts: docs/twin.md)")
     ap.add_argument("--twin-param", action="append", default=[], metavar="NAME=VALUE",
-                    help="a parameter of the twin node (lhd_sim_node/twin_node.py), e.g. camera_dropout=0.05; "
-                         "repeatable")
+                    help="a parameter of the twin node (lhd_sim_node/twin_node.py), e.g. camera_dropout=0.05, or "
+                         "pile_relief_sd=0.03 (a rough face: 3 cm of relief; use --slopes inside the actor's range "
+                         "with a margin, e.g. 17 20 25 28); repeatable; a name the twin node does not declare is refused")
     ap.add_argument("--arm-timeout", type=float, default=60.0, help="s of preflight refusals before giving up")
     ap.add_argument("--params-file", help="ROS parameter file of the nodes and the twin's poses "
                                           "(default config/real_machine.yaml)")
@@ -783,9 +803,16 @@ def main(argv=None) -> int:
     if args.reset_delay < 1.5:
         ap.error(f"--reset-delay must be >= 1.5 s (the supervisor weighs over 1 s once the machine is still), "
                  f"got {args.reset_delay}")
+    known = twin_parameter_names()
     for kv in args.twin_param:
         if "=" not in kv or not kv.partition("=")[0].strip():
             ap.error(f"--twin-param {kv!r}: expected NAME=VALUE, e.g. camera_dropout=0.05")
+        name = kv.partition("=")[0].strip()
+        if known and name not in known:
+            near = difflib.get_close_matches(name, sorted(known), n=1)
+            ap.error(f"--twin-param {kv!r}: the twin node has no parameter {name!r}"
+                     + (f"; did you mean {near[0]!r}?" if near else "")
+                     + f" Its parameters: {', '.join(sorted(known))}")
     if args.arm_timeout <= 0:
         ap.error(f"--arm-timeout must be positive, got {args.arm_timeout}")
     bad = slope_range_problem(args.slopes, args.config)

@@ -120,8 +120,9 @@ class SupervisorNode(Node):
                   "one per scan; a hung one leaves the previous pile's slope and zones latched); 0: no limit (a "
                   "surveyed slope published once)", lo=0.0, hi=3600.0),
             Param("zones_tolerance", 0.02, "m: during the arm delay, a zone limit re-estimated farther than this "
-                  "from the one frozen at arming aborts the attempt before it starts (another pile estimate); on a "
-                  "rough face raise it with the end-zone node's republish_threshold, to about 0.05",
+                  "from the one frozen at arming aborts the attempt before it starts (another pile estimate); it "
+                  "matters only above the end-zone node's republish_threshold (that node publishes no smaller "
+                  "change)",
                   lo=0.001, hi=1.0),
             Param("arm_fresh_fraction", 0.5, "to arm, every input must be younger than this fraction of its timeout "
                   "(an input nearly as old as its timeout would end the armed attempt one late message later)",

@@ -125,9 +125,11 @@ class Settings:
     slope_timeout: float = 0.0
     # m: during the arm delay, a zone limit re-estimated farther than this from the one frozen at
     # arming aborts the attempt before it starts (another pile estimate: a new pile, the machine
-    # moved). On a rough face the LiDAR's median can move the end zone by a few cm between scans
-    # (docs/perception.md "Rough faces"): an operator raises it, with the end-zone node's
-    # republish_threshold, to about 0.05 there
+    # moved). The end-zone node republishes only a change beyond its republish_threshold (2 cm), so
+    # this matters only above that threshold. On a rough face the LiDAR's median can move the end
+    # zone by a few cm between scans (docs/perception.md "Rough faces"): there the end-zone node's
+    # republish_threshold goes up to 0.05 (this tolerance may stay: every change then published is
+    # larger than 5 cm)
     zones_tolerance: float = ZONES_CHANGED_M
 
     def __post_init__(self):
