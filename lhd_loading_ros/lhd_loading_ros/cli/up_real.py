@@ -76,7 +76,8 @@ def stack(args, run_dir: Path) -> list[tuple[str, str, dict, list[str]]]:
                        if args.end_zone != "lidar" else {"source": "lidar"})}, []),
         ("supervisor", "lhd_loading_ros.nodes.supervisor_node",
          {**common, "run_dir": str(run_dir), "controller": args.controller, "policy_dir": policy_dir,
-          "material": args.material, "attempt_timeout": args.attempt_timeout}, []),
+          "material": args.material, "attempt_timeout": args.attempt_timeout,
+          "required_listeners": required_listeners(args)}, []),
         ("mux", "lhd_loading_ros.nodes.cmd_mux_node", {}, []),
         ("teleop", "lhd_loading_ros.nodes.teleop_node", {"mapping": args.joy_mapping}, []),
     ]
@@ -91,6 +92,14 @@ def stack(args, run_dir: Path) -> list[tuple[str, str, dict, list[str]]]:
         nodes.append(("recorder", "lhd_loading_ros.nodes.recorder_node",
                       {"run_dir": str(run_dir), "storage": args.storage}, []))
     return nodes
+
+
+def required_listeners(args) -> list[str]:
+    """The stack's nodes that act on /lhd/episode: the supervisor arms only once each listens
+    (an attempt armed within the first second, before the recorder had discovered the status,
+    had no bag; before the mux and controller had, the machine would not move)."""
+    names = ["lhd_cmd_mux"] + (["lhd_policy"] if args.controller != "teleop" else [])
+    return names + (["lhd_recorder"] if args.record else [])
 
 
 class Console:

@@ -78,6 +78,15 @@ OVERTAKEN_NS = 1_000_000_000
 LABEL = re.compile(r"^[A-Za-z0-9_.-]{1,32}$")
 
 
+NODE_NAME = re.compile(r"^(/[A-Za-z_][A-Za-z0-9_]*)*/?[A-Za-z_][A-Za-z0-9_]*$")
+
+
+def _check_node_names(v) -> str | None:
+    bad = [n for n in v if n and not NODE_NAME.match(n)]
+    return (f"not node names {bad}: expected names such as 'lhd_recorder' or '/ns/lhd_recorder' "
+            "([''] for none)") if bad else None
+
+
 def _utc_stamp() -> str:
     return datetime.datetime.now(datetime.timezone.utc).strftime("%Y%m%d-%H%M%S")
 
@@ -137,6 +146,9 @@ class SupervisorNode(Node):
             Param("frame_id", "pile", "frame of the markers (the pile frame of odom and pile/zones)"),
             Param("markers_hz", 5.0, "Hz, supervisor/markers at most this often while something changed "
                   "(0: none)", lo=0.0, hi=30.0),
+            Param("required_listeners", [""], "names of nodes that must subscribe to <prefix>/episode before "
+                  "an attempt may be armed (a preflight item), e.g. ['lhd_recorder']: an attempt armed before the "
+                  "recorder has discovered the status would have no bag; [''] for none", check=_check_node_names),
         ])
         gp = self.params.__getitem__
         cfg = load_config(gp("config") or None)
@@ -177,6 +189,7 @@ class SupervisorNode(Node):
         self._recorded = None            # (attempt, mass) of the latest row handed to the record
         self._status_sent = None         # monotonic time of the latest <prefix>/episode status
         self.status_timeout = self.params["status_timeout"]
+        self.required_listeners = tuple(n for n in self.params["required_listeners"] if n)
 
         self.pub_status = self.create_publisher(DiagnosticStatus, f"{ns}/episode", STATUS_QOS)
         self.frame_id = gp("frame_id")
@@ -306,9 +319,21 @@ class SupervisorNode(Node):
         self._publish_status()
 
     # ------------------------------------------------------------------ services
+    def _listener_problems(self) -> list[str]:
+        """A preflight item per required listener (parameter required_listeners) that does not
+        subscribe to <prefix>/episode: it would miss the attempt (a recorder: no bag)."""
+        if not self.required_listeners:
+            return []
+        topic = f"{self.prefix}/episode"
+        present = {i.node_name for i in self.get_subscriptions_info_by_topic(topic)}
+        present |= {f"{i.node_namespace.rstrip('/')}/{i.node_name}"
+                    for i in self.get_subscriptions_info_by_topic(topic)}
+        return [f"node {n} does not listen to {topic} yet (required_listeners): it would miss the attempt; "
+                "is it running?" for n in self.required_listeners if n not in present]
+
     def _on_arm(self, request, response):
         ok, message = self.core.arm(time.monotonic(), datetime.datetime.now(datetime.timezone.utc)
-                                    .strftime("%Y-%m-%dT%H:%M:%SZ"))
+                                    .strftime("%Y-%m-%dT%H:%M:%SZ"), self._listener_problems())
         response.success, response.message = ok, message
         if ok:
             self.get_logger().info(message)
@@ -426,7 +451,7 @@ class SupervisorNode(Node):
         return level, f"{c.state}: {values['reason']}", values
 
     def _diag_preflight(self):
-        problems = self.core.preflight(time.monotonic())
+        problems = self.core.preflight(time.monotonic(), self._listener_problems())
         if self.core.state in LIVE:
             return OK, f"attempt {self.core.attempt.number} {self.core.state}", {}
         if problems:

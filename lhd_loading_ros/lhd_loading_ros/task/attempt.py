@@ -392,8 +392,10 @@ class Supervisor:
         return (f"machine tilted {math.degrees(t[0]):.1f} deg (pitch {math.degrees(t[1]):+.1f} deg, nose down +; "
                 f"max_tilt_deg {self.s.max_tilt_deg:g}): the rear lifting; lower the boom")
 
-    def preflight(self, now: float) -> list[str]:
-        """Every reason not to start an attempt now, each a sentence; [] = ready."""
+    def preflight(self, now: float, extra: tuple[str, ...] | list[str] = ()) -> list[str]:
+        """Every reason not to start an attempt now, each a sentence; [] = ready. `extra`: the
+        node's own reasons (e.g. a required listener of the status that is not there yet),
+        listed last."""
         out = []
         estop = self._estop_problem(now, discount=False)
         if estop:
@@ -428,14 +430,15 @@ class Supervisor:
                 out.append(f"bucket tip in the restricted zone {at}, outside the permitted zone x in "
                            f"[{zones.x_obs_start:.3f}, {min(zones.x_obs_end, zones.x_cutoff):.3f}] m, |y| <= "
                            f"{zones.y_half:.3f} m: place the machine in front of the pile")
-        return out
+        return out + list(extra)
 
     # ------------------------------------------------------------------ commands
-    def arm(self, now: float, utc: str) -> tuple[bool, str]:
-        """Start attempt N (armed, running after arm_delay) if the preflight passes."""
+    def arm(self, now: float, utc: str, extra: tuple[str, ...] | list[str] = ()) -> tuple[bool, str]:
+        """Start attempt N (armed, running after arm_delay) if the preflight (with the node's
+        `extra` reasons) passes."""
         if self.state in LIVE:
             return False, f"attempt {self.attempt.number} is already {self.state}: abort it first"
-        problems = self.preflight(now)
+        problems = self.preflight(now, extra)
         if problems:
             return False, "not armed: " + "; ".join(problems)
         inp = self.inputs

@@ -1,0 +1,89 @@
+"""The supervisor's `required_listeners` as real processes over DDS: with the recorder named, an
+attempt is refused while no `lhd_recorder` subscribes to /lhd/episode (the preflight names it, in
+the arm answer and on /diagnostics), and once the real recorder node runs the attempt is armed and
+recorded into a bag. Before this item an attempt armed within the recorder's first second of
+discovery had no bag (CI, 2026-11-28). A malformed name is refused at start with the parameter's
+name."""
+import math
+import subprocess
+import sys
+import time
+
+import pytest
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from std_msgs.msg import Float64, Float64MultiArray
+
+from fake_machine import FakeMachine, wait_for
+from rosutil import RosProcess, init_ros, shutdown_ros
+from test_supervisor_node import END, START, ZONES
+
+SUPERVISOR = "lhd_loading_ros.nodes.supervisor_node"
+RECORDER = "lhd_loading_ros.nodes.recorder_node"
+
+
+@pytest.fixture(scope="module")
+def rig(tmp_path_factory):
+    init_ros()
+    node = rclpy.create_node("test_supervisor_listeners")
+    r = FakeMachine(node, START)
+    r.diag = []
+    node.create_subscription(DiagnosticArray, "/diagnostics",
+                             lambda m: r.diag.extend(s for s in m.status if s.name.endswith("supervisor: preflight")),
+                             10)
+    r.run_dir = tmp_path_factory.mktemp("run_listeners")
+    r.proc = RosProcess(SUPERVISOR, {"run_dir": str(r.run_dir), "attempt_timeout": 5.0, "arm_delay": 0.2,
+                                     "required_listeners": "['lhd_recorder']"},
+                        r.run_dir.parent / "supervisor_listeners.log")
+    r.recorder = None
+    r.pub_slope.publish(Float64(data=math.radians(20.0)))
+    r.pub_zones.publish(Float64MultiArray(data=ZONES))
+    yield r
+    if r.recorder is not None:
+        r.recorder.stop()
+    r.proc.stop()
+    r.close()
+    node.destroy_node()
+    shutdown_ros()
+
+
+def test_no_attempt_without_the_recorder_then_one_with_its_bag(rig):
+    rig.wait_state("idle", 0, timeout=60)
+    time.sleep(0.5)                                   # every input alive
+    res = rig.call(rig.arm_client)
+    assert not res.success, res.message
+    # the only problem left is the missing listener: every input is alive
+    assert res.message == ("not armed: node lhd_recorder does not listen to /lhd/episode yet (required_listeners): "
+                           "it would miss the attempt; is it running?"), res.message
+    assert wait_for(lambda: any("lhd_recorder does not listen" in s.message for s in rig.diag), 10.0), \
+        [s.message for s in rig.diag[-3:]]
+
+    rig.recorder = RosProcess(RECORDER, {"run_dir": str(rig.run_dir)}, rig.run_dir.parent / "recorder.log")
+    deadline, res = time.monotonic() + 60.0, None
+    while time.monotonic() < deadline:                 # the recorder starting and being discovered
+        res = rig.call(rig.arm_client)
+        if res.success:
+            break
+        assert "lhd_recorder does not listen" in res.message, res.message
+        time.sleep(0.5)
+    assert res is not None and res.success, f"{res and res.message}\n{rig.recorder.log()}"
+    n0 = len(rig.statuses)
+    rig.wait_state("running", 1, since=n0 - 5 if n0 >= 5 else 0)
+    rig.set_pose(END)
+    rig.wait_state("success", 1)
+    rig.set_pose(START)
+    assert wait_for(lambda: any("ready to arm" == s.message for s in rig.diag[-4:]), 10.0), \
+        [s.message for s in rig.diag[-3:]]
+    # the recorder wrote the attempt's bag (closed after its post-roll)
+    bag = rig.run_dir / "bags" / "attempt_0001"
+    assert wait_for(lambda: bag.is_dir() and any(bag.glob("*.mcap")) and (bag / "metadata.yaml").exists(), 20.0), \
+        (sorted(rig.run_dir.rglob("*")), rig.recorder.log())
+
+
+def test_a_malformed_node_name_is_refused_with_the_parameter(tmp_path):
+    p = subprocess.run([sys.executable, "-m", SUPERVISOR, "--ros-args", "-p", f"run_dir:={tmp_path}",
+                        "-p", "required_listeners:=['lhd recorder']"], capture_output=True, text=True, timeout=60)
+    assert p.returncode != 0
+    err = p.stdout + p.stderr
+    assert "required_listeners" in err and "'lhd recorder'" in err and "lhd_recorder" in err, err
+    assert "Traceback" not in err, err
