@@ -19,7 +19,10 @@ period) by the device loop of sim_due.SimDue (a thread on the steady clock), and
   the pile frame, twist.linear.x = v_x), drift (Float64MultiArray [front, rear] as 0/1),
   loaded_mass (Float64 kg), tip (geometry_msgs/PointStamped, the bucket tip), joint_states
   (sensor_msgs/JointState: boom, bucket and the four wheels as the simulator has them); once per
-  pile (latched): slope (Float64 rad) and zones (Float64MultiArray, task.zones.Zones.as_list());
+  pile (latched): slope (Float64 rad), zones (Float64MultiArray, task.zones.Zones.as_list()) and
+  slice_slope (Float64 rad): the slope of the pile's slice in the LiDAR's scan plane (VoxelPile.slice_slope
+  at the LiDAR's y), what a scanner can measure at best; on a plane pile it is the slope, on a rough one
+  (pile_relief_sd) it differs from it by the relief of that slice;
 * <prefix>/twin/truth/camera_lag (std_msgs/Float64MultiArray [stamp s, lag s], one per image
   published): how long after the instant its stamp names the image left the twin (rendering, and
   the twin's own lateness when the simulation runs behind the wall clock): `lhd up twin`
@@ -250,6 +253,7 @@ class TwinNode(Node):
         self.pub_js = self.create_publisher(JointState, f"{ns}/twin/truth/joint_states", MEASUREMENT_QOS)
         self.pub_slope = self.create_publisher(Float64, f"{ns}/twin/truth/slope", LATCHED_QOS)
         self.pub_zones = self.create_publisher(Float64MultiArray, f"{ns}/twin/truth/zones", LATCHED_QOS)
+        self.pub_slice_slope = self.create_publisher(Float64, f"{ns}/twin/truth/slice_slope", LATCHED_QOS)
         self.pub_markers = self.create_publisher(MarkerArray, f"{ns}/twin/markers", MEASUREMENT_QOS)
         # reliable keep-last 5 (MEASUREMENT_QOS): each message holds the frames since the last one
         self.pub_device_cmds = self.create_publisher(Float64MultiArray, f"{ns}/twin/device/commands", MEASUREMENT_QOS)
@@ -345,8 +349,11 @@ class TwinNode(Node):
         self.reset_reason = why
 
     def _publish_pile(self) -> None:
+        lidar_y = float(self.lidar.T_pile_sensor[1, 3]) if self.lidar is not None else 0.0
         with self.due.lock:
             alpha, zones = float(self.sim.pile.alpha), self.sim.zones.as_list()
+            slice_alpha = float(self.sim.pile.slice_slope(lidar_y))
+        self.pub_slice_slope.publish(Float64(data=slice_alpha))     # before the slope, which marks a new pile
         self.pub_slope.publish(Float64(data=alpha))
         self.pub_zones.publish(Float64MultiArray(data=[float(v) for v in zones]))
 

@@ -67,6 +67,10 @@ def test_one_twin_attempt_end_to_end(tmp_path):
     assert (run_dir / rows[0]["bag"] / "metadata.yaml").is_file()
 
     assert abs(rec["alpha_err_deg"]) <= ALPHA_BOUND_DEG, rec
+    # a plane pile: the slice the LiDAR scans has the pile's slope, so both errors are one
+    assert rec["slice_slope_deg"] == pytest.approx(20.0, abs=1e-6), rec
+    assert rec["alpha_slice_err_deg"] == pytest.approx(rec["alpha_err_deg"], abs=1e-6), rec
+    assert out["errors"]["alpha_slice_err_deg"]["n"] == 1, out["errors"]
     assert abs(rec["alpha_est_deg"] - 20.0) <= ALPHA_BOUND_DEG
     assert abs(rec["x_max_err_m"]) <= X_MAX_BOUND_M, rec
     # v_x: measured over the running phase, the truth interpolated at each estimate's stamp; the
