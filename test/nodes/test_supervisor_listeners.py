@@ -54,7 +54,7 @@ def test_no_attempt_without_the_recorder_then_one_with_its_bag(rig):
     assert not res.success, res.message
     # the only problem left is the missing listener: every input is alive
     assert res.message == ("not armed: node lhd_recorder does not listen to /lhd/episode yet (required_listeners): "
-                           "it would miss the attempt; is it running?"), res.message
+                           "it would miss the attempt (is it running?)"), res.message
     assert wait_for(lambda: any("lhd_recorder does not listen" in s.message for s in rig.diag), 10.0), \
         [s.message for s in rig.diag[-3:]]
 
@@ -87,3 +87,19 @@ def test_a_malformed_node_name_is_refused_with_the_parameter(tmp_path):
     err = p.stdout + p.stderr
     assert "required_listeners" in err and "'lhd recorder'" in err and "lhd_recorder" in err, err
     assert "Traceback" not in err, err
+
+
+def test_the_listener_item_is_one_line_of_lhd_up_reals_checklist(rig):
+    """`lhd up real` prints the preflight's problems one per line, split on '; ': the listener's
+    sentence must not be split (taken from the node's own /diagnostics)."""
+    from lhd_loading_ros.cli.up_real import format_preflight
+
+    if rig.recorder is not None:
+        rig.recorder.stop()                            # the recorder gone: the item comes back
+    assert wait_for(lambda: any("lhd_recorder does not listen" in s.message for s in rig.diag[-4:]), 20.0), \
+        [s.message for s in rig.diag[-3:]]
+    st = next(s for s in reversed(rig.diag) if "lhd_recorder does not listen" in s.message)
+    lines = format_preflight(st).splitlines()
+    assert lines[0] == "preflight: not ready to arm", lines
+    assert lines[1:] == ["  [--] node lhd_recorder does not listen to /lhd/episode yet (required_listeners): it would "
+                         "miss the attempt (is it running?)"], lines

@@ -328,8 +328,9 @@ class SupervisorNode(Node):
         present = {i.node_name for i in self.get_subscriptions_info_by_topic(topic)}
         present |= {f"{i.node_namespace.rstrip('/')}/{i.node_name}"
                     for i in self.get_subscriptions_info_by_topic(topic)}
-        return [f"node {n} does not listen to {topic} yet (required_listeners): it would miss the attempt; "
-                "is it running?" for n in self.required_listeners if n not in present]
+        # no "; " inside: the arm answer and `lhd up real`'s checklist split the problems on it
+        return [f"node {n} does not listen to {topic} yet (required_listeners): it would miss the attempt "
+                "(is it running?)" for n in self.required_listeners if n not in present]
 
     def _on_arm(self, request, response):
         ok, message = self.core.arm(time.monotonic(), datetime.datetime.now(datetime.timezone.utc)
