@@ -381,6 +381,39 @@ def test_estop_from_a_volatile_publisher_is_obeyed_and_mirrored_by_the_teleop_no
         rig.node.destroy_publisher(pub)
 
 
+def test_estop_samples_queued_in_a_stall_settle_on_the_newest_without_an_echo_loop(rig):
+    """Samples that reach the teleop node while it is stalled (here: engage, release, engage from a
+    latched publisher like `lhd estop`'s, which then leaves) come out of its two subscriptions in
+    either order, and its own mirror publications come back to it. Until 2026-11-28 it mirrored
+    whatever differed from its last publication, its own older echoes included: 12,000-15,000
+    messages in 8 s after the sender left, the value flipping until teardown and the mux left on
+    `none` (a review's fault injection). Now: a few messages, and the newest, engaged, holds."""
+    import os
+    import signal
+
+    from rclpy.duration import Duration
+
+    rig.reset()
+    teleop = rig.procs["teleop"].proc
+    pub = rig.node.create_publisher(Bool, "/lhd/estop", LATCHED_QOS)
+    assert rig.wait(lambda: pub.get_subscription_count() >= 4, 10.0), pub.get_subscription_count()
+    os.killpg(teleop.pid, signal.SIGSTOP)
+    try:
+        for v in (True, False, True):             # the newest: engaged
+            pub.publish(Bool(data=v))
+            rig.spin(0.005)
+        rig.spin(0.3)
+    finally:
+        os.killpg(teleop.pid, signal.SIGCONT)
+    pub.wait_for_all_acked(Duration(seconds=1.0))
+    rig.node.destroy_publisher(pub)
+    t0 = time.monotonic()
+    rig.spin(3.0)
+    heard = rig.after("estop", t0)
+    assert len(heard) <= 6, (len(heard), heard[:10], heard[-10:])
+    assert rig.got["estop"][-1][1] is True and rig.active["/lhd"] == "estop", (heard[-10:], rig.active)
+
+
 def test_estop_cli_engages_and_releases_through_the_mux(rig):
     rig.reset()
 

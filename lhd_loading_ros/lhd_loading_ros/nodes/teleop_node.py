@@ -51,6 +51,9 @@ ESTOP_ANY_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, his
                            durability=DurabilityPolicy.VOLATILE)
 TIMER_S = 0.02          # the Joy-timeout check: the stop leaves at most this long after joy_timeout
 RATE_WINDOW_S = 2.0
+OWN_ESTOP_KEPT = 32      # our latest e-stop publications, recognised when they come back to us
+OVERTAKEN_NS = 1_000_000_000   # an e-stop sample up to 1 s older than one taken before is dropped (the
+                               # supervisor's rule for latched inputs); beyond, clocks of two machines may differ
 
 
 def resolve_mapping(value: str) -> Path:
@@ -91,6 +94,8 @@ class TeleopNode(Node):
         ns = topic_prefix(self, gp("namespace_prefix"))
         self._estop_published: bool | None = None
         self._estop_heard: bool | None = None
+        self._estop_own: deque = deque(maxlen=OWN_ESTOP_KEPT)  # (ns before, ns after, value) of our publishes
+        self._estop_newest_ns = -1         # source stamp of the newest e-stop sample taken from another node
         self._arrivals: deque = deque()
         self.pub_cmd = self.create_publisher(Float64MultiArray, f"{ns}/cmd/teleop", COMMAND_QOS)
         self.pub_estop = self.create_publisher(Bool, f"{ns}/estop", LATCHED_QOS)
@@ -122,7 +127,9 @@ class TeleopNode(Node):
 
     def _publish_estop(self, engaged: bool) -> None:
         self._estop_published = engaged
+        before = time.time_ns()           # the sample's source stamp lies between the two (system clock)
         self.pub_estop.publish(Bool(data=engaged))
+        self._estop_own.append((before, time.time_ns(), engaged))
 
     def _on_joy(self, msg: Joy) -> None:
         now = time.monotonic()
@@ -142,8 +149,19 @@ class TeleopNode(Node):
             out.problem = ""
         self._apply(out)
 
-    def _on_estop(self, msg: Bool) -> None:
+    def _on_estop(self, msg: Bool, info) -> None:
+        """An e-stop sample from the latched or the volatile subscription. Taken only if it is
+        another node's and newer than every sample taken before: our own publications come back to
+        us, and after a stall the two subscriptions deliver older samples after newer ones. Mirroring
+        an older sample, or our own echo of one, made two nodes' latched values chase each other
+        (thousands of messages a second, the value left wherever it stopped: a review, 2026-11-28)."""
         engaged = bool(msg.data)
+        stamp = int(info["source_timestamp"])
+        if any(a <= stamp <= b and v == engaged for a, b, v in self._estop_own):
+            return                        # our own publication
+        if 0 <= self._estop_newest_ns - stamp < OVERTAKEN_NS:
+            return                        # the same sample by the other subscription, or overtaken
+        self._estop_newest_ns = stamp
         self._estop_heard = engaged
         out = self.core.on_estop(engaged)
         if out.command is not None:
