@@ -316,6 +316,32 @@ def test_stopping_the_node_mid_attempt_records_it_aborted(rig):
     assert (row.attempt, row.outcome, row.reason) == (8, "aborted", "supervisor stopped during the attempt")
 
 
+def test_a_supervisor_killed_mid_attempt_leaves_the_attempt_in_the_record(rig):
+    """SIGKILL (or a power cut) gives the node no chance to record the end. The row it wrote at
+    arming stays: the attempt as aborted, why, and its bag; a supervisor started again on the same
+    run folder goes on at the next number. Before 2026-11-28 the row was written only at the end
+    and such an attempt vanished from attempts.csv (a review's fault injection)."""
+    import signal
+
+    from lhd_loading_ros.task.attempt import INTERRUPTED_REASON
+
+    params = {"run_dir": str(rig.run_dir), "attempt_timeout": TIMEOUT_S, "arm_delay": ARM_DELAY,
+              "controller": "rld", "material": "homogeneous"}
+    rig.proc = RosProcess(SUPERVISOR, params, rig.run_dir.parent / "supervisor_2.log")
+    n0 = len(rig.statuses)
+    res = arm_when_ready(rig)
+    assert res.success and res.message.startswith("attempt 9 armed"), res.message
+    rig.wait_state("running", 9, since=n0)
+    os.killpg(rig.proc.proc.pid, signal.SIGKILL)
+    assert rig.proc.proc.wait(10) == -signal.SIGKILL
+    row = read_rows(rig.run_dir / "attempts.csv")[-1]
+    assert (row.attempt, row.outcome, row.reason, row.bag, row.success) == (
+        9, "aborted", INTERRUPTED_REASON, "bags/attempt_0009", False), row
+    rig.proc.stop()
+    rig.proc = RosProcess(SUPERVISOR, params, rig.run_dir.parent / "supervisor_3.log")
+    assert wait_for(lambda: "(next attempt 10)" in rig.proc.log(), 60.0), rig.proc.log()
+
+
 def test_an_unreadable_record_stops_the_node_with_one_line(tmp_path):
     (tmp_path / "attempts.csv").write_text("not,a,record\n1,2,3\n")
     p = RosProcess(SUPERVISOR, {"run_dir": str(tmp_path)}, tmp_path / "sv.log")

@@ -264,10 +264,7 @@ def up_real(args) -> int:
             # mux) and records it; then the recorder, whose bag then holds that end; then the rest in
             # reverse start order, controller and teleop first, the bridge last (its shutdown sends a
             # stop frame)
-            first = [c for name in ("supervisor", "recorder") for c in children if c.name == name]
-            for c in first:
-                c.stop()
-            stop_stack([c for c in children if c not in first], node)
+            stop_real_stack(children, node)
             if crashed:
                 note_crash(run_dir, crashed.rstrip(":"))
             if not keep_logs and not failed and args.remove_logs:
@@ -276,22 +273,37 @@ def up_real(args) -> int:
     return 0
 
 
-def note_crash(run_dir: Path, what: str) -> None:
+def stop_real_stack(children: list, node) -> None:
+    """The supervisor first: it ends a running attempt (its status stops the controller and the
+    mux) and records it; then the recorder, whose bag then holds that end; then the rest in reverse
+    start order, controller and teleop first, the bridge (and a twin) last (the bridge's shutdown
+    sends a stop frame). `lhd up real` and `lhd up twin` alike."""
+    first = [c for name in ("supervisor", "recorder") for c in children if c.name == name]
+    for c in first:
+        c.stop()
+    stop_stack([c for c in children if c not in first], node)
+
+
+def note_crash(run_dir: Path, what: str, prog: str = "lhd up real") -> None:
     """A node process that died ended the stack: the attempt it interrupted was aborted by the
-    supervisor's stop ("supervisor stopped during the attempt"); the record says why instead."""
+    supervisor's stop ("supervisor stopped during the attempt"), or, when the supervisor itself
+    died, left as its row from arming says (INTERRUPTED_REASON); the record says which node it was."""
+    from lhd_loading_ros.task.attempt import INTERRUPTED_REASON
     from lhd_loading_ros.task.attempt_record import csv_path, read_rows, upsert_row
 
     try:
         rows = read_rows(csv_path(run_dir))
     except (OSError, ValueError):
         return
-    if rows and rows[-1].outcome == "aborted" and rows[-1].reason == "supervisor stopped during the attempt":
+    if rows and rows[-1].outcome == "aborted" and rows[-1].reason in ("supervisor stopped during the attempt",
+                                                                     INTERRUPTED_REASON):
         from dataclasses import replace
 
-        row = replace(rows[-1], reason=f"{what} during the attempt: the launcher stopped the stack, the supervisor "
-                                       "first")
+        tail = ("" if what.startswith("supervisor ") else
+                ": the launcher stopped the stack, the supervisor first")
+        row = replace(rows[-1], reason=f"{what} during the attempt{tail}")
         upsert_row(csv_path(run_dir), row)
-        print(f"lhd up real: attempt {row.attempt} recorded as aborted: {row.reason}", file=sys.stderr, flush=True)
+        print(f"{prog}: attempt {row.attempt} recorded as aborted: {row.reason}", file=sys.stderr, flush=True)
 
 
 def format_preflight(st) -> str:

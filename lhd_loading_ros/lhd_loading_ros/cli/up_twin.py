@@ -51,8 +51,9 @@ import numpy as np
 
 from lhd_loading_ros.cli.argtypes import nonneg_int
 from lhd_loading_ros.task.cores import usable_cores
-from lhd_loading_ros.cli.launcher import Child, _StopOnSignals, stop_stack
-from lhd_loading_ros.cli.up_real import ENDED, default_params_file, format_preflight, make_run_dir
+from lhd_loading_ros.cli.launcher import Child, _StopOnSignals
+from lhd_loading_ros.cli.up_real import (ENDED, default_params_file, format_preflight, make_run_dir, note_crash,
+                                         stop_real_stack)
 from lhd_loading_ros.cli.up_real import parser as real_parser
 from lhd_loading_ros.cli.up_real import check_args as real_check_args
 from lhd_loading_ros.cli.up_real import stack
@@ -551,6 +552,8 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
         def now():
             return node.get_clock().now().nanoseconds * 1e-9
 
+        crashed = {"what": ""}             # the node that died, for the record (note_crash)
+
         def spin(timeout_s: float, until, what: str):
             """Spin until `until()` is truthy; RuntimeError naming `what` after timeout_s or when a
             node died; Interrupted on Ctrl-C/SIGTERM."""
@@ -564,6 +567,7 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                 for c in children:
                     if not c.alive():
                         tail = c.log_path.read_text()[-2000:] if quiet else ""
+                        crashed["what"] = f"{c.name} exited with status {c.proc.returncode}"
                         raise RuntimeError(f"node `{c.name}` exited with status {c.proc.returncode} while waiting "
                                            f"for {what}:\n{tail}")
                 if time.monotonic() > t_end:
@@ -719,8 +723,11 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
             print(f"lhd up twin: {exc}\n(node logs in {log_dir})", file=sys.stderr)
             rc = 1
         finally:
-            # the recorder and controller first, the bridge then the twin last
-            stop_stack(children, node)
+            # as `lhd up real` stops its stack: the supervisor (it records the live attempt's end),
+            # the recorder (its bag holds that end), then the rest, the bridge then the twin last
+            stop_real_stack(children, node)
+            if crashed["what"]:
+                note_crash(run_dir, crashed["what"], "lhd up twin")
             shutil.rmtree(link_dir, ignore_errors=True)
 
     # the record as written by the supervisor

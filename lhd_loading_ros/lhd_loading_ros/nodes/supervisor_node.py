@@ -339,6 +339,9 @@ class SupervisorNode(Node):
         if ok:
             self.get_logger().info(message)
             self._publish_status()
+            # the attempt in the record from now on: if this process dies before the end, the row
+            # says so (aborted, INTERRUPTED_REASON) instead of the attempt and its bag going unrecorded
+            self._write(self.core.attempt.provisional_row())
         else:
             self.get_logger().warn(message)
         return response

@@ -79,6 +79,9 @@ STALL_MEMORY_S = 30.0      # s: a pause is forgotten this long after it ended (a
 ZONE_LIMITS = tuple(f.name for f in fields(Zones))
 ZONES_CHANGED_M = 0.02     # m: a zone limit republished this far from arming's = another pile estimate
                            # (Settings.zones_tolerance's default; the end-zone node republishes on 2 cm)
+# the reason of the row written at arming (Attempt.provisional_row), which the attempt's end replaces
+INTERRUPTED_REASON = ("the supervisor ended during the attempt without recording its end (killed, or the computer "
+                      "lost power)")
 REASONS = {
     "success": "bucket tip reached the end zone",
     "failure": "bucket tip entered the restricted zone",
@@ -238,6 +241,12 @@ class Attempt:
     @property
     def phi_final(self) -> float:
         return self.last_state.phi_shovel if self.last_state is not None else math.nan
+
+    def provisional_row(self) -> AttemptRow:
+        """The row written at arming, replaced when the attempt ends: if the supervisor dies first
+        (killed, the computer loses power) the record still has the attempt, as aborted and why."""
+        return replace(self.row(), outcome="aborted", reason=INTERRUPTED_REASON, elapsed_s=0.0, mass_kg=None,
+                       success_level=None, success=False, phi_final_deg=math.nan)
 
     def row(self) -> AttemptRow:
         return AttemptRow(attempt=self.number, started_utc=self.started_utc, controller=self.controller,

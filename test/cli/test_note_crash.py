@@ -1,0 +1,37 @@
+"""`note_crash`, which `lhd up real` and `lhd up twin` call when a node died: the interrupted
+attempt's row names the node, whether the supervisor recorded the end ("supervisor stopped during
+the attempt") or died itself (the row written at arming, INTERRUPTED_REASON); a row that ended
+otherwise is left alone. Rows made by hand with the record's own writer."""
+import math
+
+from lhd_loading_ros.cli.up_real import note_crash
+from lhd_loading_ros.task.attempt import INTERRUPTED_REASON
+from lhd_loading_ros.task.attempt_record import AttemptRow, read_rows, upsert_row
+
+
+def row(n, outcome, reason):
+    return AttemptRow(attempt=n, started_utc="2026-11-28T05:00:00Z", controller="rld", slope_deg=20.0,
+                      material="homogeneous", outcome=outcome, reason=reason, mass_kg=None, elapsed_s=0.0,
+                      front_drift_pct=0.0, rear_drift_pct=0.0, phi_final_deg=math.nan, success_level=None,
+                      success=False, bag=f"bags/attempt_{n:04d}")
+
+
+def test_the_supervisors_own_death_is_named_in_the_row_it_wrote_at_arming(tmp_path, capsys):
+    upsert_row(tmp_path / "attempts.csv", row(1, "failure", "bucket tip entered the restricted zone"))
+    upsert_row(tmp_path / "attempts.csv", row(2, "aborted", INTERRUPTED_REASON))
+    note_crash(tmp_path, "supervisor exited with status -9", "lhd up twin")
+    rows = read_rows(tmp_path / "attempts.csv")
+    assert [r.reason for r in rows] == ["bucket tip entered the restricted zone",
+                                        "supervisor exited with status -9 during the attempt"]
+    assert "lhd up twin: attempt 2 recorded as aborted" in capsys.readouterr().err
+
+
+def test_another_nodes_death_and_a_row_that_ended_otherwise(tmp_path):
+    upsert_row(tmp_path / "attempts.csv", row(1, "aborted", "supervisor stopped during the attempt"))
+    note_crash(tmp_path, "controller exited with status -9")
+    assert read_rows(tmp_path / "attempts.csv")[0].reason == (
+        "controller exited with status -9 during the attempt: the launcher stopped the stack, the supervisor first")
+    upsert_row(tmp_path / "attempts.csv", row(2, "aborted", "aborted by the operator"))
+    note_crash(tmp_path, "mux exited with status 1")
+    assert read_rows(tmp_path / "attempts.csv")[1].reason == "aborted by the operator"
+    note_crash(tmp_path / "nowhere", "mux exited with status 1")        # no record: nothing to do, no error
