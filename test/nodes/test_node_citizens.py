@@ -255,9 +255,17 @@ def test_policy_node_latched_and_slow_inputs_slope_range_runtime_parameters_diag
         assert r.successful, r.reason
         for p, why in ((Parameter("rate_hz", value=5.0), "read-only"),
                        (Parameter("input_timeout", value=100.0), "out of range"),
-                       (Parameter("trigger", value="lockstep"), "read-only")):
+                       (Parameter("trigger", value="lockstep"), "read-only"),
+                       # set to 0 at run time on the policy node, the mux and the supervisor, it let the machine
+                       # drive on through a stalled supervisor (a review, 2026-11-28): fixed at start
+                       (Parameter("status_timeout", value=0.0), "read-only")):
             (r,) = set_params(ros, "/lhd_policy", [p])
             assert not r.successful and why in r.reason, (p.name, r.reason)
+        # a safety setting changed at run time is taken, and said as a warning
+        (r,) = set_params(ros, "/lhd_policy", [Parameter("input_timeout", value=0.5)])
+        assert r.successful, r.reason
+        assert spin_until(ros, lambda: "[WARN]" in pol.log() and "parameter 'input_timeout' set to 0.5 at run time: "
+                          "a longer input timeout keeps commanding" in pol.log(), 5), pol.log()[-2000:]
         cmds.clear()
         assert spin_until(ros, zeroed, 20), cmds[-5:]
         assert spin_until(ros, lambda: diag.has("/lhd_policy: decision", WARN, "zero command: slope is")

@@ -207,6 +207,11 @@ def test_abort_from_the_cli(rig):
     assert client.wait_for_services(20.0)
     fut = client.set_parameters([Parameter("attempt_timeout", Parameter.Type.DOUBLE, 60.0)])
     assert wait_for(fut.done, 20.0) and fut.result().results[0].successful
+    assert wait_for(lambda: "parameter 'attempt_timeout' set to 60.0 at run time: the paper's 10 s" in rig.proc.log(),
+                    5.0), rig.proc.log()[-1500:]           # a safety setting: said as a warning
+    fut = client.set_parameters([Parameter("status_timeout", Parameter.Type.DOUBLE, 0.0)])
+    assert wait_for(fut.done, 20.0) and not fut.result().results[0].successful      # fixed at start
+    assert "read-only" in fut.result().results[0].reason, fut.result().results[0].reason
     n0 = len(rig.statuses)
     p = cli("arm")
     assert p.returncode == 0, p.stderr

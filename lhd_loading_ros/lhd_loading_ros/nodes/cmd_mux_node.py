@@ -63,8 +63,9 @@ class CmdMuxNode(Node):
                   "the machine stopped)", lo=1.0, hi=100.0, on_change=self._set_idle_rate),
             Param("status_timeout", STATUS_TIMEOUT_S, "s: a running attempt whose <prefix>/episode status is older than this "
                   "has ended (the supervisor crashed or hung; it publishes at least every 0.2 s): the gated sources "
-                  "stop, a zero at once; 0: never (a status publisher that sends only on change)", lo=0.0, hi=60.0,
-                  on_change=lambda v: setattr(self.mux, "status_timeout", v)),
+                  "stop, a zero at once; 0: never (a status publisher that sends only on change). Fixed at start: "
+                  "it guards against a stalled supervisor (set to 0 at run time on every node, it let the machine "
+                  "drive on through one)", lo=0.0, hi=60.0),
             Param("namespace_prefix", "/lhd", "topic prefix in the root namespace (under a namespace, the "
                   "namespace is the prefix)"),
         ])

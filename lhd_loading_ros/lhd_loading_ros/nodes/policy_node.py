@@ -134,7 +134,8 @@ class PolicyNode(Node):
             Param("rate_hz", float(cfg["paper"]["control"]["frequency_hz"]), "decisions per second (trigger timer)",
                   lo=0.1, hi=1000.0),
             Param("input_timeout", 0.5, "s: a 10 Hz input (joints, odometry, drift) older than this gives the "
-                  "zero command", lo=0.01, hi=60.0, on_change=lambda v: setattr(self, "input_timeout", v)),
+                  "zero command", lo=0.01, hi=60.0, on_change=lambda v: setattr(self, "input_timeout", v),
+                  warn_change="a longer input timeout keeps commanding on stale joints, odometry or drift flags"),
             Param("slope_timeout", 0.0, "s: a slope older than this gives the zero command; 0: no timeout (a "
                   "latched constant, e.g. a surveyed pile)", lo=0.0, hi=3600.0,
                   on_change=lambda v: self._set_slow_timeout("slope", v)),
@@ -154,8 +155,9 @@ class PolicyNode(Node):
             Param("status_timeout", STATUS_TIMEOUT_S, "s: a running attempt whose /lhd/episode status is older than this has "
                   "ended (the supervisor or sim node crashed or hung; they publish at least every 0.2 s): one zero "
                   "command, and that attempt does not resume; 0: never (a status publisher that sends only on "
-                  "change). Not in trigger lockstep, where the sim node waits for this node", lo=0.0, hi=60.0,
-                  on_change=lambda v: setattr(self, "status_timeout", v)),
+                  "change). Not in trigger lockstep, where the sim node waits for this node. Fixed at start: it "
+                  "guards against a stalled supervisor (set to 0 at run time on every node, it let the machine drive "
+                  "on through one)", lo=0.0, hi=60.0),
             Param("namespace_prefix", "/lhd", "topic prefix in the root namespace (under a namespace, the "
                   "namespace is the prefix)"),
         ])

@@ -110,13 +110,14 @@ class SupervisorNode(Node):
             Param("material", "homogeneous", "pile material written to the record; a change applies from the next "
                   "arming", choices=MATERIALS, on_change=lambda v: setattr(self.core, "material", v)),
             Param("attempt_timeout", 10.0, "s from running to timeout (paper: a timeout of 10 s); a change applies "
-                  "from the next arming", lo=0.1, hi=600.0, on_change=lambda v: self.core.set_attempt_timeout(v)),
+                  "from the next arming", lo=0.1, hi=600.0, on_change=lambda v: self.core.set_attempt_timeout(v),
+                  warn_change="the paper's 10 s protects the motors from pushing at full power against the pile"),
             Param("arm_delay", 1.0, "s between armed and running (0: at once)", lo=0.0, hi=60.0),
             Param("status_timeout", STATUS_TIMEOUT_S, "s: the controllers' status_timeout (policy node, command mux: "
                   "they stop a running attempt whose status is older). When this node did not publish its status for "
                   "longer than that less 0.1 s (its process stalled), the running attempt is aborted with that reason, "
-                  "as the controllers have stopped the machine; 0: never", lo=0.0, hi=60.0,
-                  on_change=lambda v: setattr(self, "status_timeout", v)),
+                  "as the controllers have stopped the machine; 0: never. Fixed at start, as the controllers' is",
+                  lo=0.0, hi=60.0),
             Param("input_timeout", 0.5, "s: joints, odometry or a drift flag older than this while armed or running "
                   "ends the attempt (lost_input), and fails the preflight", lo=0.01, hi=60.0),
             Param("end_check_period", -1.0, "s: the end zone is judged at the end of each such period since "

@@ -35,6 +35,7 @@ class Param:
     on_change: Callable[[Any], None] | None = None     # runtime change allowed: how the node applies it
     dynamic_type: bool = False        # several types accepted (e.g. a number or a comma-separated list)
     log_change: bool = True           # log each runtime change (False: one set per episode would flood the log)
+    warn_change: str = ""             # a safety setting: each runtime change is logged as a WARN with this text
 
     @property
     def kind(self) -> str:
@@ -241,7 +242,9 @@ class _Group:
             value = s.coerce(p.value)
             m.values[p.name] = value
             s.on_change(value)
-            if s.log_change:
+            if s.warn_change:
+                m.node.get_logger().warn(f"parameter '{p.name}' set to {value!r} at run time: {s.warn_change}")
+            elif s.log_change:
                 m.node.get_logger().info(f"parameter '{p.name}' set to {value!r}")
 
 
