@@ -338,7 +338,10 @@ class BridgeNode(Node):
                   "device_watchdog_stop": bool(f.flags & FLAG_WATCHDOG), "estop": bool(f.flags & FLAG_ESTOP),
                   "current_fl_A": round(f.current_fl, 3), "current_fr_A": round(f.current_fr, 3),
                   "current_rear_A": round(f.current_rear, 3), "valve_boom": f.valve_boom,
-                  "valve_bucket": f.valve_bucket, "device_time_us": f.device_time_us, "age_s": round(age, 3)}
+                  "valve_bucket": f.valve_bucket, "device_time_us": f.device_time_us, "age_s": round(age, 3),
+                  # this node's own watchdog: no valid command for cmd_timeout, stop frames sent (the
+                  # supervisor ends a running attempt on it: the mux, or the link to it, stalled)
+                  "command_stale": self.watchdog.stale(time.monotonic())}
         if age > DEVICE_STALE:
             return STALE, f"no sensor frame from the device for {age:.1f} s", values
         if f.flags & FLAG_ESTOP:

@@ -46,6 +46,7 @@ class FakeMachine:
         self.feed = {"joints": True, "odom": True, "drift": True, "hw": True, "slope": True}
         self.front, self.rear = front, rear
         self.load_cell = None              # kg to publish on /lhd/load_cell/mass at 50 Hz, or None
+        self.command_stale = False         # the bridge's own command watchdog, in its hw/status
         self.imu = None                    # (w, x, y, z) to publish on /lhd/imu at 50 Hz, or None
         self.pose_published_at = {}        # pose -> first publish time (monotonic)
         self.last_joints_at = None
@@ -106,7 +107,8 @@ class FakeMachine:
             self.pub_imu.publish(m)
         if self.feed["hw"]:
             st = DiagnosticStatus(level=DiagnosticStatus.OK, name="/lhd_bridge: device", message="drive enabled")
-            st.values = [KeyValue(key="estop", value="False")]
+            st.values = [KeyValue(key="estop", value="False"),
+                         KeyValue(key="command_stale", value=str(self.command_stale))]
             self.pub_hw.publish(st)
 
     def set_pose(self, pose):

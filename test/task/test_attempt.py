@@ -732,6 +732,61 @@ def test_bridge_error_while_running_is_lost_input(kin):
     assert r.sv.state == "lost_input" and "bridge reports STALE" in r.sv.attempt.reason
 
 
+def test_the_bridges_own_watchdog_while_running_is_lost_input(kin):
+    """No valid command reached the bridge for its cmd_timeout: it stopped the machine, so the
+    mux (or its link) stalled; the attempt ends, not drives on afterwards."""
+    r = Rig(kin, arm_delay=0.0).ready()
+    r.arm()
+    r.step(0.2)
+    assert r.sv.state == "running"
+    r.hw = HwStatus(WARN, False, "drive enabled", command_stale=True)
+    r.step(0.02)
+    assert r.sv.state == "lost_input" and r.sv.attempt.reason.startswith("the bridge got no valid command"), \
+        r.sv.attempt.reason
+
+
+@pytest.mark.parametrize("controller, sources, outcome", [
+    # the mux selected the controller, then its source timed out: the controller stalled or died
+    ("rld", ["none", "auto", "none"], "lost_input"),
+    # the operator's gamepad took over an autonomous attempt
+    ("rld", ["auto", "teleop"], "aborted"),
+    # before the controller's first command the mux sends zeros (none): not a loss
+    ("rld", ["none", "none"], "running"),
+    # the e-stop ends the attempt by its own rule (the supervisor hears /lhd/estop too)
+    ("tampier", ["auto", "estop"], "running"),
+    # a teleoperated attempt: the operator lets go of the deadman now and then
+    ("teleop", ["teleop", "none", "teleop"], "running"),
+])
+def test_the_controllers_commands_stopping_while_running(kin, controller, sources, outcome):
+    r = Rig(kin, arm_delay=0.0)
+    r.sv = Supervisor(settings(arm_delay=0.0), kin, controller, "homogeneous")
+    r.ready()
+    r.arm()
+    for src in sources:
+        r.sv.inputs.put("mux", src, r.t)
+        r.step(0.1)
+    assert r.sv.state == outcome, (r.sv.state, r.sv.attempt.reason)
+    if outcome == "lost_input":
+        assert "the command mux's auto source timed out" in r.sv.attempt.reason
+    if outcome == "aborted":
+        assert r.sv.attempt.reason == "the operator took over: the command mux selected 'teleop' over the controller"
+
+
+def test_the_mux_left_over_from_the_last_attempt_is_not_this_attempts(kin):
+    """Attempt 1 ends, the mux goes back to none; attempt 2 must see auto selected again before a
+    none counts."""
+    r = Rig(kin, arm_delay=0.0).ready()
+    r.arm()
+    r.sv.inputs.put("mux", "auto", r.t)
+    r.step(0.1)
+    r.sv.abort(r.t)
+    r.sv.inputs.put("mux", "none", r.t)
+    r.step(0.1)
+    r.arm()
+    r.step(0.3)
+    assert r.sv.state == "running"
+
+
 def test_abort_and_refusals(kin):
     r = Rig(kin).ready()
     assert r.sv.abort(r.t) == (False, "nothing to abort: no attempt yet")

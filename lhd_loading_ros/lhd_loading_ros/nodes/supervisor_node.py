@@ -41,7 +41,7 @@ from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import Imu, JointState
-from std_msgs.msg import Bool, Float64, Float64MultiArray
+from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
@@ -216,6 +216,10 @@ class SupervisorNode(Node):
             self.create_subscription(Float64MultiArray, f"{ns}/pile/zones", self._on_zones, qos, event_callbacks=events)
         self.create_subscription(DiagnosticStatus, f"{ns}/hw/status", self._on_hw, MEASUREMENT_QOS)
         self.create_subscription(Bool, f"{ns}/estop", self._on_estop, LATCHED_QOS)
+        # the command mux's selected source (latched): a running attempt whose controller's commands
+        # stop reaching the machine ends (task.attempt: Supervisor._command_problem)
+        self.create_subscription(String, f"{ns}/cmd_mux/active", lambda m: self._put_check("mux", str(m.data)),
+                                 LATCHED_QOS)
         self.create_subscription(Float64, f"{ns}/load_cell/mass", self._on_load_cell, sd)
         self.create_subscription(Float64, f"{ns}/attempt/mass", self._on_mass, MASS_QOS)
         self.create_service(Trigger, f"{ns}/arm", self._on_arm)
@@ -294,7 +298,8 @@ class SupervisorNode(Node):
         kv = {k.key: k.value for k in msg.values}
         estop = kv.get("estop", "False").strip().lower() == "true"
         level = msg.level if isinstance(msg.level, int) else int.from_bytes(msg.level, "little")
-        self._put("hw", HwStatus(level=level, estop=estop, message=msg.message))
+        stale = kv.get("command_stale", "False").strip().lower() == "true"
+        self._put("hw", HwStatus(level=level, estop=estop, message=msg.message, command_stale=stale))
         self._check()
 
     def _on_estop(self, msg: Bool) -> None:

@@ -95,6 +95,7 @@ class HwStatus:
     level: int
     estop: bool
     message: str
+    command_stale: bool = False       # the bridge's watchdog: no valid command for its cmd_timeout
 
 
 @dataclass(frozen=True)
@@ -226,6 +227,7 @@ class Attempt:
     front: list = field(default_factory=list)
     rear: list = field(default_factory=list)
     end_checks: int = 0                   # end_check_period ends judged so far
+    auto_seen: bool = False               # the command mux selected the autonomous controller while running
     last_state: LhdState | None = None    # the latest tip while armed / running
     mass: float | None = None
     mass_source: str = ""
@@ -567,6 +569,10 @@ class Supervisor:
                 else:
                     self._start_running(now)
             return
+        cut = self._command_problem()
+        if cut:
+            self._end(now, *cut)
+            return
         tilt = self._tilt_problem(now)    # a safety end: before the end zone
         if tilt:
             self._end(now, "failure", tilt)
@@ -581,6 +587,32 @@ class Supervisor:
             self._end(now, "failure", REASONS["failure"])
         elif timed_out:
             self._end(now, "timeout", f"attempt_timeout {a.timeout:g} s passed")
+
+    def _command_problem(self) -> tuple[str, str] | None:
+        """(outcome, reason) when the commands stopped reaching the machine while running: the
+        bridge's watchdog stopped it (no valid command for its cmd_timeout: the command mux, or the
+        link to it, stalled or died), or, for an autonomous controller, the mux left the `auto`
+        source it had selected in this attempt (`none`: the controller's commands stopped coming,
+        the mux sends zeros; another source: the operator took over). The machine stood still for
+        part of the attempt: its figures are not the controller's. Before 2026-11-28 a controller
+        stalled for 2 s drove on afterwards and the attempt was recorded as a success (a review's
+        fault injection). Inputs: `hw` (HwStatus.command_stale) and `mux` (<prefix>/cmd_mux/active)."""
+        a, inp = self.attempt, self.inputs
+        hw = inp.values.get("hw")
+        if hw is not None and hw.command_stale:
+            return ("lost_input", "the bridge got no valid command for its cmd_timeout and stopped the machine: the "
+                                  "command mux, or its link to the bridge, stalled or died")
+        src = inp.values.get("mux")
+        if self.controller == "teleop" or src is None:
+            return None
+        if src == "auto":
+            a.auto_seen = True
+        elif a.auto_seen and src != "estop":          # an e-stop ends the attempt by its own rule
+            if src == "none":
+                return ("lost_input", "the controller's commands stopped: the command mux's auto source timed out "
+                                      "(cmd_mux/active: none) and the machine was stopped; is the controller running?")
+            return ("aborted", f"the operator took over: the command mux selected {src!r} over the controller")
+        return None
 
     def _period_ended(self, now: float) -> bool:
         """Called on every update while running: True when an end_check_period has ended since
