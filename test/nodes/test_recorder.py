@@ -11,6 +11,8 @@ import math
 import os
 import re
 import sqlite3
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -43,6 +45,8 @@ END_ZONE = ZONES[:3]
 THETA = 0.05                       # base pitch (rad) carried by the odometry's quaternion
 N = 20                             # control steps of the attempt
 S = 1_000_000_000                  # ns per s
+PROBE = ("import rclpy; from std_msgs.msg import Float64; rclpy.init(); n = rclpy.create_node('probe'); "
+         "n.create_subscription(Float64, '/lhd/cmd', lambda m: None, 10); rclpy.spin(n)")
 
 
 @pytest.fixture(scope="module")
@@ -87,10 +91,18 @@ class Rig:
         self.pubs = [self.slope, self.zones, self.end_zone, self.joints, self.odom, self.front, self.rear, self.cmd,
                      self.joy]
         self.extra = []
+        # a subscriber of another type on a recorded topic (a probe, a misconfigured node; another
+        # process: DDS refuses two types on one topic in one): the topic is still recorded by its
+        # publishers' type (until 2026-11-28 it left every bag: a review)
+        self.probe = subprocess.Popen([sys.executable, "-c", PROBE], start_new_session=True)
+        assert spin_until(node, lambda: any(i.topic_type == "std_msgs/msg/Float64"
+                                            for i in node.get_subscriptions_info_by_topic("/lhd/cmd")), 60.0)
 
     def close(self):
         for p in self.pubs + [self.episode, self.other] + self.extra:
             self.node.destroy_publisher(p)
+        self.probe.kill()
+        self.probe.wait()
 
     def latched(self):
         self.slope.publish(Float64(data=SLOPE))

@@ -26,7 +26,7 @@ with a weaker QoS makes the subscription weaker (re-created), never the other wa
 offered profiles go into the bag's metadata, so `ros2 bag play` republishes latched topics latched.
 
 /diagnostics: recording (attempt, bag path, messages per topic) or idle (the last bag), topics
-that cannot be recorded (several types on one name, no message definition), failed writes,
+that cannot be recorded (several types published on one name, no message definition), failed writes,
 messages DDS reported lost.
 """
 from __future__ import annotations
@@ -354,7 +354,7 @@ class RecorderNode(Node):
     def _discover(self) -> None:
         if self.writer is None:
             return
-        for topic, types in self.get_topic_names_and_types():
+        for topic, _types in self.get_topic_names_and_types():
             if not topic_selected(topic, self.prefix, self.extra):
                 continue
             pubs = self.get_publishers_info_by_topic(topic)
@@ -375,10 +375,13 @@ class RecorderNode(Node):
                 continue
             if topic in self.skipped:
                 continue
-            if len(types) != 1:
-                self._skip(topic, f"several types on one topic ({', '.join(types)}): not recorded")
+            # the publishers' types only: a subscriber of another type (a probe, a misconfigured node)
+            # receives nothing and must not keep the topic out of every bag (a review, 2026-11-28)
+            pub_types = sorted({i.topic_type for i in pubs})
+            if len(pub_types) != 1:
+                self._skip(topic, f"several types published on one topic ({', '.join(pub_types)}): not recorded")
                 continue
-            msgtype = types[0]
+            msgtype = pub_types[0]
             try:
                 msgdef, rihs = self.types.definition(msgtype)
                 message_class(msgtype)
