@@ -272,11 +272,16 @@ class BridgeNode(Node):
             try:
                 data = ser.read(max(1, ser.in_waiting))
             except (serial.SerialException, OSError, TypeError) as exc:
+                with self._ser_lock:
+                    closed_by_writer = self._ser is not ser
+                    if not closed_by_writer:
+                        self._drop_port_locked()
+                if closed_by_writer:
+                    # the writer dropped the port after a failed write (its problem stands); reading
+                    # the closed port gave a TypeError that said nothing about the link (a review)
+                    continue
                 self.get_logger().warn(f"serial link lost on {self.port}: {exc}", throttle_duration_sec=1.0)
                 self.link_problem = f"serial link lost on {self.port}: {exc}"
-                with self._ser_lock:
-                    if self._ser is ser:
-                        self._drop_port_locked()
                 continue
             if data:
                 for _, msg in self.parser.feed(data):   # sensor and load-cell frames only (accept)
