@@ -358,6 +358,55 @@ def test_sqlite3_an_existing_folder_and_a_shutdown_during_the_attempt(ros, tmp_p
     assert re.search(r"rear drift \(%\) +50\.00 +-\n", text) and "drift sampled at 8 command(s)" in text
 
 
+def test_a_recorder_killed_mid_attempt_leaves_a_bag_that_lhd_bag_recover_reads(ros, tmp_path, capsys):
+    """SIGKILL gives the recorder no close: no metadata.yaml, no MCAP summary. It flushes the open
+    bag every flush_period_s (here 0.3 s), so `lhd bag recover` rewrites what was flushed as a
+    complete bag, which `lhd replay` reads: every command published more than a flush period and a
+    margin before the kill is in it, with its values. Until 2026-11-28 such a bag was a 0-byte file
+    (rosbags keeps a 1 MiB chunk in memory; a review's fault injection)."""
+    import signal
+
+    from lhd_loading_ros.cli.bag import main as bag_main
+
+    rig = Rig(ros, "c")
+    rig.latched()
+    run_dir = tmp_path / "run"
+    proc = start_recorder(tmp_path, run_dir, name="recorder_killed", flush_period_s=0.3)
+    clock = ros.get_clock()
+    try:
+        assert spin_until(ros, lambda: rig.episode.get_subscription_count() >= 1, 30.0), proc.log()
+        rig.episode.publish(status("armed", 4, clock.now().nanoseconds))
+        rig.wait_recorder_subscribed(proc)
+        rig.episode.publish(status("running", 4, clock.now().nanoseconds))
+        spin(ros, 0.1)
+        for k in range(12):
+            rig.state(k, 0.0, 0.01 * k, False, False)
+            spin(ros, 0.04)
+            rig.cmd.publish(Float64MultiArray(data=[1.0, 0.0, 0.1 * k]))
+            spin(ros, 0.06)
+        spin(ros, 1.0)                             # > 3 flush periods after the last command
+        os.killpg(proc.proc.pid, signal.SIGKILL)
+        proc.proc.wait(10)
+    finally:
+        proc.stop()
+        rig.close()
+    bag = run_dir / "bags" / "attempt_0004"
+    assert not (bag / "metadata.yaml").exists() and next(bag.glob("*.mcap")).stat().st_size > 0
+    assert replay.main([str(bag)]) != 0
+    assert f"lhd bag recover {bag}" in capsys.readouterr().err
+    assert bag_main(["recover", str(bag)]) == 0
+    out = bag.with_name("attempt_0004_recovered")
+    assert str(out) in capsys.readouterr().out
+    got = read_back(out)
+    assert [list(m.data) for _, m in got["/lhd/cmd"]] == [[1.0, 0.0, 0.1 * k] for k in range(12)]
+    assert [m.data for _, m in got["/lhd/pile/slope"]] == [SLOPE]
+    assert len(got["/lhd/joint_states"]) == 12
+    assert replay.main([str(out)]) == 0
+    assert "attempt 4: running" in capsys.readouterr().out
+    assert bag_main(["recover", str(bag)]) == 1                 # nothing is overwritten
+    assert "exists" in capsys.readouterr().err
+
+
 def test_a_run_dir_that_cannot_be_written_ends_the_node_with_status_2(tmp_path):
     blocker = tmp_path / "not_a_folder"
     blocker.write_text("a file where the run folder should be")

@@ -382,6 +382,8 @@ def main(argv=None) -> int:
                       ("attempt", "attempt mass KG [--attempt N]: record the weighed mass of an attempt"),
                       ("attempts", "attempts RUN_DIR: the paper's results table from a run's attempts.csv"),
                       ("replay", "replay BAG [--plot OUT.png]: an attempt's metrics and plots from its rosbag2"),
+                      ("bag", "bag recover BAG [--out DIR]: a bag never closed (recorder killed, power lost) "
+                              "rewritten as a complete one"),
                       ("estop", "estop on|off|status: the software emergency stop (/lhd/estop)"),
                       ("validate", "validate physics [--plots DIR] [--json] [--quick] [--config F]: the "
                                    "simulator's physics next to independent hand-calculation references")):
@@ -546,6 +548,10 @@ def main(argv=None) -> int:
         from lhd_loading_ros.cli.replay import main as replay_main
 
         return replay_main(argv[1:])
+    if argv[:1] == ["bag"]:
+        from lhd_loading_ros.cli.bag import main as bag_main
+
+        return bag_main(argv[1:])
     if argv[:2] == ["validate", "physics"]:
         from lhd_sim_node.validate import main as validate_main   # the simulator only where it runs
 

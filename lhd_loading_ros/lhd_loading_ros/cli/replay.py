@@ -66,7 +66,8 @@ def bag_dir(path: Path) -> Path:
     if not (path / "metadata.yaml").is_file():
         if any(f.suffix in STORAGE_FILES for f in path.iterdir()):
             raise ReplayError(f"{path} has a storage file but no metadata.yaml: the recording was never closed "
-                              f"(the recorder killed with SIGKILL, or the machine lost power)")
+                              f"(the recorder killed with SIGKILL, or the machine lost power); `lhd bag recover "
+                              f"{path}` rewrites what was flushed as a complete bag")
         raise ReplayError(f"{path} is not a rosbag2 folder (no metadata.yaml)")
     return path
 

@@ -1,0 +1,33 @@
+"""`lhd bag recover BAG [--out DIR]`: the readable part of an attempt's bag that was never closed
+(the recorder killed, the computer lost power) as a complete rosbag2 folder (cli/bag_recover.py),
+which `lhd replay` and `ros2 bag play` then read. Exit 0, 1 when nothing could be recovered, 2
+for bad arguments."""
+from __future__ import annotations
+
+import argparse
+import sys
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="lhd bag", description=__doc__.split("\n\n")[0])
+    sub = ap.add_subparsers(dest="what", required=True)
+    rec = sub.add_parser("recover", help="rewrite a never-closed MCAP bag as a complete one beside it")
+    rec.add_argument("bag", help="the attempt's bag folder (runs/.../bags/attempt_NNNN)")
+    rec.add_argument("--out", default=None, help="folder to write (default: BAG_recovered; never overwritten)")
+    args = ap.parse_args(argv)
+    from lhd_loading_ros.cli.bag_recover import RecoverError, recover
+
+    try:
+        out, scan = recover(args.bag, args.out)
+    except (RecoverError, OSError) as exc:
+        print(f"lhd bag recover: {exc}", file=sys.stderr)
+        return 1
+    topics = sorted({scan.channels[c][1] for c, _, _ in scan.messages if c in scan.channels})
+    where = "the whole file" if scan.truncated_at is None else f"up to byte {scan.truncated_at} (the rest was cut off)"
+    print(f"lhd bag recover: {len(scan.messages)} messages on {len(topics)} topics from {scan.chunks} chunks, "
+          f"{where}, written to {out} (`lhd replay {out}`)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,173 @@
+"""Recover an attempt's rosbag2 MCAP that was never closed (the recorder killed with SIGKILL, the
+computer lost power): the file then lacks its summary, footer and closing magic, and its folder
+lacks metadata.yaml, so no reader opens it. What the recorder flushed (every chunk it closed: it
+closes one every `flush_period_s`, docs/recorder.md) is read record by record from the
+specification (mcap.dev/spec: Header, then Schema, Channel and Chunk records; a Chunk holds
+Schema, Channel and Message records) up to the first truncated record, and written again as a
+complete rosbag2 folder beside the original, which is left as it is. The file is read without ROS;
+each type's definition and hash come from the recorder's own MessageTypes (the installed
+interfaces), as when it was recorded.
+
+Usage: `lhd bag recover BAG [--out DIR]` (default DIR: BAG_recovered).
+"""
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass, field
+from pathlib import Path
+
+MAGIC = b"\x89MCAP0\r\n"
+OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK, OP_DATA_END = 0x01, 0x02, 0x03, 0x04, 0x05, 0x06, 0x0F
+
+
+class RecoverError(ValueError):
+    """A file that is not a recoverable MCAP: what is wrong and what is expected."""
+
+
+@dataclass
+class Scan:
+    """What an unclosed MCAP holds: schemas {id: (name, encoding, text)}, channels {id: (schema id,
+    topic, message encoding, metadata bytes)}, messages [(channel id, log time ns, data)], and where
+    the readable part ends (None: the file is complete up to its data end)."""
+    schemas: dict = field(default_factory=dict)
+    channels: dict = field(default_factory=dict)
+    messages: list = field(default_factory=list)
+    truncated_at: int | None = None
+    chunks: int = 0
+
+
+class _Buf:
+    def __init__(self, data: bytes | memoryview):
+        self.d, self.p = memoryview(data), 0
+
+    def u(self, fmt: str):
+        size = struct.calcsize("<" + fmt)
+        if self.p + size > len(self.d):
+            raise RecoverError("record shorter than its fields")
+        v = struct.unpack_from("<" + fmt, self.d, self.p)[0]
+        self.p += size
+        return v
+
+    def raw(self, n: int) -> bytes:
+        if self.p + n > len(self.d):
+            raise RecoverError("record shorter than its fields")
+        v = bytes(self.d[self.p:self.p + n])
+        self.p += n
+        return v
+
+    def string(self) -> str:
+        return self.raw(self.u("I")).decode()
+
+    def left(self) -> int:
+        return len(self.d) - self.p
+
+
+def _records(data: memoryview, start: int):
+    """(op, body, offset) of each complete record from `start`; stops at a truncated one, and
+    returns (via StopIteration's value) the offset where reading stopped, or None at a data end."""
+    p = start
+    while p < len(data):
+        if p + 9 > len(data):
+            return p
+        op = data[p]
+        length = struct.unpack_from("<Q", data, p + 1)[0]
+        if p + 9 + length > len(data):
+            return p
+        yield op, data[p + 9:p + 9 + length], p
+        if op in (OP_DATA_END, OP_FOOTER):
+            return None
+        p += 9 + length
+    return None
+
+
+def _take(scan: Scan, op: int, body: memoryview) -> None:
+    b = _Buf(body)
+    if op == OP_SCHEMA:
+        sid = b.u("H")
+        scan.schemas[sid] = (b.string(), b.string(), b.raw(b.u("I")).decode())
+    elif op == OP_CHANNEL:
+        cid, sid, topic, enc = b.u("H"), b.u("H"), b.string(), b.string()
+        scan.channels[cid] = (sid, topic, enc, b.raw(b.u("I")))
+    elif op == OP_MESSAGE:
+        cid, _seq, log_time, _pub_time = b.u("H"), b.u("I"), b.u("Q"), b.u("Q")
+        scan.messages.append((cid, log_time, b.raw(b.left())))
+
+
+def scan_mcap(path) -> Scan:
+    """Every schema, channel and message of the complete records of an MCAP file."""
+    data = memoryview(Path(path).read_bytes())
+    if bytes(data[:8]) != MAGIC:
+        raise RecoverError(f"{path}: not an MCAP file (no MCAP magic at the start)")
+    scan = Scan()
+    gen = _records(data, 8)
+    while True:
+        try:
+            op, body, _ = next(gen)
+        except StopIteration as stop:
+            scan.truncated_at = stop.value
+            break
+        if op == OP_CHUNK:
+            b = _Buf(body)
+            b.u("Q"), b.u("Q")
+            size, _crc, compression = b.u("Q"), b.u("I"), b.string()
+            records = b.raw(b.u("Q"))
+            if compression:
+                raise RecoverError(f"{path}: chunk compression {compression!r}; the recorder writes "
+                                   "uncompressed chunks, which is what this recovers")
+            if len(records) != size:
+                raise RecoverError(f"{path}: a chunk of {len(records)} bytes says {size}")
+            inner = _records(memoryview(records), 0)
+            for iop, ibody, _ in inner:
+                _take(scan, iop, ibody)
+            scan.chunks += 1
+        else:
+            _take(scan, op, body)
+    return scan
+
+
+def recover(bag, out=None) -> tuple[Path, Scan]:
+    """Write the readable part of the never-closed bag folder `bag` as a complete rosbag2 folder
+    (MCAP, version 9) at `out` (default: BAG_recovered); the original is not touched. Returns
+    (out, scan). RecoverError saying why not."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.rosbag2.storage_mcap import get_qos
+
+    from lhd_loading_ros.nodes.recorder_node import MessageTypes
+
+    bag = Path(bag)
+    if not bag.is_dir():
+        raise RecoverError(f"{bag}: not a folder (expected an attempt's bag folder, e.g. runs/real/.../bags/attempt_0001)")
+    if (bag / "metadata.yaml").is_file():
+        raise RecoverError(f"{bag} has its metadata.yaml: it was closed and needs no recovery (`lhd replay {bag}`)")
+    files = sorted(bag.glob("*.mcap"))
+    if len(files) != 1:
+        raise RecoverError(f"{bag}: expected one .mcap file, found {len(files)} (a sqlite3 bag is not recovered here)")
+    if files[0].stat().st_size == 0:
+        raise RecoverError(f"{files[0]} is empty: nothing was flushed before the recorder stopped")
+    scan = scan_mcap(files[0])
+    if not scan.messages:
+        raise RecoverError(f"{files[0]}: no complete message in it (nothing was flushed before the recorder stopped)")
+    out = Path(out) if out is not None else bag.with_name(bag.name + "_recovered")
+    if out.exists():
+        raise RecoverError(f"{out} exists: give another --out (nothing is overwritten)")
+    writer = Writer(out, version=9, storage_plugin=StoragePlugin.MCAP)
+    writer.open()
+    try:
+        writer.set_custom_data("lhd.recovered_from", str(files[0]))
+        conns, types = {}, MessageTypes()
+        for cid, (sid, topic, enc, meta) in sorted(scan.channels.items()):
+            name = scan.schemas.get(sid, ("",))[0]
+            if not name:
+                continue                    # a channel whose schema was not flushed: its messages are dropped
+            try:
+                msgdef, rihs = types.definition(name)
+            except ValueError:
+                continue                    # a type this computer does not know: left out
+            conns[cid] = writer.add_connection(topic, name, msgdef=msgdef, rihs01=rihs, serialization_format=enc,
+                                               offered_qos_profiles=get_qos(meta))
+        for cid, t, data in sorted(scan.messages, key=lambda m: m[1]):
+            if cid in conns:
+                writer.write(conns[cid], t, data)
+    finally:
+        writer.close()
+    return out, scan
