@@ -172,6 +172,11 @@ class Watchdog:
         self.armed_since = now
         self._was_stale = True
 
+    def timed_out(self, now: float) -> bool:
+        """No valid command for `timeout` (commands stopped coming), without side effects: not the
+        brief wait for a first command after a (re)connection, which `stale` also covers."""
+        return self.last_valid is not None and now - self.last_valid >= self.timeout
+
     def stale(self, now: float) -> bool:
         s = (self.last_valid is None or self.last_valid < self.armed_since
              or now - self.last_valid >= self.timeout)

@@ -344,9 +344,10 @@ class BridgeNode(Node):
                   "current_fl_A": round(f.current_fl, 3), "current_fr_A": round(f.current_fr, 3),
                   "current_rear_A": round(f.current_rear, 3), "valve_boom": f.valve_boom,
                   "valve_bucket": f.valve_bucket, "device_time_us": f.device_time_us, "age_s": round(age, 3),
-                  # this node's own watchdog: no valid command for cmd_timeout, stop frames sent (the
-                  # supervisor ends a running attempt on it: the mux, or the link to it, stalled)
-                  "command_stale": self.watchdog.stale(time.monotonic())}
+                  # this node's own watchdog timed out: no valid command for cmd_timeout, stop frames
+                  # sent (the supervisor ends a running attempt on it). Not Watchdog.stale: that also
+                  # covers the wait for a first command after a reconnection, and counts trips
+                  "command_stale": self.watchdog.timed_out(time.monotonic())}
         if age > DEVICE_STALE:
             return STALE, f"no sensor frame from the device for {age:.1f} s", values
         if f.flags & FLAG_ESTOP:

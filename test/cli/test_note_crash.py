@@ -1,7 +1,8 @@
 """`note_crash`, which `lhd up real` and `lhd up twin` call when a node died: the interrupted
 attempt's row names the node, whether the supervisor recorded the end ("supervisor stopped during
 the attempt") or died itself (the row written at arming, INTERRUPTED_REASON); a row that ended
-otherwise is left alone. Rows made by hand with the record's own writer."""
+otherwise is left alone. Rows made by hand with the record's own writer. And the launcher's
+parameters for a node given an empty string."""
 import math
 
 from lhd_loading_ros.cli.up_real import note_crash
@@ -35,3 +36,27 @@ def test_another_nodes_death_and_a_row_that_ended_otherwise(tmp_path):
     note_crash(tmp_path, "mux exited with status 1")
     assert read_rows(tmp_path / "attempts.csv")[1].reason == "aborted by the operator"
     note_crash(tmp_path / "nowhere", "mux exited with status 1")        # no record: nothing to do, no error
+
+
+def test_the_launchers_parameters_start_a_node_with_an_empty_string(tmp_path):
+    """`lhd up real --controller tampier` gives the supervisor policy_dir '' (no actor): the
+    launcher's `-p` arguments must be parsed by ROS, and the node start with that value."""
+    import os
+    import subprocess
+    import sys
+
+    from lhd_loading_ros.cli.launcher import param_args
+    from rosutil import unique_domain_id
+
+    args = param_args({"run_dir": str(tmp_path), "policy_dir": "", "controller": "tampier"})
+    assert args[2:4] == ["-p", "policy_dir:=''"], args
+    env = dict(os.environ, ROS_DOMAIN_ID=str(unique_domain_id()))
+    p = subprocess.Popen([sys.executable, "-m", "lhd_loading_ros.nodes.supervisor_node", "--ros-args", *args],
+                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
+                         start_new_session=True)
+    try:
+        line = p.stdout.readline()
+    finally:
+        p.terminate()
+        p.wait(30)
+    assert "supervisor up" in line and "controller tampier" in line, line

@@ -95,6 +95,12 @@ def test_rearming_is_not_a_watchdog_trip():
     assert not w.stale(1.1)
     w.rearm(1.2)                           # reconnection or e-stop release while commands flow
     assert w.stale(1.21) and w.trips == 0
+    # what the supervisor is told (hw/status command_stale): only commands that stopped coming, not
+    # the wait for a first command after a reconnection (a review: a reconnection mid-attempt ended
+    # it with a reason blaming the mux); asking it changes nothing
+    assert not w.timed_out(1.21) and w.trips == 0
+    assert w.timed_out(1.3) and w.timed_out(1.5) and w.trips == 0
+    assert not Watchdog(0.3).timed_out(5.0)      # no command yet: the start, not a stop
 
 
 def test_command_frames_leave_at_the_rate_and_a_changed_command_at_once():

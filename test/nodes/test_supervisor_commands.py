@@ -75,4 +75,15 @@ def test_the_bridges_command_watchdog_ends_the_attempt(rig):
         _, kv = rig.wait_state("lost_input", 3, since=n0, timeout=5.0)
     finally:
         rig.command_stale = False
-    assert kv["reason"].startswith("the bridge got no valid command for its cmd_timeout"), kv
+    assert kv["reason"].startswith("the bridge took no valid command for its cmd_timeout"), kv
+
+
+def test_no_autonomous_attempt_is_armed_while_the_gamepad_drives(rig):
+    """The deadman held at the arming: the mux has teleop selected, and an RLD attempt is refused
+    (a review found a whole attempt driven by the gamepad recorded as RLD's)."""
+    rig.pub_active.publish(String(data="teleop"))
+    time.sleep(0.3)
+    res = rig.call(rig.arm_client)
+    assert not res.success and "the command mux has 'teleop' selected (the gamepad's deadman held?)" in res.message, \
+        res.message
+    rig.pub_active.publish(String(data="none"))

@@ -741,7 +741,7 @@ def test_the_bridges_own_watchdog_while_running_is_lost_input(kin):
     assert r.sv.state == "running"
     r.hw = HwStatus(WARN, False, "drive enabled", command_stale=True)
     r.step(0.02)
-    assert r.sv.state == "lost_input" and r.sv.attempt.reason.startswith("the bridge got no valid command"), \
+    assert r.sv.state == "lost_input" and r.sv.attempt.reason.startswith("the bridge took no valid command"), \
         r.sv.attempt.reason
 
 
@@ -750,10 +750,15 @@ def test_the_bridges_own_watchdog_while_running_is_lost_input(kin):
     ("rld", ["none", "auto", "none"], "lost_input"),
     # the operator's gamepad took over an autonomous attempt
     ("rld", ["auto", "teleop"], "aborted"),
+    # ... or drove it from the start, its deadman held since the arming (a review found such an
+    # attempt recorded as RLD's)
+    ("rld", ["teleop"], "aborted"),
     # before the controller's first command the mux sends zeros (none): not a loss
     ("rld", ["none", "none"], "running"),
-    # the e-stop ends the attempt by its own rule (the supervisor hears /lhd/estop too)
-    ("tampier", ["auto", "estop"], "running"),
+    # the mux reports the e-stop: an e-stop end even when /lhd/estop itself was not heard (a volatile
+    # publisher the supervisor's latched subscription does not match)
+    ("tampier", ["auto", "estop"], "estop"),
+    ("teleop", ["teleop", "estop"], "estop"),
     # a teleoperated attempt: the operator lets go of the deadman now and then
     ("teleop", ["teleop", "none", "teleop"], "running"),
 ])
@@ -770,6 +775,36 @@ def test_the_controllers_commands_stopping_while_running(kin, controller, source
         assert "the command mux's auto source timed out" in r.sv.attempt.reason
     if outcome == "aborted":
         assert r.sv.attempt.reason == "the operator took over: the command mux selected 'teleop' over the controller"
+    if outcome == "estop":
+        assert r.sv.attempt.reason.startswith("emergency stop engaged (the command mux reports it")
+
+
+def test_the_controller_of_the_attempt_not_the_label_changed_since(kin):
+    """The rule follows the attempt's own controller: relabelling the node's `controller` to
+    teleop mid-attempt does not switch it off."""
+    r = Rig(kin, arm_delay=0.0).ready()
+    r.arm()
+    r.sv.controller = "teleop"
+    r.sv.inputs.put("mux", "teleop", r.t)
+    r.step(0.1)
+    assert r.sv.state == "aborted"
+
+
+def test_arming_is_refused_while_the_gamepad_is_selected_or_the_mux_reports_the_estop(kin):
+    r = Rig(kin).ready()
+    r.sv.inputs.put("mux", "teleop", r.t)
+    ok, msg = r.sv.arm(r.t, "x")
+    assert not ok and "the command mux has 'teleop' selected (the gamepad's deadman held?)" in msg, msg
+    r.sv.inputs.put("mux", "estop", r.t)
+    ok, msg = r.sv.arm(r.t, "x")
+    assert not ok and "the command mux reports it" in msg and "release it first" in msg, msg
+    r.sv.inputs.put("mux", "none", r.t)
+    r.arm()
+    t = Supervisor(settings(), kin, "teleop", "homogeneous")      # a teleop attempt: the gamepad is its controller
+    r.sv = t
+    r.ready()
+    t.inputs.put("mux", "teleop", r.t)
+    assert t.preflight(r.t) == []
 
 
 def test_the_mux_left_over_from_the_last_attempt_is_not_this_attempts(kin):

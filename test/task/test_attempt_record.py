@@ -51,6 +51,25 @@ def test_round_trip_upsert_and_atomic_rewrite(tmp_path):
         weigh_row(p, 7, 20.0, PHI_T)
 
 
+def test_weighing_skips_the_row_of_a_live_attempt(tmp_path):
+    """The supervisor writes a row at arming (aborted, INTERRUPTED_REASON) and replaces it at the
+    end. `lhd attempt mass KG` (no --attempt) weighs the latest attempt that ENDED, not that row: a
+    review found the mass written into the live attempt's row and lost when its end replaced it."""
+    from lhd_loading_ros.task.attempt_record import INTERRUPTED_REASON
+
+    p = tmp_path / "attempts.csv"
+    live = dataclasses.replace(mk(5, outcome="aborted"), reason=INTERRUPTED_REASON)
+    write_rows(p, [mk(4), live])
+    new = weigh_row(p, None, 23.4, PHI_T)
+    assert (new.attempt, new.mass_kg, new.success) == (4, 23.4, True)
+    assert read_rows(p)[1] == live                         # untouched
+    with pytest.raises(ValueError, match="attempt 5 has no recorded end"):
+        weigh_row(p, 5, 23.4, PHI_T)
+    write_rows(p, [live])
+    with pytest.raises(ValueError, match="no attempt has ended yet"):
+        weigh_row(p, None, 23.4, PHI_T)
+
+
 def test_a_never_measured_pitch_is_written_empty_and_gives_sl_0(tmp_path):
     p = tmp_path / "attempts.csv"
     r = dataclasses.replace(mk(1, outcome="timeout"), phi_final_deg=math.nan)

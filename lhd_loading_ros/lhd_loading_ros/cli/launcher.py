@@ -45,14 +45,22 @@ def _die_with_parent():
     os.setsid()
 
 
+def param_args(params: dict) -> list[str]:
+    """`-p name:=value` for each parameter; an empty string as YAML's '': `-p policy_dir:=` is a
+    parse error that ended the node (`lhd up real --controller tampier|teleop` could not start: a
+    review, 2026-11-28)."""
+    out = []
+    for k, v in params.items():
+        out += ["-p", f"{k}:={v if v != '' else repr('')}"]
+    return out
+
+
 class Child:
     """A node process: `python -m module --ros-args [ros_args] -p k:=v ...`, output to
     log_dir/<name>.log when quiet."""
 
     def __init__(self, name: str, module: str, params: dict, log_dir: Path, quiet: bool, ros_args=()):
-        args = [sys.executable, "-m", module, "--ros-args", *ros_args]
-        for k, v in params.items():
-            args += ["-p", f"{k}:={v}"]
+        args = [sys.executable, "-m", module, "--ros-args", *ros_args, *param_args(params)]
         self.name = name
         self.log_path = log_dir / f"{name}.log"
         self._log = open(self.log_path, "w")

@@ -52,8 +52,8 @@ ESTOP_ANY_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, his
 TIMER_S = 0.02          # the Joy-timeout check: the stop leaves at most this long after joy_timeout
 RATE_WINDOW_S = 2.0
 OWN_ESTOP_KEPT = 32      # our latest e-stop publications, recognised when they come back to us
-OVERTAKEN_NS = 1_000_000_000   # an e-stop sample up to 1 s older than one taken before is dropped (the
-                               # supervisor's rule for latched inputs); beyond, clocks of two machines may differ
+OVERTAKEN_NS = 1_000_000_000   # a release up to 1 s older than a sample taken before is dropped (the supervisor's
+                               # rule for latched inputs; beyond, clocks of two machines may differ); an engage never
 
 
 def resolve_mapping(value: str) -> Path:
@@ -151,17 +151,22 @@ class TeleopNode(Node):
 
     def _on_estop(self, msg: Bool, info) -> None:
         """An e-stop sample from the latched or the volatile subscription. Taken only if it is
-        another node's and newer than every sample taken before: our own publications come back to
-        us, and after a stall the two subscriptions deliver older samples after newer ones. Mirroring
+        another node's and not a release older than a sample taken before: our own publications
+        come back to us, and after a stall the two subscriptions deliver older samples after newer
+        ones. Mirroring
         an older sample, or our own echo of one, made two nodes' latched values chase each other
         (thousands of messages a second, the value left wherever it stopped: a review, 2026-11-28)."""
         engaged = bool(msg.data)
         stamp = int(info["source_timestamp"])
         if any(a <= stamp <= b and v == engaged for a, b, v in self._estop_own):
             return                        # our own publication
-        if 0 <= self._estop_newest_ns - stamp < OVERTAKEN_NS:
-            return                        # the same sample by the other subscription, or overtaken
-        self._estop_newest_ns = stamp
+        if stamp == self._estop_newest_ns:
+            return                        # the same sample by the other subscription
+        if not engaged and 0 < self._estop_newest_ns - stamp < OVERTAKEN_NS:
+            return                        # a release overtaken by a newer sample
+        # an engage is never dropped, however old its stamp: another computer's clock may run behind
+        # ours, and a wrongly kept engage only asks for one more release (a review, 2026-11-28)
+        self._estop_newest_ns = max(self._estop_newest_ns, stamp)
         self._estop_heard = engaged
         out = self.core.on_estop(engaged)
         if out.command is not None:

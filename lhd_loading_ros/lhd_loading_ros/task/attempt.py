@@ -43,7 +43,7 @@ import statistics
 from collections import deque
 from dataclasses import dataclass, field, fields, replace
 
-from lhd_loading_ros.task.attempt_record import AttemptRow, bag_name, check_mass, judge
+from lhd_loading_ros.task.attempt_record import INTERRUPTED_REASON, AttemptRow, bag_name, check_mass, judge
 from lhd_loading_ros.task.kinematics import ArmKinematics, nose_down_pitch, quat_to_mat, state_from_measurements, with_tilt
 from lhd_loading_ros.task.metrics import drift_pct
 from lhd_loading_ros.task.state import LhdState
@@ -79,9 +79,6 @@ STALL_MEMORY_S = 30.0      # s: a pause is forgotten this long after it ended (a
 ZONE_LIMITS = tuple(f.name for f in fields(Zones))
 ZONES_CHANGED_M = 0.02     # m: a zone limit republished this far from arming's = another pile estimate
                            # (Settings.zones_tolerance's default; the end-zone node republishes on 2 cm)
-# the reason of the row written at arming (Attempt.provisional_row), which the attempt's end replaces
-INTERRUPTED_REASON = ("the supervisor ended during the attempt without recording its end (killed, or the computer "
-                      "lost power)")
 REASONS = {
     "success": "bucket tip reached the end zone",
     "failure": "bucket tip entered the restricted zone",
@@ -409,8 +406,15 @@ class Supervisor:
         listed last."""
         out = []
         estop = self._estop_problem(now, discount=False)
+        src = self.inputs.values.get("mux")
         if estop:
             out.append(estop + ": release it first")
+        elif src == "estop":
+            out.append(f"emergency stop engaged (the command mux reports it: {self.s.prefix}/cmd_mux/active estop): "
+                       "release it first")
+        if self.controller != "teleop" and src not in (None, "none", "auto", "estop"):
+            out.append(f"the command mux has {src!r} selected (the gamepad's deadman held?): let go of it before "
+                       f"arming a {self.controller} attempt")
         out += self._input_problems(now, arming=True)
         tilt = self._tilt_problem(now, discount=False)
         if tilt:
@@ -589,29 +593,37 @@ class Supervisor:
             self._end(now, "timeout", f"attempt_timeout {a.timeout:g} s passed")
 
     def _command_problem(self) -> tuple[str, str] | None:
-        """(outcome, reason) when the commands stopped reaching the machine while running: the
-        bridge's watchdog stopped it (no valid command for its cmd_timeout: the command mux, or the
-        link to it, stalled or died), or, for an autonomous controller, the mux left the `auto`
-        source it had selected in this attempt (`none`: the controller's commands stopped coming,
-        the mux sends zeros; another source: the operator took over). The machine stood still for
-        part of the attempt: its figures are not the controller's. Before 2026-11-28 a controller
-        stalled for 2 s drove on afterwards and the attempt was recorded as a success (a review's
-        fault injection). Inputs: `hw` (HwStatus.command_stale) and `mux` (<prefix>/cmd_mux/active)."""
+        """(outcome, reason) when the machine is no longer moved by the attempt's controller while
+        running (inputs `hw`, HwStatus.command_stale, and `mux`, <prefix>/cmd_mux/active):
+        - the bridge's watchdog timed out (no valid command for its cmd_timeout: the command mux,
+          its link, or the bridge itself stalled): lost_input;
+        - the mux reports the e-stop (estop), also when this node did not hear /lhd/estop itself;
+        - for an autonomous controller (not teleop): the mux selected another source (the gamepad
+          took over, also when its deadman was held from the arming on): aborted; or it left the
+          `auto` source it had selected in this attempt for `none` (the controller's commands stopped
+          coming; the mux sends zeros): lost_input.
+        The machine stood still, or someone else drove it, for part of the attempt: its figures are
+        not the controller's. Before 2026-11-28 a controller stalled for 2 s drove on afterwards and
+        the attempt was recorded as a success, and a gamepad held from the arming drove a whole
+        "RLD" attempt (reviews' fault injections)."""
         a, inp = self.attempt, self.inputs
         hw = inp.values.get("hw")
         if hw is not None and hw.command_stale:
-            return ("lost_input", "the bridge got no valid command for its cmd_timeout and stopped the machine: the "
-                                  "command mux, or its link to the bridge, stalled or died")
+            return ("lost_input", "the bridge took no valid command for its cmd_timeout and stopped the machine: the "
+                                  "command mux, its link to the bridge, or the bridge itself stalled or died")
         src = inp.values.get("mux")
-        if self.controller == "teleop" or src is None:
+        if src == "estop":
+            return ("estop", f"emergency stop engaged (the command mux reports it: {self.s.prefix}/cmd_mux/active "
+                             "estop)")
+        if a.controller == "teleop" or src is None:
             return None
         if src == "auto":
             a.auto_seen = True
-        elif a.auto_seen and src != "estop":          # an e-stop ends the attempt by its own rule
-            if src == "none":
-                return ("lost_input", "the controller's commands stopped: the command mux's auto source timed out "
-                                      "(cmd_mux/active: none) and the machine was stopped; is the controller running?")
+        elif src != "none":
             return ("aborted", f"the operator took over: the command mux selected {src!r} over the controller")
+        elif a.auto_seen:
+            return ("lost_input", "the controller's commands stopped: the command mux's auto source timed out "
+                                  "(cmd_mux/active: none) and the machine was stopped; is the controller running?")
         return None
 
     def _period_ended(self, now: float) -> bool:

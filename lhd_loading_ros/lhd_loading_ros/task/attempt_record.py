@@ -45,6 +45,10 @@ OUTCOMES = ("success", "failure", "timeout", "estop", "lost_input", "aborted")
 NEEDS_MASS = ("success", "timeout")          # success decided by the weighed mass and the final pitch
 NOT_COUNTED = ("aborted",)                   # the operator called the attempt off: not in the table
 MATERIALS = ("homogeneous", "nonhomogeneous")
+# the reason of the row the supervisor writes at arming (task.attempt.Attempt.provisional_row) and
+# replaces at the attempt's end: if it stays, the supervisor died first
+INTERRUPTED_REASON = ("the supervisor ended during the attempt without recording its end (killed, or the computer "
+                      "lost power)")
 MAX_MASS_KG = 200.0                          # a bucket rated 30 kg (heaped 37.5): anything above is a typo
 SLOPE_BIN_DEG = 5.0
 PAPER_ORDER = ("rlc", "rld", "tampier", "teleop")
@@ -231,8 +235,18 @@ def weigh_row(path, attempt: int | None, mass_kg: float, phi_thresh_rad: float) 
     rows = read_rows(path)
     if not rows:
         raise ValueError(f"{path}: no attempts recorded")
+    live = {r.attempt for r in rows if r.outcome == "aborted" and r.reason == INTERRUPTED_REASON}
     if attempt is None:
-        attempt = max(r.attempt for r in rows)
+        # the latest attempt that ended: the row written at the next one's arming is not it (a
+        # review: the mass went to the live attempt's row and was lost when its end replaced it)
+        ended = [r.attempt for r in rows if r.attempt not in live]
+        if not ended:
+            raise ValueError(f"{path}: no attempt has ended yet (attempt {max(live)} is running, or its supervisor "
+                             "died): weigh the bucket after the attempt ends")
+        attempt = max(ended)
+    elif attempt in live:
+        raise ValueError(f"{path}: attempt {attempt} has no recorded end (it is running, or its supervisor died): "
+                         "weigh the bucket after the attempt ends")
     match = [r for r in rows if r.attempt == attempt]
     if not match:
         raise ValueError(f"{path}: no attempt {attempt} (attempts {', '.join(str(r.attempt) for r in rows)})")
