@@ -50,7 +50,7 @@ def _no_leftover_nodes():
 
 
 _ROS_SOURCE = ("import rclpy", "from rclpy", "import rosutil", "from rosutil", "import subprocess",
-               "from subprocess", "RosProcess", "FakeMachine")
+               "from subprocess", "RosProcess", "FakeMachine", "supervisor_rig")
 _ros_modules: dict = {}
 
 

@@ -151,3 +151,37 @@ def wait_for(pred, timeout, step=0.005):
             return True
         time.sleep(step)
     return pred()
+
+
+SUPERVISOR = "lhd_loading_ros.nodes.supervisor_node"
+
+
+def supervisor_rig(tmp_path_factory, name: str, params: dict, pose, slope_deg: float | None = 20.0, zones=None):
+    """A FakeMachine at `pose` in a new node `name`, and a supervisor process with `params` (its
+    run_dir a fresh folder, `r.run_dir`; its log `<name>.log` beside it); the pile's slope and
+    zones published when given. Close with `close_rig`."""
+    import math
+
+    import rclpy
+
+    from rosutil import RosProcess, init_ros
+
+    init_ros()
+    node = rclpy.create_node(name)
+    r = FakeMachine(node, pose)
+    r.run_dir = tmp_path_factory.mktemp(f"run_{name}")
+    r.proc = RosProcess(SUPERVISOR, {"run_dir": str(r.run_dir), **params}, r.run_dir.parent / f"{name}.log")
+    if slope_deg is not None:
+        r.pub_slope.publish(Float64(data=math.radians(slope_deg)))
+    if zones is not None:
+        r.pub_zones.publish(Float64MultiArray(data=zones))
+    return r
+
+
+def close_rig(r) -> None:
+    from rosutil import shutdown_ros
+
+    r.proc.stop()
+    r.close()
+    r.node.destroy_node()
+    shutdown_ros()

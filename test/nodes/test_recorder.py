@@ -116,6 +116,22 @@ class Rig:
         assert ok, ([(p.topic_name, p.get_subscription_count()) for p in self.pubs], proc.log())
         spin(self.node, 0.3)
 
+    def run_attempt(self, proc, attempt, steps, rear_from=None):
+        """Attempt `attempt` armed (once the recorder listens), running, then `steps` control
+        periods of 0.1 s: joints, odometry, drift flags (rear from step `rear_from`), a command
+        [1, 0, 0.1 k] 40 ms into each."""
+        node, clock = self.node, self.node.get_clock()
+        assert spin_until(node, lambda: self.episode.get_subscription_count() >= 1, 30.0), proc.log()
+        self.episode.publish(status("armed", attempt, clock.now().nanoseconds))
+        self.wait_recorder_subscribed(proc)
+        self.episode.publish(status("running", attempt, clock.now().nanoseconds))
+        spin(node, 0.1)
+        for k in range(steps):
+            self.state(k, 0.0, 0.01 * k, False, rear_from is not None and k >= rear_from)
+            spin(node, 0.04)
+            self.cmd.publish(Float64MultiArray(data=[1.0, 0.0, 0.1 * k]))
+            spin(node, 0.06)
+
     def state(self, k, boom, bucket, front, rear, x0=-0.3):
         js = JointState(name=["boom", "bucket", "wheels"], position=[boom, bucket, 0.0], velocity=[0.0, 0.0, 2.5])
         self.joints.publish(js)
@@ -305,18 +321,8 @@ def test_sqlite3_an_existing_folder_and_a_shutdown_during_the_attempt(ros, tmp_p
     clock_timer = ros.create_timer(0.02, lambda: pub_clock.publish(
         Clock(clock=Time(nanoseconds=sim0 + int((time.monotonic() - wall0) * S)).to_msg())))
     proc = start_recorder(tmp_path, run_dir, name="recorder_sqlite", storage="sqlite3", use_sim_time="true")
-    clock = ros.get_clock()
     try:
-        assert spin_until(ros, lambda: rig.episode.get_subscription_count() >= 1, 30.0), proc.log()
-        rig.episode.publish(status("armed", 3, clock.now().nanoseconds))
-        rig.wait_recorder_subscribed(proc)
-        rig.episode.publish(status("running", 3, clock.now().nanoseconds))
-        spin(ros, 0.1)
-        for k in range(8):
-            rig.state(k, 0.0, 0.01 * k, False, k >= 4)
-            spin(ros, 0.04)
-            rig.cmd.publish(Float64MultiArray(data=[1.0, 0.0, 0.1 * k]))
-            spin(ros, 0.06)
+        rig.run_attempt(proc, 3, 8, rear_from=4)
         spin(ros, 0.2)
     finally:
         rc = proc.stop()
@@ -372,18 +378,8 @@ def test_a_recorder_killed_mid_attempt_leaves_a_bag_that_lhd_bag_recover_reads(r
     rig.latched()
     run_dir = tmp_path / "run"
     proc = start_recorder(tmp_path, run_dir, name="recorder_killed", flush_period_s=0.3)
-    clock = ros.get_clock()
     try:
-        assert spin_until(ros, lambda: rig.episode.get_subscription_count() >= 1, 30.0), proc.log()
-        rig.episode.publish(status("armed", 4, clock.now().nanoseconds))
-        rig.wait_recorder_subscribed(proc)
-        rig.episode.publish(status("running", 4, clock.now().nanoseconds))
-        spin(ros, 0.1)
-        for k in range(12):
-            rig.state(k, 0.0, 0.01 * k, False, False)
-            spin(ros, 0.04)
-            rig.cmd.publish(Float64MultiArray(data=[1.0, 0.0, 0.1 * k]))
-            spin(ros, 0.06)
+        rig.run_attempt(proc, 4, 12)
         spin(ros, 1.0)                             # > 3 flush periods after the last command
         os.killpg(proc.proc.pid, signal.SIGKILL)
         proc.proc.wait(10)

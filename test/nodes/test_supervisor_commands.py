@@ -4,36 +4,22 @@ controller stalled: lost_input; the gamepad took over: aborted) and the bridge's
 watchdog in /lhd/hw/status (`command_stale`: the mux stalled). Before 2026-11-28 a controller or
 mux stalled for 2 s drove on afterwards and the attempt was recorded as a success (a review's
 fault injection on the twin). The rule itself: test/task/test_attempt.py."""
-import math
 import time
 
 import pytest
-import rclpy
-from std_msgs.msg import Float64, Float64MultiArray, String
+from std_msgs.msg import String
 
-from fake_machine import LATCHED, FakeMachine
-from rosutil import RosProcess, init_ros, shutdown_ros
+from fake_machine import LATCHED, close_rig, supervisor_rig
 from test_supervisor_node import START, ZONES
-
-SUPERVISOR = "lhd_loading_ros.nodes.supervisor_node"
 
 
 @pytest.fixture(scope="module")
 def rig(tmp_path_factory):
-    init_ros()
-    node = rclpy.create_node("test_supervisor_commands")
-    r = FakeMachine(node, START)
-    r.pub_active = node.create_publisher(String, "/lhd/cmd_mux/active", LATCHED)
-    r.run_dir = tmp_path_factory.mktemp("run_commands")
-    r.proc = RosProcess(SUPERVISOR, {"run_dir": str(r.run_dir), "attempt_timeout": 5.0, "arm_delay": 0.2},
-                        r.run_dir.parent / "supervisor_commands.log")
-    r.pub_slope.publish(Float64(data=math.radians(20.0)))
-    r.pub_zones.publish(Float64MultiArray(data=ZONES))
+    r = supervisor_rig(tmp_path_factory, "test_supervisor_commands", {"attempt_timeout": 5.0, "arm_delay": 0.2},
+                       START, zones=ZONES)
+    r.pub_active = r.node.create_publisher(String, "/lhd/cmd_mux/active", LATCHED)
     yield r
-    r.proc.stop()
-    r.close()
-    node.destroy_node()
-    shutdown_ros()
+    close_rig(r)
 
 
 def run_attempt(rig, n):

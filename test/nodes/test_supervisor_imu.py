@@ -6,14 +6,9 @@ import math
 import time
 
 import pytest
-import rclpy
-from std_msgs.msg import Float64, Float64MultiArray
 
-from fake_machine import FakeMachine
-from rosutil import RosProcess, init_ros, shutdown_ros
+from fake_machine import close_rig, supervisor_rig
 from test_supervisor_node import END, START, ZONES
-
-SUPERVISOR = "lhd_loading_ros.nodes.supervisor_node"
 
 
 def pitch_quat(deg, yaw_deg=0.0):
@@ -24,19 +19,10 @@ def pitch_quat(deg, yaw_deg=0.0):
 
 @pytest.fixture(scope="module")
 def rig(tmp_path_factory):
-    init_ros()
-    node = rclpy.create_node("test_supervisor_imu")
-    r = FakeMachine(node, START)
-    r.run_dir = tmp_path_factory.mktemp("run_imu")
-    r.proc = RosProcess(SUPERVISOR, {"run_dir": str(r.run_dir), "attempt_timeout": 5.0, "arm_delay": 0.2,
-                                     "max_tilt_deg": 8.0}, r.run_dir.parent / "supervisor_imu.log")
-    r.pub_slope.publish(Float64(data=math.radians(20.0)))
-    r.pub_zones.publish(Float64MultiArray(data=ZONES))
+    r = supervisor_rig(tmp_path_factory, "test_supervisor_imu", {"attempt_timeout": 5.0, "arm_delay": 0.2,
+                                                                 "max_tilt_deg": 8.0}, START, zones=ZONES)
     yield r
-    r.proc.stop()
-    r.close()
-    node.destroy_node()
-    shutdown_ros()
+    close_rig(r)
 
 
 def test_the_imu_is_required_its_pitch_judged_and_a_tilt_ends_the_attempt(rig):

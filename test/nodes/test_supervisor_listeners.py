@@ -4,47 +4,32 @@ the arm answer and on /diagnostics), and once the real recorder node runs the at
 recorded into a bag. Before this item an attempt armed within the recorder's first second of
 discovery had no bag (CI, 2026-11-28). A malformed name is refused at start with the parameter's
 name."""
-import math
 import subprocess
 import sys
 import time
 
 import pytest
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
-from std_msgs.msg import Float64, Float64MultiArray
 
-from fake_machine import FakeMachine, wait_for
-from rosutil import RosProcess, init_ros, shutdown_ros
+from fake_machine import SUPERVISOR, close_rig, supervisor_rig, wait_for
+from rosutil import RosProcess
 from test_supervisor_node import END, START, ZONES
 
-SUPERVISOR = "lhd_loading_ros.nodes.supervisor_node"
 RECORDER = "lhd_loading_ros.nodes.recorder_node"
 
 
 @pytest.fixture(scope="module")
 def rig(tmp_path_factory):
-    init_ros()
-    node = rclpy.create_node("test_supervisor_listeners")
-    r = FakeMachine(node, START)
+    r = supervisor_rig(tmp_path_factory, "test_supervisor_listeners", {
+        "attempt_timeout": 5.0, "arm_delay": 0.2, "required_listeners": "['lhd_recorder']"}, START, zones=ZONES)
     r.diag = []
-    node.create_subscription(DiagnosticArray, "/diagnostics",
-                             lambda m: r.diag.extend(s for s in m.status if s.name.endswith("supervisor: preflight")),
-                             10)
-    r.run_dir = tmp_path_factory.mktemp("run_listeners")
-    r.proc = RosProcess(SUPERVISOR, {"run_dir": str(r.run_dir), "attempt_timeout": 5.0, "arm_delay": 0.2,
-                                     "required_listeners": "['lhd_recorder']"},
-                        r.run_dir.parent / "supervisor_listeners.log")
+    r.node.create_subscription(DiagnosticArray, "/diagnostics", lambda m: r.diag.extend(
+        s for s in m.status if s.name.endswith("supervisor: preflight")), 10)
     r.recorder = None
-    r.pub_slope.publish(Float64(data=math.radians(20.0)))
-    r.pub_zones.publish(Float64MultiArray(data=ZONES))
     yield r
     if r.recorder is not None:
         r.recorder.stop()
-    r.proc.stop()
-    r.close()
-    node.destroy_node()
-    shutdown_ros()
+    close_rig(r)
 
 
 def test_no_attempt_without_the_recorder_then_one_with_its_bag(rig):
