@@ -288,8 +288,7 @@ def note_crash(run_dir: Path, what: str, prog: str = "lhd up real") -> None:
     """A node process that died ended the stack: the attempt it interrupted was aborted by the
     supervisor's stop ("supervisor stopped during the attempt"), or, when the supervisor itself
     died, left as its row from arming says (INTERRUPTED_REASON); the record says which node it was."""
-    from lhd_loading_ros.task.attempt import INTERRUPTED_REASON
-    from lhd_loading_ros.task.attempt_record import csv_path, read_rows, upsert_row
+    from lhd_loading_ros.task.attempt_record import INTERRUPTED_REASON, csv_path, read_rows, upsert_row
 
     try:
         rows = read_rows(csv_path(run_dir))

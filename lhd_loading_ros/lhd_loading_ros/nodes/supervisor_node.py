@@ -331,9 +331,8 @@ class SupervisorNode(Node):
         if not self.required_listeners:
             return []
         topic = f"{self.prefix}/episode"
-        present = {i.node_name for i in self.get_subscriptions_info_by_topic(topic)}
-        present |= {f"{i.node_namespace.rstrip('/')}/{i.node_name}"
-                    for i in self.get_subscriptions_info_by_topic(topic)}
+        subs = self.get_subscriptions_info_by_topic(topic)
+        present = {i.node_name for i in subs} | {f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in subs}
         # no "; " inside: the arm answer and `lhd up real`'s checklist split the problems on it
         return [f"node {n} does not listen to {topic} yet (required_listeners): it would miss the attempt "
                 "(is it running?)" for n in self.required_listeners if n not in present]
