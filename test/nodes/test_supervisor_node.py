@@ -20,7 +20,7 @@ from rclpy.parameter_client import AsyncParameterClient
 from std_msgs.msg import Bool, Float64, Float64MultiArray
 
 from lhd_loading_ros.cli.attempts import main as attempts_main
-from lhd_loading_ros.task.attempt_record import read_rows
+from lhd_loading_ros.task.attempt_record import is_unended, read_rows
 
 from fake_machine import FakeMachine, wait_for
 from rosutil import RosProcess, init_ros, shutdown_ros
@@ -29,6 +29,13 @@ SUPERVISOR = "lhd_loading_ros.nodes.supervisor_node"
 CLI = [sys.executable, "-m", "lhd_loading_ros.cli.attempts"]
 TIMEOUT_S = 3.0          # attempt_timeout of this test's supervisor (room for a loaded machine)
 ARM_DELAY = 0.3
+
+
+def ended_row(rig, attempt):
+    """The record's row of `attempt` once its end has replaced the row written at arming, else None."""
+    rows = [r for r in read_rows(rig.run_dir / "attempts.csv") if r.attempt == attempt]
+    return rows[0] if rows and not is_unended(rows[0]) else None
+
 
 # Hand geometry (config/lhd_params.yaml, machine), as in test/task/test_attempt.py: in the
 # attack pose the tip is 0.80 + 0.15 + sqrt(0.55^2 - 0.30^2) + 0.30 = 1.710977 m ahead of the
@@ -133,7 +140,8 @@ def test_arm_running_success_at_the_end_of_the_control_period(rig):
     assert float(kv["elapsed_s"]) == pytest.approx(t_end - t_run, abs=0.1) and float(kv["elapsed_s"]) >= 0.5
     assert kv["loaded_mass"] == "nan" and "success" not in kv
     # written right after the end status (status first: controllers stop on it), before any mass
-    assert wait_for(lambda: read_rows(rig.run_dir / "attempts.csv"), 2.0)
+    # (the row written at arming is there all along: wait for the end to replace it)
+    assert wait_for(lambda: ended_row(rig, 1), 2.0)
     rows = read_rows(rig.run_dir / "attempts.csv")
     assert [(r.attempt, r.outcome, r.mass_kg, r.success) for r in rows] == [(1, "success", None, None)]
     assert rows[0].bag == "bags/attempt_0001" and rows[0].slope_deg == pytest.approx(20.0)
@@ -293,7 +301,7 @@ def test_a_supervisor_stalled_past_the_controllers_status_timeout_aborts_the_att
     _, kv = rig.wait_state("aborted", 7, since=n0)
     assert kv["reason"].startswith("the supervisor did not run for 2.") and "status_timeout (1.5 s)" in kv["reason"]
     # the status goes out first, then the record (the controllers stop on the status)
-    assert wait_for(lambda: read_rows(rig.run_dir / "attempts.csv")[-1].attempt == 7, 10.0)
+    assert wait_for(lambda: ended_row(rig, 7), 10.0)
     row = read_rows(rig.run_dir / "attempts.csv")[-1]
     assert row.outcome == "aborted" and "did not run for" in row.reason
 

@@ -55,10 +55,12 @@ def test_weighing_skips_the_row_of_a_live_attempt(tmp_path):
     """The supervisor writes a row at arming (aborted, INTERRUPTED_REASON) and replaces it at the
     end. `lhd attempt mass KG` (no --attempt) weighs the latest attempt that ENDED, not that row: a
     review found the mass written into the live attempt's row and lost when its end replaced it."""
-    from lhd_loading_ros.task.attempt_record import INTERRUPTED_REASON
+    from lhd_loading_ros.task.attempt_record import INTERRUPTED_REASON, is_unended
 
     p = tmp_path / "attempts.csv"
     live = dataclasses.replace(mk(5, outcome="aborted"), reason=INTERRUPTED_REASON)
+    assert is_unended(live) and not is_unended(mk(4))
+    assert not is_unended(dataclasses.replace(mk(5, outcome="aborted"), reason="aborted by the operator (/lhd/abort)"))
     write_rows(p, [mk(4), live])
     new = weigh_row(p, None, 23.4, PHI_T)
     assert (new.attempt, new.mass_kg, new.success) == (4, 23.4, True)

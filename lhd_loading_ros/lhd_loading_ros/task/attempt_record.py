@@ -224,6 +224,12 @@ def write_rows(path, rows: list[AttemptRow]) -> None:
         raise
 
 
+def is_unended(row: AttemptRow) -> bool:
+    """The row written at arming, not (yet) replaced by the attempt's end: the attempt is running,
+    or its supervisor died during it."""
+    return row.outcome == "aborted" and row.reason == INTERRUPTED_REASON
+
+
 def upsert_row(path, row: AttemptRow) -> None:
     """Write `row` into the record, replacing the row of the same attempt number if present."""
     rows = [r for r in read_rows(path) if r.attempt != row.attempt]
@@ -235,7 +241,7 @@ def weigh_row(path, attempt: int | None, mass_kg: float, phi_thresh_rad: float) 
     rows = read_rows(path)
     if not rows:
         raise ValueError(f"{path}: no attempts recorded")
-    live = {r.attempt for r in rows if r.outcome == "aborted" and r.reason == INTERRUPTED_REASON}
+    live = {r.attempt for r in rows if is_unended(r)}
     if attempt is None:
         # the latest attempt that ended: the row written at the next one's arming is not it (a
         # review: the mass went to the live attempt's row and was lost when its end replaced it)
