@@ -347,6 +347,58 @@ def parser() -> argparse.ArgumentParser:
     return ap
 
 
+def node_params(params_file: Path | None, node: str) -> dict:
+    """The ROS parameters a parameter file gives `node` (its own section over `/**`), as rcl reads them."""
+    if params_file is None:
+        return {}
+    import yaml
+
+    try:
+        doc = yaml.safe_load(Path(params_file).read_text()) or {}
+    except (OSError, yaml.YAMLError):
+        return {}              # the nodes refuse an unreadable file and say why
+    out: dict = {}
+    for key in ("/**", node, f"/{node}"):
+        sec = doc.get(key) if isinstance(doc, dict) else None
+        if isinstance(sec, dict) and isinstance(sec.get("ros__parameters"), dict):
+            out.update(sec["ros__parameters"])
+    return out
+
+
+MIN_COMMANDS_PER_TIMEOUT = 2     # a controller's command may be one period late without the mux timing it out
+
+
+def command_timing_problem(params_file: Path | None, config: str | None) -> str | None:
+    """The controller must publish well within the mux's timeout of its source (`auto`): at
+    rate_hz <= 1/timeout every attempt ends as lost_input (the mux drops the source between two
+    commands, and a dropped gated source stays cut until the attempt ends), and just above it one
+    late command does the same. None when the timing is sound or the files cannot be read (the
+    nodes say why then)."""
+    from lhd_loading_ros.policy.cmd_mux import MuxConfigError, load_sources
+    from lhd_loading_ros.policy.shipped import shipped_config
+    from lhd_loading_ros.task.config import ConfigError, load_config
+
+    pol = node_params(params_file, "lhd_policy")
+    mux = node_params(params_file, "lhd_cmd_mux")
+    try:
+        rate = float(pol["rate_hz"]) if "rate_hz" in pol else float(load_config(config)["paper"]["control"]["frequency_hz"])
+        sources_file = mux.get("sources_file") or str(shipped_config("cmd_mux.yaml"))
+        auto = [s for s in load_sources(sources_file) if s.topic.strip("/") in ("cmd/auto", "lhd/cmd/auto")]
+    except (ConfigError, MuxConfigError, FileNotFoundError, KeyError, TypeError, ValueError):
+        return None
+    if not auto or not rate > 0:
+        return None
+    period, timeout = 1.0 / rate, auto[0].timeout
+    if MIN_COMMANDS_PER_TIMEOUT * period <= timeout:
+        return None
+    where = f"--params-file {params_file}" if params_file else "the default parameters"
+    return (f"the controller's rate_hz {rate:g} (lhd_policy, {where}) sends a command every {period:.3g} s, but the "
+            f"command mux drops its source '{auto[0].name}' after {timeout:g} s of silence ({sources_file}): "
+            f"every attempt would end as lost_input. Expected rate_hz >= {MIN_COMMANDS_PER_TIMEOUT / timeout:.3g} "
+            f"(at least {MIN_COMMANDS_PER_TIMEOUT} commands per timeout; the paper's 10 Hz), or a longer timeout "
+            "of that source")
+
+
 def check_args(ap: argparse.ArgumentParser, args) -> None:
     """The checks argparse cannot make (ap.error, exit 2, on a bad value)."""
     if args.attempt_timeout <= 0:
@@ -357,6 +409,11 @@ def check_args(ap: argparse.ArgumentParser, args) -> None:
         ap.error(f"--end-zone {args.end_zone!r}: expected `lidar` or a surveyed YAML file that exists")
     if args.params_file and not Path(args.params_file).is_file():
         ap.error(f"--params-file {args.params_file!r} does not exist")
+    if args.controller != "teleop":
+        problem = command_timing_problem(Path(args.params_file) if args.params_file else default_params_file(),
+                                         args.config)
+        if problem:
+            ap.error(problem)
     if args.policy:
         from lhd_loading_ros.policy.actor_file import PolicyFileError, load_policy
 

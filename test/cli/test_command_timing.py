@@ -1,0 +1,68 @@
+"""The controller's rate against the command mux's timeout of its source, checked by `lhd up
+real` / `lhd up twin` before anything starts. The mux drops a gated source silent for its timeout
+(0.3 s, config/cmd_mux.yaml) and keeps it cut until the attempt ends, so a controller publishing
+every 0.25 s (4 Hz) or slower lost every attempt (lost_input), and one barely faster lost those
+with one late command. The rule: at least 2 commands per timeout, rate_hz >= 2 / 0.3 = 6.67 Hz."""
+
+import pytest
+
+from lhd_loading_ros.cli.up_real import check_args, command_timing_problem, default_params_file, node_params, parser
+
+
+def params(tmp_path, text, name="p.yaml"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def test_the_shipped_parameters_pass():
+    shipped = default_params_file()
+    assert shipped is not None and command_timing_problem(shipped, None) is None     # 10 Hz against 0.3 s
+    assert command_timing_problem(None, None) is None
+
+
+@pytest.mark.parametrize("rate, refused", [(4.0, True), (6.6, True), (6.67, False), (10.0, False)])
+def test_the_boundary_is_two_commands_per_timeout(tmp_path, rate, refused):
+    # 2 / rate against 0.3 s, by hand: 6.6 Hz -> 0.303 s > 0.3; 6.67 Hz -> 0.29985 s <= 0.3
+    p = params(tmp_path, f"lhd_policy:\n  ros__parameters:\n    rate_hz: {rate}\n")
+    msg = command_timing_problem(p, None)
+    assert (msg is not None) == refused, msg
+    if refused:
+        assert f"rate_hz {rate:g}" in msg and "'auto' after 0.3 s" in msg and "lost_input" in msg
+        assert "Expected rate_hz >= 6.67" in msg and str(p) in msg
+
+
+def test_the_mux_file_named_in_the_parameters_is_the_one_judged(tmp_path):
+    mux = params(tmp_path, "sources:\n  - {name: auto, topic: cmd/auto, priority: 10, timeout: 1.0, gated: true}\n",
+                 "mux.yaml")
+    p = params(tmp_path, f"lhd_policy:\n  ros__parameters:\n    rate_hz: 4.0\n"
+                         f"lhd_cmd_mux:\n  ros__parameters:\n    sources_file: {mux}\n")
+    assert command_timing_problem(p, None) is None              # 2 x 0.25 s <= 1 s
+    # a wildcard section counts, the node's own section over it (as rcl reads the file)
+    p2 = params(tmp_path, "/**:\n  ros__parameters:\n    rate_hz: 2.0\nlhd_policy:\n  ros__parameters:\n"
+                          "    rate_hz: 10.0\n", "p2.yaml")
+    assert node_params(p2, "lhd_policy")["rate_hz"] == 10.0 and command_timing_problem(p2, None) is None
+    p3 = params(tmp_path, "/**:\n  ros__parameters:\n    rate_hz: 2.0\n", "p3.yaml")
+    assert "rate_hz 2 " in command_timing_problem(p3, None)
+
+
+@pytest.mark.parametrize("controller, refused", [("rld", True), ("tampier", True), ("teleop", False)])
+def test_lhd_up_real_refuses_before_anything_starts(tmp_path, capsys, controller, refused):
+    p = params(tmp_path, "lhd_policy:\n  ros__parameters:\n    rate_hz: 3.0\n")
+    ap = parser()
+    args = ap.parse_args(["--port", "/dev/null", "--controller", controller, "--params-file", str(p)])
+    if refused:
+        with pytest.raises(SystemExit) as exc:
+            check_args(ap, args)
+        assert exc.value.code == 2 and "every attempt would end as lost_input" in capsys.readouterr().err
+    else:
+        check_args(ap, args)                  # the gamepad drives: no controller, nothing to judge
+
+
+def test_lhd_up_twin_refuses_it_too(tmp_path, capsys):
+    from lhd_loading_ros.cli.up_twin import main
+
+    p = params(tmp_path, "lhd_policy:\n  ros__parameters:\n    rate_hz: 3.0\n")
+    with pytest.raises(SystemExit) as exc:
+        main(["--params-file", str(p)])
+    assert exc.value.code == 2 and "every attempt would end as lost_input" in capsys.readouterr().err
