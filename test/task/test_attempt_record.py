@@ -202,3 +202,17 @@ def test_table_layout():
 def test_empty_table():
     out = format_table(summarize([mk(1)]))
     assert "not yet weighed" in out and "no counted attempts yet" in out
+
+
+def test_an_attempt_without_a_recorded_end_is_listed_apart_from_the_aborted():
+    """The row written at arming reads `aborted` until the end replaces it: `lhd attempts` during an
+    attempt (or after the supervisor was killed in one) says so instead of calling it aborted."""
+    from lhd_loading_ros.task.attempt_record import INTERRUPTED_REASON
+
+    rows = rows_for_table() + [dataclasses.replace(mk(11, outcome="aborted"), reason=INTERRUPTED_REASON)]
+    s = summarize(rows)
+    assert (s["rows"], s["counted"], s["aborted"], s["unended"]) == (11, 8, [8], [11])
+    out = format_table(s)
+    assert "not counted: attempt(s) 8\n" in out + "\n"
+    assert "no end recorded (running now, or its supervisor was killed during it), not counted: attempt(s) 11" in out
+    assert "no end recorded" not in format_table(summarize(rows_for_table()))

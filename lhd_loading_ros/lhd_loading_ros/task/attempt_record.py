@@ -280,8 +280,9 @@ def controller_order(names) -> list[str]:
 
 def summarize(rows: list[AttemptRow]) -> dict:
     """The paper's table as data: `cells` (controller x material x slope), `across_slopes`
-    (the x-bar rows), and the attempts left out (aborted; not yet weighed)."""
-    aborted = [r.attempt for r in rows if r.outcome in NOT_COUNTED]
+    (the x-bar rows), and the attempts left out (aborted; no end recorded; not yet weighed)."""
+    aborted = [r.attempt for r in rows if r.outcome in NOT_COUNTED and not is_unended(r)]
+    unended = [r.attempt for r in rows if is_unended(r)]
     pending = [r.attempt for r in rows if r.outcome not in NOT_COUNTED and r.success is None]
     counted = [r for r in rows if r.outcome not in NOT_COUNTED and r.success is not None]
     groups: dict[tuple, list[AttemptRow]] = {}
@@ -308,7 +309,7 @@ def summarize(rows: list[AttemptRow]) -> dict:
             for key, _ in METRICS:
                 a[key] = _mean_std([c[key]["mean"] for c in mine if c[key]["mean"] is not None])
             across.append(a)
-    return {"rows": len(rows), "counted": len(counted), "aborted": aborted, "not_weighed": pending,
+    return {"rows": len(rows), "counted": len(counted), "aborted": aborted, "unended": unended, "not_weighed": pending,
             "cells": cells, "across_slopes": across}
 
 
@@ -320,6 +321,9 @@ def format_table(summary: dict, title: str = "") -> str:
     lines.append(f"{summary['rows']} attempt(s) recorded, {summary['counted']} counted")
     if summary["aborted"]:
         lines.append(f"aborted (by the operator, or not started by the supervisor), not counted: attempt(s) {', '.join(map(str, summary['aborted']))}")
+    if summary.get("unended"):
+        lines.append("no end recorded (running now, or its supervisor was killed during it), not counted: attempt(s) "
+                     f"{', '.join(map(str, summary['unended']))}")
     if summary["not_weighed"]:
         lines.append(f"not yet weighed, not counted (lhd attempt mass KG --attempt N): attempt(s) "
                      f"{', '.join(map(str, summary['not_weighed']))}")
