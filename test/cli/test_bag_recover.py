@@ -53,3 +53,42 @@ def test_not_an_mcap_file(tmp_path):
     f.write_bytes(b"SQLite format 3\x00" + bytes(100))
     with pytest.raises(RecoverError, match="not an MCAP file"):
         scan_mcap(f)
+
+
+def test_a_db3_that_is_not_a_rosbag2_sqlite3_file(tmp_path):
+    import sqlite3
+
+    from lhd_loading_ros.cli.bag_recover import scan_sqlite3
+
+    f = tmp_path / "x.db3"
+    f.write_bytes(b"\x89MCAP0\r\n" + bytes(100))
+    with pytest.raises(RecoverError, match="not an SQLite database"):
+        scan_sqlite3(f)
+    f.unlink()
+    conn = sqlite3.connect(f)
+    conn.execute("CREATE TABLE other(x)")
+    conn.commit()
+    conn.close()
+    with pytest.raises(RecoverError, match="no rosbag2 `topics` table"):
+        scan_sqlite3(f)
+
+
+def test_a_sqlite3_bag_cut_before_its_close_gives_its_committed_rows(tmp_path):
+    """rosbags' sqlite3 writer, committed as the recorder does every flush_period_s, then more rows
+    never committed (the kill): the scan reads the committed ones, from a copy of the file."""
+    from lhd_loading_ros.cli.bag_recover import scan_sqlite3
+
+    w = Writer(tmp_path / "bag", version=9, storage_plugin=StoragePlugin.SQLITE3)
+    w.open()
+    c = w.add_connection("/lhd/x", F64, typestore=TS)
+    for k in range(5):
+        w.write(c, 1_000 + k, TS.serialize_cdr(TS.types[F64](data=float(k)), F64))
+    w.storage.conn.commit()
+    for k in range(5, 8):                              # written, not committed
+        w.write(c, 1_000 + k, TS.serialize_cdr(TS.types[F64](data=float(k)), F64))
+    db = next((tmp_path / "bag").glob("*.db3"))
+    s = scan_sqlite3(db)
+    assert [m[1] for m in s.messages] == list(range(1_000, 1_005)) and s.storage == "sqlite3"
+    assert s.channels[c.id][1] == "/lhd/x" and s.schemas[c.id][0] == F64
+    assert [TS.deserialize_cdr(m[2], F64).data for m in s.messages] == [0.0, 1.0, 2.0, 3.0, 4.0]
+    w.close()

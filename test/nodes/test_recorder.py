@@ -109,10 +109,17 @@ class Rig:
         self.zones.publish(Float64MultiArray(data=ZONES))
         self.end_zone.publish(Float64MultiArray(data=END_ZONE))
 
+    def subscriptions(self, proc, pub) -> int:
+        """Subscriptions of `proc`'s recorder (its node name) to `pub`'s topic: a recorder killed
+        by an earlier test stays in the DDS graph until its lease runs out, under the default name."""
+        name = getattr(proc, "node_name", "lhd_recorder")
+        return sum(1 for i in self.node.get_subscriptions_info_by_topic(pub.topic_name) if i.node_name == name)
+
     def wait_recorder_subscribed(self, proc, timeout=20.0):
         """The recorder subscribes to every topic once a bag is open; then DDS matches it."""
-        ok = spin_until(self.node, lambda: all(p.get_subscription_count() >= 1 for p in self.pubs)
-                        and self.episode.get_subscription_count() >= 2, timeout)
+        ok = spin_until(self.node, lambda: all(self.subscriptions(proc, p) >= 1 and p.get_subscription_count() >= 1
+                                               for p in self.pubs)
+                        and self.subscriptions(proc, self.episode) >= 2, timeout)
         assert ok, ([(p.topic_name, p.get_subscription_count()) for p in self.pubs], proc.log())
         spin(self.node, 0.3)
 
@@ -121,7 +128,8 @@ class Rig:
         periods of 0.1 s: joints, odometry, drift flags (rear from step `rear_from`), a command
         [1, 0, 0.1 k] 40 ms into each."""
         node, clock = self.node, self.node.get_clock()
-        assert spin_until(node, lambda: self.episode.get_subscription_count() >= 1, 30.0), proc.log()
+        assert spin_until(node, lambda: self.subscriptions(proc, self.episode) >= 1
+                          and self.episode.get_subscription_count() >= 1, 30.0), proc.log()
         self.episode.publish(status("armed", attempt, clock.now().nanoseconds))
         self.wait_recorder_subscribed(proc)
         self.episode.publish(status("running", attempt, clock.now().nanoseconds))
@@ -145,8 +153,10 @@ class Rig:
         self.rear.publish(Bool(data=rear))
 
 
-def start_recorder(tmp_path, run_dir, name="recorder", **params):
-    proc = RosProcess(MODULE, {"run_dir": str(run_dir), **params}, tmp_path / f"{name}.log")
+def start_recorder(tmp_path, run_dir, name="recorder", node_name=None, **params):
+    proc = RosProcess(MODULE, {"run_dir": str(run_dir), **params}, tmp_path / f"{name}.log",
+                      remaps={"__node": node_name} if node_name else None)
+    proc.node_name = node_name or "lhd_recorder"
     return proc
 
 
@@ -364,12 +374,14 @@ def test_sqlite3_an_existing_folder_and_a_shutdown_during_the_attempt(ros, tmp_p
     assert re.search(r"rear drift \(%\) +50\.00 +-\n", text) and "drift sampled at 8 command(s)" in text
 
 
-def test_a_recorder_killed_mid_attempt_leaves_a_bag_that_lhd_bag_recover_reads(ros, tmp_path, capsys):
+@pytest.mark.parametrize("storage, ext", [("mcap", "mcap"), ("sqlite3", "db3")])
+def test_a_recorder_killed_mid_attempt_leaves_a_bag_that_lhd_bag_recover_reads(ros, tmp_path, capsys, storage, ext):
     """SIGKILL gives the recorder no close: no metadata.yaml, no MCAP summary. It flushes the open
-    bag every flush_period_s (here 0.3 s), so `lhd bag recover` rewrites what was flushed as a
-    complete bag, which `lhd replay` reads: every command published more than a flush period and a
-    margin before the kill is in it, with its values. Until 2026-11-28 such a bag was a 0-byte file
-    (rosbags keeps a 1 MiB chunk in memory; a review's fault injection)."""
+    bag every flush_period_s (here 0.3 s; sqlite3: commits), so `lhd bag recover` rewrites what was
+    flushed as a complete bag of the same storage, which `lhd replay` reads: every command published
+    more than a flush period and a margin before the kill is in it, with its values. Until
+    2026-11-28 such an MCAP bag was a 0-byte file (rosbags keeps a 1 MiB chunk in memory; a review's
+    fault injection), and a sqlite3 one was left to `ros2 bag reindex`, which this machine lacks."""
     import signal
 
     from lhd_loading_ros.cli.bag import main as bag_main
@@ -377,7 +389,8 @@ def test_a_recorder_killed_mid_attempt_leaves_a_bag_that_lhd_bag_recover_reads(r
     rig = Rig(ros, "c")
     rig.latched()
     run_dir = tmp_path / "run"
-    proc = start_recorder(tmp_path, run_dir, name="recorder_killed", flush_period_s=0.3)
+    proc = start_recorder(tmp_path, run_dir, name=f"recorder_killed_{storage}", flush_period_s=0.3, storage=storage,
+                          node_name=f"lhd_recorder_killed_{storage}")    # told apart from the one killed before
     try:
         rig.run_attempt(proc, 4, 12)
         spin(ros, 1.0)                             # > 3 flush periods after the last command
@@ -387,13 +400,17 @@ def test_a_recorder_killed_mid_attempt_leaves_a_bag_that_lhd_bag_recover_reads(r
         proc.stop()
         rig.close()
     bag = run_dir / "bags" / "attempt_0004"
-    assert not (bag / "metadata.yaml").exists() and next(bag.glob("*.mcap")).stat().st_size > 0
+    original = next(bag.glob(f"*.{ext}"))
+    before = {p.name: p.read_bytes() for p in bag.iterdir()}       # sqlite3: and its hot journal
+    assert not (bag / "metadata.yaml").exists() and len(before[original.name]) > 0
     assert replay.main([str(bag)]) != 0
     assert f"lhd bag recover {bag}" in capsys.readouterr().err
     assert bag_main(["recover", str(bag)]) == 0
     out = bag.with_name("attempt_0004_recovered")
     assert str(out) in capsys.readouterr().out
     got = read_back(out)
+    assert [p.suffix for p in out.iterdir() if p.name != "metadata.yaml"] == [f".{ext}"]
+    assert {p.name: p.read_bytes() for p in bag.iterdir()} == before            # the original untouched
     assert [list(m.data) for _, m in got["/lhd/cmd"]] == [[1.0, 0.0, 0.1 * k] for k in range(12)]
     assert [m.data for _, m in got["/lhd/pile/slope"]] == [SLOPE]
     assert len(got["/lhd/joint_states"]) == 12

@@ -11,7 +11,7 @@ import sys
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="lhd bag", description=__doc__.split("\n\n")[0])
     sub = ap.add_subparsers(dest="what", required=True)
-    rec = sub.add_parser("recover", help="rewrite a never-closed MCAP bag as a complete one beside it")
+    rec = sub.add_parser("recover", help="rewrite a never-closed bag (MCAP or sqlite3) as a complete one beside it")
     rec.add_argument("bag", help="the attempt's bag folder (runs/.../bags/attempt_NNNN)")
     rec.add_argument("--out", default=None, help="folder to write (default: BAG_recovered; never overwritten)")
     args = ap.parse_args(argv)
@@ -23,9 +23,13 @@ def main(argv=None) -> int:
         print(f"lhd bag recover: {exc}", file=sys.stderr)
         return 1
     topics = sorted({scan.channels[c][1] for c, _, _ in scan.messages if c in scan.channels})
-    where = "the whole file" if scan.truncated_at is None else f"up to byte {scan.truncated_at} (the rest was cut off)"
-    print(f"lhd bag recover: {len(scan.messages)} messages on {len(topics)} topics from {scan.chunks} chunks, "
-          f"{where}, written to {out} (`lhd replay {out}`)")
+    if scan.storage == "sqlite3":
+        where = "the rows committed before the recorder stopped (sqlite3)"
+    else:
+        where = (f"{scan.chunks} chunks, " + ("the whole file" if scan.truncated_at is None else
+                                              f"up to byte {scan.truncated_at} (the rest was cut off)"))
+    print(f"lhd bag recover: {len(scan.messages)} messages on {len(topics)} topics from {where}, written to {out} "
+          f"(`lhd replay {out}`)")
     return 0
 
 

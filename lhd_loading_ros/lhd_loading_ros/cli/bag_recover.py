@@ -8,11 +8,19 @@ complete rosbag2 folder beside the original, which is left as it is. The file is
 each type's definition and hash come from the recorder's own MessageTypes (the installed
 interfaces), as when it was recorded.
 
+A sqlite3 bag (`storage: sqlite3`) killed the same way has its rows up to the recorder's last
+commit (every `flush_period_s`) in its `.db3`, but no metadata.yaml: its `topics` and `messages`
+tables (rosbag2's schema, version 4) are read from a copy of the file (SQLite rolls a hot journal
+back on the copy, never on the original) and written again as a complete sqlite3 bag.
+
 Usage: `lhd bag recover BAG [--out DIR]` (default DIR: BAG_recovered).
 """
 from __future__ import annotations
 
+import shutil
+import sqlite3
 import struct
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -34,6 +42,7 @@ class Scan:
     messages: list = field(default_factory=list)
     truncated_at: int | None = None
     chunks: int = 0
+    storage: str = "mcap"            # or sqlite3 (scan_sqlite3: the committed rows; no chunks)
 
 
 class _Buf:
@@ -125,9 +134,49 @@ def scan_mcap(path) -> Scan:
     return scan
 
 
+def scan_sqlite3(path) -> Scan:
+    """What a never-closed rosbag2 sqlite3 file holds, in the Scan's terms: a schema and a channel
+    per row of `topics` (channel metadata: the parsed offered QoS profiles), the committed
+    `messages`. The file is copied first (with its -journal / -wal), so the original stays as it is."""
+    from rosbags.rosbag2.metadata import parse_qos
+
+    path = Path(path)
+    with path.open("rb") as f:
+        if f.read(16) != b"SQLite format 3\x00":
+            raise RecoverError(f"{path}: not an SQLite database (no 'SQLite format 3' header)")
+    with tempfile.TemporaryDirectory() as tmp:
+        copy = Path(tmp) / path.name
+        shutil.copyfile(path, copy)
+        for side in ("-journal", "-wal"):
+            if Path(str(path) + side).is_file():
+                shutil.copyfile(str(path) + side, str(copy) + side)
+        conn = sqlite3.connect(copy)
+        try:
+            cols = {r[1] for r in conn.execute("PRAGMA table_info(topics)")}
+            if not {"id", "name", "type", "serialization_format"} <= cols:
+                raise RecoverError(f"{path}: no rosbag2 `topics` table (expected a rosbag2 sqlite3 bag)")
+            qos_col = "offered_qos_profiles" if "offered_qos_profiles" in cols else "''"
+            scan = Scan(storage="sqlite3")
+            for tid, name, typ, fmt, qos in conn.execute(
+                    f"SELECT id, name, type, serialization_format, {qos_col} FROM topics ORDER BY id"):
+                scan.schemas[tid] = (typ, "ros2msg", "")
+                try:
+                    profiles = parse_qos(qos) if qos else []
+                except Exception:  # noqa: BLE001 - a QoS text this rosbags cannot read: the reader's defaults
+                    profiles = []
+                scan.channels[tid] = (tid, name, fmt, profiles)
+            scan.messages = [(tid, int(t), bytes(d)) for tid, t, d in
+                             conn.execute("SELECT topic_id, timestamp, data FROM messages ORDER BY timestamp, id")]
+        except sqlite3.DatabaseError as exc:
+            raise RecoverError(f"{path}: SQLite cannot read it ({exc})") from None
+        finally:
+            conn.close()
+    return scan
+
+
 def recover(bag, out=None) -> tuple[Path, Scan]:
     """Write the readable part of the never-closed bag folder `bag` as a complete rosbag2 folder
-    (MCAP, version 9) at `out` (default: BAG_recovered); the original is not touched. Returns
+    (version 9, the original's storage: MCAP or sqlite3) at `out` (default: BAG_recovered); the original is not touched. Returns
     (out, scan). RecoverError saying why not."""
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.rosbag2.storage_mcap import get_qos
@@ -139,18 +188,19 @@ def recover(bag, out=None) -> tuple[Path, Scan]:
         raise RecoverError(f"{bag}: not a folder (expected an attempt's bag folder, e.g. runs/real/.../bags/attempt_0001)")
     if (bag / "metadata.yaml").is_file():
         raise RecoverError(f"{bag} has its metadata.yaml: it was closed and needs no recovery (`lhd replay {bag}`)")
-    files = sorted(bag.glob("*.mcap"))
+    files = sorted(bag.glob("*.mcap")) + sorted(bag.glob("*.db3"))
     if len(files) != 1:
-        raise RecoverError(f"{bag}: expected one .mcap file, found {len(files)} (a sqlite3 bag is not recovered here)")
+        raise RecoverError(f"{bag}: expected one .mcap or .db3 file, found {len(files)}")
     if files[0].stat().st_size == 0:
         raise RecoverError(f"{files[0]} is empty: nothing was flushed before the recorder stopped")
-    scan = scan_mcap(files[0])
+    sqlite = files[0].suffix == ".db3"
+    scan = scan_sqlite3(files[0]) if sqlite else scan_mcap(files[0])
     if not scan.messages:
         raise RecoverError(f"{files[0]}: no complete message in it (nothing was flushed before the recorder stopped)")
     out = Path(out) if out is not None else bag.with_name(bag.name + "_recovered")
     if out.exists():
         raise RecoverError(f"{out} exists: give another --out (nothing is overwritten)")
-    writer = Writer(out, version=9, storage_plugin=StoragePlugin.MCAP)
+    writer = Writer(out, version=9, storage_plugin=StoragePlugin.SQLITE3 if sqlite else StoragePlugin.MCAP)
     writer.open()
     try:
         writer.set_custom_data("lhd.recovered_from", str(files[0]))
@@ -164,7 +214,7 @@ def recover(bag, out=None) -> tuple[Path, Scan]:
             except ValueError:
                 continue                    # a type this computer does not know: left out
             conns[cid] = writer.add_connection(topic, name, msgdef=msgdef, rihs01=rihs, serialization_format=enc,
-                                               offered_qos_profiles=get_qos(meta))
+                                               offered_qos_profiles=meta if sqlite else get_qos(meta))
         for cid, t, data in sorted(scan.messages, key=lambda m: m[1]):
             if cid in conns:
                 writer.write(conns[cid], t, data)
