@@ -181,6 +181,7 @@ def test_installed_sim_policy_and_perception_nodes_run_and_publish(ros_node, tmp
 
         def all_heard():
             if not any(abs(math.degrees(s.data) - 20.0) < 1.0 for s in got["slope"][-3:]):
+                scan.header.stamp = node.get_clock().now().to_msg()
                 pub_scan.publish(scan)
             return all(got.values())
 

@@ -21,7 +21,7 @@ from nav_msgs.msg import Odometry
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import qos_profile_sensor_data
-from sensor_msgs.msg import CameraInfo, Image
+from sensor_msgs.msg import CameraInfo, Image, Imu
 from std_msgs.msg import Bool
 
 from lhd_loading_ros.perception.geometry import transform
@@ -166,7 +166,9 @@ def test_camera_info_and_image_checks(ros, tmp_path):
         for bad, why in [(info_msg(d=(0.0,) * 3), "CameraInfo invalid: 3 distortion coefficients; expected one of "
                                                    "0, 4, 5, 8, 12, 14"),
                          (info_msg(k=np.where(np.eye(3) > 0, np.nan, 0.0)), "CameraInfo invalid: K has NaN or inf"),
-                         (info_msg(k=np.zeros((3, 3))), "CameraInfo invalid: focal lengths fx=0, fy=0; expected > 0")]:
+                         (info_msg(k=np.zeros((3, 3))), "CameraInfo invalid: focal lengths fx=0, fy=0; expected > 0"),
+                         (info_msg(width=0, height=0), "CameraInfo invalid: image size 0x0; expected the calibrated "
+                                                       "width and height")]:
             rig.info(bad)
             rig.image(image_msg(frames[0], t))
             ok, seen = rig.wait_diag(ERROR, why)
@@ -200,6 +202,7 @@ def test_camera_info_and_image_checks(ros, tmp_path):
         # bad images: each named in /diagnostics, no output, the node lives
         empty = Image()
         empty.encoding = "mono8"
+        empty.header.stamp.sec = int(t + 1)
         n_pose, n_odom = len(rig.poses), len(rig.odom)
         m16 = image_msg(np.zeros((480, 1280), np.uint8), t + 1)
         m16.encoding, m16.width = "16UC1", 640
@@ -212,6 +215,81 @@ def test_camera_info_and_image_checks(ros, tmp_path):
             assert ok, seen
             assert rig.proc.alive()
         assert len(rig.poses) == n_pose and len(rig.odom) == n_odom
+    finally:
+        rig.close()
+
+
+def test_a_recalibration_another_cameras_info_and_bad_imu_samples(ros, tmp_path):
+    """Found by a review's fault injection (2026-11-28), each published as valid before:
+    * a CameraInfo that changes mid-stream (a 3 % recalibration) mixed positions of two models in
+      one speed: v_x 0.54 for 0.37 m/s. Now the speed estimate restarts: the first speed comes from
+      three frames of the new model, and every speed is the true one within the 3 % the
+      recalibration moves positions by (x' = x / 1.03 about the camera's nadir);
+    * an image of another camera (frame_id) than its CameraInfo's: refused, named;
+    * IMU samples that are no measurement (a quaternion of norm 0.5 read as a 23 deg pitch, a
+      1000 m/s^2 spike): refused, each in its own log line, counted in the diagnostics."""
+    rig = Rig(tmp_path, {"use_imu": True})
+    truth, frames = frames_of_drive(24)
+    sent, clock = {}, [300.0]
+
+    def send(k, frame_id="camera"):
+        clock[0] += 1 / FPS
+        m = image_msg(frames[k], clock[0])
+        m.header.frame_id = frame_id
+        sent[stamp_of(clock[0])] = k
+        rig.image(m)
+
+    def streaming(k, frame_id="camera"):
+        """A camera streaming one view, stamps increasing (for wait_diag)."""
+        def next_image():
+            clock[0] += 1 / FPS
+            m = image_msg(frames[k], clock[0])
+            m.header.frame_id = frame_id
+            return m
+        return next_image
+
+    def info(scale=1.0):
+        m = info_msg(k=np.diag([scale, scale, 1.0]) @ K)
+        m.header.frame_id = "camera"
+        rig.info(m)
+
+    try:
+        info()
+        for k in range(8):
+            send(k)
+        assert spin_until(rig.node, lambda: len(rig.odom) >= 5, 5.0), rig.proc.log()
+        n = len(rig.odom)
+        info(1.03)
+        for k in range(8, 16):
+            send(k)
+        spin_until(rig.node, lambda: False, 0.4)
+        got = rig.odom[n:]
+        assert [sent[(o.header.stamp.sec, o.header.stamp.nanosec)] for o in got] == list(range(10, 16))
+        assert all(abs(o.twist.twist.linear.x - SPEED / 1.03) < 0.02 for o in got), [o.twist.twist.linear.x for o in got]
+        assert "the camera model changed (K, D or size; fx 601.6 -> 619.6" in rig.proc.log()
+        # an image of another camera: no pose, no speed, named
+        n_pose = len(rig.poses)
+        ok, seen = rig.wait_diag(ERROR, "image frame_id 'camera2' differs from the CameraInfo's 'camera'",
+                                 feed=streaming(16, "camera2"))
+        assert ok, seen
+        assert len(rig.poses) == n_pose
+        # IMU messages that are no measurement, stamped far from the images (so no tilt is used)
+        pub_imu = rig.node.create_publisher(Imu, "/lhd/imu", 10)
+        assert spin_until(rig.node, lambda: pub_imu.get_subscription_count() > 0, 10.0)
+        for k, (q, acc) in enumerate([((0.0, 0.1, 0.0, 0.49), (0.0, 0.0, 9.81)),
+                                      ((0.0, 0.0, 0.0, 1.0), (1000.0, 0.0, 9.81))]):
+            m = Imu()
+            m.header.stamp.sec = 50 + k
+            m.orientation.x, m.orientation.y, m.orientation.z, m.orientation.w = q
+            m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z = acc
+            pub_imu.publish(m)
+            rig.spin(0.1)
+        assert spin_until(rig.node, lambda: "IMU message rejected: orientation quaternion [0.0, 0.1, 0.0, 0.49] has "
+                          "norm 0.5001; expected a unit quaternion" in rig.proc.log()
+                          and "IMU acceleration rejected: linear acceleration [1000.0, 0.0, 9.81]" in rig.proc.log(),
+                          5.0), rig.proc.log()
+        ok, seen = rig.wait_diag(WARN, "IMU acceleration rejected", feed=streaming(17))
+        assert ok, seen
     finally:
         rig.close()
 
@@ -258,10 +336,18 @@ def test_stamps_and_marker_loss_never_give_a_speed_from_non_consecutive_frames(r
         ok, seen = rig.wait_diag(WARN, "repeated: no speed from it", feed=feed(9, advance=False))
         assert ok, seen
         assert len(rig.poses) > npose and odom_since(n) == []
-        # zero stamps: no odometry, the reason in diagnostics
-        ok, seen = rig.wait_diag(WARN, "image stamp is zero: no speed", feed=lambda: image_msg(frames[12], 0.0))
+        # zero stamps and stamps far ahead of the clock: neither pose nor odometry (their age
+        # cannot be judged: a future stamp looks fresh for as long as it is ahead), the reason in
+        # diagnostics and the log
+        npose = len(rig.poses)
+        ok, seen = rig.wait_diag(ERROR, "image stamp is zero: expected its acquisition time",
+                                 feed=lambda: image_msg(frames[12], 0.0))
         assert ok, seen
-        assert odom_since(n) == []
+        ahead = time.time() + 1e6
+        ok, seen = rig.wait_diag(ERROR, "s ahead of this node's clock", feed=lambda: image_msg(frames[13], ahead))
+        assert ok, seen
+        assert odom_since(n) == [] and len(rig.poses) == npose
+        assert "image stamp is zero" in rig.proc.log() and "ahead of this node's clock" in rig.proc.log()
         # stamps resume: the window restarted, the first speed needs three consecutive
         # detections (frames 15, 16, 17)
         clock[0] = 200.0 + 14 / FPS

@@ -4,6 +4,7 @@ the slope; a scan without a pile, or with a face outside the physical range, pub
 and says why; every output is stamped with its scan and latched; parameters from the command
 line, at run time and under a namespace."""
 import math
+import time
 import os
 import subprocess
 import sys
@@ -179,6 +180,30 @@ def test_no_pile_publishes_nothing_and_says_why_and_the_last_value_keeps_its_sta
         assert ok, seen
         assert len(rig.slopes) == n
         assert 1 <= rig.proc.log().count("no slope published: no pile in scan") <= 2
+        # scans that cannot be placed or dated: nothing published, each named in its own log line
+        # (throttled per kind). A 20 deg pile with an increment 2 % off its angle_max was published
+        # as 21.8 deg before 2026-11-28, 5 % as 24.7 (a review's fault injection)
+        r, amin, inc, _ = synthetic_scan(math.radians(20.0), np.random.default_rng(2))
+        cases = []
+        for change, why in [
+                (lambda m: setattr(m, "angle_increment", m.angle_increment * 1.02),
+                 "LaserScan header disagrees with itself"),
+                (lambda m: setattr(m, "angle_increment", 0.0), "LaserScan angle_increment = 0: expected"),
+                (lambda m: setattr(m, "range_min", 40.0), "expected 0 <= range_min < range_max"),
+                (lambda m: setattr(m, "ranges", [1000.0 * v for v in m.ranges]),
+                 f"no range of the scan's {len(r)} beams lies in [range_min 0.05, range_max 30] m"),
+                (lambda m: setattr(m.header.stamp, "sec", 0) or setattr(m.header.stamp, "nanosec", 0),
+                 "scan stamp is zero: expected its acquisition time"),
+                (lambda m: setattr(m.header.stamp, "sec", int(time.time() + 1e6)), "ahead of this node's clock")]:
+            m = scan_msg(r, amin, inc, t=63.0)
+            change(m)
+            cases.append((m, why))
+        n = len(rig.stamped)
+        for m, _ in cases:
+            rig.pub_scan.publish(m)
+            spin_until(rig.node, lambda: False, 0.1)      # the sensor-data queue keeps 5
+        assert spin_until(rig.node, lambda: all(why in rig.proc.log() for _, why in cases), 10.0), rig.proc.log()
+        assert len(rig.stamped) == n
         # a late subscriber still gets the last slope (latched), with its own old stamp: the
         # failed scans at t = 61-62 s did not make it look fresh
         late = rclpy.create_node("late_policy")

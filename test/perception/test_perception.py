@@ -96,8 +96,12 @@ def test_image_conversion_encodings():
     assert image_to_gray(10, 12, "bgr8", 36, rgb.tobytes())[0, 0] == 29  # read as blue: 0.114 * 255
     with pytest.raises(ImageEncodingError, match="unsupported image encoding '16UC1'; expected one of mono8"):
         image_to_gray(10, 12, "16UC1", 24, bytes(240))
-    with pytest.raises(ImageEncodingError, match="too small"):
+    with pytest.raises(ImageEncodingError, match=r"image data of 50 bytes for 10 rows of step 12 \(120 bytes expected\)"):
         image_to_gray(10, 12, "mono8", 12, bytes(50))
+    with pytest.raises(ImageEncodingError, match=r"image data of 240 bytes .* \(120 bytes expected\)"):
+        image_to_gray(10, 12, "mono8", 12, bytes(240))           # twice the image: not one frame
+    with pytest.raises(ImageEncodingError, match="image step 12 bytes is shorter than a row of 12 px x 3 channels"):
+        image_to_gray(10, 12, "bgr8", 12, bytes(120))
 
 
 def test_velocity_estimator_is_a_least_squares_slope():

@@ -123,7 +123,9 @@ def test_aruco_node_rejects_unknown_encodings_clearly(ros, tmp_path):
         assert spin_until(node, lambda: node.count_subscribers("/camera/image_raw") > 0, 20.0), proc.log()
         info = CameraInfo()
         info.k = intrinsics(64, 48).ravel().tolist()
+        info.width, info.height = 64, 48
         m = Image()
+        m.header.stamp.sec = 100
         m.height, m.width, m.encoding, m.step = 48, 64, "16UC1", 128
         m.data = bytes(48 * 128)
         t_end = time.monotonic() + 3.0
@@ -138,9 +140,16 @@ def test_aruco_node_rejects_unknown_encodings_clearly(ros, tmp_path):
         assert proc.stop() == 0
 
 
+def now_stamp(m):
+    """The acquisition time a driver gives (the node refuses a zero stamp)."""
+    t = time.time()
+    m.header.stamp.sec, m.header.stamp.nanosec = int(t), int((t % 1) * 1e9)
+
+
 def scan_msg(ranges, amin, inc):
     m = LaserScan()
     m.header.frame_id = "lidar"
+    now_stamp(m)
     m.angle_min, m.angle_increment = float(amin), float(inc)
     m.angle_max = float(amin + inc * (len(ranges) - 1))
     m.range_min, m.range_max = 0.05, 30.0
@@ -151,6 +160,7 @@ def scan_msg(ranges, amin, inc):
 def cloud_msg(pts):
     m = PointCloud2()
     m.header.frame_id = "lidar"
+    now_stamp(m)
     m.height, m.width = 1, len(pts)
     m.fields = [PointField(name=n, offset=4 * i, datatype=PointField.FLOAT32, count=1) for i, n in enumerate("xyz")]
     m.fields.append(PointField(name="intensity", offset=12, datatype=PointField.FLOAT32, count=1))

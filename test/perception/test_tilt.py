@@ -68,7 +68,12 @@ def test_roll_pitch_refuses_a_non_rotation():
     for q in ((0, 0, 0, 0), (float("nan"), 0, 0, 1)):
         with pytest.raises(ValueError, match="not a rotation"):
             roll_pitch(*q)
-    assert roll_pitch(0, 0, 0, 2.0) == (0.0, 0.0)          # normalised first
+    # a quaternion off unit norm is a corrupt message, not a rotation to normalise: (0, 0.1, 0,
+    # 0.49), norm 0.5, read as a 23 deg pitch before 2026-11-28; float rounding passes
+    for q in ((0, 0, 0, 2.0), (0, 0.1, 0, 0.49), (0, 0, 0, 0.985)):
+        with pytest.raises(ValueError, match="expected a unit quaternion"):
+            roll_pitch(*q)
+    assert roll_pitch(0, 0, 0, 1.0 + 1e-7) == (0.0, 0.0) and roll_pitch(0, 0, 0, 0.995) == (0.0, 0.0)
     # nose down: REP 103's positive pitch
     r, p = roll_pitch(*quaternion_xyzw(rpy_matrix(0.0, math.radians(10), 0.0)))
     assert p == pytest.approx(math.radians(10)) and rpy_matrix(0.0, p, 0.0)[2, 0] < 0   # the nose (x) points down

@@ -50,6 +50,7 @@ from lhd_loading_ros.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
 from lhd_loading_ros.ros.qos import MEASUREMENT_QOS
 from lhd_loading_ros.ros.run import run_node
+from lhd_loading_ros.ros.stamps import KindThrottle, stamp_problem
 
 POSE_VAR = 0.005 ** 2     # m^2, position variance of a fresh detection (about 5 mm, see docs/perception.md)
 # (m/s)^2: the speed's error measured over simulated loading attempts (RMS against the simulator,
@@ -180,6 +181,10 @@ class ArucoPoseNode(Node):
         self.info_problem: str | None = None    # why the last CameraInfo was rejected
         self.image_problem: str | None = None   # why the last image was rejected
         self.stamp_problem: str | None = None   # why the last detection gave no speed
+        self.info_frame_id = ""                 # the CameraInfo's frame_id (images of another frame are refused)
+        self.camera_model_changes = 0           # CameraInfo changes that restarted the speed estimate
+        self.imu_faults = 0                     # IMU messages not used
+        self.log_throttle = KindThrottle(5.0)
         self.last_seen: float | None = None     # arrival time (monotonic) of the last detection
         self.last_image: float | None = None
         self.last_v: float | None = None
@@ -247,12 +252,29 @@ class ArucoPoseNode(Node):
     # ------------------------------------------------------------------ inputs
     def _on_info(self, msg: CameraInfo) -> None:
         try:
-            self.cam = CameraModel.from_camera_info(msg.k, msg.d, msg.width, msg.height, msg.distortion_model)
-            self.info_problem = None
+            if msg.width == 0 or msg.height == 0:
+                # REP 104: the calibrated image size; without it an image of another resolution
+                # passes with these intrinsics (v_x half the truth: a review's fault injection)
+                raise ValueError(f"image size {msg.width}x{msg.height}; expected the calibrated width and height")
+            cam = CameraModel.from_camera_info(msg.k, msg.d, msg.width, msg.height, msg.distortion_model)
         except ValueError as exc:
             self.info_problem = f"CameraInfo invalid: {exc}"
             kept = "; keeping the previous one" if self.cam is not None else "; images ignored"
-            self.get_logger().warn(self.info_problem + kept, throttle_duration_sec=5.0)
+            self._log("warn", self.info_problem + kept)
+            return
+        self.info_problem = None
+        old = self.cam
+        self.cam, self.info_frame_id = cam, msg.header.frame_id
+        if old is not None and not (np.array_equal(old.K, cam.K) and _same_distortion(old.D, cam.D)
+                                    and (old.width, old.height) == (cam.width, cam.height)):
+            # positions from the old intrinsics and the new differ by the calibration's change:
+            # no speed across it (a 3 % recalibration read as v_x 0.54 for 0.37 m/s: a review)
+            self._finish_pending()
+            self.vel.reset()
+            self.prior.reset()
+            self.camera_model_changes += 1
+            self._log("warn", f"the camera model changed (K, D or size; fx {old.K[0, 0]:.1f} -> {cam.K[0, 0]:.1f}, "
+                              f"size {old.width}x{old.height} -> {cam.width}x{cam.height}): the speed estimate restarts")
 
     def _on_imu(self, msg: Imu) -> None:
         """Keep the IMU's roll and pitch by stamp. An IMU without orientation (REP 145: covariance[0]
@@ -264,11 +286,12 @@ class ArucoPoseNode(Node):
         try:
             roll, pitch = roll_pitch(o.x, o.y, o.z, o.w)
         except ValueError as exc:
-            self.imu_problem = f"IMU message rejected: {exc}"
+            self._imu_fault(f"IMU message rejected: {exc}")
             return
         t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-        if t <= 0.0:
-            self.imu_problem = "IMU stamp is zero: tilt not used (the driver must stamp its messages)"
+        bad = stamp_problem(msg.header.stamp.sec, msg.header.stamp.nanosec, self.get_clock().now().nanoseconds, "IMU")
+        if bad is not None:
+            self._imu_fault(f"{bad}: tilt not used")
             return
         if self.imu and t <= self.imu[-1][0]:
             if t < self.imu[-1][0]:
@@ -282,12 +305,33 @@ class ArucoPoseNode(Node):
             try:
                 a_x = forward_acceleration((la.x, la.y, la.z), roll, pitch, self.yaw)
             except ValueError as exc:
-                self.imu_problem = f"IMU acceleration rejected: {exc}"
+                self._imu_fault(f"IMU acceleration rejected: {exc}")
                 return
             if self.vel.add_accel(t, a_x):
                 self.accel_samples += 1
             if self.pending is not None and t >= self._stamp_s(self.pending[0]):
                 self._finish_pending()
+
+    def _imu_fault(self, why: str) -> None:
+        """An IMU message not used: said in the diagnostics and a log line (per kind, throttled),
+        and the speed filter forgets the accelerometer bias it learned (it may have learned it from
+        the fault's neighbours: a bias learned in a 0.4 s fault kept v_x off for 10 s after it)."""
+        self.imu_problem = why
+        self.imu_faults += 1
+        if hasattr(self.vel, "forget_bias"):
+            self._finish_pending()
+            self.vel.forget_bias()
+        self._log("warn", why)
+
+    def _log(self, level: str, msg: str) -> None:
+        """Throttled per kind of problem: one does not hide another (rclpy throttles per call site,
+        and a call site keeps one severity: hence a call per level)."""
+        if not self.log_throttle.due(msg):
+            return
+        if level == "error":
+            self.get_logger().error(msg)
+        else:
+            self.get_logger().warn(msg)
 
     def _tilt_at(self, t: float) -> tuple[float, float] | None:
         """The IMU's (roll, pitch) at image time t: the mean of the samples in (t - imu_window, t]
@@ -319,7 +363,7 @@ class ArucoPoseNode(Node):
         next v_x must come from consecutive measurements)."""
         self.image_problem = why
         self.vel.reset()
-        self.get_logger().error(why, throttle_duration_sec=5.0)
+        self._log("error", why)
 
     @staticmethod
     def _stamp_s(stamp) -> float:
@@ -376,6 +420,14 @@ class ArucoPoseNode(Node):
             self.get_logger().info("waiting for a valid CameraInfo; image ignored", throttle_duration_sec=5.0)
             return
         cam = self.cam
+        bad = stamp_problem(msg.header.stamp.sec, msg.header.stamp.nanosec, self.get_clock().now().nanoseconds, "image")
+        if bad is not None:
+            self._reject(f"{bad}; frame not used")      # no pose with a stamp nobody can judge the age of
+            return
+        if msg.header.frame_id and self.info_frame_id and msg.header.frame_id != self.info_frame_id:
+            self._reject(f"image frame_id {msg.header.frame_id!r} differs from the CameraInfo's {self.info_frame_id!r}: "
+                         "expected the calibration of this camera (check camera_info_topic)")
+            return
         try:
             gray = image_to_gray(msg.height, msg.width, msg.encoding, msg.step, bytes(msg.data))
             if cam.width and cam.height and (msg.width, msg.height) != (cam.width, cam.height):
@@ -475,10 +527,6 @@ class ArucoPoseNode(Node):
         jitter puts on base_link); with one, base_link's, placed with the IMU's tilt (a tilting
         machine's marker, 0.21 m above base_link, moves faster than base_link). None unless
         this detection is a new measurement in a run of consecutive ones."""
-        if stamp.sec == 0 and stamp.nanosec == 0:
-            self.vel.reset()
-            self.stamp_problem = "image stamp is zero: no speed (the camera driver must stamp frames)"
-            return None
         t = stamp.sec + stamp.nanosec * 1e-9
         last = self.vel.last_t
         if not self.vel.add(t, x):
@@ -542,7 +590,8 @@ class ArucoPoseNode(Node):
         values = {"frames": self.frames, "detections": self.detections, "odometry": self.odoms,
                   "stale": self.stale, "tilted_by_imu": self.tilted, "v_x_from": self.x_source,
                   "imu_accelerations": self.accel_samples, "imu_waits": self.imu_waits,
-                  "imu_wait_timeouts": self.imu_wait_timeouts}
+                  "imu_wait_timeouts": self.imu_wait_timeouts, "imu_rejected": self.imu_faults,
+                  "camera_model_changes": self.camera_model_changes}
         if isinstance(self.vel, InertialVelocityEstimator):
             values["accel_bias"] = self.vel.bias_estimate()
             values["position_jumps"] = self.vel.jumps     # displacements the filter started again after
@@ -573,6 +622,12 @@ class ArucoPoseNode(Node):
         if self.lost:
             return WARN, f"marker lost for {lost:.1f} s", values
         return OK, "marker tracked", values
+
+
+def _same_distortion(a: np.ndarray, b: np.ndarray) -> bool:
+    """Equal coefficients, the shorter padded with zeros (5 zeros and 8 zeros are one model)."""
+    n = max(len(a), len(b))
+    return np.array_equal(np.pad(a, (0, n - len(a))), np.pad(b, (0, n - len(b))))
 
 
 def _fill_pose(pose, T) -> None:

@@ -20,7 +20,11 @@ new_pile_toe_m is held out and publishes nothing, `new_pile_scans` in a row that
 other are a new pile). Ages are by arrival here, not by stamp (a bag replayed at another speed
 changes which scans the median spans); after a pause longer than filter_max_age the first scan
 stands alone. A scan without a face, or with a face outside [slope_min_deg, slope_max_deg],
-publishes nothing and says why in /diagnostics and a throttled log. Every output carries the stamp
+publishes nothing and says why in /diagnostics and a throttled log (per kind of problem), and so
+does a scan whose header cannot place its beams (perception/slope.scan_problem: angle_max must be
+angle_min + (n - 1) angle_increment within one increment; 0 <= range_min < range_max), whose ranges
+all lie outside [range_min, range_max], or whose stamp is zero or ahead of this node's clock
+(ros/stamps.py). Every output carries the stamp
 of the newest scan that agrees with it, so the last value never looks fresher than the scans behind
 it (consumers judge age by stamp).
 """
@@ -38,10 +42,11 @@ from std_msgs.msg import Float64
 
 from lhd_loading_ros.perception.geometry import apply, transform
 from lhd_loading_ros.perception.slope import (NoSlope, SlopeFilter, SlopeOutOfRange, cloud_to_points, fit_slope,
-                                             scan_to_points)
+                                              scan_problem, scan_to_points)
 from lhd_loading_ros.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from lhd_loading_ros.ros.params import Param, Params, topic_prefix
 from lhd_loading_ros.ros.qos import LATCHED_QOS
+from lhd_loading_ros.ros.stamps import KindThrottle, stamp_problem
 from lhd_loading_ros.ros.run import run_node
 
 NO_SCAN_WARN_S = 5.0     # diagnostics: WARN when no scan came for this long
@@ -106,6 +111,8 @@ class LidarSlopeNode(Node):
         self.problem: str | None = None         # why the last scan gave no slope
         self.scans = self.fits = 0
         self.held_in_a_row = 0                  # scans held out by the filter since the last publication
+        self.last_stamp_ns: int | None = None   # stamp of the last scan fitted
+        self.log_throttle = KindThrottle(2.0)
         self.diag = Diagnostics(self, {"slope": self._report})
 
     def _range_problem(self, lo_deg, hi_deg) -> str | None:
@@ -121,7 +128,19 @@ class LidarSlopeNode(Node):
         self.fit_kw.update(kw)
 
     def _on_scan(self, msg: LaserScan) -> None:
+        n = len(msg.ranges)
+        bad = scan_problem(msg.angle_min, msg.angle_max, msg.angle_increment, n, msg.range_min, msg.range_max)
+        if bad is not None:
+            self._refused(bad)
+            return
         pts = scan_to_points(msg.angle_min, msg.angle_increment, msg.ranges, msg.range_min, msg.range_max)
+        if len(pts) == 0:
+            r = np.asarray(msg.ranges, dtype=np.float64)
+            finite = int(np.isfinite(r).sum())
+            self._refused(f"no range of the scan's {n} beams lies in [range_min {msg.range_min:g}, range_max "
+                          f"{msg.range_max:g}] m ({n - finite} inf or NaN, {finite} outside): expected ranges in "
+                          "metres (nothing in view, or a driver reporting another unit?)")
+            return
         self._fit(pts, msg.header.stamp)
 
     def _on_cloud(self, msg: PointCloud2) -> None:
@@ -133,7 +152,22 @@ class LidarSlopeNode(Node):
             return
         self._fit(pts, msg.header.stamp)
 
+    def _refused(self, why: str) -> None:
+        """A message that is not a measurement: counted as a scan, nothing published, said why."""
+        self.last_scan = time.monotonic()
+        self.scans += 1
+        self._no_slope(why)
+
     def _fit(self, pts_sensor: np.ndarray, stamp) -> None:
+        bad = stamp_problem(stamp.sec, stamp.nanosec, self.get_clock().now().nanoseconds, "scan")
+        if bad is not None:
+            self._refused(bad)
+            return
+        t_ns = stamp.sec * 1_000_000_000 + stamp.nanosec
+        if self.last_stamp_ns is not None and t_ns < self.last_stamp_ns:
+            self._warn(f"scan stamp went back from {self.last_stamp_ns / 1e9:.3f} to {t_ns / 1e9:.3f} s (a bag loop or "
+                       "a driver restart): its slope carries the older stamp")
+        self.last_stamp_ns = t_ns
         self.last_scan = time.monotonic()
         self.scans += 1
         try:
@@ -177,7 +211,11 @@ class LidarSlopeNode(Node):
 
     def _no_slope(self, why: str) -> None:
         self.problem = why
-        self.get_logger().warn(f"no slope published: {why}", throttle_duration_sec=2.0)
+        self._warn(f"no slope published: {why}")
+
+    def _warn(self, msg: str) -> None:
+        if self.log_throttle.due(msg):      # throttled per kind of problem: one does not hide another
+            self.get_logger().warn(msg)
 
     def _report(self):
         now = time.monotonic()

@@ -59,9 +59,12 @@ def image_to_gray(height: int, width: int, encoding: str, step: int, data: bytes
     if encoding not in ENCODINGS:
         raise ImageEncodingError(f"unsupported image encoding {encoding!r}; expected one of {', '.join(ENCODINGS)}")
     ch = ENCODINGS[encoding]
-    if step < width * ch or len(data) < step * height:
-        raise ImageEncodingError(f"image buffer too small: {len(data)} bytes for {height} rows of step {step} "
-                                 f"({width} px x {ch} channels of {encoding})")
+    if step < width * ch:
+        raise ImageEncodingError(f"image step {step} bytes is shorter than a row of {width} px x {ch} channels of "
+                                 f"{encoding} ({width * ch} bytes); expected step >= width x channels")
+    if len(data) != step * height:
+        raise ImageEncodingError(f"image data of {len(data)} bytes for {height} rows of step {step} "
+                                 f"({step * height} bytes expected)")
     buf = np.frombuffer(data, dtype=np.uint8, count=step * height).reshape(height, step)[:, : width * ch]
     if ch == 1:
         return np.ascontiguousarray(buf)
@@ -511,6 +514,13 @@ class InertialVelocityEstimator(KalmanVelocityEstimator):
         self._dirty_from = None
         self._remember(t, x)
 
+    def forget_bias(self) -> None:
+        """Start again without the accelerometer bias learned so far: after samples the node
+        rejected, what was learned next to them may come from the fault (a bias learned during a
+        0.4 s fault kept v_x 5-10 % off for 10 s after it: a review, 2026-11-28)."""
+        self.reset()
+        self.bias, self.bias_var = 0.0, self.BIAS0_SD ** 2
+
     def bias_estimate(self) -> float:
         return float(self.x[2]) if self.x is not None else self.bias
 
@@ -585,6 +595,14 @@ def project(K: np.ndarray, T_cam_obj: np.ndarray, pts: np.ndarray) -> np.ndarray
     return uv @ K[:2, :2].T + K[:2, 2]
 
 
+QUATERNION_NORM_TOLERANCE = 0.01   # |q| of an IMU's orientation: 1 within this
+# m/s^2: the largest specific force an accelerometer on the rear frame is taken to report. The
+# machine drives below 1 m/s and stops within about 0.2 s (5 m/s^2); with gravity and the shocks
+# of the bucket entering the pile, 4 g is well above anything its frame does. A sample beyond it
+# is a fault (a spike of 1000 m/s^2 restarted the speed filter at every image, silently: a review)
+MAX_SPECIFIC_FORCE = 39.2
+
+
 def roll_pitch(qx: float, qy: float, qz: float, qw: float) -> tuple[float, float]:
     """Roll and pitch (rad, REP 103: R = Rz(yaw) Ry(pitch) Rx(roll), positive pitch = nose down) of a
     unit quaternion, e.g. an IMU's orientation; ValueError for a non-finite or zero quaternion."""
@@ -592,6 +610,12 @@ def roll_pitch(qx: float, qy: float, qz: float, qw: float) -> tuple[float, float
     n = float(np.linalg.norm(q))
     if not (np.isfinite(q).all() and n > 1e-9):
         raise ValueError(f"orientation quaternion {q.tolist()} is not a rotation; expected a finite, non-zero (x, y, z, w)")
+    if abs(n - 1.0) > QUATERNION_NORM_TOLERANCE:
+        # a driver's quaternion is normalised to float precision; one of norm 0.5 is a corrupt
+        # message, and normalising it read (0, 0.1, 0, 0.49) as a 23 deg pitch (a review's fault
+        # injection, 2026-11-28)
+        raise ValueError(f"orientation quaternion {q.tolist()} has norm {n:.4g}; expected a unit quaternion "
+                         f"(norm 1 +- {QUATERNION_NORM_TOLERANCE:g})")
     x, y, z, w = q / n
     r20 = 2.0 * (x * z - w * y)
     r21 = 2.0 * (y * z + w * x)
@@ -609,6 +633,10 @@ def forward_acceleration(f_body, roll: float, pitch: float, yaw: float) -> float
     f = np.asarray(f_body, dtype=float).reshape(3)
     if not np.isfinite(f).all():
         raise ValueError(f"linear acceleration {f.tolist()} is not finite")
+    if float(np.linalg.norm(f)) > MAX_SPECIFIC_FORCE:
+        raise ValueError(f"linear acceleration {np.round(f, 2).tolist()} m/s^2 (|f| = {np.linalg.norm(f):.1f}) is beyond "
+                         f"the {MAX_SPECIFIC_FORCE:g} m/s^2 (4 g) the machine's rear frame can feel; expected "
+                         "m/s^2 with gravity included (a unit in g, or a faulty sample?)")
     return float(rpy_matrix(roll, pitch, yaw)[0] @ f)
 
 

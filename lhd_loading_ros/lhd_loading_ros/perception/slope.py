@@ -36,6 +36,32 @@ class SlopeOutOfRange(NoSlope):
     """A face was found, but its slope is outside the configured physical range."""
 
 
+def scan_problem(angle_min: float, angle_max: float, angle_increment: float, n: int, range_min: float,
+                 range_max: float) -> str | None:
+    """Why a LaserScan's header cannot place its beams, or None. Beam i lies at angle_min + i *
+    angle_increment, and the last one must be angle_max (REP: sensor_msgs/LaserScan), within one
+    increment (drivers differ by one on whether angle_max is the last beam's): a header that
+    disagrees is a misconfigured driver, and fitting it anyway tilts the slope (an increment 2 %
+    off turned a 20 deg pile into 21.8 deg, published as valid: a review's fault injection)."""
+    vals = {"angle_min": angle_min, "angle_max": angle_max, "angle_increment": angle_increment,
+            "range_min": range_min, "range_max": range_max}
+    bad = [k for k, v in vals.items() if not math.isfinite(v)]
+    if bad:
+        return f"LaserScan {', '.join(f'{k} = {vals[k]!r}' for k in bad)}: expected finite numbers"
+    if n < 2:
+        return f"LaserScan with {n} ranges: expected a scan of at least 2 beams"
+    if angle_increment == 0.0:
+        return "LaserScan angle_increment = 0: expected the angle between beams (rad)"
+    last = angle_min + (n - 1) * angle_increment
+    if abs(last - angle_max) > 1.01 * abs(angle_increment) + 1e-6:
+        return (f"LaserScan header disagrees with itself: angle_min {angle_min:.5f} + ({n} - 1) x angle_increment "
+                f"{angle_increment:.6f} = {last:.5f} rad, but angle_max = {angle_max:.5f} rad; expected the last beam "
+                f"at angle_max (check the driver's angle_increment and the number of ranges)")
+    if not 0.0 <= range_min < range_max:
+        return f"LaserScan range_min {range_min:g} / range_max {range_max:g} m: expected 0 <= range_min < range_max"
+    return None
+
+
 def scan_to_points(angle_min: float, angle_increment: float, ranges, range_min: float, range_max: float) -> np.ndarray:
     """LaserScan -> (n, 3) points in the scanner frame (invalid ranges dropped)."""
     r = np.asarray(ranges, dtype=np.float64)
