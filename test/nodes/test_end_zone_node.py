@@ -212,12 +212,16 @@ def test_lidar_pile_to_latched_zones_threshold_stale_and_bad_input(ros, tmp_path
 
         # bad samples (from a volatile publisher): nothing published, ERROR naming the value
         n = len(published)
-        for alpha, toe, res, text in ((math.nan, 0.0, 0.01, "slope (x) = nan not finite"),
-                                      (math.radians(60.0), 0.0, 0.01, "slope 60.00 deg outside the physical range"),
-                                      (math.radians(20.0), 7.0, 0.01, "toe x 7.000 m: expected |toe x| <= 5 m"),
-                                      (math.radians(20.0), 0.0, math.inf, "residual (z) = inf not finite")):
+        for alpha, toe, res, text, frame in (
+                (math.nan, 0.0, 0.01, "slope (x) = nan not finite", ""),
+                (math.radians(60.0), 0.0, 0.01, "slope 60.00 deg outside the physical range", ""),
+                (math.radians(20.0), 7.0, 0.01, "toe x 7.000 m: expected |toe x| <= 5 m", ""),
+                (math.radians(20.0), 0.0, math.inf, "residual (z) = inf not finite", ""),
+                (math.radians(20.0), 0.0, -1.0, "residual (z) -1 m: expected the fit's RMS residual, >= 0 m", ""),
+                (math.radians(20.0), 0.3, 0.01, "frame_id 'lidar'; expected the toe in the pile frame 'pile'", "lidar")):
             for _ in range(5):        # five in half a second: one log line (throttled)
                 m = Vector3Stamped()
+                m.header.frame_id = frame
                 m.vector.x, m.vector.y, m.vector.z = alpha, toe, res
                 pub_slope.publish(m)
                 spin_until(ros, lambda: False, 0.1)
@@ -232,7 +236,7 @@ def test_lidar_pile_to_latched_zones_threshold_stale_and_bad_input(ros, tmp_path
         # every sample counted once: the LiDAR's latched ones reach both subscriptions of the node
         # (the copy is dropped), the test's volatile ones one; this test hears them all once too
         spin_until(ros, lambda: False, 1.2)
-        assert (int(diag.values()["rejected"]), int(diag.values()["received"])) == (20, len(fits)), diag.values()
+        assert (int(diag.values()["rejected"]), int(diag.values()["received"])) == (30, len(fits)), diag.values()
 
         # runtime density: the zones of the last good pile with 1600 kg/m^3 (lighter: further out), published at once;
         # a density in t/m^3 is refused with the reason

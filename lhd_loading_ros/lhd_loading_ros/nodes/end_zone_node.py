@@ -73,6 +73,8 @@ class EndZoneNode(Node):
                   check=lambda v: self._range_problem(None, v)),
             Param("toe_x_limit", 5.0, "m: a toe farther than this from the pile frame's origin is refused",
                   lo=0.01, hi=100.0),
+            Param("pile_frame_id", "pile", "frame the slope's toe must be given in (the LiDAR node's frame_id); "
+                  "a slope stamped in another frame is refused (an empty frame_id is taken)"),
             Param("stale_warn_s", 10.0, "s without a slope (source lidar) before /diagnostics says WARN",
                   lo=0.1, hi=3600.0),
             Param("namespace_prefix", "/lhd", "topic prefix in the root namespace (under a namespace, the "
@@ -193,6 +195,11 @@ class EndZoneNode(Node):
         self.received += 1
         alpha, toe_x, residual = msg.vector.x, msg.vector.y, msg.vector.z
         why = self.limits.problem(alpha, toe_x, residual)
+        frame = self.p["pile_frame_id"]
+        if why is None and msg.header.frame_id not in ("", frame):
+            # the toe is a position: in another frame it is another place (a review found a slope
+            # stamped in the LiDAR's frame taken)
+            why = f"frame_id {msg.header.frame_id!r}; expected the toe in the pile frame {frame!r} (pile_frame_id)"
         if why is None:
             try:
                 z = zones_of_pile(alpha, toe_x, self.density()[0], self.tp)

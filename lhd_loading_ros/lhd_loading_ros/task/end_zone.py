@@ -56,6 +56,8 @@ class InputLimits:
                if not (isinstance(v, (int, float)) and math.isfinite(v))]
         if bad:
             return f"{', '.join(bad)} not finite; expected a finite slope (rad), toe x (m) and fit residual (m)"
+        if residual < 0.0:
+            return f"residual (z) {residual:g} m: expected the fit's RMS residual, >= 0 m"
         deg = math.degrees(alpha)
         if not 0.0 < alpha < math.pi / 2:
             return f"slope {deg:.2f} deg outside (0, 90) deg: not a pile face (is x in radians?)"
