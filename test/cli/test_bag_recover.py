@@ -92,3 +92,46 @@ def test_a_sqlite3_bag_cut_before_its_close_gives_its_committed_rows(tmp_path):
     assert s.channels[c.id][1] == "/lhd/x" and s.schemas[c.id][0] == F64
     assert [TS.deserialize_cdr(m[2], F64).data for m in s.messages] == [0.0, 1.0, 2.0, 3.0, 4.0]
     w.close()
+
+
+WRITER = """
+import sys, time
+from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.typesys import Stores, get_typestore
+TS = get_typestore(Stores.ROS2_JAZZY)
+w = Writer(sys.argv[1], version=9, storage_plugin=StoragePlugin.SQLITE3)
+w.open()
+c = w.add_connection("/lhd/x", "std_msgs/msg/Float64", typestore=TS)
+for k in range(20):
+    w.write(c, 1_000 + k, TS.serialize_cdr(TS.types["std_msgs/msg/Float64"](data=float(k)), "std_msgs/msg/Float64"))
+    if k == 9:
+        w.storage.conn.commit()        # as the recorder every flush_period_s; rows 10.. stay in the open transaction
+print("ready", flush=True)
+time.sleep(60)
+"""
+
+
+def test_a_sqlite3_bag_still_being_written_is_refused_and_read_once_its_writer_is_gone(tmp_path):
+    """A recorder still writing holds SQLite's write lock between its commits: recovering then is
+    refused with what to do (a copy taken mid-write had holes; a long read lock made the writer's
+    commit fail: a review). Killed, it leaves a hot journal: the committed rows come back, the
+    original and its journal untouched."""
+    import subprocess
+    import sys
+
+    from lhd_loading_ros.cli.bag_recover import scan_sqlite3
+
+    p = subprocess.Popen([sys.executable, "-c", WRITER, str(tmp_path / "bag")], stdout=subprocess.PIPE, text=True)
+    try:
+        assert p.stdout.readline().strip() == "ready"
+        db = next((tmp_path / "bag").glob("*.db3"))
+        with pytest.raises(RecoverError, match="is still being written .*: stop the recorder first"):
+            scan_sqlite3(db)
+    finally:
+        p.kill()
+        p.wait()
+    before = {f.name: f.read_bytes() for f in (tmp_path / "bag").iterdir()}
+    assert sorted(before) == [db.name, db.name + "-journal"]          # a hot journal
+    s = scan_sqlite3(db)
+    assert [m[1] for m in s.messages] == list(range(1_000, 1_010))
+    assert {f.name: f.read_bytes() for f in (tmp_path / "bag").iterdir()} == before

@@ -28,8 +28,8 @@ def test_the_boundary_is_two_commands_per_timeout(tmp_path, rate, refused):
     msg = command_timing_problem(p, None)
     assert (msg is not None) == refused, msg
     if refused:
-        assert f"rate_hz {rate:g}" in msg and "'auto' after 0.3 s" in msg and "lost_input" in msg
-        assert "Expected rate_hz >= 6.67" in msg and str(p) in msg
+        assert f"rate {rate:g} Hz (lhd_policy's rate_hz in {p})" in msg and "'auto' after 0.3 s" in msg
+        assert "lost_input" in msg and "Expected rate_hz >= 6.67" in msg
 
 
 def test_the_mux_file_named_in_the_parameters_is_the_one_judged(tmp_path):
@@ -43,7 +43,7 @@ def test_the_mux_file_named_in_the_parameters_is_the_one_judged(tmp_path):
                           "    rate_hz: 10.0\n", "p2.yaml")
     assert node_params(p2, "lhd_policy")["rate_hz"] == 10.0 and command_timing_problem(p2, None) is None
     p3 = params(tmp_path, "/**:\n  ros__parameters:\n    rate_hz: 2.0\n", "p3.yaml")
-    assert "rate_hz 2 " in command_timing_problem(p3, None)
+    assert "rate 2 Hz" in command_timing_problem(p3, None)
 
 
 @pytest.mark.parametrize("controller, refused", [("rld", True), ("tampier", True), ("teleop", False)])
@@ -66,3 +66,32 @@ def test_lhd_up_twin_refuses_it_too(tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:
         main(["--params-file", str(p)])
     assert exc.value.code == 2 and "every attempt would end as lost_input" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("text, rate", [
+    # rcl applies every section whose key matches the node, in file order, the later over the
+    # earlier (checked against rclpy's own overrides for /lhd_policy in a review, 2026-11-28)
+    ("lhd_policy:\n  ros__parameters:\n    rate_hz: 3.0\n/**:\n  ros__parameters:\n    rate_hz: 10.0\n", 10.0),
+    ("/lhd_policy:\n  ros__parameters:\n    rate_hz: 10.0\nlhd_policy:\n  ros__parameters:\n    rate_hz: 3.0\n", 3.0),
+    ("/**:\n  lhd_policy:\n    ros__parameters:\n      rate_hz: 3.0\n", 3.0),          # nested: /**/lhd_policy
+    ("/**/lhd_policy:\n  ros__parameters:\n    rate_hz: 3.0\n", 3.0),
+    ("/lhd/lhd_policy:\n  ros__parameters:\n    rate_hz: 3.0\n", None),              # another namespace's node
+    ("/*:\n  ros__parameters:\n    rate_hz: 3.0\n", 3.0),
+])
+def test_sections_apply_as_rcl_applies_them(tmp_path, text, rate):
+    p = params(tmp_path, text)
+    assert node_params(p, "/lhd_policy").get("rate_hz") == rate
+    assert (command_timing_problem(p, None) is not None) == (rate == 3.0)
+
+
+def test_a_rate_from_the_config_names_the_config(tmp_path):
+    import yaml
+
+    from lhd_loading_ros.task.config import load_config
+
+    cfg = load_config(None)
+    cfg["paper"]["control"]["frequency_hz"] = 4.0
+    c = tmp_path / "lhd_params_4hz.yaml"
+    c.write_text(yaml.safe_dump(cfg))
+    msg = command_timing_problem(default_params_file(), str(c))
+    assert msg is not None and f"rate 4 Hz (paper.control.frequency_hz of {c})" in msg

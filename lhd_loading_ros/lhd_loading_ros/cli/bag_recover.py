@@ -10,8 +10,9 @@ interfaces), as when it was recorded.
 
 A sqlite3 bag (`storage: sqlite3`) killed the same way has its rows up to the recorder's last
 commit (every `flush_period_s`) in its `.db3`, but no metadata.yaml: its `topics` and `messages`
-tables (rosbag2's schema, version 4) are read from a copy of the file (SQLite rolls a hot journal
-back on the copy, never on the original) and written again as a complete sqlite3 bag.
+tables (rosbag2's schema, version 4) are read from a consistent copy of the file (after a killed
+writer, a copy on which SQLite rolls the hot journal back; never the original) and written again
+as a complete sqlite3 bag. A file another process still writes is refused.
 
 Usage: `lhd bag recover BAG [--out DIR]` (default DIR: BAG_recovered).
 """
@@ -134,6 +135,54 @@ def scan_mcap(path) -> Scan:
     return scan
 
 
+SQLITE_RESERVED_BYTE = 0x40000001     # SQLite's unix VFS: PENDING_BYTE (1 GiB) + 1, the writer's lock
+
+
+def sqlite_writer_alive(path: Path) -> bool:
+    """True when another process holds the SQLite RESERVED lock on `path`: a writer in a
+    transaction (rosbags' writer keeps one open between its commits), so the file is still being
+    written. Tried with a non-blocking POSIX lock on that byte, released at once."""
+    import fcntl
+
+    try:
+        with path.open("rb+") as f:
+            try:
+                fcntl.lockf(f, fcntl.LOCK_EX | fcntl.LOCK_NB, 1, SQLITE_RESERVED_BYTE)
+            except OSError:
+                return True
+            fcntl.lockf(f, fcntl.LOCK_UN, 1, SQLITE_RESERVED_BYTE)
+    except OSError:
+        return False          # cannot open it for the test (read-only media): nobody writes there
+    return False
+
+
+def _snapshot(path: Path, copy: Path) -> None:
+    """A consistent copy of the SQLite file `path` at `copy`, the original untouched. A file a
+    writer still holds is refused: a copy taken mid-write had a hole of 94 messages or was
+    'malformed', and a read lock held for the copy made the writer's commit fail (a review). A
+    writer that was killed leaves a hot journal, which a read-only connection may not roll back:
+    the files are copied and SQLite rolls the journal back on the copy. Without a journal (or in
+    WAL mode) SQLite's backup API on a read-only connection copies one commit's state."""
+    if sqlite_writer_alive(path):
+        raise RecoverError(f"{path} is still being written (another process holds its write lock): stop the "
+                           "recorder first; a running recorder closes the bag itself at the attempt's end")
+    if Path(str(path) + "-journal").is_file():
+        shutil.copyfile(path, copy)
+        shutil.copyfile(str(path) + "-journal", str(copy) + "-journal")
+        return
+    src = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True, timeout=10.0)
+    try:
+        dst = sqlite3.connect(copy)
+        try:
+            src.backup(dst)
+        finally:
+            dst.close()
+    except sqlite3.Error as exc:
+        raise RecoverError(f"{path}: SQLite cannot copy it ({exc})") from None
+    finally:
+        src.close()
+
+
 def scan_sqlite3(path) -> Scan:
     """What a never-closed rosbag2 sqlite3 file holds, in the Scan's terms: a schema and a channel
     per row of `topics` (channel metadata: the parsed offered QoS profiles), the committed
@@ -146,10 +195,7 @@ def scan_sqlite3(path) -> Scan:
             raise RecoverError(f"{path}: not an SQLite database (no 'SQLite format 3' header)")
     with tempfile.TemporaryDirectory() as tmp:
         copy = Path(tmp) / path.name
-        shutil.copyfile(path, copy)
-        for side in ("-journal", "-wal"):
-            if Path(str(path) + side).is_file():
-                shutil.copyfile(str(path) + side, str(copy) + side)
+        _snapshot(path, copy)
         conn = sqlite3.connect(copy)
         try:
             cols = {r[1] for r in conn.execute("PRAGMA table_info(topics)")}

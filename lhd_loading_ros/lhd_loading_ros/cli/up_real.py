@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import select
 import shutil
 import sys
@@ -347,8 +348,32 @@ def parser() -> argparse.ArgumentParser:
     return ap
 
 
+def _rcl_node_pattern(name: str) -> re.Pattern:
+    """A parameter file's node key as rcl matches it against a node's fully qualified name: a
+    leading / is implied, `*` is one name token, `**` any number of them (`/**` every node)."""
+    name = name if name.startswith("/") else "/" + name
+    rx = re.escape(name).replace(r"/\*\*", "(?:/[^/]+)*").replace(r"/\*", "/[^/]+")
+    return re.compile(rx + r"\Z")
+
+
+def _param_sections(doc, prefix: str = ""):
+    """(node key, ros__parameters) of a parameter file in file order, nested keys joined
+    (`/**: {lhd_policy: {ros__parameters: ...}}` is `/**/lhd_policy`)."""
+    if not isinstance(doc, dict):
+        return
+    for key, val in doc.items():
+        if not isinstance(val, dict):
+            continue
+        name = f"{prefix}/{str(key).strip('/')}" if prefix else str(key)
+        if isinstance(val.get("ros__parameters"), dict):
+            yield name, val["ros__parameters"]
+        yield from _param_sections({k: v for k, v in val.items() if k != "ros__parameters"}, name)
+
+
 def node_params(params_file: Path | None, node: str) -> dict:
-    """The ROS parameters a parameter file gives `node` (its own section over `/**`), as rcl reads them."""
+    """The ROS parameters a parameter file gives the node `node` (fully qualified, e.g.
+    /lhd_policy), as rcl applies them: every section whose key matches, in file order, a later one
+    over an earlier."""
     if params_file is None:
         return {}
     import yaml
@@ -357,11 +382,11 @@ def node_params(params_file: Path | None, node: str) -> dict:
         doc = yaml.safe_load(Path(params_file).read_text()) or {}
     except (OSError, yaml.YAMLError):
         return {}              # the nodes refuse an unreadable file and say why
+    fqn = node if node.startswith("/") else "/" + node
     out: dict = {}
-    for key in ("/**", node, f"/{node}"):
-        sec = doc.get(key) if isinstance(doc, dict) else None
-        if isinstance(sec, dict) and isinstance(sec.get("ros__parameters"), dict):
-            out.update(sec["ros__parameters"])
+    for key, params in _param_sections(doc):
+        if _rcl_node_pattern(key).match(fqn):
+            out.update(params)
     return out
 
 
@@ -378,10 +403,15 @@ def command_timing_problem(params_file: Path | None, config: str | None) -> str 
     from lhd_loading_ros.policy.shipped import shipped_config
     from lhd_loading_ros.task.config import ConfigError, load_config
 
-    pol = node_params(params_file, "lhd_policy")
-    mux = node_params(params_file, "lhd_cmd_mux")
+    pol = node_params(params_file, "/lhd_policy")
+    mux = node_params(params_file, "/lhd_cmd_mux")
     try:
-        rate = float(pol["rate_hz"]) if "rate_hz" in pol else float(load_config(config)["paper"]["control"]["frequency_hz"])
+        if "rate_hz" in pol:
+            rate = float(pol["rate_hz"])
+            where = f"lhd_policy's rate_hz in {params_file}"
+        else:
+            rate = float(load_config(config)["paper"]["control"]["frequency_hz"])
+            where = f"paper.control.frequency_hz of {config or 'the package config/lhd_params.yaml'}"
         sources_file = mux.get("sources_file") or str(shipped_config("cmd_mux.yaml"))
         auto = [s for s in load_sources(sources_file) if s.topic.strip("/") in ("cmd/auto", "lhd/cmd/auto")]
     except (ConfigError, MuxConfigError, FileNotFoundError, KeyError, TypeError, ValueError):
@@ -391,8 +421,7 @@ def command_timing_problem(params_file: Path | None, config: str | None) -> str 
     period, timeout = 1.0 / rate, auto[0].timeout
     if MIN_COMMANDS_PER_TIMEOUT * period <= timeout:
         return None
-    where = f"--params-file {params_file}" if params_file else "the default parameters"
-    return (f"the controller's rate_hz {rate:g} (lhd_policy, {where}) sends a command every {period:.3g} s, but the "
+    return (f"the controller's rate {rate:g} Hz ({where}) sends a command every {period:.3g} s, but the "
             f"command mux drops its source '{auto[0].name}' after {timeout:g} s of silence ({sources_file}): "
             f"every attempt would end as lost_input. Expected rate_hz >= {MIN_COMMANDS_PER_TIMEOUT / timeout:.3g} "
             f"(at least {MIN_COMMANDS_PER_TIMEOUT} commands per timeout; the paper's 10 Hz), or a longer timeout "

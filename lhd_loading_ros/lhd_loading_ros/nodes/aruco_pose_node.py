@@ -105,6 +105,9 @@ class ArucoPoseNode(Node):
             Param("image_topic", "/camera/image_raw", "Image input"),
             Param("camera_info_topic", "/camera/camera_info", "CameraInfo input"),
             Param("image_reliable", False, "subscribe to images reliably (recordings, tests) instead of sensor-data QoS"),
+            Param("match_info_frame", True, "refuse an image whose frame_id differs from its CameraInfo's (both set; "
+                  "a leading / ignored): the calibration of another camera gives a wrong speed. false: where one "
+                  "camera's image and CameraInfo are named differently"),
             Param("namespace_prefix", "/lhd", "topic prefix when the node runs in the root namespace"),
             Param("use_imu", True, "planar_motion: when <prefix>/imu (sensor_msgs/Imu on the rear frame) is fresh, "
                   "place base_link with its roll and pitch, the machine tilting about the wheels on the floor, "
@@ -161,6 +164,7 @@ class ArucoPoseNode(Node):
         self.height_problem: str | None = None  # the marker seen far from marker_height
         self.frame_id, self.child_frame_id = p["frame_id"], p["child_frame_id"]
         self.use_imu, self.imu_timeout, self.wheelbase = p["use_imu"], p["imu_timeout"], p["wheelbase"]
+        self.match_info_frame = p["match_info_frame"]
         self.imu_window = p["imu_window"]
         self.imu_accel_wait = p["imu_accel_wait"]
         self.pending = None                     # (stamp, x, T_base) of an image waiting for the accelerometer
@@ -313,14 +317,11 @@ class ArucoPoseNode(Node):
                 self._finish_pending()
 
     def _imu_fault(self, why: str) -> None:
-        """An IMU message not used: said in the diagnostics and a log line (per kind, throttled),
-        and the speed filter forgets the accelerometer bias it learned (it may have learned it from
-        the fault's neighbours: a bias learned in a 0.4 s fault kept v_x off for 10 s after it)."""
+        """An IMU message not used: said in the diagnostics and a log line (per kind, throttled).
+        Nothing else changes: the camera's speed goes on without the sample (an IMU that keeps
+        failing must cost the tilt and the acceleration, not the odometry)."""
         self.imu_problem = why
         self.imu_faults += 1
-        if hasattr(self.vel, "forget_bias"):
-            self._finish_pending()
-            self.vel.forget_bias()
         self._log("warn", why)
 
     def _log(self, level: str, msg: str) -> None:
@@ -424,9 +425,11 @@ class ArucoPoseNode(Node):
         if bad is not None:
             self._reject(f"{bad}; frame not used")      # no pose with a stamp nobody can judge the age of
             return
-        if msg.header.frame_id and self.info_frame_id and msg.header.frame_id != self.info_frame_id:
+        if (self.match_info_frame and msg.header.frame_id and self.info_frame_id
+                and msg.header.frame_id.lstrip("/") != self.info_frame_id.lstrip("/")):
             self._reject(f"image frame_id {msg.header.frame_id!r} differs from the CameraInfo's {self.info_frame_id!r}: "
-                         "expected the calibration of this camera (check camera_info_topic)")
+                         "expected the calibration of this camera (check camera_info_topic; where the two name one "
+                         "camera differently, set match_info_frame:=false)")
             return
         try:
             gray = image_to_gray(msg.height, msg.width, msg.encoding, msg.step, bytes(msg.data))

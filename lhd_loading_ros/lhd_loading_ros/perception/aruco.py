@@ -514,13 +514,6 @@ class InertialVelocityEstimator(KalmanVelocityEstimator):
         self._dirty_from = None
         self._remember(t, x)
 
-    def forget_bias(self) -> None:
-        """Start again without the accelerometer bias learned so far: after samples the node
-        rejected, what was learned next to them may come from the fault (a bias learned during a
-        0.4 s fault kept v_x 5-10 % off for 10 s after it: a review, 2026-11-28)."""
-        self.reset()
-        self.bias, self.bias_var = 0.0, self.BIAS0_SD ** 2
-
     def bias_estimate(self) -> float:
         return float(self.x[2]) if self.x is not None else self.bias
 
@@ -636,7 +629,7 @@ def forward_acceleration(f_body, roll: float, pitch: float, yaw: float) -> float
     if float(np.linalg.norm(f)) > MAX_SPECIFIC_FORCE:
         raise ValueError(f"linear acceleration {np.round(f, 2).tolist()} m/s^2 (|f| = {np.linalg.norm(f):.1f}) is beyond "
                          f"the {MAX_SPECIFIC_FORCE:g} m/s^2 (4 g) the machine's rear frame can feel; expected "
-                         "m/s^2 with gravity included (a unit in g, or a faulty sample?)")
+                         "m/s^2 with gravity included (a spike, or a smaller unit such as mg or cm/s^2?)")
     return float(rpy_matrix(roll, pitch, yaw)[0] @ f)
 
 

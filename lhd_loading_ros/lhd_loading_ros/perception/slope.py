@@ -45,7 +45,8 @@ def scan_problem(angle_min: float, angle_max: float, angle_increment: float, n: 
     off turned a 20 deg pile into 21.8 deg, published as valid: a review's fault injection)."""
     vals = {"angle_min": angle_min, "angle_max": angle_max, "angle_increment": angle_increment,
             "range_min": range_min, "range_max": range_max}
-    bad = [k for k, v in vals.items() if not math.isfinite(v)]
+    # range_max may be +inf: pointcloud_to_laserscan's default (DBL_MAX, inf in the float32 field)
+    bad = [k for k, v in vals.items() if not (math.isfinite(v) or (k == "range_max" and v == math.inf))]
     if bad:
         return f"LaserScan {', '.join(f'{k} = {vals[k]!r}' for k in bad)}: expected finite numbers"
     if n < 2:
