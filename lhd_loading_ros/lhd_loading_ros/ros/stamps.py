@@ -11,7 +11,10 @@ from __future__ import annotations
 import re
 import time
 
-FUTURE_TOLERANCE_S = 2.0   # s a stamp may be ahead of the node's clock (clock skew, a sim clock one step behind)
+# s a stamp may be ahead of the node's clock (clock skew, a sim clock one step behind). A bag
+# replayed with `ros2 bag play --clock --rate R` publishes /clock at 40 Hz by default: above R = 80
+# a clock step exceeds this and messages between two steps are refused; raise --clock's rate then.
+FUTURE_TOLERANCE_S = 2.0
 
 
 def stamp_problem(sec: int, nanosec: int, now_ns: int, what: str) -> str | None:
