@@ -95,3 +95,22 @@ def test_a_rate_from_the_config_names_the_config(tmp_path):
     c.write_text(yaml.safe_dump(cfg))
     msg = command_timing_problem(default_params_file(), str(c))
     assert msg is not None and f"rate 4 Hz (paper.control.frequency_hz of {c})" in msg
+
+
+def test_the_pile_frame_must_be_named_alike_in_every_node(tmp_path, capsys):
+    """A pile frame renamed in the LiDAR node's section only: the end-zone node would refuse every
+    slope (another frame than its pile_frame_id) and the machine would have no zones."""
+    from lhd_loading_ros.cli.up_real import pile_frame_problem
+
+    assert pile_frame_problem(default_params_file()) is None and pile_frame_problem(None) is None
+    p = params(tmp_path, "lidar_slope_node:\n  ros__parameters:\n    frame_id: drawpoint_3\n")
+    msg = pile_frame_problem(p)
+    assert "lidar_slope_node.frame_id = 'drawpoint_3'" in msg and "end_zone_node.pile_frame_id = 'pile'" in msg
+    ap = parser()
+    with pytest.raises(SystemExit) as exc:
+        check_args(ap, ap.parse_args(["--port", "/dev/null", "--controller", "teleop", "--params-file", str(p)]))
+    assert exc.value.code == 2 and "expected one name for the pile frame" in capsys.readouterr().err
+    # renamed everywhere (a wildcard section): one frame, accepted
+    p2 = params(tmp_path, "/**:\n  ros__parameters:\n    frame_id: drawpoint_3\n    pile_frame_id: /drawpoint_3\n",
+                "p2.yaml")
+    assert pile_frame_problem(p2) is None

@@ -428,6 +428,23 @@ def command_timing_problem(params_file: Path | None, config: str | None) -> str 
             "of that source")
 
 
+PILE_FRAME_PARAMS = (("aruco_pose_node", "frame_id"), ("lidar_slope_node", "frame_id"),
+                     ("end_zone_node", "pile_frame_id"), ("lhd_supervisor", "frame_id"))
+
+
+def pile_frame_problem(params_file: Path | None) -> str | None:
+    """The stack's nodes must name the pile frame alike: the end-zone node refuses a slope stamped
+    in another frame than its pile_frame_id, so a frame renamed in one node's section only left the
+    machine without zones (found at run time, attempt after attempt, as 'no zones')."""
+    names = {f"{node}.{param}": str(node_params(params_file, "/" + node).get(param, "pile")) for node, param in
+             PILE_FRAME_PARAMS}
+    if len({v.strip("/") for v in names.values()}) <= 1:
+        return None
+    return (f"the pile frame differs between the nodes of {params_file}: "
+            + ", ".join(f"{k} = {v!r}" for k, v in names.items())
+            + "; expected one name for the pile frame in every node")
+
+
 def check_args(ap: argparse.ArgumentParser, args) -> None:
     """The checks argparse cannot make (ap.error, exit 2, on a bad value)."""
     if args.attempt_timeout <= 0:
@@ -438,6 +455,9 @@ def check_args(ap: argparse.ArgumentParser, args) -> None:
         ap.error(f"--end-zone {args.end_zone!r}: expected `lidar` or a surveyed YAML file that exists")
     if args.params_file and not Path(args.params_file).is_file():
         ap.error(f"--params-file {args.params_file!r} does not exist")
+    problem = pile_frame_problem(Path(args.params_file) if args.params_file else default_params_file())
+    if problem:
+        ap.error(problem)
     if args.controller != "teleop":
         problem = command_timing_problem(Path(args.params_file) if args.params_file else default_params_file(),
                                          args.config)
