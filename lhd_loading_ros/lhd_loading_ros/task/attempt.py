@@ -623,7 +623,8 @@ class Supervisor:
             return ("aborted", f"the operator took over: the command mux selected {src!r} over the controller")
         elif a.auto_seen:
             return ("lost_input", "the controller's commands stopped: the command mux's auto source timed out "
-                                  "(cmd_mux/active: none) and the machine was stopped; is the controller running?")
+                                  "(cmd_mux/active: none; a mux that restarted reports none too) and the machine was "
+                                  "stopped; are the controller and the mux running?")
         return None
 
     def _period_ended(self, now: float) -> bool:
