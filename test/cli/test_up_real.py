@@ -238,7 +238,7 @@ def test_up_real_arms_runs_stops_records_and_replays(ros, tmp_path):
         spin_until(node, lambda: False, 1.5)
         frames = dev.last_commands()
         run = [(t, f) for t, f in frames if t >= t_armed_call]
-        assert any(moving(f) for _, f in run), "no command moved the machine during the attempt"
+        assert any(moving(f) for _, f in run), ("no command moved the machine during the attempt", end_kv, out()[-3000:])
         last_moving = max(t for t, f in run if moving(f))
         assert last_moving <= t_end + 0.3, (end_kv, last_moving - t_end)
         first_stop = min((t for t, f in run if t > last_moving), default=math.nan)
