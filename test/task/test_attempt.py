@@ -779,6 +779,39 @@ def test_the_controllers_commands_stopping_while_running(kin, controller, source
         assert r.sv.attempt.reason.startswith("emergency stop engaged (the command mux reports it")
 
 
+def test_a_controller_whose_commands_never_come_ends_the_attempt_after_a_second(kin):
+    """The mux heard but never selecting `auto` (a controller not running, or remapped elsewhere
+    than cmd/auto): until 2026-11-28 such an attempt stood still until its timeout and was recorded
+    as one. Now lost_input once FIRST_COMMAND_S (1 s) of running passed without it, by hand: still
+    running at 1.0 s, ended at 1.1 s. Without a mux heard (a stack without one) nothing is judged;
+    a teleoperated attempt is the operator's to start."""
+    from lhd_loading_ros.task.attempt import FIRST_COMMAND_S
+
+    assert FIRST_COMMAND_S == 1.0
+    for controller, mux, ends in (("rld", "none", True), ("tampier", "none", True), ("rld", None, False),
+                                  ("teleop", "none", False)):
+        r = Rig(kin, arm_delay=0.0)
+        r.sv = Supervisor(settings(arm_delay=0.0), kin, controller, "homogeneous")
+        r.ready()
+        r.arm()
+        r.step(0.0)
+        assert r.sv.state == "running"
+        t_run = r.sv.attempt.running_at
+        while r.t - t_run < 1.0 - 1e-9:
+            if mux is not None:
+                r.sv.inputs.put("mux", mux, r.t)
+            r.step(0.1)
+            assert r.sv.state == "running", (controller, r.t - t_run, r.sv.attempt.reason)
+        if mux is not None:
+            r.sv.inputs.put("mux", mux, r.t)
+        r.step(0.1)
+        assert (r.sv.state == "lost_input") == ends, (controller, mux, r.sv.state)
+        if ends:
+            assert r.sv.attempt.reason.startswith("the controller's commands never reached the machine: the command "
+                                                  "mux did not select its auto source within 1 s of running")
+            assert "/lhd/cmd/auto" in r.sv.attempt.reason
+
+
 def test_the_controller_of_the_attempt_not_the_label_changed_since(kin):
     """The rule follows the attempt's own controller: relabelling the node's `controller` to
     teleop mid-attempt does not switch it off."""

@@ -49,6 +49,10 @@ from lhd_loading_ros.task.metrics import drift_pct
 from lhd_loading_ros.task.state import LhdState
 from lhd_loading_ros.task.zones import Zones, classify
 
+# s after running began by which an autonomous controller's commands must have reached the mux (its
+# `auto` source selected): the policy node publishes at 10 Hz and the mux forwards at once, so ten
+# commands fit; none in that time is a controller that is not running or publishes elsewhere
+FIRST_COMMAND_S = 1.0
 STATES = ("idle", "armed", "running", "success", "failure", "timeout", "estop", "lost_input", "aborted")
 ENDED = frozenset(STATES[3:])
 LIVE = frozenset(("armed", "running"))
@@ -573,7 +577,7 @@ class Supervisor:
                 else:
                     self._start_running(now)
             return
-        cut = self._command_problem()
+        cut = self._command_problem(now)
         if cut:
             self._end(now, *cut)
             return
@@ -592,7 +596,7 @@ class Supervisor:
         elif timed_out:
             self._end(now, "timeout", f"attempt_timeout {a.timeout:g} s passed")
 
-    def _command_problem(self) -> tuple[str, str] | None:
+    def _command_problem(self, now: float) -> tuple[str, str] | None:
         """(outcome, reason) when the machine is no longer moved by the attempt's controller while
         running (inputs `hw`, HwStatus.command_stale, and `mux`, <prefix>/cmd_mux/active):
         - the bridge's watchdog timed out (no valid command for its cmd_timeout: the command mux,
@@ -601,7 +605,10 @@ class Supervisor:
         - for an autonomous controller (not teleop): the mux selected another source (the gamepad
           took over, also when its deadman was held from the arming on): aborted; or it left the
           `auto` source it had selected in this attempt for `none` (the controller's commands stopped
-          coming; the mux sends zeros): lost_input.
+          coming; the mux sends zeros): lost_input; or it has not selected `auto` at all
+          FIRST_COMMAND_S after running began (the controller's commands never reached the
+          machine: a controller not running, or publishing elsewhere than <prefix>/cmd/auto):
+          lost_input, where the attempt used to stand still until its timeout.
         The machine stood still, or someone else drove it, for part of the attempt: its figures are
         not the controller's. Before 2026-11-28 a controller stalled for 2 s drove on afterwards and
         the attempt was recorded as a success, and a gamepad held from the arming drove a whole
@@ -625,6 +632,10 @@ class Supervisor:
             return ("lost_input", "the controller's commands stopped: the command mux's auto source timed out "
                                   "(cmd_mux/active: none; a mux that restarted reports none too) and the machine was "
                                   "stopped; are the controller and the mux running?")
+        elif a.running_at is not None and now - a.running_at > FIRST_COMMAND_S:
+            return ("lost_input", f"the controller's commands never reached the machine: the command mux did not "
+                                  f"select its auto source within {FIRST_COMMAND_S:g} s of running (cmd_mux/active: "
+                                  f"none); is the controller running and publishing on {self.s.prefix}/cmd/auto?")
         return None
 
     def _period_ended(self, now: float) -> bool:
