@@ -223,22 +223,30 @@ def test_up_real_arms_runs_stops_records_and_replays(ros, tmp_path):
     try:
         # the stack comes up: the supervisor is idle and its preflight passes with every input alive
         assert spin_until(node, lambda: arm.service_is_ready() and state() == "idle", 90.0), out()
-        res = arm_when_ready(node, arm, out)
-        # not armed yet until here: nothing asked the machine to move, though every input was alive
-        t_armed_call = time.monotonic()
-        before = [f for t, f in dev.last_commands() if t < t_armed_call]
-        assert before and not any(moving(f) for f in before), before[-5:]
-        assert res is not None and res.success, f"{res and res.message}\n{out()}"
-        # commands flow while running, and the attempt ends by itself
-        assert spin_until(node, lambda: state() == "running", 10.0), out()
-        assert spin_until(node, lambda: state() in ENDED, 20.0), out()
-        end_kv = statuses[-1][0]
-        # the end's ROS time (the system clock) on the emulator's monotonic clock
-        t_end = int(end_kv["stamp_ns"]) * 1e-9 - time.time() + time.monotonic()
-        spin_until(node, lambda: False, 1.5)
-        frames = dev.last_commands()
-        run = [(t, f) for t, f in frames if t >= t_armed_call]
-        assert any(moving(f) for _, f in run), ("no command moved the machine during the attempt", end_kv, out()[-3000:])
+        for n_attempt in (1, 2):
+            res = arm_when_ready(node, arm, out)
+            # not armed yet until here: nothing asked the machine to move, though every input was alive
+            t_armed_call = time.monotonic()
+            before = [f for t, f in dev.last_commands() if t < t_armed_call]
+            assert before and not any(moving(f) for f in before), before[-5:]
+            assert res is not None and res.success, f"{res and res.message}\n{out()}"
+            # commands flow while running, and the attempt ends by itself
+            assert spin_until(node, lambda: state() == "running", 10.0), out()
+            assert spin_until(node, lambda: state() in ENDED, 20.0), out()
+            end_kv = statuses[-1][0]
+            # the end's ROS time (the system clock) on the emulator's monotonic clock
+            t_end = int(end_kv["stamp_ns"]) * 1e-9 - time.time() + time.monotonic()
+            spin_until(node, lambda: False, 1.5)
+            frames = dev.last_commands()
+            run = [(t, f) for t, f in frames if t >= t_armed_call]
+            if any(moving(f) for _, f in run):
+                break
+            # an attempt that ended before the machine moved: only as lost_input, with its reason (a
+            # stalled input on this loaded 2-core machine is the supervisor working; CI once saw an
+            # attempt end without motion and nothing said why), and only once
+            assert n_attempt == 1 and end_kv["state"] == "lost_input" and end_kv["reason"], \
+                ("no command moved the machine during the attempt", end_kv, out()[-3000:])
+            print(f"\nattempt 1 ended before the machine moved: {end_kv['state']}: {end_kv['reason']}; arming again")
         last_moving = max(t for t, f in run if moving(f))
         assert last_moving <= t_end + 0.3, (end_kv, last_moving - t_end)
         first_stop = min((t for t, f in run if t > last_moving), default=math.nan)
@@ -253,19 +261,19 @@ def test_up_real_arms_runs_stops_records_and_replays(ros, tmp_path):
         def row():
             if not csv_path.is_file():
                 return None
-            rows = list(csv.DictReader(csv_path.open()))
+            rows = [r for r in csv.DictReader(csv_path.open()) if r["attempt"] == str(n_attempt)]
             return rows[0] if rows and rows[0]["mass_kg"] else None
 
         assert spin_until(node, lambda: row() is not None, 10.0), out()
         rw = row()
-        assert rw["attempt"] == "1" and rw["controller"] == "rld" and rw["outcome"] == end_kv["state"]
+        assert rw["attempt"] == str(n_attempt) and rw["controller"] == "rld" and rw["outcome"] == end_kv["state"]
         assert abs(float(rw["mass_kg"]) - BUCKET_MASS) < 0.1
         assert abs(float(rw["slope_deg"]) - 20.0) < 1.0
     finally:
         rc = stop()
     assert rc == 0, out()
     # the bag of the attempt, read back by `lhd replay`; the run's table by `lhd attempts`
-    bag = run_dir / "bags" / "attempt_0001"
+    bag = run_dir / "bags" / f"attempt_{n_attempt:04d}"
     assert bag.is_dir(), list((run_dir / "bags").iterdir()) if (run_dir / "bags").exists() else "no bags"
     rep = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "replay", str(bag), "--plot",
                           str(tmp_path / "attempt.png")], capture_output=True, text=True, timeout=120)
