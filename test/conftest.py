@@ -49,6 +49,20 @@ def _no_leftover_nodes():
             p.stop(timeout=5.0)
 
 
+@pytest.fixture(autouse=True, scope="session")
+def _no_leftover_nodes_at_the_end():
+    """What the per-test check cannot see: a process a module fixture started and a test replaced
+    without stopping (a failed test left a supervisor running after its session, found 2026-11-28)."""
+    yield
+    try:
+        from rosutil import started_processes
+    except ImportError:
+        return
+    for p in started_processes():
+        if p.alive():
+            p.stop(timeout=5.0)
+
+
 _ROS_SOURCE = ("import rclpy", "from rclpy", "import rosutil", "from rosutil", "import subprocess",
                "from subprocess", "RosProcess", "FakeMachine", "supervisor_rig")
 _ros_modules: dict = {}

@@ -340,6 +340,7 @@ def test_a_supervisor_killed_mid_attempt_leaves_the_attempt_in_the_record(rig):
 
     params = {"run_dir": str(rig.run_dir), "attempt_timeout": TIMEOUT_S, "arm_delay": ARM_DELAY,
               "controller": "rld", "material": "homogeneous"}
+    rig.proc.stop()          # the module's supervisor, if a test before failed ahead of its stop
     rig.proc = RosProcess(SUPERVISOR, params, rig.run_dir.parent / "supervisor_2.log")
     n0 = len(rig.statuses)
     res = arm_when_ready(rig)
