@@ -186,7 +186,7 @@ def _snapshot(path: Path, copy: Path) -> None:
 def scan_sqlite3(path) -> Scan:
     """What a never-closed rosbag2 sqlite3 file holds, in the Scan's terms: a schema and a channel
     per row of `topics` (channel metadata: the parsed offered QoS profiles), the committed
-    `messages`. The file is copied first (with its -journal / -wal), so the original stays as it is."""
+    `messages`, read from a consistent copy (_snapshot), so the original stays as it is."""
     from rosbags.rosbag2.metadata import parse_qos
 
     path = Path(path)
@@ -222,7 +222,8 @@ def scan_sqlite3(path) -> Scan:
 
 def recover(bag, out=None) -> tuple[Path, Scan]:
     """Write the readable part of the never-closed bag folder `bag` as a complete rosbag2 folder
-    (version 9, the original's storage: MCAP or sqlite3) at `out` (default: BAG_recovered); the original is not touched. Returns
+    (version 9, the original's storage: MCAP or sqlite3) at `out` (default: BAG_recovered); the
+    original is not touched. Returns
     (out, scan). RecoverError saying why not."""
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.rosbag2.storage_mcap import get_qos

@@ -455,14 +455,11 @@ def check_args(ap: argparse.ArgumentParser, args) -> None:
         ap.error(f"--end-zone {args.end_zone!r}: expected `lidar` or a surveyed YAML file that exists")
     if args.params_file and not Path(args.params_file).is_file():
         ap.error(f"--params-file {args.params_file!r} does not exist")
-    problem = pile_frame_problem(Path(args.params_file) if args.params_file else default_params_file())
+    params_file = Path(args.params_file) if args.params_file else default_params_file()
+    problem = pile_frame_problem(params_file) or (
+        command_timing_problem(params_file, args.config) if args.controller != "teleop" else None)
     if problem:
         ap.error(problem)
-    if args.controller != "teleop":
-        problem = command_timing_problem(Path(args.params_file) if args.params_file else default_params_file(),
-                                         args.config)
-        if problem:
-            ap.error(problem)
     if args.policy:
         from lhd_loading_ros.policy.actor_file import PolicyFileError, load_policy
 
