@@ -223,8 +223,7 @@ def scan_sqlite3(path) -> Scan:
 def recover(bag, out=None) -> tuple[Path, Scan]:
     """Write the readable part of the never-closed bag folder `bag` as a complete rosbag2 folder
     (version 9, the original's storage: MCAP or sqlite3) at `out` (default: BAG_recovered); the
-    original is not touched. Returns
-    (out, scan). RecoverError saying why not."""
+    original is not touched. Returns (out, scan). RecoverError saying why not."""
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.rosbag2.storage_mcap import get_qos
 
