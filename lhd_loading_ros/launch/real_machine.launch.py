@@ -7,13 +7,17 @@
 The real-machine stack, as `lhd up real` starts it where `ros2 launch` is not installed: bridge,
 ArUco pose, LiDAR slope, end zone, supervisor, command mux, teleop (and the `joy` driver when
 joy:=true), the controller on /lhd/cmd/auto (none for controller:=teleop) and the recorder.
-The calibration comes from params_file (every node reads its own section). docs/real_machine.md."""
+The calibration comes from params_file (every node reads its own section). Before any node
+starts, the file is checked as `lhd up real` checks it (cli/up_real.stack_problem: one name for
+the pile frame in every node; a controller rate of at least 2 commands per timeout of the mux's
+auto source): the launch ends with the reason instead. docs/real_machine.md."""
 import os
 from datetime import datetime, timezone
+from pathlib import Path
 
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument
+from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.conditions import IfCondition
 from launch.substitutions import LaunchConfiguration, PythonExpression
 from launch_ros.actions import Node
@@ -23,6 +27,21 @@ from launch_ros.parameter_descriptions import ParameterValue
 def text(name):
     """A string parameter (an empty or numeric-looking value stays a string)."""
     return ParameterValue(LaunchConfiguration(name), value_type=str)
+
+
+def refuse_unsound_params(context):
+    """Raises (the launch ends, naming the problem, before any node starts) when params_file
+    would leave every attempt without zones or commands; nothing to launch otherwise."""
+    from lhd_loading_ros.cli.up_real import stack_problem
+
+    params_file = LaunchConfiguration("params_file").perform(context)
+    controller = LaunchConfiguration("controller").perform(context)
+    if not Path(params_file).is_file():
+        raise RuntimeError(f"real_machine.launch.py: params_file {params_file!r} does not exist")
+    problem = stack_problem(Path(params_file), controller)
+    if problem:
+        raise RuntimeError(f"real_machine.launch.py refuses to start the stack: {problem}")
+    return []
 
 
 def generate_launch_description():
@@ -83,4 +102,4 @@ def generate_launch_description():
              parameters=[pf, {"run_dir": text("run_dir"), "storage": text("storage")}],
              condition=IfCondition(LaunchConfiguration("record"))),
     ]
-    return LaunchDescription([*args, *nodes])
+    return LaunchDescription([*args, OpaqueFunction(function=refuse_unsound_params), *nodes])

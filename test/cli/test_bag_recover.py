@@ -91,6 +91,17 @@ def test_a_sqlite3_bag_cut_before_its_close_gives_its_committed_rows(tmp_path):
     assert [m[1] for m in s.messages] == list(range(1_000, 1_005)) and s.storage == "sqlite3"
     assert s.channels[c.id][1] == "/lhd/x" and s.schemas[c.id][0] == F64
     assert [TS.deserialize_cdr(m[2], F64).data for m in s.messages] == [0.0, 1.0, 2.0, 3.0, 4.0]
+    # the copy is made in the folder given (recover: the output's), not the system's temporary
+    # folder (often a small RAM disk), and removed when read
+    import tempfile
+    work = tmp_path / "work"
+    work.mkdir()
+    saved, tempfile.tempdir = tempfile.tempdir, str(tmp_path / "no_such_tmp")
+    try:
+        assert [m[1] for m in scan_sqlite3(db, work_dir=work).messages] == list(range(1_000, 1_005))
+    finally:
+        tempfile.tempdir = saved
+    assert list(work.iterdir()) == []
     w.close()
 
 

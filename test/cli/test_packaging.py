@@ -65,6 +65,44 @@ def test_real_machine_launch_file_describes_the_stack():
             "teleop_node", "policy_node", "recorder_node"} <= execs
 
 
+def test_real_machine_launch_file_checks_its_parameters_before_any_node(tmp_path):
+    """The launch file runs `lhd up real`'s checks (cli/up_real.stack_problem) in an OpaqueFunction
+    ahead of every node: a launch whose params_file names the pile frame apart, or sets a controller
+    too slow for the mux, ends with the reason and starts nothing."""
+    pytest.importorskip("launch")
+    pytest.importorskip("launch_ros")
+    from launch import LaunchContext
+    from launch.actions import OpaqueFunction
+    from launch_ros.actions import Node
+
+    from lhd_loading_ros.cli.up_real import default_params_file
+
+    spec = importlib.util.spec_from_file_location("real_machine", ROOT / "lhd_loading_ros/launch/real_machine.launch.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    ents = mod.generate_launch_description().entities
+    check = next(k for k, e in enumerate(ents) if isinstance(e, OpaqueFunction))
+    assert check < min(k for k, e in enumerate(ents) if isinstance(e, Node))
+    slow = tmp_path / "slow.yaml"
+    slow.write_text("lhd_policy:\n  ros__parameters:\n    rate_hz: 3.0\n")
+    frames = tmp_path / "frames.yaml"
+    frames.write_text("lidar_slope_node:\n  ros__parameters:\n    frame_id: drawpoint_3\n")
+
+    def run_check(params_file, controller="rld"):
+        ctx = LaunchContext()
+        ctx.launch_configurations.update({"params_file": str(params_file), "controller": controller})
+        return mod.refuse_unsound_params(ctx)
+
+    assert run_check(default_params_file()) == []
+    assert run_check(slow, "teleop") == []         # no controller on /lhd/cmd/auto: nothing to time
+    with pytest.raises(RuntimeError, match="every attempt would end as lost_input"):
+        run_check(slow)
+    with pytest.raises(RuntimeError, match="expected one name for the pile frame"):
+        run_check(frames, "teleop")
+    with pytest.raises(RuntimeError, match="does not exist"):
+        run_check(tmp_path / "missing.yaml")
+
+
 def test_colcon_install_has_ros2_run_entry_points():
     """Checks the tree `make test` built with colcon (install/ at the repository root)."""
     install = ROOT / "install"

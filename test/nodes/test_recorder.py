@@ -418,6 +418,9 @@ def test_a_recorder_killed_mid_attempt_leaves_a_bag_that_lhd_bag_recover_reads(r
     assert "attempt 4: running" in capsys.readouterr().out
     assert bag_main(["recover", str(bag)]) == 1                 # nothing is overwritten
     assert "exists" in capsys.readouterr().err
+    assert sorted(p.name for p in bag.parent.iterdir()) == ["attempt_0004", "attempt_0004_recovered"]  # no copy left
+    assert bag_main(["recover", str(bag), "--out", str(tmp_path / "no_such" / "x")]) == 1
+    assert "no_such: no such folder for --out" in capsys.readouterr().err
 
 
 def test_a_run_dir_that_cannot_be_written_ends_the_node_with_status_2(tmp_path):

@@ -308,6 +308,53 @@ def test_a_recalibration_another_cameras_info_and_bad_imu_samples(ros, tmp_path)
         rig.close()
 
 
+def test_an_imu_reporting_in_g_gives_no_acceleration_and_the_camera_speed_goes_on(ros, tmp_path):
+    """An IMU whose linear_acceleration is in g (1.0 at rest) passes the per-sample 4 g bound; in the
+    speed filter every acceleration would count a tenth. Judged over a second of samples (REP 145:
+    m/s^2 with gravity, |mean f| about 9.81): its accelerations are not used, the log and the
+    diagnostics say why, and the camera's speed goes on. The same stream in m/s^2 is used."""
+    rig = Rig(tmp_path, {"use_imu": True})
+    truth, frames = frames_of_drive(30)
+    pub_imu = rig.node.create_publisher(Imu, "/lhd/imu", 50)
+    clock = [500.0]
+
+    def drive(f_z):
+        n = len(rig.odom)
+        for k in range(30):
+            clock[0] += 1 / FPS
+            for dt in (1 / (2 * FPS), 0.0):        # an IMU at 60 Hz, stamped with the images
+                m = Imu()
+                m.header.stamp.sec, m.header.stamp.nanosec = stamp_of(clock[0] - dt)
+                m.orientation.w = 1.0
+                m.linear_acceleration.z = f_z
+                pub_imu.publish(m)
+            rig.image(image_msg(frames[k], clock[0]))
+        assert spin_until(rig.node, lambda: len(rig.odom) >= n + 20, 5.0), rig.proc.log()[-2000:]
+        spin_until(rig.node, lambda: False, 0.3)
+        assert all(abs(o.twist.twist.linear.x - SPEED) < 0.02 for o in rig.odom[n:]), \
+            [o.twist.twist.linear.x for o in rig.odom[n:]]
+
+    def accelerations_used():
+        ok, seen = rig.wait_diag(OK, "", feed=still_feed(frames[-1], clock[0] + 100.0))
+        rig.spin(0.5)               # the parked camera's last odometries (speed 0) arrive before the next drive
+        st = [d for d in rig.diag if any(kv.key == "imu_accelerations" for kv in d.values)][-1]
+        return int(next(kv.value for kv in st.values if kv.key == "imu_accelerations"))
+
+    try:
+        rig.info(info_msg())
+        assert spin_until(rig.node, lambda: pub_imu.get_subscription_count() > 0, 10.0)
+        drive(1.0)
+        assert "IMU acceleration not used: the IMU's specific force averages 1.00 m/s^2 over the last 1 s, but a " \
+               "machine on the ground feels gravity, 9.81" in rig.proc.log(), rig.proc.log()[-2000:]
+        assert "reporting in g" in rig.proc.log()
+        assert accelerations_used() == 0
+        clock[0] += 200.0           # another drive, the same IMU now in m/s^2: used after its first half second
+        drive(9.81)
+        assert accelerations_used() >= 30
+    finally:
+        rig.close()
+
+
 def test_stamps_and_marker_loss_never_give_a_speed_from_non_consecutive_frames(ros, tmp_path):
     rig = Rig(tmp_path, {"stale_timeout": 2.0})
     truth, frames = frames_of_drive(46)     # the marker is in view in all of them

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from lhd_loading_ros.perception.aruco import (InertialVelocityEstimator, KalmanVelocityEstimator,
+from lhd_loading_ros.perception.aruco import (GravityCheck, InertialVelocityEstimator, KalmanVelocityEstimator,
                                               forward_acceleration)
 from lhd_sim_node.sim_sensors import imu_specific_force
 
@@ -338,3 +338,48 @@ def test_an_implausible_acceleration_is_refused():
         with pytest.raises(ValueError, match="beyond the 39.2 m/s\\^2"):
             forward_acceleration(f, 0.0, 0.0, 0.0)
 
+
+
+def test_gravity_check_tells_m_s2_with_gravity_from_g_and_from_gravity_removed():
+    """REP 145: linear_acceleration in m/s^2, gravity included. Figures by hand: at rest |f| = g;
+    pitched 10 deg still g; braking at 5 m/s^2 sqrt(g^2 + 25) = 11.01; a 5 Hz vertical shake of
+    5 m/s^2 averages out over its whole periods. An IMU in g reads 1.00, gravity removed 0."""
+    rng = np.random.default_rng(0)
+
+    def feed(f_of_t, t0=0.0, n=50, hz=50.0, noise=0.05):
+        chk = GravityCheck()
+        for k in range(n):
+            t = t0 + k / hz
+            chk.add(t, np.asarray(f_of_t(t)) + rng.normal(0.0, noise, 3))
+        return chk
+
+    ok = [lambda t: (0.0, 0.0, G),
+          lambda t: imu_specific_force(np.array([math.cos(math.radians(5)), 0.0, math.sin(math.radians(5)), 0.0]),
+                                       (0.0, 0.0, 0.0)),
+          lambda t: (-5.0, 0.0, G),
+          lambda t: (0.0, 0.0, G + 5.0 * math.sin(2 * math.pi * 5.0 * t))]
+    for f in ok:
+        chk = feed(f)
+        assert chk.problem() is None, chk.mean_norm
+    assert abs(feed(ok[2], noise=0.0).mean_norm - math.hypot(5.0, G)) < 1e-9
+    assert abs(feed(ok[1], noise=0.0).mean_norm - G) < 1e-6
+    in_g = feed(lambda t: (0.0, 0.0, 1.0))
+    assert "averages 1.00 m/s^2" in in_g.problem() and "reporting in g" in in_g.problem()
+    removed = feed(lambda t: (0.3, 0.0, 0.0))
+    assert "averages 0.3" in removed.problem() and "gravity removed" in removed.problem()
+    # judged once ten samples span half a second: not 9 at 50 Hz, nor 50 at 100 Hz (0.49 s) or 200 Hz
+    assert feed(ok[0], n=9).mean_norm is None and "not judged yet" in feed(ok[0], n=9).problem()
+    assert feed(ok[0], n=50, hz=100.0).mean_norm is None
+    assert feed(ok[0], n=51, hz=100.0).mean_norm is not None and feed(ok[0], n=51, hz=100.0).problem() is None
+    assert feed(ok[0], n=50, hz=200.0).mean_norm is None
+    # a second's window: an IMU switched to g is caught within it, and one set right recovers
+    chk = feed(ok[0])
+    for k in range(50):
+        chk.add(1.0 + k / 50.0, (0.0, 0.0, 1.0))
+    assert chk.problem() is not None
+    for k in range(50):
+        chk.add(2.0 + k / 50.0, (0.0, 0.0, G))
+    assert chk.problem() is None
+    # a time line that restarts (a bag loop) forgets the old samples: judged again from scratch
+    chk.add(0.5, (0.0, 0.0, G))
+    assert chk.mean_norm is not None and len(chk.samples) == 1

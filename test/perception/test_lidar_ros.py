@@ -189,6 +189,8 @@ def test_no_pile_publishes_nothing_and_says_why_and_the_last_value_keeps_its_sta
                 (lambda m: setattr(m, "angle_increment", m.angle_increment * 1.02),
                  "LaserScan header disagrees with itself"),
                 (lambda m: setattr(m, "angle_increment", 0.0), "LaserScan angle_increment = 0: expected"),
+                (lambda m: setattr(m, "intensities", [1.0] * (len(m.ranges) - 1)),
+                 f"LaserScan with {len(r)} ranges but {len(r) - 1} intensities: expected one intensity per range"),
                 (lambda m: setattr(m, "range_min", 40.0), "expected 0 <= range_min < range_max"),
                 (lambda m: setattr(m, "ranges", [1000.0 * v for v in m.ranges]),
                  f"no range of the scan's {len(r)} beams lies in [range_min 0.05, range_max 30] m"),

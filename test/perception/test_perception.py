@@ -10,7 +10,7 @@ import pytest
 from lhd_loading_ros.perception.aruco import (CameraModel, ImageEncodingError, KalmanVelocityEstimator,
                                               MarkerDetector, VelocityEstimator, image_to_gray, level)
 from lhd_loading_ros.perception.geometry import apply, quaternion_xyzw, rpy_matrix, transform
-from lhd_loading_ros.perception.slope import TooFewPoints, fit_slope, scan_to_points
+from lhd_loading_ros.perception.slope import TooFewPoints, fit_slope, scan_problem, scan_to_points
 from lhd_loading_ros.perception.synthetic import (CAMERA_RPY, drive_poses, intrinsics, marker_texture, render,
                                                   scan_points_pile, synthetic_scan)
 
@@ -321,6 +321,22 @@ def test_too_few_points_is_an_error_not_a_guess():
 def test_scan_to_points_drops_invalid_ranges():
     pts = scan_to_points(0.0, math.pi / 2, [1.0, float("inf"), 0.01, 2.0], 0.05, 10.0)
     assert np.allclose(pts, [[1.0, 0.0, 0.0], [0.0, -2.0, 0.0]], atol=1e-12)  # angles 0 and 3 pi / 2
+
+
+def test_scan_header_checks_by_hand():
+    """720 beams over 180 deg: the last beam lies at -pi/2 + 719 * pi/720 = pi/2 - pi/720."""
+    inc = math.pi / 720
+    amin = -math.pi / 2
+    ok = dict(angle_min=amin, angle_max=amin + 719 * inc, angle_increment=inc, n=720, range_min=0.05, range_max=30.0)
+    assert scan_problem(**ok) is None
+    assert scan_problem(**{**ok, "angle_max": math.pi / 2}) is None          # one increment further: allowed
+    assert scan_problem(**ok, n_intensities=720) is None
+    assert "720 ranges but 719 intensities" in scan_problem(**ok, n_intensities=719)
+    assert "720 ranges but 1440 intensities" in scan_problem(**ok, n_intensities=1440)
+    assert "disagrees with itself" in scan_problem(**{**ok, "angle_max": amin + 721 * inc})
+    assert "angle_increment = 0" in scan_problem(**{**ok, "angle_increment": 0.0, "angle_max": amin})
+    assert scan_problem(**{**ok, "range_max": math.inf}) is None
+    assert "expected finite" in scan_problem(**{**ok, "range_min": math.nan})
 
 
 def test_perception_benchmark_runs():

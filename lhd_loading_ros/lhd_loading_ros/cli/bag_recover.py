@@ -167,8 +167,12 @@ def _snapshot(path: Path, copy: Path) -> None:
         raise RecoverError(f"{path} is still being written (another process holds its write lock): stop the "
                            "recorder first; a running recorder closes the bag itself at the attempt's end")
     if Path(str(path) + "-journal").is_file():
-        shutil.copyfile(path, copy)
-        shutil.copyfile(str(path) + "-journal", str(copy) + "-journal")
+        try:
+            shutil.copyfile(path, copy)
+            shutil.copyfile(str(path) + "-journal", str(copy) + "-journal")
+        except OSError as exc:
+            raise RecoverError(f"cannot copy {path} and its journal to {copy.parent} to read them ({exc}); expected "
+                               "room there for a copy of the bag") from None
         return
     src = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True, timeout=10.0)
     try:
@@ -183,17 +187,20 @@ def _snapshot(path: Path, copy: Path) -> None:
         src.close()
 
 
-def scan_sqlite3(path) -> Scan:
+def scan_sqlite3(path, work_dir=None) -> Scan:
     """What a never-closed rosbag2 sqlite3 file holds, in the Scan's terms: a schema and a channel
     per row of `topics` (channel metadata: the parsed offered QoS profiles), the committed
-    `messages`, read from a consistent copy (_snapshot), so the original stays as it is."""
+    `messages`, read from a consistent copy (_snapshot), so the original stays as it is. The copy
+    lies in a temporary folder under `work_dir` (recover: the output's folder, which must hold a
+    bag of about that size anyway; the system's temporary folder is often a small RAM disk),
+    removed when read."""
     from rosbags.rosbag2.metadata import parse_qos
 
     path = Path(path)
     with path.open("rb") as f:
         if f.read(16) != b"SQLite format 3\x00":
             raise RecoverError(f"{path}: not an SQLite database (no 'SQLite format 3' header)")
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory(dir=work_dir, prefix=".lhd_recover_") as tmp:
         copy = Path(tmp) / path.name
         _snapshot(path, copy)
         conn = sqlite3.connect(copy)
@@ -239,13 +246,16 @@ def recover(bag, out=None) -> tuple[Path, Scan]:
         raise RecoverError(f"{bag}: expected one .mcap or .db3 file, found {len(files)}")
     if files[0].stat().st_size == 0:
         raise RecoverError(f"{files[0]} is empty: nothing was flushed before the recorder stopped")
-    sqlite = files[0].suffix == ".db3"
-    scan = scan_sqlite3(files[0]) if sqlite else scan_mcap(files[0])
-    if not scan.messages:
-        raise RecoverError(f"{files[0]}: no complete message in it (nothing was flushed before the recorder stopped)")
     out = Path(out) if out is not None else bag.with_name(bag.name + "_recovered")
     if out.exists():
         raise RecoverError(f"{out} exists: give another --out (nothing is overwritten)")
+    if not out.parent.is_dir():
+        raise RecoverError(f"{out.parent}: no such folder for --out (expected an existing folder to write the "
+                           "recovered bag in)")
+    sqlite = files[0].suffix == ".db3"
+    scan = scan_sqlite3(files[0], work_dir=out.parent) if sqlite else scan_mcap(files[0])
+    if not scan.messages:
+        raise RecoverError(f"{files[0]}: no complete message in it (nothing was flushed before the recorder stopped)")
     writer = Writer(out, version=9, storage_plugin=StoragePlugin.SQLITE3 if sqlite else StoragePlugin.MCAP)
     writer.open()
     try:

@@ -445,6 +445,15 @@ def pile_frame_problem(params_file: Path | None) -> str | None:
             + "; expected one name for the pile frame in every node")
 
 
+def stack_problem(params_file: Path | None, controller: str, config: str | None = None) -> str | None:
+    """What in the stack's parameter file would leave every attempt without zones or commands: the
+    pile frame named apart (pile_frame_problem), a controller too slow for the mux's timeout
+    (command_timing_problem; not for teleop, which has no controller on /lhd/cmd/auto). Run by
+    `lhd up real`, `lhd up twin` and real_machine.launch.py before any node starts."""
+    return pile_frame_problem(params_file) or (
+        command_timing_problem(params_file, config) if controller != "teleop" else None)
+
+
 def check_args(ap: argparse.ArgumentParser, args) -> None:
     """The checks argparse cannot make (ap.error, exit 2, on a bad value)."""
     if args.attempt_timeout <= 0:
@@ -456,8 +465,7 @@ def check_args(ap: argparse.ArgumentParser, args) -> None:
     if args.params_file and not Path(args.params_file).is_file():
         ap.error(f"--params-file {args.params_file!r} does not exist")
     params_file = Path(args.params_file) if args.params_file else default_params_file()
-    problem = pile_frame_problem(params_file) or (
-        command_timing_problem(params_file, args.config) if args.controller != "teleop" else None)
+    problem = stack_problem(params_file, args.controller, args.config)
     if problem:
         ap.error(problem)
     if args.policy:

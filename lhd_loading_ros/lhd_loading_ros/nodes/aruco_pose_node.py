@@ -7,7 +7,8 @@ In:  sensor_msgs/Image (mono8, bgr8, rgb8, bgra8, rgba8) and sensor_msgs/CameraI
      roll and pitch about the wheels on the floor, the odometry is that tilted pose (base_link raised
      and pitched: the bucket tip the controllers compute from it is the machine's) and v_x is
      base_link's (use_imu); with its linear
-     acceleration too, the speed filter integrates it between images (imu_acceleration;
+     acceleration too (in m/s^2 with gravity, REP 145: judged over each second), the speed filter
+     integrates it between images (imu_acceleration;
      docs/perception.md "Camera and accelerometer").
 Out (under /lhd, or the node's namespace):
   aruco/marker_pose  geometry_msgs/PoseStamped  every detection, pile frame, the image's stamp
@@ -41,7 +42,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_
 from sensor_msgs.msg import CameraInfo, Image, Imu
 from std_msgs.msg import Bool
 
-from lhd_loading_ros.perception.aruco import (CameraModel, ImageEncodingError, InertialVelocityEstimator,
+from lhd_loading_ros.perception.aruco import (CameraModel, GravityCheck, ImageEncodingError, InertialVelocityEstimator,
                                               KalmanVelocityEstimator, MarkerDetector, MountingPrior, VelocityEstimator,
                                               dictionary, forward_acceleration, image_to_gray, level, marker_centre_ray,
                                               opencv_problem, position_on_plane, roll_pitch, tilted_base_position)
@@ -188,6 +189,7 @@ class ArucoPoseNode(Node):
         self.info_frame_id = ""                 # the CameraInfo's frame_id (images of another frame are refused)
         self.camera_model_changes = 0           # CameraInfo changes that restarted the speed estimate
         self.imu_faults = 0                     # IMU messages not used
+        self.gravity = GravityCheck()           # the IMU's accelerations carry gravity in m/s^2 (REP 145)
         self.log_throttle = KindThrottle(5.0)
         self.last_seen: float | None = None     # arrival time (monotonic) of the last detection
         self.last_image: float | None = None
@@ -311,8 +313,14 @@ class ArucoPoseNode(Node):
             except ValueError as exc:
                 self._imu_fault(f"IMU acceleration rejected: {exc}")
                 return
-            if self.vel.add_accel(t, a_x):
-                self.accel_samples += 1
+            # used only once a second of samples shows gravity in m/s^2 (an IMU in g passes the 4 g bound)
+            self.gravity.add(t, (la.x, la.y, la.z))
+            gravity_problem = self.gravity.problem()
+            if gravity_problem is None:
+                if self.vel.add_accel(t, a_x):
+                    self.accel_samples += 1
+            elif self.gravity.mean_norm is not None:
+                self._imu_fault(f"IMU acceleration not used: {gravity_problem}")
             if self.pending is not None and t >= self._stamp_s(self.pending[0]):
                 self._finish_pending()
 

@@ -22,7 +22,8 @@ changes which scans the median spans); after a pause longer than filter_max_age 
 stands alone. A scan without a face, or with a face outside [slope_min_deg, slope_max_deg],
 publishes nothing and says why in /diagnostics and a throttled log (per kind of problem), and so
 does a scan whose header cannot place its beams (perception/slope.scan_problem: angle_max must be
-angle_min + (n - 1) angle_increment within one increment; 0 <= range_min < range_max), whose ranges
+angle_min + (n - 1) angle_increment within one increment; 0 <= range_min < range_max; intensities
+empty or one per range), whose ranges
 all lie outside [range_min, range_max], or whose stamp is zero or ahead of this node's clock
 (ros/stamps.py). Every output carries the stamp
 of the newest scan that agrees with it, so the last value never looks fresher than the scans behind
@@ -129,7 +130,8 @@ class LidarSlopeNode(Node):
 
     def _on_scan(self, msg: LaserScan) -> None:
         n = len(msg.ranges)
-        bad = scan_problem(msg.angle_min, msg.angle_max, msg.angle_increment, n, msg.range_min, msg.range_max)
+        bad = scan_problem(msg.angle_min, msg.angle_max, msg.angle_increment, n, msg.range_min, msg.range_max,
+                           len(msg.intensities))
         if bad is not None:
             self._refused(bad)
             return

@@ -633,6 +633,44 @@ def forward_acceleration(f_body, roll: float, pitch: float, yaw: float) -> float
     return float(rpy_matrix(roll, pitch, yaw)[0] @ f)
 
 
+class GravityCheck:
+    """Does an IMU's linear_acceleration carry gravity in m/s^2, as REP 145 asks? A machine on the
+    ground cannot accelerate vertically for long, so over a second the mean specific force is
+    gravity plus at most the drive's horizontal acceleration: |mean f| about 9.81 (9.81 to 10.7 for
+    braking at 5 m/s^2). An IMU that reports in g reads about 1, one with gravity removed about 0;
+    each passes the per-sample 4 g bound (forward_acceleration), and in g the filter would take a
+    tenth of every acceleration (noticed 2026-11-28). The mean is over the samples of the last
+    `window` s, judged once they span `min_span` s with `min_samples` of them; until then, and
+    while |mean f| lies outside [low, high], `problem()` says why (the accelerations are then not
+    used; the tilt is, it comes from the orientation)."""
+
+    def __init__(self, window: float = 1.0, min_span: float = 0.5, min_samples: int = 10,
+                 low: float = 0.5 * 9.81, high: float = 1.5 * 9.81):
+        self.window, self.min_span, self.min_samples = window, min_span, min_samples
+        self.low, self.high = low, high
+        self.samples: deque = deque()      # (t, fx, fy, fz)
+        self.mean_norm: float | None = None
+
+    def add(self, t: float, f) -> None:
+        if self.samples and t < self.samples[-1][0]:
+            self.samples.clear()            # another time line (a bag loop, a restart)
+        self.samples.append((t, float(f[0]), float(f[1]), float(f[2])))
+        while self.samples and self.samples[0][0] <= t - self.window:
+            self.samples.popleft()
+        if len(self.samples) >= self.min_samples and t - self.samples[0][0] >= self.min_span:
+            m = np.mean(np.asarray(self.samples)[:, 1:], axis=0)
+            self.mean_norm = float(np.linalg.norm(m))
+
+    def problem(self) -> str | None:
+        if self.mean_norm is None:
+            return "not judged yet (fewer than {} samples over {:g} s)".format(self.min_samples, self.min_span)
+        if self.low <= self.mean_norm <= self.high:
+            return None
+        return (f"the IMU's specific force averages {self.mean_norm:.2f} m/s^2 over the last {self.window:g} s, but a "
+                f"machine on the ground feels gravity, 9.81 (REP 145: linear_acceleration in m/s^2, gravity included; "
+                f"accepted {self.low:.1f}-{self.high:.1f}): an IMU reporting in g, or with gravity removed?")
+
+
 def tilted_base_position(ray_xy: np.ndarray, T_pile_cam: np.ndarray, yaw: float, roll: float, pitch: float,
                          marker_in_base: np.ndarray, pivot_front_x: float, contact_z: float) -> np.ndarray | None:
     """base_link's position (pile frame) from the camera ray through the marker's centre when the

@@ -37,12 +37,15 @@ class SlopeOutOfRange(NoSlope):
 
 
 def scan_problem(angle_min: float, angle_max: float, angle_increment: float, n: int, range_min: float,
-                 range_max: float) -> str | None:
+                 range_max: float, n_intensities: int = 0) -> str | None:
     """Why a LaserScan's header cannot place its beams, or None. Beam i lies at angle_min + i *
     angle_increment, and the last one must be angle_max (REP: sensor_msgs/LaserScan), within one
     increment (drivers differ by one on whether angle_max is the last beam's): a header that
     disagrees is a misconfigured driver, and fitting it anyway tilts the slope (an increment 2 %
-    off turned a 20 deg pile into 21.8 deg, published as valid: a review's fault injection)."""
+    off turned a 20 deg pile into 21.8 deg, published as valid: a review's fault injection).
+    `n_intensities`: the message's intensities, which must be empty or one per range
+    (sensor_msgs/LaserScan); another count says the driver lost or added beams in one of the
+    arrays, so which angle a range belongs to is not known either."""
     vals = {"angle_min": angle_min, "angle_max": angle_max, "angle_increment": angle_increment,
             "range_min": range_min, "range_max": range_max}
     # range_max may be +inf: pointcloud_to_laserscan's default (DBL_MAX, inf in the float32 field)
@@ -51,6 +54,9 @@ def scan_problem(angle_min: float, angle_max: float, angle_increment: float, n: 
         return f"LaserScan {', '.join(f'{k} = {vals[k]!r}' for k in bad)}: expected finite numbers"
     if n < 2:
         return f"LaserScan with {n} ranges: expected a scan of at least 2 beams"
+    if n_intensities not in (0, n):
+        return (f"LaserScan with {n} ranges but {n_intensities} intensities: expected one intensity per range, "
+                "or none (a driver that lost or added beams in one of the arrays)")
     if angle_increment == 0.0:
         return "LaserScan angle_increment = 0: expected the angle between beams (rad)"
     last = angle_min + (n - 1) * angle_increment
