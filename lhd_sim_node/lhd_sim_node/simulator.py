@@ -104,6 +104,7 @@ class LhdSimulator:
         # domain randomisation (task/randomization.py): chunks of a control period that still run
         # the previous command (drive, hydraulics), and that command
         self._delay_chunks = (0, 0)
+        self._gains = (1.0, 1.0)                 # actuator gains of the episode (conditions)
         self._u_prev = np.zeros(3)
         self.conditions = NOMINAL
         # drift over a window of one control period (wheel_drift): the marks (time, x, wheel angles)
@@ -269,6 +270,9 @@ class LhdSimulator:
         chunks = self.n_phys // self.fee_every
         self._delay_chunks = (delay_chunks(c.drive_delay_s, self.fee_dt, chunks),
                               delay_chunks(c.hydraulic_delay_s, self.fee_dt, chunks))
+        if not (c.drive_gain > 0.0 and c.hydraulic_gain > 0.0):
+            raise ValueError(f"actuator gains drive {c.drive_gain!r}, hydraulics {c.hydraulic_gain!r}: expected > 0")
+        self._gains = (float(c.drive_gain), float(c.hydraulic_gain))
         self.d_attack, self.attack_speed = float(d_attack), float(attack_speed)
         self.place_machine(self.d_attack, math.radians(c.heading_deg), c.lateral_offset)
         t = 0.0
@@ -312,13 +316,17 @@ class LhdSimulator:
 
     # ------------------------------------------------------------------ stepping
     def set_command(self, u: np.ndarray) -> None:
-        """u = (u_wheels, u_boom, u_bucket) in rad/s, already within the actuator ranges."""
+        """u = (u_wheels, u_boom, u_bucket) in rad/s, already within the actuator ranges. The
+        episode's actuator gains (conditions: 1 nominal) scale what the actuators are asked for:
+        the machine's wheels and hydraulics turn slower or faster than commanded, unseen by the
+        controller."""
         ctrl = self._ctrl
-        w = float(u[0])
+        g_drive, g_hyd = self._gains
+        w = float(u[0]) * g_drive
         for a in self._act_wheels:
             ctrl[a] = w
-        ctrl[self.act_boom] = u[1]
-        ctrl[self.act_bucket] = u[2]
+        ctrl[self.act_boom] = u[1] * g_hyd
+        ctrl[self.act_bucket] = u[2] * g_hyd
 
     def step(self, u: np.ndarray) -> None:
         """One control period with command u (rad/s). With actuator dead time (conditions), the

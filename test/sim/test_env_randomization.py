@@ -269,3 +269,60 @@ def test_on_a_rough_pile_the_policy_is_told_the_scanned_slices_slope(cfg):
     obs, _ = env.reset(seed=40, options={"slope_deg": 20.0})
     assert p.alpha_min + float(obs[11]) * (p.alpha_max - p.alpha_min) == pytest.approx(math.radians(20.0), abs=1e-6)
     assert env.sim.pile.slice_slope() == pytest.approx(math.radians(20.0), abs=1e-9)
+
+
+def test_actuator_gains_scale_what_the_actuators_are_asked_for(cfg):
+    """A drive gain g: the wheels' velocity servos get g times the command (the machine's wheels
+    turn slower than the controller asked: a sagging battery, a speed loop off); a hydraulic gain
+    h: boom and bucket move at h times the commanded rate. Gains of 1 are bit-identical to the
+    nominal simulator. Over one period the unloaded boom (lifting out of the pile's reach, no FEE
+    on it) travels about h times as far: the valve-limited rate, less the same start-up transient."""
+    a, b = _pair(cfg, Conditions(drive_gain=1.0, hydraulic_gain=1.0))
+    u = np.array([2.0, -0.191, 0.2])
+    a.step(u)
+    b.step(u)
+    np.testing.assert_array_equal(_sim_state(a), _sim_state(b))
+    c = LhdSimulator(cfg)       # the drive gain acts on the attack drive too: another start, so not _pair
+    c.reset(np.random.default_rng(4), alpha=math.radians(20.0), material="homogeneous", d_attack=0.15,
+            attack_speed=2.7, conditions=Conditions(drive_gain=0.8, hydraulic_gain=0.75))
+    c.set_command(np.array([2.5, -0.191, 0.2]))
+    assert [c.data.ctrl[k] for k in c._act_wheels] == [2.0] * len(c._act_wheels)
+    assert c.data.ctrl[c.act_boom] == pytest.approx(-0.191 * 0.75) and c.data.ctrl[c.act_bucket] == pytest.approx(0.15)
+    # the boom lifting from the attack pose for a second: travel ratio about 0.75
+    a, b = _pair(cfg, Conditions(hydraulic_gain=0.75))
+    q0a, q0b = float(a.data.qpos[a.boom_q]), float(b.data.qpos[b.boom_q])
+    for _ in range(10):
+        a.step(np.array([0.0, -0.191, 0.0]))
+        b.step(np.array([0.0, -0.191, 0.0]))
+    da, db = q0a - float(a.data.qpos[a.boom_q]), q0b - float(b.data.qpos[b.boom_q])
+    assert da > 0.1 and 0.70 < db / da < 0.80, (da, db)
+
+
+def test_actuator_gains_are_drawn_last_and_only_where_set(cfg):
+    """`randomization.drive_gain_min/max`, `hydraulic_gain_min/max`: uniform per episode. With the
+    ranges at (1, 1) (their defaults: off) nothing is drawn for them, so a run of earlier draws
+    replays exactly; drawn after everything else, so episode 0's other conditions are the same."""
+    import copy
+    from dataclasses import replace
+
+    from lhd_loading_ros.task.randomization import RandomizationRanges, draw
+
+    on = copy.deepcopy(cfg)
+    on["randomization"].update(enabled=1, drive_gain_min=0.8, drive_gain_max=1.1, hydraulic_gain_min=0.75,
+                               hydraulic_gain_max=1.1)
+    off = copy.deepcopy(cfg)
+    off["randomization"]["enabled"] = 1
+    rr_on, rr_off = RandomizationRanges.from_config(on), RandomizationRanges.from_config(off)
+    assert rr_off.drive_gain == rr_off.hydraulic_gain == (1.0, 1.0)
+    ra, rb = np.random.default_rng(7), np.random.default_rng(7)
+    c_on, c_off = draw(ra, rr_on), draw(rb, rr_off)
+    assert replace(c_on, drive_gain=1.0, hydraulic_gain=1.0) == c_off
+    assert ra.bit_generator.state != rb.bit_generator.state          # two more numbers drawn
+    rb.uniform(), rb.uniform()
+    assert ra.bit_generator.state == rb.bit_generator.state          # exactly two
+    cs = [draw(ra, rr_on) for _ in range(2000)]
+    for name, lo, hi in (("drive_gain", 0.8, 1.1), ("hydraulic_gain", 0.75, 1.1)):
+        v = np.array([getattr(c, name) for c in cs])
+        assert lo <= v.min() < lo + 0.01 * (hi - lo) and hi - 0.01 * (hi - lo) < v.max() <= hi
+        assert abs(v.mean() - 0.5 * (lo + hi)) < 0.03 * (hi - lo)
+    assert all(c.drive_gain == 1.0 and c.hydraulic_gain == 1.0 for c in (draw(rb, rr_off) for _ in range(50)))

@@ -19,6 +19,17 @@ NEVER_HASHED = ("twin_critics", "slope_curriculum", "slope_curriculum_bins", "sl
                 "demo_bc_return_filter")
 
 
+GAIN_KEYS = ("drive_gain_min", "drive_gain_max", "hydraulic_gain_min", "hydraulic_gain_max")
+
+
+def without_unit_gains(c):
+    """The actuator gains (2026-11-28) at 1, their default, are left out of the hash."""
+    r = c.get("randomization")
+    if r is not None and all(r.get(k, 1.0) == 1.0 for k in GAIN_KEYS):
+        c = {**c, "randomization": {k: v for k, v in r.items() if k not in GAIN_KEYS}}
+    return c
+
+
 @pytest.fixture(scope="module")
 def cfg():
     return load_config()
@@ -46,6 +57,18 @@ def test_the_shipped_section_is_off_and_a_disabled_section_leaves_the_hash_alone
     on2 = copy.deepcopy(on)
     on2["randomization"]["vx_noise"] = 0.05                    # a randomised run's ranges are part of its identity
     assert config_hash(on2) != config_hash(on)
+    # the actuator gains (2026-11-28) at 1, their default: the hash randomised actors had before the keys
+    # existed (computed here without them); set, part of the identity
+    keys = ("drive_gain_min", "drive_gain_max", "hydraulic_gain_min", "hydraulic_gain_max")
+    before = copy.deepcopy(on)
+    before["randomization"] = {k: v for k, v in on["randomization"].items() if k not in keys}
+    assert all(on["randomization"][k] == 1.0 for k in keys)
+    assert config_hash(on) == hashlib.sha256(json.dumps(
+        {**{k: v for k, v in before.items() if k not in ("training",)},
+         "task": without["task"], "training": without["training"]}, sort_keys=True).encode()).hexdigest()[:16]
+    gains = copy.deepcopy(on)
+    gains["randomization"].update(drive_gain_min=0.8, hydraulic_gain_min=0.75)
+    assert config_hash(gains) != config_hash(on) and hash_matches(config_hash(gains), gains)
 
 
 @pytest.mark.parametrize("key,value,needle", [
@@ -55,6 +78,8 @@ def test_the_shipped_section_is_off_and_a_disabled_section_leaves_the_hash_alone
     ("tyre_friction_max", 0.5, "randomization.tyre_friction_min <= randomization.tyre_friction_max"),
     ("d_attack_max", 0.05, "paper.episode.d_attack_min <= randomization.d_attack_max"),
     ("enabled", 2, "randomization.enabled"),
+    ("drive_gain_min", 1.2, "randomization.drive_gain_min <= randomization.drive_gain_max"),
+    ("hydraulic_gain_max", 0.0, "randomization.hydraulic_gain_max"),
 ])
 def test_bad_values_are_refused_naming_the_key(cfg, key, value, needle):
     bad = copy.deepcopy(cfg)
@@ -158,6 +183,7 @@ def test_the_training_pitch_margin_is_a_training_only_setting(cfg):
 
     def raw(c):       # the hash by its definition, written out here (the tilt penalty off: its keys out)
         c = {k: v for k, v in c.items() if k != "randomization" or c["randomization"]["enabled"]}
+        c = without_unit_gains(c)
         c["task"] = {k: v for k, v in c["task"].items() if k not in ("r_tilt_per_deg", "r_tilt_free_deg", "r_tilt_ramp_after_success", "r_tilt_ramp_steps", "r_tilt_ramp_pitch_margin", "midgoal_from_pile", "r_success_mass_margin_kg")}
         c["training"] = {k: v for k, v in c["training"].items() if k not in NEVER_HASHED}
         return hashlib.sha256(json.dumps(c, sort_keys=True).encode()).hexdigest()[:16]
@@ -195,6 +221,7 @@ def test_which_cards_count_as_randomised_and_configs_without_the_sections(cfg):
 
     def raw(c):
         c = {k: v for k, v in c.items() if k != "randomization" or c["randomization"]["enabled"]}
+        c = without_unit_gains(c)
         if "task" in c and not c["task"].get("r_success_pitch_margin_deg", 0.0):
             c = {**c, "task": {k: v for k, v in c["task"].items() if k != "r_success_pitch_margin_deg"}}
         if "task" in c:      # the tilt penalty off: its keys out

@@ -128,6 +128,8 @@ SCHEMA: dict[str, Any] = {
         "rocks_max": _i(0, 1000), "tyre_friction_min": _f(0.05, 3.0), "tyre_friction_max": _f(0.05, 3.0),
         "d_attack_max": _f(0.0, 5.0), "attack_speed_min_fraction": _f(0.05, 1.0),
         "heading_max_deg": _f(0.0, 45.0), "lateral_offset_max": _f(0.0, 1.0),
+        "drive_gain_min": _f(0.1, 2.0), "drive_gain_max": _f(0.1, 2.0),
+        "hydraulic_gain_min": _f(0.1, 2.0), "hydraulic_gain_max": _f(0.1, 2.0),
     },
     "training": {
         "total_steps": _i(1, 100_000_000), "noise_decay_steps": _i(0, 100_000_000), "noise_final_scale": _f(0.0, 1.0),
@@ -181,6 +183,10 @@ _RELATIONS = [
      lambda c: c["randomization"]["phi_min_deg"] <= c["randomization"]["phi_max_deg"]),
     ("randomization.tyre_friction_min <= randomization.tyre_friction_max",
      lambda c: c["randomization"]["tyre_friction_min"] <= c["randomization"]["tyre_friction_max"]),
+    ("randomization.drive_gain_min <= randomization.drive_gain_max",
+     lambda c: c["randomization"]["drive_gain_min"] <= c["randomization"]["drive_gain_max"]),
+    ("randomization.hydraulic_gain_min <= randomization.hydraulic_gain_max",
+     lambda c: c["randomization"]["hydraulic_gain_min"] <= c["randomization"]["hydraulic_gain_max"]),
     ("paper.episode.d_attack_min <= randomization.d_attack_max",
      lambda c: c["paper"]["episode"]["d_attack_min"] <= c["randomization"]["d_attack_max"]),
     ("randomization.rocks_max >= pile.rocks_min", lambda c: c["randomization"]["rocks_max"] >= c["pile"]["rocks_min"]),
@@ -248,7 +254,11 @@ OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curric
                      ("training", "demo_pre_curl"): 0.3, ("training", "demo_bc"): 0.0,
                      ("training", "demo_until_step"): 0, ("training", "critic_huber"): 0.0,
                      ("training", "noise_after_decay"): 0.0, ("task", "r_success_mass_margin_kg"): 0.0,
-                     ("training", "demo_bc_return_filter"): 0}
+                     ("training", "demo_bc_return_filter"): 0,
+                     # actuator gains drawn per episode (task/randomization.py); 1 = the simulator's actuators
+                     ("randomization", "drive_gain_min"): 1.0, ("randomization", "drive_gain_max"): 1.0,
+                     ("randomization", "hydraulic_gain_min"): 1.0, ("randomization", "hydraulic_gain_max"): 1.0}
+ACTUATOR_GAIN_KEYS = ("drive_gain_min", "drive_gain_max", "hydraulic_gain_min", "hydraulic_gain_max")
 
 
 def validate(cfg: Any) -> dict:
@@ -384,6 +394,9 @@ def config_hash(cfg: dict) -> str:
         cfg = {**cfg, "machine": {k: v for k, v in cfg["machine"].items() if k != "rear_differential"}}
     if int(cfg.get("randomization", {}).get("enabled", 0)) == 0:
         cfg = {k: v for k, v in cfg.items() if k != "randomization"}
+    elif all(float(cfg["randomization"].get(k, 1.0)) == 1.0 for k in ACTUATOR_GAIN_KEYS):
+        # actuator gains at 1 (off): the hash randomised actors had before the keys existed (2026-11-28)
+        cfg = {**cfg, "randomization": {k: v for k, v in cfg["randomization"].items() if k not in ACTUATOR_GAIN_KEYS}}
     if "task" in cfg and float(cfg["task"].get("r_success_pitch_margin_deg", 0.0)) == 0.0:
         cfg = {**cfg, "task": {k: v for k, v in cfg["task"].items() if k != "r_success_pitch_margin_deg"}}
     if "task" in cfg and float(cfg["task"].get("r_tilt_per_deg", 0.0)) == 0.0:

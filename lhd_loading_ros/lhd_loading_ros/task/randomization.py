@@ -45,6 +45,8 @@ class Conditions:
     lateral_offset: float = 0.0         # m, the lip's centre off the pile's axis at the start
     surface_sd: float = 0.0             # m, sd of the pile surface's relief about its plane (0: a plane)
     surface_corr: float = 0.15          # m, the relief's correlation length (VoxelPile.roughen)
+    drive_gain: float = 1.0             # the wheels turn at this times the commanded speed (battery, speed loop)
+    hydraulic_gain: float = 1.0         # the boom and bucket move at this times the commanded rate (pump flow)
 
     def summary(self) -> dict:
         """A flat dict of the drawn values (for info and CSVs)."""
@@ -74,6 +76,8 @@ class RandomizationRanges:
     heading_max_deg: float
     lateral_offset_max: float
     chunk_s: float                      # the grain of the actuator delay (one FEE chunk)
+    drive_gain: tuple[float, float] = (1.0, 1.0)
+    hydraulic_gain: tuple[float, float] = (1.0, 1.0)
 
     @classmethod
     def from_config(cls, cfg: dict) -> "RandomizationRanges":
@@ -93,6 +97,8 @@ class RandomizationRanges:
             attack_speed_min_fraction=r["attack_speed_min_fraction"], heading_max_deg=r["heading_max_deg"],
             lateral_offset_max=r["lateral_offset_max"],
             chunk_s=cfg["sim"]["timestep"] * cfg["sim"]["fee_every"],
+            drive_gain=(r.get("drive_gain_min", 1.0), r.get("drive_gain_max", 1.0)),
+            hydraulic_gain=(r.get("hydraulic_gain_min", 1.0), r.get("hydraulic_gain_max", 1.0)),
         )
 
 
@@ -100,7 +106,7 @@ def draw(rng: np.random.Generator, rr: RandomizationRanges) -> Conditions:
     """One episode's conditions, uniform within the ranges (delays on the chunk grain)."""
     n_delay = int(math.floor(rr.actuator_delay_max_s / rr.chunk_s + 1e-9))
     u = rng.uniform
-    return Conditions(
+    c = Conditions(
         slope_error_deg=float(u(-rr.slope_error_max_deg, rr.slope_error_max_deg)),
         slope_noise_deg=rr.slope_noise_deg, vx_noise=rr.vx_noise,
         vx_dropout_probability=rr.vx_dropout_probability, vx_dropout_max_steps=rr.vx_dropout_max_steps,
@@ -112,6 +118,14 @@ def draw(rng: np.random.Generator, rr: RandomizationRanges) -> Conditions:
         heading_deg=float(u(-rr.heading_max_deg, rr.heading_max_deg)),
         lateral_offset=float(u(-rr.lateral_offset_max, rr.lateral_offset_max)),
     )
+    # drawn last, and only where a range is set: with the gains off (1, 1) every other draw is what
+    # it was before they existed, so earlier randomised evaluations replay exactly
+    gains = {}
+    if rr.drive_gain != (1.0, 1.0):
+        gains["drive_gain"] = float(u(*rr.drive_gain))
+    if rr.hydraulic_gain != (1.0, 1.0):
+        gains["hydraulic_gain"] = float(u(*rr.hydraulic_gain))
+    return replace(c, **gains) if gains else c
 
 
 def delay_chunks(delay_s: float, chunk_s: float, chunks_per_step: int) -> int:
@@ -175,6 +189,8 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
                8-15 cm (12, against the paper's piles' 3-8; a rock that finds no room in a shallow
                wedge is left out, as in every pile): the nominal evaluation puts rocks in half its
                piles, this case in all of them, as many as training ever drew
+    slow_drive  every wheel at SLOW_DRIVE_GAIN (0.8) of its commanded speed
+    slow_hydraulics  boom and bucket at SLOW_HYDRAULIC_GAIN (0.75) of their commanded rates
     rough      the pile's surface not a plane: a random relief of sd ROUGH_SD (3 cm) and correlation
                length ROUGH_CORR (15 cm) about it (VoxelPile.roughen). A pile dumped by a feeder or by
                hand has bumps of about the size of its largest pieces (the paper's 8-15 cm rocks in 2-5
@@ -204,10 +220,18 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
         return Conditions(soil=replace(SoilRanges.from_config(cfg), rocks=(n, n)))
     if name == "rough":
         return Conditions(surface_sd=ROUGH_SD, surface_corr=ROUGH_CORR)
+    if name == "slow_drive":
+        return Conditions(drive_gain=SLOW_DRIVE_GAIN)
+    if name == "slow_hydraulics":
+        return Conditions(hydraulic_gain=SLOW_HYDRAULIC_GAIN)
     raise ValueError(f"unknown stress case {name!r}; expected one of {', '.join(STRESS_CASES)}")
 
 
-STRESS_CASES = ("placement", "sensors", "delay", "light", "dense", "rocky", "rough")
+STRESS_CASES = ("placement", "sensors", "delay", "light", "dense", "rocky", "rough", "slow_drive", "slow_hydraulics")
+SLOW_DRIVE_GAIN = 0.8       # the wheels at 80 % of the commanded speed: a battery near its cut-off (a DC motor's
+                            # speed follows its voltage; about -20 % from full charge) or a speed loop 20 % off
+SLOW_HYDRAULIC_GAIN = 0.75  # boom and bucket at 75 % of the commanded rate: less pump flow (a sagging battery
+                            # under the pump motor, cold oil) or valves opening less than calibrated
 ROUGH_SD = 0.03        # m: half the largest rock (8-15 cm) of the paper's pile, three 2-5 cm grains
 ROUGH_CORR = 0.15      # m: the largest rock's size
 # the material a stress case puts every episode on (the others keep the evaluation's alternation)
