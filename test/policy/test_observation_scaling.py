@@ -128,3 +128,43 @@ def test_cli_refuses_a_mismatched_actor(cfg, wide_actor, tmp_path, capsys):
     f.write_text(yaml.safe_dump(wide(cfg)))
     assert main(["eval", "--policy", str(wide_actor), "--episodes", "1", "--config", str(f), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["episodes"] == 1
+
+
+def test_the_actions_map_to_the_actuator_speeds_it_was_trained_with(cfg, wide_actor, tmp_path, capsys):
+    """The card's action.actuator_low/high: -1 and +1 of each action in rad/s. A parameter file
+    with wheels_max 2.16 instead of 2.7 (a review's way to model a slower machine) made every wheel
+    command 20 % slow, silently: refused, naming the key and both values; for RLD the hybrid
+    filter's threshold, which it was trained through, too. The reward may differ (above); the
+    RLC deployment filter's saturations are a deployment choice, not judged."""
+    c = wide(cfg)
+    pol = load_policy(wide_actor)
+    assert pol.action_mismatch(c) is None
+    slow = copy.deepcopy(c)
+    slow["paper"]["control"]["wheels_max"] = 2.16
+    why = pol.action_mismatch(slow)
+    assert "paper.control.wheels_max 2.7 in training, 2.16 here" in why and "boom" not in why
+    assert "--stress slow_drive" in why
+    with pytest.raises(PolicyFileError, match="actions mapped otherwise"):
+        pol.check_config(slow)
+    thr = copy.deepcopy(c)
+    thr["task"]["rld_threshold"] = 0.2
+    assert "task.rld_threshold 0 in training, 0.2 here" in pol.action_mismatch(thr)
+    sat = copy.deepcopy(c)
+    sat["task"]["rlc_boom_saturate"] = 0.5
+    assert pol.action_mismatch(sat) is None
+    # a card whose record is not 3 finite numbers
+    d = tmp_path / "bad"
+    shutil.copytree(wide_actor, d)
+    meta = json.loads((d / META_FILE).read_text())
+    meta["action"]["actuator_high"] = [2.7, 0.0]
+    (d / META_FILE).write_text(json.dumps(meta))
+    with pytest.raises(PolicyFileError, match=r"action.actuator_high = \[2.7, 0.0\]; expected 3 finite numbers"):
+        load_policy(d).action_mismatch(c)
+    # lhd eval refuses it before any episode
+    from lhd_loading_ros.cli.main import main
+    import yaml
+
+    f = tmp_path / "slow.yaml"
+    f.write_text(yaml.safe_dump(slow))
+    assert main(["eval", "--policy", str(wide_actor), "--episodes", "1", "--config", str(f)]) == 1
+    assert "paper.control.wheels_max 2.7 in training, 2.16 here" in capsys.readouterr().err

@@ -124,7 +124,7 @@ def parameter_file_need(pol, cfg: dict) -> str:
     from lhd_loading_ros.task.config import config_hash
 
     default = load_config(str(shipped_config("lhd_params.yaml")))
-    if pol.observation_mismatch(default) is not None:
+    if pol.observation_mismatch(default) is not None or pol.action_mismatch(default) is not None:
         return "own"
     return "evaluated" if config_hash(default) != config_hash(cfg) else ""
 

@@ -163,10 +163,52 @@ class LoadedPolicy:
                     f"{float(ep['alpha_min_deg']):g}-{float(ep['alpha_max_deg']):g} deg" + hint)
         return None
 
+    def action_mismatch(self, cfg: dict) -> str | None:
+        """Why one action of this actor would command the machine otherwise under `cfg` than in
+        training, or None: the card's `action.actuator_low/high` (the rad/s that -1 and +1 map to)
+        against `cfg`'s paper.control ranges, and for RLD the hybrid filter's threshold, which it
+        was trained through. A card from before a record is not judged on it. A review
+        (2026-11-28) set wheels_max 2.7 -> 2.16 to model a slower machine: accepted silently, every
+        wheel command 20 % slow (RLD success 0.75, RLC 0.375). A slower machine is the machine's
+        property (randomization.drive_gain_*, `lhd eval --stress slow_drive`), not the controller's
+        scaling."""
+        from lhd_loading_ros.task.params import TaskParams
+
+        p = TaskParams.from_config(cfg)
+        act = self.meta.get("action") or {}
+        diffs = []
+        for key, names in (("actuator_low", ("wheels_min", "boom_min", "bucket_min")),
+                           ("actuator_high", ("wheels_max", "boom_max", "bucket_max"))):
+            rec = act.get(key)
+            if rec is None:
+                continue
+            if not (isinstance(rec, list) and len(rec) == 3 and all(
+                    isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in rec)):
+                raise PolicyFileError(f"{self.path / META_FILE}: action.{key} = {rec!r}; expected 3 finite numbers "
+                                      "(rad/s of wheels, boom, bucket)")
+            for n, a in zip(names, rec):
+                b = float(getattr(p, n))
+                if not math.isclose(float(a), b, rel_tol=1e-9, abs_tol=1e-12):
+                    diffs.append((f"paper.control.{n}", float(a), b))
+        thr = (self.meta.get("filters") or {}).get("rld_threshold")
+        if self.variant == "rld" and isinstance(thr, (int, float)) and not isinstance(thr, bool) and not math.isclose(
+                float(thr), float(p.rld_threshold), rel_tol=1e-9, abs_tol=1e-12):
+            diffs.append(("task.rld_threshold", float(thr), float(p.rld_threshold)))
+        if not diffs:
+            return None
+        own = self.path / "lhd_params.yaml"
+        return (f"policy {self.path} was trained with its actions mapped otherwise than this parameter file maps "
+                "them: " + ", ".join(f"{k} {a:.6g} in training, {b:.6g} here" for k, a, b in diffs)
+                + "; the same action would command the machine otherwise. Keep the trained mapping (a slower or "
+                  "faster machine is the machine's own: randomization.drive_gain_* / hydraulic_gain_*, lhd eval "
+                  "--stress slow_drive | slow_hydraulics)"
+                + (f"; its own parameter file: --config {own}" if own.is_file() else ""))
+
     def check_config(self, cfg: dict) -> "LoadedPolicy":
         """Raise PolicyFileError when the actor would see another observation scaling under `cfg`
-        (observation_mismatch); return self."""
-        why = self.observation_mismatch(cfg)
+        (observation_mismatch), or its actions would map to other actuator speeds
+        (action_mismatch); return self."""
+        why = self.observation_mismatch(cfg) or self.action_mismatch(cfg)
         if why is not None:
             raise PolicyFileError(why)
         return self
