@@ -330,15 +330,24 @@ def up_sim_nodes(namespaces: list[str], mode: str, seed: int, config: str | None
 
 def main(argv=None, demo: bool = False) -> int:
     ap = argparse.ArgumentParser(prog="lhd demo" if demo else "lhd up sim",
-                                 description="sim node + policy node over DDS" + (" (the main job)" if demo else ""))
+                                 description=("the main job: the sim node and the policy node over DDS load piles "
+                                              "of 15, 20, 25 and 30 deg in turn, 12 attempts (3 per slope), then "
+                                              "the paper's results table" if demo else
+                                              "sim node + policy node over DDS"))
     ap.add_argument("--policy", help="policy directory (default: policies/rld, the shipped RLD actor)")
-    ap.add_argument("--slope", type=float, help="one slope for every episode, degrees (default: random)")
-    ap.add_argument("--slopes", type=float, nargs="+", help="cycle through these slopes, degrees")
-    ap.add_argument("--episodes", type=int, default=12 if demo else 0, help="stop after N episodes (0: until Ctrl-C)")
+    ap.add_argument("--slope", type=float, help="one slope for every episode, degrees (default: " +
+                    ("the --slopes cycle 15 20 25 30)" if demo else "random)"))
+    ap.add_argument("--slopes", type=float, nargs="+", help="cycle through these slopes, degrees" +
+                    (" (default: 15 20 25 30)" if demo else ""))
+    ap.add_argument("--episodes", type=int, default=12 if demo else 0,
+                    help=("attempts in all, cycling through the slopes (default 12: 3 per slope; 0: until Ctrl-C, "
+                          "not with --scripted)" if demo else "stop after N episodes (0: until Ctrl-C)"))
     ap.add_argument("--material", choices=["homogeneous", "nonhomogeneous", "random"],
-                    default="homogeneous" if demo else "random")
+                    default="homogeneous" if demo else "random",
+                    help="pile material (default: homogeneous)" if demo else None)
     ap.add_argument("--mode", choices=["realtime", "lockstep"], default=None,
-                    help="sim node mode (default realtime; lockstep with --count)")
+                    help="sim node mode (default realtime)" if demo else
+                    "sim node mode (default realtime; lockstep with --count)")
     ap.add_argument("--seed", type=nonneg_int, default=0)
     ap.add_argument("--config", default=None)
     ap.add_argument("--namespace", help="run both nodes in this ROS namespace (their topics move from /lhd to it); "
@@ -354,12 +363,13 @@ def main(argv=None, demo: bool = False) -> int:
     ap.add_argument("--verbose", action="store_true", help="show the nodes' logs")
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--scripted", action="store_true", help=argparse.SUPPRESS if not demo else
-                    "the scripted maneuver on the simulator instead of the nodes (no ROS)")
+                    "the scripted maneuver on the simulator instead of the nodes (no ROS); honours --slope/--slopes, "
+                    "--episodes, --material, --seed, --config and --json, refuses the nodes' flags")
     args = ap.parse_args(argv)
     if demo and args.scripted:
-        from lhd_sim_node.demo import main as scripted_main
+        from lhd_loading_ros.cli.demo import scripted_demo
 
-        return scripted_main(["--json"] if args.json else [])
+        return scripted_demo(args, ap.prog)
     if args.episodes < 0:
         ap.error(f"--episodes must be >= 0, got {args.episodes}")
     count = getattr(args, "count", 0)

@@ -483,7 +483,7 @@ def main(argv=None) -> int:
     p_report.add_argument("--json", action="store_true")
     p_report.add_argument("--held-out", metavar="CONDITIONS",
                           help="also evaluate each run's final actor on the held-out piles (seed 2,000,000) under these "
-                               "comma-separated conditions: nominal, randomized, placement, sensors, delay, light, dense, rocky")
+                               "comma-separated conditions: nominal, randomized, " + ", ".join(STRESS_CASES))
     p_report.add_argument("--episodes", type=int, default=120, help="--held-out: episodes per actor and condition")
     p_report.add_argument("--config", default=None, help="--held-out: parameter file (default config/lhd_params.yaml)")
     p_report.add_argument("--jobs", type=int, default=0,
@@ -504,9 +504,14 @@ def main(argv=None) -> int:
     p_mjcf = sub.add_parser("mjcf", help="write the MJCF of the scaled LHD generated from the parameter file")
     p_mjcf.add_argument("--out", help="file to write (default: print)")
     p_mjcf.add_argument("--config", default=None)
-    p_cfg = sub.add_parser("config", help="parameter file tools")
-    p_cfg.add_argument("action", choices=["check"])
-    p_cfg.add_argument("path", nargs="?")
+    p_cfg = sub.add_parser("config", help="parameter file tools: config check [PATH]",
+                           description="lhd config check [PATH]: validate an lhd_params.yaml (the paper's table, "
+                                       "machine, pile, simulator, task and training parameters) as every entry point "
+                                       "loads it. Prints 'PATH: ok' and exits 0, or lists every problem (the key and "
+                                       "the expected type and range) and exits 1. The ROS parameter files "
+                                       "(config/*_node.yaml, real_machine.yaml) are checked by the nodes at start.")
+    p_cfg.add_argument("action", choices=["check"], help="check: validate the file")
+    p_cfg.add_argument("path", nargs="?", help="parameter file (default: $LHD_CONFIG, else config/lhd_params.yaml)")
     if argv[:1] == ["demo"]:
         from lhd_loading_ros.cli.launcher import main as up_main
 
