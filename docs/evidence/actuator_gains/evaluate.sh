@@ -7,6 +7,8 @@
 #       --config docs/evidence/wide_demo_twin_sil_bc3/lhd_params_wide_demo_twin_sil_bc3.yaml --out runs/sil_bc3_rld_control
 # Every run's final actor, 120 held-out episodes (seed 2,000,000) per condition, under the gains
 # file (its `randomized` draws the gains too; the control's actors see the same piles and machines).
+# lhd eval reads the section's enabled flag: the shipped actor is run under the nominal-eval copy (enabled 0;
+# --randomize and --stress set the conditions).
 set -euo pipefail
 E=docs/evidence/actuator_gains
 CFG=$E/lhd_params_actuator_gains.yaml
@@ -19,5 +21,5 @@ done
 # the shipped RLD (rld_twin: the same physics and observation scaling as the file above)
 for c in nominal randomized slow_drive slow_hydraulics placement; do
   if [ $c = randomized ]; then flag=--randomize; elif [ $c = nominal ]; then flag=; else flag="--stress $c"; fi
-  .venv/bin/lhd eval --policy policies/rld_twin --config $CFG --episodes 120 $flag --json > $E/rld_twin_$c.json
+  .venv/bin/lhd eval --policy policies/rld_twin --config ${CFG%.yaml}_nominal_eval.yaml --episodes 120 $flag --json > $E/rld_twin_$c.json
 done
