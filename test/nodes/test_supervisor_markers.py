@@ -164,8 +164,12 @@ def test_zones_trajectory_and_clearing(feeder):
         time.sleep(0.04)
     assert wait_for(lambda: (tip_points(f.arrays[-1][1]) or [(0, 0)])[-1][0] > 0.249, 3.0)
     seen = [len(tip_points(a)) for a in f.since(t0)]
-    assert seen[-1] >= 24 and sorted(seen) == seen and len(set(seen)) >= 3, seen     # grew in steps
+    # grew in steps: one point per 1 cm move the supervisor saw (25 moves in 1 s; on a loaded CI
+    # machine a stall of the feeder or the node merges moves, 21 of 25 seen once: hence >= 10)
+    assert seen[-1] >= 10 and sorted(seen) == seen and len(set(seen)) >= 3, seen
     pts = tip_points(f.arrays[-1][1])
+    gaps = [math.dist(a, b) for a, b in zip(pts, pts[1:])]
+    assert min(gaps) >= 0.005 - 1e-6 and max(gaps) <= 0.1, gaps        # TipTrail's 5 mm spacing, no jump
     assert pts[0] == pytest.approx((0.0, 0.015), abs=2e-3) and pts[-1] == pytest.approx((0.25, 0.015), abs=2e-3)
     assert f.state().get("state") == "running"
 
