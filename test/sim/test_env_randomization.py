@@ -326,3 +326,36 @@ def test_actuator_gains_are_drawn_last_and_only_where_set(cfg):
         assert lo <= v.min() < lo + 0.01 * (hi - lo) and hi - 0.01 * (hi - lo) < v.max() <= hi
         assert abs(v.mean() - 0.5 * (lo + hi)) < 0.03 * (hi - lo)
     assert all(c.drive_gain == 1.0 and c.hydraulic_gain == 1.0 for c in (draw(rb, rr_off) for _ in range(50)))
+
+
+def test_cohesive_stress_case_reaches_the_voxels_and_stalls_the_push_sooner(cfg):
+    """`--stress cohesive`: every pile's gravel at COHESIVE_PA (1,500 Pa, each voxel within the
+    pile's +-5 % voxel spread) where the configured gravel is cohesionless, everything else drawn as
+    in the nominal evaluation (the same generator draws: the same pile but for cohesion). Pushing
+    with the arm still, the cohesive pile stalls the machine shallower: the drive's limit (4 x 30 N m
+    / 0.137 m = 876 N) is reached with the lip less deep, since the wedge gains the term c d N_c."""
+    from lhd_loading_ros.task.randomization import COHESIVE_PA, NOMINAL, SoilRanges, stress_conditions
+
+    c = stress_conditions("cohesive", 5, cfg)
+    assert COHESIVE_PA == 1500.0 and c.soil.cohesion == (1500.0, 1500.0)
+    base = SoilRanges.from_config(cfg)
+    assert base.cohesion == (0.0, 0.0)
+    assert (c.soil.density, c.soil.phi, c.soil.rocks) == (base.density, base.phi, base.rocks)
+    ends = {}
+    for name, cond in (("nominal", NOMINAL), ("cohesive", c)):
+        sim = LhdSimulator(cfg)
+        sim.reset(np.random.default_rng(4), alpha=math.radians(20.0), material="homogeneous", d_attack=0.15,
+                  attack_speed=2.7, conditions=cond)
+        coh = sim.pile.cohesion
+        for _ in range(15):                     # 1.5 s of full drive, arm still: both stall in the pile
+            sim.step(np.array([2.7, 0.0, 0.0]))
+        f = sim.last_fee
+        ends[name] = (float(coh.min()), float(coh.max()), float(sim.data.site_xpos[sim.sid_tip][0]),
+                      -float(f.force[0]), float(np.mean(f.depth)))
+    (c0, c1, x_n, f_n, d_n), (k0, k1, x_c, f_c, d_c) = ends["nominal"], ends["cohesive"]
+    assert c0 == c1 == 0.0
+    assert 1500.0 * 0.95 - 1e-6 <= k0 < k1 <= 1500.0 * 1.05 + 1e-6
+    drive_limit = 4 * cfg["machine"]["wheel_torque_limit"] / cfg["machine"]["wheel_radius"]
+    assert f_n == pytest.approx(drive_limit, rel=0.1) and f_c == pytest.approx(drive_limit, rel=0.1)
+    assert x_c < x_n - 0.05, ends               # stalled at least 5 cm short
+    assert d_c < d_n - 0.02, ends               # with the lip at least 2 cm less deep

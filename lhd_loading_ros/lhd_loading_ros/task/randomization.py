@@ -191,6 +191,10 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
                piles, this case in all of them, as many as training ever drew
     slow_drive  every wheel at SLOW_DRIVE_GAIN (0.8) of its commanded speed
     slow_hydraulics  boom and bucket at SLOW_HYDRAULIC_GAIN (0.75) of their commanded rates
+    cohesive   moist gravel with fines: every pile's apparent cohesion at COHESIVE_PA (1,500 Pa; the
+               pile's gravel is cohesionless, the randomisation section draws up to its cohesion_max),
+               its other ranges as configured. A fixed figure, not the section's end, so that actors
+               trained on different files meet the same material
     rough      the pile's surface not a plane: a random relief of sd ROUGH_SD (3 cm) and correlation
                length ROUGH_CORR (15 cm) about it (VoxelPile.roughen). A pile dumped by a feeder or by
                hand has bumps of about the size of its largest pieces (the paper's 8-15 cm rocks in 2-5
@@ -224,14 +228,20 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
         return Conditions(drive_gain=SLOW_DRIVE_GAIN)
     if name == "slow_hydraulics":
         return Conditions(hydraulic_gain=SLOW_HYDRAULIC_GAIN)
+    if name == "cohesive":
+        return Conditions(soil=replace(SoilRanges.from_config(cfg), cohesion=(COHESIVE_PA, COHESIVE_PA)))
     raise ValueError(f"unknown stress case {name!r}; expected one of {', '.join(STRESS_CASES)}")
 
 
-STRESS_CASES = ("placement", "sensors", "delay", "light", "dense", "rocky", "rough", "slow_drive", "slow_hydraulics")
+STRESS_CASES = ("placement", "sensors", "delay", "light", "dense", "rocky", "rough", "slow_drive", "slow_hydraulics",
+                "cohesive")
 SLOW_DRIVE_GAIN = 0.8       # the wheels at 80 % of the commanded speed: a battery near its cut-off (a DC motor's
                             # speed follows its voltage; about -20 % from full charge) or a speed loop 20 % off
 SLOW_HYDRAULIC_GAIN = 0.75  # boom and bucket at 75 % of the commanded rate: less pump flow (a sagging battery
                             # under the pump motor, cold oil) or valves opening less than calibrated
+COHESIVE_PA = 1500.0        # Pa: apparent (capillary) cohesion of moist gravel with fines, the upper end of what a
+                            # draw point's wet muck shows (Tampier et al. 2021 name humidity raising cohesion among
+                            # what makes loading hard); clean dry gravel 0 (pile.cohesion_*)
 ROUGH_SD = 0.03        # m: half the largest rock (8-15 cm) of the paper's pile, three 2-5 cm grains
 ROUGH_CORR = 0.15      # m: the largest rock's size
 # the material a stress case puts every episode on (the others keep the evaluation's alternation)
