@@ -27,7 +27,12 @@ Modes (parameter `mode`):
             arm (zero speeds), with a throttled warning.
   lockstep  exactly one control period per received command; deterministic; as fast as the
             policy answers. The stamps of /lhd/odom, /lhd/joint_states and /lhd/episode
-            name the state, so a subscriber can wait for a complete set.
+            name the state, so a subscriber can wait for a complete set. With auto_reset, the
+            next episode starts on the controller's answer to the ended state (the policy node's
+            zero command), which is not a control period of the new episode; a controller that
+            does not answer an ended state gets the next episode after LOCKSTEP_ACK_WAIT_S.
+            (Until 2026-11-28 the next episode started at once and that answer drove its first
+            period: every command of episodes 1, 2, ... ran one period late.)
 Episodes: episode k uses seed `seed + k` and the slope / material parameters (negative slope
 or "random": drawn by the simulator; `slopes_deg` "15,20,25,30" cycles through a list), like
 LhdLoadingEnv.reset(seed=seed + k, options={"slope_deg": ..., "material": ...}). slope_deg,
@@ -67,6 +72,7 @@ from .simulator import MATERIALS, SimulationError
 # (transient local: a launcher that starts late still sees it). /clock: reliable keep-last 1.
 CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 MODES = ("realtime", "lockstep")
+LOCKSTEP_ACK_WAIT_S = 1.0    # lockstep auto-reset: how long an ended episode waits for the controller's answer
 JOINTS = ("boom", "bucket", "articulation", "wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr")
 
 
@@ -179,6 +185,7 @@ class SimNode(Node):
         self._cmd_time = None            # monotonic arrival time of the latest valid command
         self._started = False            # realtime: physics runs from the episode's first command on
         self._ended_at = None            # monotonic time the episode ended (realtime auto-reset)
+        self._awaiting_ack = False       # lockstep auto-reset: the ended state's answer starts the next episode
         self.rejected = 0
         self.last_rejection = ""
         self.stale_stops = 0
@@ -240,6 +247,8 @@ class SimNode(Node):
 
     def _set_auto_reset(self, value: bool) -> None:
         self.auto_reset = value
+        if not value:
+            self._awaiting_ack = False
         if value and self.mode == "lockstep" and self.outcome != "running" and not self._finished_all():
             self._new_episode()       # realtime: the loop sees the flag at its next tick
 
@@ -264,6 +273,7 @@ class SimNode(Node):
         self._reward, self._term, self._trunc = 0.0, False, False
         self._applied = np.zeros(3)
         self.outcome, self.result, self._ended_at = "running", None, None
+        self._awaiting_ack = False
         self._cmd[:] = 0.0
         self._cmd_time = None
         self._started = False
@@ -300,8 +310,20 @@ class SimNode(Node):
         self._started = True
         if self.mode == "lockstep" and self.outcome == "running":
             self._step(self._cmd)
+        elif self.mode == "lockstep" and self._awaiting_ack:
+            self._new_episode()      # the answer to the ended state: the next episode, no period stepped
+
+    def _lockstep_next(self) -> None:
+        """Lockstep auto-reset after an ended episode: wait for the controller's answer to the
+        ended state (_on_cmd starts the next episode on it), or LOCKSTEP_ACK_WAIT_S (_repeat_state)."""
+        if self.auto_reset and not self._finished_all():
+            self._awaiting_ack = True
 
     def _repeat_state(self) -> None:
+        if (self._awaiting_ack and self._ended_at is not None
+                and time.monotonic() - self._ended_at >= LOCKSTEP_ACK_WAIT_S):
+            self._new_episode()      # a controller that does not answer an ended state
+            return
         if time.monotonic() - self._last_publish >= 0.5:
             self.publish_state()
 
@@ -346,8 +368,8 @@ class SimNode(Node):
             self._ended_at = time.monotonic()
             self.get_logger().error(f"episode {self.episode} aborted: {e}")
             self.publish_state()
-            if self.auto_reset and not self._finished_all() and self.mode == "lockstep":
-                self._new_episode()
+            if self.mode == "lockstep":
+                self._lockstep_next()
             return
         self._applied = np.array(u, dtype=np.float64)
         self._term, self._trunc = bool(term), bool(trunc)
@@ -362,8 +384,8 @@ class SimNode(Node):
                 f"episode {self.episode} {self.outcome}: loaded {r.loaded:.1f} kg, SL {r.success_level}, "
                 f"{r.elapsed_s:.1f} s, drift front {r.front_drift_pct:.0f} % rear {r.rear_drift_pct:.0f} %")
         self.publish_state()
-        if self.outcome != "running" and self.auto_reset and not self._finished_all() and self.mode == "lockstep":
-            self._new_episode()      # realtime: after reset_delay, in _tick_realtime
+        if self.outcome != "running" and self.mode == "lockstep":
+            self._lockstep_next()    # realtime: after reset_delay, in _tick_realtime
 
     # ------------------------------------------------------------------ diagnostics
     def _since_last(self, **now_counts) -> dict:

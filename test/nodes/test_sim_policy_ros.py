@@ -173,7 +173,9 @@ def test_policy_node_sends_a_last_zero_command_when_stopped(ros, tmp_path):
         ros.destroy_subscription(sub)
 
 
-def run_lockstep_episode(ros, tmp_path, policy_dir, slope, material, seed):
+def run_lockstep_episode(ros, tmp_path, policy_dir, slope, material, seed, episodes=1):
+    """`episodes` episodes in lockstep (more than one: auto_reset, as `lhd demo` runs them); the
+    policy node's observations of all of them in order, and the last /lhd/episode status."""
     obs_log, statuses = [], []
     subs = [ros.create_subscription(Float32MultiArray, "/lhd/observation", lambda m: obs_log.append(np.array(m.data, dtype=np.float32)), REL),
             ros.create_subscription(DiagnosticStatus, "/lhd/episode", lambda m: statuses.append(kv(m)), STATUS)]
@@ -183,9 +185,11 @@ def run_lockstep_episode(ros, tmp_path, policy_dir, slope, material, seed):
     assert spin_until(ros, lambda: ros.count_publishers("/lhd/observation") >= 1, 60), pol.log()
     spin_until(ros, lambda: False, 0.5)
     sim = RosProcess("lhd_sim_node.sim_node", {"mode": "lockstep", "slope_deg": slope, "material": material,
-                                               "seed": seed, "episodes": 1, "auto_reset": "false"}, tmp_path / "sim.log")
+                                               "seed": seed, "episodes": episodes,
+                                               "auto_reset": "true" if episodes > 1 else "false"}, tmp_path / "sim.log")
     try:
-        assert spin_until(ros, lambda: statuses and statuses[-1]["state"] != "running", 120), sim.log() + pol.log()
+        assert spin_until(ros, lambda: statuses and statuses[-1]["state"] != "running"
+                          and statuses[-1]["episode"] == str(episodes - 1), 120), sim.log() + pol.log()
         spin_until(ros, lambda: False, 0.5)
     finally:
         rc_pol, rc_sim = pol.stop(), sim.stop()
@@ -222,3 +226,38 @@ def test_lockstep_parity_with_the_environment(ros, tmp_path, variant, slope, mat
     assert (final["success"] == "True") == ref.success
     assert float(final["loaded_mass"]) == pytest.approx(ref.loaded, abs=MASS_ATOL)
     assert int(final["step"]) == ref.steps
+
+
+@pytest.mark.parallel_safe     # lockstep: the same observations whatever the load (test/conftest.py)
+def test_lockstep_auto_reset_runs_every_episode_as_the_environment(ros, tmp_path):
+    """`lhd demo`'s lockstep with auto_reset: the second episode through the nodes sees exactly the
+    environment's observations too. Until 2026-11-28 the policy node's answer to the first
+    episode's ended state (its zero command) drove the second episode's first period, and every
+    later command ran one period late: the second episode's observations differed from step 1 on
+    (v_x -0.07 where the environment had 0.87, a drift flag), and an actor loaded 27 kg where it
+    loads 37 in process."""
+    from lhd_sim_node.env import LhdLoadingEnv
+
+    policy_dir = default_policy_dir("rld")
+    pol = load_policy(policy_dir)
+    slope, material, seed = 15.0, "homogeneous", 5
+    env = LhdLoadingEnv("rld")
+    per_episode, refs = [], []
+    for k in range(2):
+        obs, _ = env.reset(seed=seed + k, options={"slope_deg": slope, "material": material})
+        seen = [obs]
+        while True:
+            obs, _, term, trunc, info = env.step(np.clip(pol.actor(obs), -1, 1))
+            if term or trunc:
+                break
+            seen.append(obs)
+        per_episode.append(seen)
+        refs.append(info["episode_result"])
+    node_obs, final = run_lockstep_episode(ros, tmp_path, policy_dir, slope, material, seed, episodes=2)
+    n0 = refs[0].steps
+    assert len(node_obs) == n0 + refs[1].steps, (len(node_obs), [r.steps for r in refs])
+    for k, (node, ref) in enumerate(((node_obs[:n0], per_episode[0]), (node_obs[n0:], per_episode[1]))):
+        bad = [t for t, (a, b) in enumerate(zip(node, ref)) if float(np.abs(a - b).max()) > OBS_ATOL]
+        assert not bad, f"episode {k}: {len(bad)} of {len(ref)} observations differ, first at step {bad[0]}"
+    assert final["episode"] == "1"
+    assert float(final["loaded_mass"]) == pytest.approx(refs[1].loaded, abs=MASS_ATOL)

@@ -1,7 +1,7 @@
 """The sim node when MuJoCo finds its state unstable mid-episode (SimulationError): the episode ends
 as `aborted` with the reason on /lhd/episode's status, nothing is stepped further from a machine
 teleported back to its initial pose, no NaN is published, and (lockstep, auto_reset) the next
-episode starts. A real SimNode in this process over rclpy; the instability is a NaN velocity put
+episode starts on the controller's answer to the aborted state (or after LOCKSTEP_ACK_WAIT_S). A real SimNode in this process over rclpy; the instability is a NaN velocity put
 into its MuJoCo data, which mj_step detects and resets as it would a diverging state."""
 import math
 
@@ -22,10 +22,22 @@ def test_an_unstable_state_aborts_the_episode_and_the_next_one_starts():
         assert node.outcome == "running" and node.env.steps == 1
         node.sim.data.qvel[0] = math.nan
         node._on_cmd(type("M", (), {"data": [1.0, 0.0, 0.0]})())
-        # ended as aborted, then (lockstep + auto_reset) a new episode began
-        assert node.episode == ep0 + 1 and node.outcome == "running"
-        assert "unstable" in node.abort_reason
+        # ended as aborted; (lockstep + auto_reset) the controller's answer to that state starts the
+        # next episode, without stepping it (it answered the aborted state, not the new one)
+        assert node.episode == ep0 and node.outcome == "aborted" and "unstable" in node.abort_reason
         assert np.isfinite(node.sim.data.qvel).all() and np.isfinite(node._obs).all()
+        node._on_cmd(type("M", (), {"data": [0.0, 0.0, 0.0]})())
+        assert node.episode == ep0 + 1 and node.outcome == "running" and node.env.steps == 0
+        # a controller that does not answer an ended state: the next episode after LOCKSTEP_ACK_WAIT_S
+        from lhd_sim_node.sim_node import LOCKSTEP_ACK_WAIT_S
+        node.sim.data.qvel[0] = math.nan
+        node._on_cmd(type("M", (), {"data": [1.0, 0.0, 0.0]})())
+        assert node.episode == ep0 + 1 and node.outcome == "aborted"
+        node._repeat_state()
+        assert node.episode == ep0 + 1                     # not yet: it waits for the answer
+        node._ended_at -= LOCKSTEP_ACK_WAIT_S
+        node._repeat_state()
+        assert node.episode == ep0 + 2 and node.outcome == "running" and node.env.steps == 0
         node.auto_reset = False
         node.sim.data.qvel[0] = math.nan
         node._on_cmd(type("M", (), {"data": [1.0, 0.0, 0.0]})())
