@@ -6,11 +6,11 @@
 # Every run's final actor, 120 held-out episodes (seed 2,000,000) per condition, with the deployment
 # filter (lhd report runs RLC with it, as the machine does), under the gains file; then the shipped RLC
 # trained without gains (rlc_twin_sil_bc: the same physics and observation scaling) under the same
-# conditions, as the control.
+# conditions, as the control (its cohesive row: docs/evidence/cohesion/evaluate.sh).
 set -euo pipefail
 E=docs/evidence/actuator_gains
 CFG=$E/lhd_params_actuator_gains.yaml
-CONDS=nominal,randomized,placement,slow_drive,slow_hydraulics
+CONDS=nominal,randomized,placement,slow_drive,slow_hydraulics,cohesive
 if [ -d runs/actuator_gains_rlc ]; then
   .venv/bin/lhd report runs/actuator_gains_rlc --held-out $CONDS --config $CFG --jobs 2 --json \
     > $E/actuator_gains_rlc_report.json 2> $E/actuator_gains_rlc_report.log
