@@ -173,6 +173,17 @@ def test_policy_node_sends_a_last_zero_command_when_stopped(ros, tmp_path):
         ros.destroy_subscription(sub)
 
 
+def env_episode(env, pol, seed, slope, material):
+    """One in-process episode of the actor: the observations it acted on, and the result."""
+    obs, _ = env.reset(seed=seed, options={"slope_deg": slope, "material": material})
+    seen = [obs]
+    while True:
+        obs, _, term, trunc, info = env.step(np.clip(pol.actor(obs), -1, 1))
+        if term or trunc:
+            return seen, info["episode_result"]
+        seen.append(obs)
+
+
 def run_lockstep_episode(ros, tmp_path, policy_dir, slope, material, seed, episodes=1):
     """`episodes` episodes in lockstep (more than one: auto_reset, as `lhd demo` runs them); the
     policy node's observations of all of them in order, and the last /lhd/episode status."""
@@ -208,14 +219,7 @@ def test_lockstep_parity_with_the_environment(ros, tmp_path, variant, slope, mat
     pol = load_policy(policy_dir)
     seed = 11
     env = LhdLoadingEnv(variant, deploy_filter=True)
-    obs, _ = env.reset(seed=seed, options={"slope_deg": slope, "material": material})
-    env_obs = [obs]
-    while True:
-        obs, _, term, trunc, info = env.step(np.clip(pol.actor(obs), -1, 1))
-        if term or trunc:
-            break
-        env_obs.append(obs)
-    ref = info["episode_result"]
+    env_obs, ref = env_episode(env, pol, seed, slope, material)
     node_obs, final = run_lockstep_episode(ros, tmp_path, policy_dir, slope, material, seed)
     assert len(node_obs) == len(env_obs) == ref.steps
     errs = [float(np.abs(a - b).max()) for a, b in zip(node_obs, env_obs)]
@@ -242,17 +246,7 @@ def test_lockstep_auto_reset_runs_every_episode_as_the_environment(ros, tmp_path
     pol = load_policy(policy_dir)
     slope, material, seed = 15.0, "homogeneous", 5
     env = LhdLoadingEnv("rld")
-    per_episode, refs = [], []
-    for k in range(2):
-        obs, _ = env.reset(seed=seed + k, options={"slope_deg": slope, "material": material})
-        seen = [obs]
-        while True:
-            obs, _, term, trunc, info = env.step(np.clip(pol.actor(obs), -1, 1))
-            if term or trunc:
-                break
-            seen.append(obs)
-        per_episode.append(seen)
-        refs.append(info["episode_result"])
+    per_episode, refs = zip(*(env_episode(env, pol, seed + k, slope, material) for k in range(2)))
     node_obs, final = run_lockstep_episode(ros, tmp_path, policy_dir, slope, material, seed, episodes=2)
     n0 = refs[0].steps
     assert len(node_obs) == n0 + refs[1].steps, (len(node_obs), [r.steps for r in refs])
