@@ -15,7 +15,10 @@ in radians, lengths in m, densities in kg/m^3, stresses in Pa, forces in N.
    planes bounding that column (vertical-slip-surface model of anchor uplift), with the bucket
    geometry of config ``machine``.
 3. :func:`bucket_capacity_iso7546` and :func:`bucket_capacity_at_pitch`: struck + heaped
-   capacity of the bucket (ISO 7546, loader buckets) and its 2-D generalisation to any pitch.
+   capacity of the bucket (ISO 7546, loader buckets) and its 2-D generalisation to any pitch;
+   :func:`rating_density`: the loose density a bucket's rated payload implies (SAE J742 / ISO 7546:
+   rated payload = heaped volume x loose density), next to handbook densities of gravel
+   (:data:`GRAVEL_DENSITY`).
 
 docs/modeling.md, section "Validation (lhd validate physics)", derives every equation.
 """
@@ -298,3 +301,23 @@ def bucket_capacity_at_pitch(geom: BucketGeometry, pitch: float, repose: float, 
     dx = np.diff(xs)
     trap = lambda y: float(np.sum(0.5 * (y[1:] + y[:-1]) * dx))  # noqa: E731
     return b * trap(thick) - trap(above * above) / s
+
+
+# Bulk densities of gravel, kg/m^3, from the weights-of-materials tables that loader handbooks quote
+# (e.g. Caterpillar Performance Handbook; the same figures in the construction tables of
+# doi:10.1201/b12981): loose, as dumped, and the 1/4-2 in (6-50 mm) grading, dry and wet. The
+# paper's pile is 2-5 cm gravel, i.e. the 6-50 mm grading. Not fitted to anything here.
+GRAVEL_DENSITY = {
+    "dry, loose": 1522.0,
+    "dry, 6-50 mm": 1682.0,
+    "wet, 6-50 mm": 2002.0,
+}
+
+
+def rating_density(heaped_m3: float, rated_kg: float) -> float:
+    """The loose material density at which a bucket of heaped volume `heaped_m3` (SAE J742 / ISO
+    7546, 2:1 heap) holds its rated payload `rated_kg`: a loader bucket is sized so that rated
+    payload = heaped volume x the loose density of the material it is rated for."""
+    if not (heaped_m3 > 0.0 and rated_kg > 0.0):
+        raise ValueError(f"heaped volume {heaped_m3!r} m^3 and rated payload {rated_kg!r} kg must be > 0")
+    return rated_kg / heaped_m3

@@ -31,8 +31,9 @@ import numpy as np
 
 from lhd_loading_ros.task.config import ConfigError, load_config
 
-from .reference_mechanics import (G, BucketGeometry, Soil, breakout, bucket_capacity_at_pitch, bucket_capacity_iso7546,
-                                  contents_centroid, passive_wedge, pile_surface)
+from .reference_mechanics import (GRAVEL_DENSITY, G, BucketGeometry, Soil, breakout, bucket_capacity_at_pitch,
+                                  bucket_capacity_iso7546, contents_centroid, passive_wedge, pile_surface,
+                                  rating_density)
 
 SLOPES = (15.0, 20.0, 25.0, 30.0)
 WEDGE_SLOPES = (15.0, 20.0, 25.0, 30.0, 35.0)
@@ -294,6 +295,13 @@ def capacity(cfg: dict, density: float, scripted_spill: list[float] | None = Non
         out["by_pitch"].append({"pitch_deg": p_deg, "ref_L": ref * 1e3, "sim_L": simv * 1e3, "ref_kg": ref * rho,
                                 "ratio": simv / ref if ref > 0 and heaped_volume else math.nan})
     out["heaped_kg_at_repose"] = max(r["ref_kg"] for r in out["by_pitch"])
+    # the material the bucket is rated for: its 30 kg rating over its heaped volume, against the pile's
+    # density range and the handbook's gravels (docs/modeling.md "The material the bucket is rated for")
+    rated = float(cfg["task"]["bucket_capacity"])
+    out["rated_kg"] = rated
+    out["rating_density"] = rating_density(iso["heaped_m3"], rated)
+    out["pile_density_range"] = [float(cfg["pile"]["density_min"]), float(cfg["pile"]["density_max"])]
+    out["gravel_density"] = dict(GRAVEL_DENSITY)
     # what "full" means for the simulator: its geometric capacity, or its mass cap where it has one
     cap = cfg["task"].get("bucket_max_load")
     out["full_kg"] = min(out["heaped_kg_at_repose"], cap) if cap else out["heaped_kg_at_repose"]
@@ -459,6 +467,10 @@ def format_report(res: dict) -> str:
     for b in cp["by_pitch"]:
         L.append(f"      pitch {b['pitch_deg']:>5.1f} deg: reference {b['ref_L']:6.2f} L ({b['ref_kg']:.1f} kg), "
                  f"simulator's table {_f(b['sim_L'], '{:.2f}')} L, ratio {_f(b['ratio'], '{:.3f}')}")
+    gd = cp["gravel_density"]
+    L.append(f"   rated {cp['rated_kg']:.0f} kg over the heaped {cp['heaped_iso_L']:.2f} L: rated for loose material of "
+             f"{cp['rating_density']:.0f} kg/m^3; the pile is {cp['pile_density_range'][0]:.0f}-{cp['pile_density_range'][1]:.0f} "
+             f"kg/m^3 (handbook gravel: " + ", ".join(f"{k} {v:.0f}" for k, v in gd.items()) + ")")
     if "spilled_kg_scripted_mean" in cp:
         L.append(f"   spilled in the scripted attempts: mean {cp['spilled_kg_scripted_mean']:.1f} kg, max {cp['spilled_kg_scripted_max']:.1f} kg")
     dr = res["drift"]

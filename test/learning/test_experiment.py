@@ -157,3 +157,24 @@ def test_the_paired_table_compares_the_same_piles_where_both_succeeded():
     # deterministic for a seed; without the reference controller, nothing to compare
     assert ex.paired_comparison(rows, seed=1) == out
     assert ex.paired_comparison([r for r in rows if r["controller"] != "rld"]) == []
+
+
+def test_a_stress_case_reaches_every_controller_on_the_same_piles(cfg):
+    """`lhd experiment paper --stress light`: every controller's attempt k of a cell meets the same pile
+    under the case's k-th conditions; the pile's gravel is then in the light band (the randomisation
+    section's lowest 100 kg/m^3, dry loose gravel), not in the nominal pile range."""
+    from dataclasses import replace
+
+    jobs = ex.grid(("tampier", "teacher"), (20.0,), ("homogeneous",), (), episodes=1, seed=3_000_000, stress="light")
+    assert len(jobs) == 2 and {j.stress for j in jobs} == {"light"} and {j.attempt for j in jobs} == {0}
+    ex._setup(None, {})
+    rows = [ex.run_job(j) for j in jobs]
+    lo = cfg["randomization"]["density_min"]
+    dens = [r["pile_density"] for r in rows]
+    assert dens[0] == dens[1]                                                # the same pile for both
+    assert 0.97 * lo <= dens[0] <= 1.03 * (lo + 100.0)                      # +-5 % voxel jitter about the draw
+    nominal = ex.run_job(replace(jobs[0], stress=None))
+    assert 0.97 * cfg["pile"]["density_min"] <= nominal["pile_density"] <= 1.03 * cfg["pile"]["density_max"]
+    assert rows[0]["stress"] == "light" and nominal["stress"] is None        # the CSV says which
+    with pytest.raises(ValueError, match="unknown stress case 'wet'"):
+        ex.grid(("rld",), stress="wet")

@@ -8,8 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from reference_mechanics import (BucketGeometry, Soil, breakout, bucket_capacity_at_pitch, bucket_capacity_iso7546,
-                                 face_frame, passive_wedge, pile_surface, wedge_at)
+from reference_mechanics import (GRAVEL_DENSITY, BucketGeometry, Soil, breakout, bucket_capacity_at_pitch,
+                                 bucket_capacity_iso7546, face_frame, passive_wedge, pile_surface, rating_density,
+                                 wedge_at)
 
 r = math.radians
 # The soil the issue's figures imply: the midpoints of the shipped pile ranges at the time of the
@@ -178,6 +179,25 @@ def test_iso7546_capacity_by_hand():
     assert bucket_capacity_at_pitch(geom, 0.0, math.atan(0.5)) * 1e3 == pytest.approx(8.4849, rel=1e-4)
     # a steeper repose angle heaps more
     assert bucket_capacity_at_pitch(geom, cap["iso_pitch_rad"], r(35)) > cap["heaped_m3"]
+
+
+def test_the_bucket_is_rated_for_dry_gravel_and_the_pile_is_denser():
+    """A loader bucket's rated payload is its heaped (SAE J742 / ISO 7546, 2:1) volume times the loose
+    density of the material it is rated for. By hand: 30 kg / 19.961 L = 1,503 kg/m^3 (the struck
+    14.9565 L and the heap 5.0045 L of test_iso7546_capacity_by_hand). That is dry, loose gravel
+    (handbook 1,522; dry 6-50 mm 1,682), not the config's pile (1,760-2,000 kg/m^3, moist); the paper
+    gives neither its bucket's dimensions nor its gravel's density (docs/modeling.md "The material the
+    bucket is rated for")."""
+    from lhd_loading_ros.task.config import load_config
+    cfg = load_config(None)
+    heaped = bucket_capacity_iso7546(BucketGeometry.from_machine(cfg["machine"]))["heaped_m3"]
+    rho = rating_density(heaped, cfg["task"]["bucket_capacity"])
+    assert rho == pytest.approx(30.0 / 0.019961, rel=1e-4) and rho == pytest.approx(1503.0, abs=1.0)
+    assert GRAVEL_DENSITY["dry, loose"] <= rho * 1.02 and rho < GRAVEL_DENSITY["dry, 6-50 mm"]
+    assert cfg["pile"]["density_min"] > GRAVEL_DENSITY["dry, 6-50 mm"]     # the departure the docs name
+    assert GRAVEL_DENSITY["dry, loose"] < cfg["randomization"]["density_min"] + 100.0   # `--stress light` is it
+    with pytest.raises(ValueError, match="must be > 0"):
+        rating_density(0.0, 30.0)
 
 
 def test_the_reference_never_imports_the_simulators_physics():

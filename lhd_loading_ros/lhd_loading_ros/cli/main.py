@@ -261,7 +261,7 @@ def _experiment(args) -> int:
     policy_dirs = {k: v for k, v in (("rld", args.rld), ("rlc", args.rlc)) if v}
     try:
         res = ex.paper(args.out, args.episodes, ctls, _floats(args.slopes, "slopes"), mats, _floats(args.errors, "errors"),
-                       args.jobs, args.seed, args.config, policy_dirs)
+                       args.jobs, args.seed, args.config, policy_dirs, stress=args.stress)
     except ValueError as exc:
         print(f"lhd experiment paper: {exc}", file=sys.stderr)
         return 2
@@ -476,6 +476,10 @@ def main(argv=None) -> int:
     p_paper.add_argument("--rld", help="RLD policy directory (default policies/rld)")
     p_paper.add_argument("--rlc", help="RLC policy directory (default policies/rlc)")
     p_paper.add_argument("--seed", type=nonneg_int, default=3_000_000)
+    p_paper.add_argument("--stress", choices=list(STRESS_CASES), default=None,
+                         help="every attempt of every controller under a named stress case of lhd eval --stress "
+                              "(light: dry, loose gravel, the density the bucket's 30 kg rating implies); the "
+                              "controllers meet the same piles and conditions; sensor noise reaches the RL actors only")
     p_paper.add_argument("--config", default=None)
     p_paper.add_argument("--json", action="store_true")
     p_report = sub.add_parser("report", help="aggregate training runs across seeds")

@@ -19,6 +19,13 @@ x_min included, which no machine-side controller has). Every attempt is limited 
 Each attempt has its own seed (base seed + index in the grid), so a cell is the same set of piles
 for every controller; the attempts run on a process pool (`jobs`) and print their progress.
 
+Under a named stress case (`stress`, task.randomization.stress_conditions: `--stress light` is dry,
+loose gravel, the density the bucket's 30 kg rating implies) every attempt of every controller runs
+under the case's conditions; attempt k of a cell gets the case's k-th conditions, so the controllers
+still meet the same piles and the same departures. What the simulator applies (material, actuator
+gains and dead time, the machine's placement) acts on every controller; the sensor noise acts only on
+the RL actors' observations: the heuristic and the scripted maneuvers read the simulator's state.
+
 A told slope outside the actors' trained range (15-30 deg) is given to the actor as it is, as a
 wrong LiDAR estimate would be: the normalised alpha then leaves [0, 1]. The nodes refuse such a
 slope; this table shows what the actor alone would do.
@@ -60,12 +67,18 @@ class Job:
     material: str
     seed: int
     trace: bool = False
+    stress: str | None = None  # a named case of task.randomization.stress_conditions, or nominal
+    attempt: int = 0           # k, the attempt's index in its cell: its conditions under `stress`
 
 
 def grid(controllers=CONTROLLERS, slopes=SLOPES, materials=MATERIALS, errors=ERRORS, error_piles=ERROR_PILES,
-         episodes: int = 10, seed: int = 3_000_000) -> list[Job]:
+         episodes: int = 10, seed: int = 3_000_000, stress: str | None = None) -> list[Job]:
     """Every attempt of both tables. Attempt k of a cell has seed seed + 1000 * cell_key + k, where
-    the cell key depends on the pile only (slope, material), so all controllers meet the same piles."""
+    the cell key depends on the pile only (slope, material), so all controllers meet the same piles
+    (and, under `stress`, the same conditions: the case's k-th)."""
+    from lhd_loading_ros.task.randomization import STRESS_CASES
+    if stress is not None and stress not in STRESS_CASES:
+        raise ValueError(f"unknown stress case {stress!r}; expected one of {', '.join(STRESS_CASES)}")
     for c in controllers:
         if c not in CONTROLLERS:
             raise ValueError(f"unknown controller {c!r}; expected some of {', '.join(CONTROLLERS)}")
@@ -78,13 +91,15 @@ def grid(controllers=CONTROLLERS, slopes=SLOPES, materials=MATERIALS, errors=ERR
                 key = int(round(a)) * 10 + MATERIALS.index(m)
                 for k in range(episodes):
                     jobs.append(Job("controllers", c, float(a), float(a), m, seed + 1000 * key + k,
-                                    trace=(a == 20.0 and m == "homogeneous" and k < TRACE_ATTEMPTS)))
+                                    trace=(a == 20.0 and m == "homogeneous" and k < TRACE_ATTEMPTS), stress=stress,
+                                    attempt=k))
     for c in (c for c in controllers if c in ("rld", "rlc")):
         for a in error_piles:
             for e in errors:
                 key = 900 + int(round(a))
                 for k in range(episodes):
-                    jobs.append(Job("slope_error", c, float(a), float(a + e), "homogeneous", seed + 1000 * key + k))
+                    jobs.append(Job("slope_error", c, float(a), float(a + e), "homogeneous", seed + 1000 * key + k,
+                                    stress=stress, attempt=k))
     return jobs
 
 
@@ -140,7 +155,11 @@ def run_job(job: Job) -> dict:
     c = job.controller
     env = _env("rlc" if c == "rlc" else "rld", deploy_filter=(c == "rlc"))
     limit = max(1, int(round(TIME_LIMIT_S / env.p.control_dt)))
-    obs, _ = env.reset(seed=job.seed, options={"slope_deg": job.slope_deg, "material": job.material})
+    opts = {"slope_deg": job.slope_deg, "material": job.material}
+    if job.stress is not None:
+        from lhd_loading_ros.task.randomization import stress_conditions
+        opts["conditions"] = stress_conditions(job.stress, job.attempt, env.cfg)
+    obs, _ = env.reset(seed=job.seed, options=opts)
     profile = None
     if job.trace:
         from lhd_sim_node.sim_sensors import pile_profile
@@ -177,7 +196,8 @@ def run_job(job: Job) -> dict:
     row = {**asdict(job), "success": bool(r.success), "success_level": int(r.success_level),
            "reached_end_zone": bool(r.reached_end_zone), "failed": bool(r.failed), "timeout": bool(r.truncated),
            "loaded_kg": float(r.loaded), "elapsed_s": float(r.elapsed_s), "front_drift_pct": float(r.front_drift_pct),
-           "rear_drift_pct": float(r.rear_drift_pct), "phi_final_deg": math.degrees(r.phi_final)}
+           "rear_drift_pct": float(r.rear_drift_pct), "phi_final_deg": math.degrees(r.phi_final),
+           "pile_density": float(np.median(env.sim.pile.density))}   # the gravel's (rocks are a few voxels)
     row.pop("trace")
     if job.trace:
         row["path"] = path
@@ -494,11 +514,11 @@ def figures(rows: list[dict], err_summary: list[dict], out: Path) -> list[str]:
 
 def paper(out: str | os.PathLike, episodes: int = 10, controllers=CONTROLLERS, slopes=SLOPES, materials=MATERIALS,
           errors=ERRORS, jobs_n: int = 0, seed: int = 3_000_000, config=None, policy_dirs: dict | None = None,
-          progress=sys.stderr) -> dict:
+          progress=sys.stderr, stress: str | None = None) -> dict:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.monotonic()
-    jobs = grid(controllers, slopes, materials, errors, ERROR_PILES, episodes, seed)
+    jobs = grid(controllers, slopes, materials, errors, ERROR_PILES, episodes, seed, stress)
     rows = run(jobs, jobs_n, config, policy_dirs, progress)
     ctl = summarize_controllers(rows)
     err = summarize_slope_error(rows)
@@ -520,10 +540,12 @@ def paper(out: str | os.PathLike, episodes: int = 10, controllers=CONTROLLERS, s
     figs = figures(rows, err, out)
     summary = {"attempts": len(rows), "episodes_per_cell": episodes, "controllers": list(controllers),
                "slopes_deg": list(slopes), "materials": list(materials), "errors_deg": list(errors),
-               "time_limit_s": TIME_LIMIT_S, "seed": seed, "wall_s": time.monotonic() - t0,
+               "time_limit_s": TIME_LIMIT_S, "seed": seed, "stress": stress, "wall_s": time.monotonic() - t0,
                "jobs": jobs_n or usable_cores(), "figures": figs, "controllers_table": ctl, "slope_error_table": err,
                "paired_table": paired}
     (out / "summary.json").write_text(json.dumps(summary, indent=1))
-    summary["markdown"] = (md_c + ("\n### RLD against the other controllers on the same piles\n\n" + md_p if md_p else "")
+    head = "" if stress is None else (f"Every attempt under the stress case `{stress}` (physical conditions on every "
+                                      f"controller, sensor noise on the RL actors only).\n\n")
+    summary["markdown"] = (head + md_c + ("\n### RLD against the other controllers on the same piles\n\n" + md_p if md_p else "")
                            + ("\n### Slope error (homogeneous piles, all attempts)\n\n" + md_e if md_e else ""))
     return summary
