@@ -7,6 +7,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,6 +18,9 @@ from std_msgs.msg import Float64MultiArray
 from lhd_loading_ros.ros.qos import STATUS_QOS
 
 from rosutil import RosProcess, init_ros, shutdown_ros, spin_until, unique_domain_id
+
+
+REPO = Path(__file__).resolve().parents[2]
 
 
 def env_with_domain():
@@ -97,14 +101,18 @@ def test_up_sim_keeps_logs_on_failure_and_with_log_dir(tmp_path):
     tmp = tmp_path / "tmp"
     tmp.mkdir()
     env = dict(env_with_domain(), TMPDIR=str(tmp))
-    bad = tmp_path / "bad.yaml"
-    bad.write_text("not: a parameter file\n")
+    # a valid parameter file the sim node fails on at run time: the attack cannot reach the pile in 0.1 s
+    text = (REPO / "config" / "lhd_params.yaml").read_text()
+    assert "  attack_timeout: 6.0 " in text
+    bad = tmp_path / "attack.yaml"
+    bad.write_text(text.replace("  attack_timeout: 6.0 ", "  attack_timeout: 0.1 "))
     p = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "up", "sim", "--episodes", "1",
                         "--config", str(bad)], capture_output=True, text=True, timeout=120, env=env)
     assert p.returncode == 1
     kept = list(tmp.iterdir())
     assert len(kept) == 1 and f"node logs kept in {kept[0]}" in p.stderr, p.stderr
     assert "sim_node exited" in p.stderr and (kept[0] / "sim_node.log").read_text()
+    assert "AttackError: the bucket did not reach d_init" in p.stderr, p.stderr
     logs = tmp_path / "logs"
     p = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "up", "sim", "--episodes", "1", "--mode",
                         "lockstep", "--seed", "474747", "--log-dir", str(logs)], capture_output=True, text=True,
@@ -113,6 +121,39 @@ def test_up_sim_keeps_logs_on_failure_and_with_log_dir(tmp_path):
     assert "episode 0" in (logs / "sim_node.log").read_text()
     assert "loaded RLD actor" in (logs / "policy_node.log").read_text()
     assert len(list(tmp.iterdir())) == 1      # only the failed run's folder
+
+
+def test_up_sim_refuses_a_bad_parameter_file_before_any_node_starts(tmp_path):
+    """A partial parameter file (a user's overlay of one value) is refused with its name, the first
+    problems and what a parameter file must be, before a node starts (no node logs)."""
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    env = dict(env_with_domain(), TMPDIR=str(tmp))
+    part = tmp_path / "partial.yaml"
+    part.write_text("machine: {wheel_friction: 0.45}\n")
+    p = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "up", "sim", "--episodes", "1",
+                        "--config", str(part)], capture_output=True, text=True, timeout=60, env=env)
+    assert p.returncode == 1, p.stderr
+    first = p.stderr.splitlines()[0]
+    assert first == f"lhd up sim: {part}: invalid LHD parameters:", p.stderr
+    assert "  - missing key 'paper'" in p.stderr and "... and 23 more" in p.stderr
+    assert "a parameter file is complete, not an overlay of the default" in p.stderr
+    assert "Traceback" not in p.stderr and "exited with status" not in p.stderr
+    assert list(tmp.iterdir()) == []                                        # no node started, no logs
+
+
+def test_a_node_log_tail_keeps_whole_lines_and_the_message_headline():
+    from lhd_loading_ros.cli.launcher import log_tail
+
+    short = "lhd_sim: bad.yaml: invalid LHD parameters:\n  - missing key 'paper'\n"
+    assert log_tail(short) == short
+    long = "starting\nlhd_sim: bad.yaml: invalid LHD parameters:\n" + "".join(
+        f"  - missing key 'machine.k{i}' (expected float in [0.1, 100000])\n" for i in range(80))
+    t = log_tail(long, limit=600)
+    lines = t.splitlines()
+    assert lines[0] == "lhd_sim: bad.yaml: invalid LHD parameters:" and lines[1] == "  ..."
+    assert all(ln.startswith("  - missing key 'machine.k") and ln.endswith(")") for ln in lines[2:])   # whole lines
+    assert lines[-1] == "  - missing key 'machine.k79' (expected float in [0.1, 100000])"
 
 
 def test_up_sim_first_attempt_time_is_the_environments(tmp_path):

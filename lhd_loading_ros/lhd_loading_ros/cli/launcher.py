@@ -87,12 +87,27 @@ class Child:
         return self.proc.returncode
 
 
+def log_tail(text: str, limit: int = 3000) -> str:
+    """The end of a node's log, whole lines only (a cut inside a line or a word reads as garbage),
+    and the last error's first line when the cut left it out (an exception message longer than
+    the tail: the reader sees what went wrong before the details)."""
+    if len(text) <= limit:
+        return text
+    tail = text[-limit:]
+    tail = tail[tail.find("\n") + 1:] if "\n" in tail else tail
+    head = ""
+    for line in text[:len(text) - len(tail)].splitlines():
+        if line and not line[0].isspace() and not line.startswith("Traceback"):
+            head = line          # the last unindented line before the cut: the start of the message
+    return (f"{head}\n  ...\n" if head else "  ...\n") + tail
+
+
 def check_children(children: list, quiet: bool = True) -> None:
     """RuntimeError naming the first node process that has exited, with its log's tail (when its
     output went to a log file, `quiet`)."""
     for c in children:
         if not c.alive():
-            tail = c.log_path.read_text()[-2000:] if quiet else ""
+            tail = log_tail(c.log_path.read_text()) if quiet else ""
             raise RuntimeError(f"{c.name} exited with status {c.proc.returncode}:\n{tail}")
 
 
@@ -423,16 +438,12 @@ def main(argv=None, demo: bool = False) -> int:
 
     try:
         pol = load_policy(policy)
-        try:
-            cfg_checked = load_config(args.config)
-        except ConfigError:
-            cfg_checked = None        # a bad parameter file: the nodes refuse it and say why (their logs kept)
-        if cfg_checked is not None:
-            pol.check_config(cfg_checked)
-    except PolicyFileError as exc:
+        cfg_checked = load_config(args.config)   # a bad parameter file is refused before any node starts
+        pol.check_config(cfg_checked)
+    except (PolicyFileError, ConfigError) as exc:
         print(f"{ap.prog}: {exc}", file=sys.stderr)
         return 1
-    if slopes and cfg_checked is not None:    # before any node starts: the sim node would refuse it too
+    if slopes:    # before any node starts: the sim node would refuse it too
         bad = slope_range_problem(slopes, cfg_checked, "--slopes" if args.slopes else "--slope",
                                   config_name(args.config))
         if bad:

@@ -475,13 +475,8 @@ def check_args(ap: argparse.ArgumentParser, args) -> None:
 
         try:
             pol = load_policy(args.policy)
-            try:
-                cfg_checked = load_config(args.config)
-            except ConfigError:
-                cfg_checked = None    # a bad parameter file: the nodes refuse it and say why
-            if cfg_checked is not None:
-                pol.check_config(cfg_checked)
-        except PolicyFileError as exc:
+            pol.check_config(load_config(args.config))   # a bad parameter file: refused before any node starts
+        except (PolicyFileError, ConfigError) as exc:
             ap.error(str(exc))
 
 

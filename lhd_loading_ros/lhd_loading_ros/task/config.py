@@ -261,6 +261,23 @@ OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curric
 ACTUATOR_GAIN_KEYS = ("drive_gain_min", "drive_gain_max", "hydraulic_gain_min", "hydraulic_gain_max")
 
 
+MAX_LISTED_ERRORS = 12
+
+
+def _error_message(errors: list[str]) -> str:
+    """The ConfigError text: the first MAX_LISTED_ERRORS problems and how many more, and, where keys
+    are missing, that a parameter file is complete (not an overlay of the default)."""
+    shown = errors[:MAX_LISTED_ERRORS]
+    msg = "invalid LHD parameters:\n  - " + "\n  - ".join(shown)
+    if len(errors) > len(shown):
+        msg += f"\n  ... and {len(errors) - len(shown)} more"
+    missing = sum(e.startswith("missing key") for e in errors)
+    if missing:
+        msg += (f"\n({missing} missing keys: a parameter file is complete, not an overlay of the default; copy "
+                f"config/lhd_params.yaml, or the actor's own lhd_params.yaml, and change the values you need)")
+    return msg
+
+
 def validate(cfg: Any) -> dict:
     """Validate a parsed config mapping; return it with ints converted and the keys of
     OPTIONAL_DEFAULTS it left out filled in. Raises ConfigError."""
@@ -275,7 +292,7 @@ def validate(cfg: Any) -> dict:
             if not pred(cfg):
                 errors.append(f"relation violated: {desc}")
     if errors:
-        raise ConfigError("invalid LHD parameters:\n  - " + "\n  - ".join(errors))
+        raise ConfigError(_error_message(errors))
     _coerce(cfg, SCHEMA)
     return cfg
 
