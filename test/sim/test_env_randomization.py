@@ -171,6 +171,11 @@ def test_stress_cases_in_the_evaluation(cfg):
     assert stress_conditions("delay", 0, cfg).vx_noise == 0.0
     assert stress_conditions("light", 0, cfg).soil.density == (1500.0, 1600.0)
     assert stress_conditions("dense", 0, cfg).soil.density == (2100.0, 2200.0)
+    for i in (0, 8, 16, 24):    # the pair: placement's corner of episode i on the dense gravel, nothing else
+        pair, place = stress_conditions("dense_placement", i, cfg), stress_conditions("placement", i, cfg)
+        assert pair.soil.density == (2100.0, 2200.0) and place.soil is None
+        assert {k: v for k, v in pair.summary().items() if k != "density_range"} == \
+            {k: v for k, v in place.summary().items() if k != "density_range"}
     with pytest.raises(ValueError, match="unknown stress case 'wind'; expected one of placement, sensors, delay, light"):
         stress_conditions("wind", 0, cfg)
 
