@@ -197,9 +197,9 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
                trained on different files meet the same material
     dense_placement  placement and dense together: the machine placed by hand (as `placement`, with the
                camera's errors and the 100 ms dead time) in front of the dense gravel of `dense`. Each
-               passes alone; together they failed 28 % of a shipped actor's attempts (a review,
-               2026-11-28: dense shallow piles leave loads 2-4 kg above the 20 kg, and an attempt
-               off the pile's axis loses those kg), so the pair is named
+               passes alone; together they cost rld_twin 12 % of its attempts (a review, 2026-11-28:
+               dense shallow piles leave loads 1-4 kg above the 20 kg, and an attempt off the
+               pile's axis loses those kg; docs/training.md "Combined departures"), so the pair is named
     rough      the pile's surface not a plane: a random relief of sd ROUGH_SD (3 cm) and correlation
                length ROUGH_CORR (15 cm) about it (VoxelPile.roughen). A pile dumped by a feeder or by
                hand has bumps of about the size of its largest pieces (the paper's 8-15 cm rocks in 2-5
