@@ -54,6 +54,11 @@ def test_no_attempt_without_the_recorder_then_one_with_its_bag(rig):
     assert res is not None and res.success, f"{res and res.message}\n{rig.recorder.log()}"
     n0 = len(rig.statuses)
     rig.wait_state("running", 1, since=n0 - 5 if n0 >= 5 else 0)
+    # the recorder starts the attempt's bag: a real attempt lasts seconds, this one ends at the next
+    # pose, so wait for it (under load the recorder's data path to /lhd/episode matched after the
+    # supervisor saw it in the graph, and an attempt ended at once was over before it heard it start)
+    assert wait_for(lambda: any(f"attempt 1 {st}: recording into" in rig.recorder.log() for st in ("armed", "running")),
+                    5.0), rig.recorder.log()
     rig.set_pose(END)
     rig.wait_state("success", 1)
     rig.set_pose(START)
