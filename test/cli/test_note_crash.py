@@ -38,6 +38,32 @@ def test_another_nodes_death_and_a_row_that_ended_otherwise(tmp_path):
     note_crash(tmp_path / "nowhere", "mux exited with status 1")        # no record: nothing to do, no error
 
 
+def test_a_lost_input_end_just_before_the_death_was_found_names_the_node(tmp_path):
+    """The supervisor saw the dead controller first, as commands that stopped, and recorded
+    lost_input; the launcher found the dead process 0.4 s later: the row keeps its outcome and
+    names the node. An end recorded 60 s before (another attempt's), or no time of finding, is left
+    alone; so is a second note for the same node."""
+    import os
+    import time
+
+    path = tmp_path / "attempts.csv"
+    lost = "the controller's commands stopped: the command mux's auto source timed out"
+    upsert_row(path, row(1, "lost_input", lost))
+    written = path.stat().st_mtime
+    note_crash(tmp_path, "controller exited with status -9")                       # no time: left alone
+    assert read_rows(path)[0].reason == lost
+    os.utime(path, (written - 60.0, written - 60.0))
+    note_crash(tmp_path, "controller exited with status -9", found_at=written)     # 60 s after: left alone
+    assert read_rows(path)[0].reason == lost
+    os.utime(path, (written, written))
+    note_crash(tmp_path, "controller exited with status -9", found_at=written + 0.4)
+    r = read_rows(path)[0]
+    assert (r.outcome, r.reason) == ("lost_input", f"{lost}; controller exited with status -9, found by the launcher "
+                                                   "0.4 s after this end: the likely cause")
+    note_crash(tmp_path, "controller exited with status -9", found_at=time.time())
+    assert read_rows(path)[0].reason == r.reason                                    # once only
+
+
 def test_the_launchers_parameters_start_a_node_with_an_empty_string(tmp_path):
     """`lhd up real --controller tampier` gives the supervisor policy_dir '' (no actor): the
     launcher's `-p` arguments must be parsed by ROS, and the node start with that value."""

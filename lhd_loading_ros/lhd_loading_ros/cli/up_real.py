@@ -193,6 +193,7 @@ def up_real(args) -> int:
     children: list[Child] = []
     failed = True
     crashed = ""
+    found_at = None
     console = Console(args.interactive if args.interactive is not None else sys.stdin.isatty())
     with _StopOnSignals(stop):
         rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
@@ -258,6 +259,7 @@ def up_real(args) -> int:
             failed = False
         except RuntimeError as exc:
             crashed = str(exc).splitlines()[0]           # "<node> exited with status <rc>:"
+            found_at = time.time()
             print(f"lhd up real: {exc}\n(node logs in {log_dir})", file=sys.stderr)
             return 1
         finally:
@@ -267,7 +269,7 @@ def up_real(args) -> int:
             # stop frame)
             stop_real_stack(children, node)
             if crashed:
-                note_crash(run_dir, crashed.rstrip(":"))
+                note_crash(run_dir, crashed.rstrip(":"), found_at=found_at)
             if not keep_logs and not failed and args.remove_logs:
                 shutil.rmtree(log_dir, ignore_errors=True)
     print(f"lhd up real: stopped; attempts in {run_dir / 'attempts.csv'} (`lhd attempts {run_dir}`)", flush=True)
@@ -285,25 +287,46 @@ def stop_real_stack(children: list, node) -> None:
     stop_stack([c for c in children if c not in first], node)
 
 
-def note_crash(run_dir: Path, what: str, prog: str = "lhd up real") -> None:
+# a lost_input end recorded at most this long before the launcher found a node dead is put down
+# to that node: a killed controller, mux or bridge is seen by the supervisor as input that stopped
+# (after the mux's 0.3 s or its own 0.5 s input timeout) and the launcher, when it is slow (a busy
+# computer), can find the dead process after that; 5 s is ten of those timeouts
+CRASH_WINDOW_S = 5.0
+
+
+def note_crash(run_dir: Path, what: str, prog: str = "lhd up real", found_at: float | None = None) -> None:
     """A node process that died ended the stack: the attempt it interrupted was aborted by the
     supervisor's stop ("supervisor stopped during the attempt"), or, when the supervisor itself
-    died, left as its row from arming says (INTERRUPTED_REASON); the record says which node it was."""
+    died, left as its row from arming says (INTERRUPTED_REASON); the record says which node it was.
+    When the supervisor saw the death first, as input that stopped, the attempt ended as lost_input:
+    if that end was recorded (the record file's time) at most CRASH_WINDOW_S before `found_at` (the
+    wall time, time.time(), when the launcher found the node dead), the row keeps its outcome and
+    its reason names the node as the likely cause."""
     from lhd_loading_ros.task.attempt_record import INTERRUPTED_REASON, csv_path, read_rows, upsert_row
 
+    path = csv_path(run_dir)
     try:
-        rows = read_rows(csv_path(run_dir))
+        rows = read_rows(path)
+        written = path.stat().st_mtime
     except (OSError, ValueError):
         return
-    if rows and rows[-1].outcome == "aborted" and rows[-1].reason in ("supervisor stopped during the attempt",
-                                                                     INTERRUPTED_REASON):
-        from dataclasses import replace
+    if not rows:
+        return
+    from dataclasses import replace
 
+    last = rows[-1]
+    if last.outcome == "aborted" and last.reason in ("supervisor stopped during the attempt", INTERRUPTED_REASON):
         tail = ("" if what.startswith("supervisor ") else
                 ": the launcher stopped the stack, the supervisor first")
-        row = replace(rows[-1], reason=f"{what} during the attempt{tail}")
-        upsert_row(csv_path(run_dir), row)
-        print(f"{prog}: attempt {row.attempt} recorded as aborted: {row.reason}", file=sys.stderr, flush=True)
+        row = replace(last, reason=f"{what} during the attempt{tail}")
+    elif last.outcome == "lost_input" and found_at is not None and what not in last.reason and \
+            -0.5 <= found_at - written <= CRASH_WINDOW_S:
+        row = replace(last, reason=f"{last.reason}; {what}, found by the launcher {max(found_at - written, 0.0):.1f} s "
+                                   "after this end: the likely cause")
+    else:
+        return
+    upsert_row(path, row)
+    print(f"{prog}: attempt {row.attempt} recorded as {row.outcome}: {row.reason}", file=sys.stderr, flush=True)
 
 
 def format_preflight(st) -> str:

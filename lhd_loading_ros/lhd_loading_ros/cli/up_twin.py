@@ -552,7 +552,7 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
         def now():
             return node.get_clock().now().nanoseconds * 1e-9
 
-        crashed = {"what": ""}             # the node that died, for the record (note_crash)
+        crashed = {"what": "", "at": None}  # the node that died and when it was found, for the record (note_crash)
 
         def spin(timeout_s: float, until, what: str):
             """Spin until `until()` is truthy; RuntimeError naming `what` after timeout_s or when a
@@ -568,6 +568,7 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                     if not c.alive():
                         tail = c.log_path.read_text()[-2000:] if quiet else ""
                         crashed["what"] = f"{c.name} exited with status {c.proc.returncode}"
+                        crashed["at"] = time.time()
                         raise RuntimeError(f"node `{c.name}` exited with status {c.proc.returncode} while waiting "
                                            f"for {what}:\n{tail}")
                 if time.monotonic() > t_end:
@@ -727,7 +728,7 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
             # the recorder (its bag holds that end), then the rest, the bridge then the twin last
             stop_real_stack(children, node)
             if crashed["what"]:
-                note_crash(run_dir, crashed["what"], "lhd up twin")
+                note_crash(run_dir, crashed["what"], "lhd up twin", found_at=crashed["at"])
             shutil.rmtree(link_dir, ignore_errors=True)
 
     # the record as written by the supervisor
