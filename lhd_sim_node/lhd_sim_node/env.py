@@ -29,7 +29,7 @@ from lhd_loading_ros.task.randomization import NOMINAL, Conditions, ObservationC
 from lhd_loading_ros.task.reward import RewardTracker
 from lhd_loading_ros.task.zones import classify
 
-from .simulator import MATERIALS, LhdSimulator
+from .simulator import MATERIALS, AttackError, LhdSimulator, SimulationError
 
 VARIANTS = ("rld", "rlc")
 
@@ -179,3 +179,28 @@ class LhdLoadingEnv(gym.Env):
     @property
     def state(self):
         return self._state
+
+
+ATTACK_REDRAWS = 5
+
+
+def reset_or_redraw(env, seed_k: int, options: dict, log=print):
+    """env.reset on the episode's seed; where the attack drive cannot bury the bucket (AttackError:
+    under randomised conditions a slow attack on the steepest piles, about 1 reset in 60 on 35 deg
+    ones, stalls a few mm short of d_init) the episode's pile and conditions are drawn again from
+    the seeds (seed_k, r), r = 1..ATTACK_REDRAWS, deterministically (a resume replays them), at the
+    same slope. A stalled attack is not a transition the learner can use; it must not end the run.
+    MuJoCo finding the attack drive unstable (SimulationError) is redrawn in the same way.
+    Returns the first observation."""
+    try:
+        return env.reset(seed=seed_k, options=options)[0]
+    except (AttackError, SimulationError) as e:
+        first = e
+    for r in range(1, ATTACK_REDRAWS + 1):
+        try:
+            obs = env.reset(seed=int(np.random.default_rng([seed_k, r]).integers(2**31 - 1)), options=options)[0]
+        except (AttackError, SimulationError):
+            continue
+        log(f"episode seed {seed_k}: {first}; its pile drawn again ({r} redraw{'s' if r > 1 else ''})")
+        return obs
+    raise first

@@ -63,8 +63,8 @@ from lhd_loading_ros.ros.diagnostics import OK, WARN, Diagnostics
 from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
 from lhd_loading_ros.ros.run import run_node
 
-from .env import LhdLoadingEnv
-from .simulator import MATERIALS, SimulationError
+from .env import ATTACK_REDRAWS, LhdLoadingEnv, reset_or_redraw
+from .simulator import MATERIALS, AttackError, SimulationError
 
 # QoS (lhd_loading_ros.ros.qos, shared with the hardware bridge and the policy node): measurements
 # MEASUREMENT_QOS (reliable, keep-last 5: lockstep must not lose a state, and best-effort
@@ -269,7 +269,18 @@ class SimNode(Node):
         if self.next_seed >= 0:       # a learner's reset(seed=...): this episode only
             self.episode_seed, self.next_seed = self.next_seed, -1
             self.set_parameters([Parameter("next_seed", value=-1)])
-        self._obs, _ = self.env.reset(seed=self.episode_seed, options=opts)
+        try:
+            self._obs = reset_or_redraw(self.env, self.episode_seed, opts, self.get_logger().warn)
+        except (AttackError, SimulationError) as e:
+            # no pile of this episode's conditions could be set up, nor any of its redraws: the
+            # parameters cannot work (an attack too short or too slow for the pile); the node ends
+            # with the reason (run_node: exit status 2), not a traceback, and nothing moves
+            raise ValueError(
+                f"episode {self.episode} (seed {self.episode_seed}, slope {opts.get('slope_deg', 'random')}): cannot "
+                f"set up the pile: {e}; {ATTACK_REDRAWS} redraws of the pile failed too. Expected sim.attack_timeout, "
+                "sim.attack_speed_min_fraction and paper.episode.d_init (the parameter file) that let the attack drive "
+                "bury the bucket in the pile"
+            ) from e
         self._reward, self._term, self._trunc = 0.0, False, False
         self._applied = np.zeros(3)
         self.outcome, self.result, self._ended_at = "running", None, None

@@ -112,7 +112,9 @@ def test_up_sim_keeps_logs_on_failure_and_with_log_dir(tmp_path):
     kept = list(tmp.iterdir())
     assert len(kept) == 1 and f"node logs kept in {kept[0]}" in p.stderr, p.stderr
     assert "sim_node exited" in p.stderr and (kept[0] / "sim_node.log").read_text()
-    assert "AttackError: the bucket did not reach d_init" in p.stderr, p.stderr
+    # the node's own message, not a traceback: what failed and which parameters to look at
+    assert "cannot set up the pile: the bucket did not reach d_init" in p.stderr, p.stderr
+    assert "Expected sim.attack_timeout" in p.stderr and "Traceback" not in p.stderr, p.stderr
     logs = tmp_path / "logs"
     p = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "up", "sim", "--episodes", "1", "--mode",
                         "lockstep", "--seed", "474747", "--log-dir", str(logs)], capture_output=True, text=True,

@@ -40,6 +40,8 @@ from lhd_loading_ros.learning.curriculum import CurriculumConfig, SlopeCurriculu
 from lhd_loading_ros.learning.demonstrations import DemoConfig, demo_action
 from lhd_loading_ros.learning.ddpg import DdpgAgent, DdpgConfig, OUNoise, ReplayBuffer, TiltRamp, lr_scale, noise_scale
 from lhd_loading_ros.learning.evaluate import evaluate
+# the redraw of a pile whose attack stalls lives with the environment (the sim node uses it too)
+from lhd_sim_node.env import ATTACK_REDRAWS, reset_or_redraw  # noqa: F401
 from lhd_loading_ros.learning.export import export_actor
 
 EVAL_FIELDS = ("step", "ar", "aml", "aff", "asl", "success_rate", "end_zone_rate", "elapsed_s",
@@ -53,33 +55,6 @@ ENV_KINDS = ("local", "ros")
 
 def episode_seed(run_seed: int, k: int) -> int:
     return (int(run_seed) * 1_000_003 + int(k)) % (2**31 - 1)
-
-
-ATTACK_REDRAWS = 5
-
-
-def reset_or_redraw(env, seed_k: int, options: dict, log=print):
-    """env.reset on the episode's seed; where the attack drive cannot bury the bucket (AttackError:
-    under randomised conditions a slow attack on the steepest piles, about 1 reset in 60 on 35 deg
-    ones, stalls a few mm short of d_init) the episode's pile and conditions are drawn again from
-    the seeds (seed_k, r), r = 1..ATTACK_REDRAWS, deterministically (a resume replays them), at the
-    same slope. A stalled attack is not a transition the learner can use; it must not end the run.
-    MuJoCo finding the attack drive unstable (SimulationError) is redrawn in the same way.
-    Returns the first observation."""
-    from lhd_sim_node.simulator import AttackError, SimulationError
-
-    try:
-        return env.reset(seed=seed_k, options=options)[0]
-    except (AttackError, SimulationError) as e:
-        first = e
-    for r in range(1, ATTACK_REDRAWS + 1):
-        try:
-            obs = env.reset(seed=int(np.random.default_rng([seed_k, r]).integers(2**31 - 1)), options=options)[0]
-        except (AttackError, SimulationError):
-            continue
-        log(f"episode seed {seed_k}: {first}; its pile drawn again ({r} redraw{'s' if r > 1 else ''})")
-        return obs
-    raise first
 
 
 class _Progress:
