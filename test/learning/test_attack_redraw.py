@@ -6,8 +6,7 @@ import copy
 import numpy as np
 import pytest
 
-from lhd_loading_ros.learning.train import ATTACK_REDRAWS, reset_or_redraw
-from lhd_sim_node.env import LhdLoadingEnv
+from lhd_sim_node.env import ATTACK_REDRAWS, LhdLoadingEnv, reset_or_redraw
 from lhd_sim_node.simulator import AttackError
 
 

@@ -40,8 +40,6 @@ from lhd_loading_ros.learning.curriculum import CurriculumConfig, SlopeCurriculu
 from lhd_loading_ros.learning.demonstrations import DemoConfig, demo_action
 from lhd_loading_ros.learning.ddpg import DdpgAgent, DdpgConfig, OUNoise, ReplayBuffer, TiltRamp, lr_scale, noise_scale
 from lhd_loading_ros.learning.evaluate import evaluate
-# the redraw of a pile whose attack stalls lives with the environment (the sim node uses it too)
-from lhd_sim_node.env import ATTACK_REDRAWS, reset_or_redraw  # noqa: F401
 from lhd_loading_ros.learning.export import export_actor
 
 EVAL_FIELDS = ("step", "ar", "aml", "aff", "asl", "success_rate", "end_zone_rate", "elapsed_s",
@@ -262,6 +260,9 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
                 demo_crowd.pop(i, None)
             else:
                 demo_crowd[i] = crowd
+            # the redraw of a pile whose attack stalls lives with the environment (the sim node's too)
+            from lhd_sim_node.env import reset_or_redraw
+
             return reset_or_redraw(env, seed_k, opts, log)
 
         from lhd_sim_node.simulator import SimulationError
