@@ -12,9 +12,12 @@ hardware it comes from the ArUco node).
 
 Fail-safe behaviour (docs/hardware_bridge.md):
 * every command goes through CommandMapper (no reverse wheels, no boom lowering, no bucket
-  forward tilt; NaN / wrong length rejected and counted);
+  forward tilt; NaN / wrong length rejected and counted, and a stop frame sent at once);
 * no valid command for cmd_timeout (0.3 s) -> stop frames (watchdog on arrival time, on the
   steady clock: use_sim_time cannot stop it);
+* no sensor frame from the device for cmd_timeout (or none yet) -> stop frames: a device whose
+  state is unknown is not driven; bytes that make no valid frame (a wrong baud rate) are named
+  in /diagnostics;
 * parameters that would defeat the safety (a dead band of 0, a command rate too slow for the
   device watchdog) are refused, at start (exit 2) and at run time (with the reason);
 * the port is opened exclusively: a second bridge on it keeps retrying and says why in
@@ -91,7 +94,9 @@ class BridgeNode(Node):
         wd = base.device_watchdog
         self.params = Params(self, [
             config,
-            Param("port", "/dev/ttyACM0", "serial device of the Due (opened exclusively)"),
+            Param("port", "/dev/ttyACM0", "serial device of the Due (opened exclusively)",
+                  check=lambda v: None if str(v).strip() else "is empty: expected the Due's serial device, e.g. "
+                  "/dev/ttyACM0 (`ls /dev/ttyACM* /dev/serial/by-id/`)"),
             Param("baud", 115200, "baud rate (UART; the Due's native USB port ignores it)", lo=1200, hi=4_000_000),
             Param("namespace_prefix", "/lhd", "topic prefix when the node runs in the root namespace"),
             Param("cmd_timeout", base.cmd_timeout,
@@ -135,6 +140,7 @@ class BridgeNode(Node):
         self.sensor_frames = 0
         self.command_frames = 0
         self._rate_marks = (time.monotonic(), 0, 0)
+        self._error_marks: dict[str, int] = {}
         self.latency_hook = None  # for the benchmark: called with the SensorFrame after publishing
         self.pub_js = self.create_publisher(JointState, f"{ns}/joint_states", MEASUREMENT_QOS)
         self.pub_drift = self.create_publisher(Bool, f"{ns}/wheel_drift", MEASUREMENT_QOS)
@@ -168,7 +174,12 @@ class BridgeNode(Node):
         try:
             frame = self.mapper.map(msg.data)
         except CommandRejected as exc:
-            self.get_logger().warn(f"rejected command: {exc}", throttle_duration_sec=1.0)
+            # a bad command is a fault of the sender: the machine stops at once (as the command mux
+            # does), not at the watchdog 0.3 s later on the last valid command; the next valid
+            # command moves it again
+            self.get_logger().warn(f"rejected command: {exc}; stopping the machine", throttle_duration_sec=1.0)
+            self._cmd = None
+            self._send_command(time.monotonic(), CommandFrame.stop(), tripped=True)
             return
         self._cmd = frame
         now = time.monotonic()
@@ -197,9 +208,14 @@ class BridgeNode(Node):
 
     def current_command(self, now: float) -> CommandFrame:
         stale = self.watchdog.stale(now)
-        if stale or self._estop or self._cmd is None:
+        if stale or self._estop or self._cmd is None or self.device_silent(now):
             return CommandFrame.stop()
         return self._cmd
+
+    def device_silent(self, now: float) -> bool:
+        """No sensor frame for cmd_timeout (or none yet): the device's state is unknown (a frozen
+        firmware, a cable that carries our frames but not its), so it is sent stops, not motion."""
+        return self._device is None or now - self._device[1] > self.p.cmd_timeout
 
     def _tick(self) -> None:
         now = time.monotonic()
@@ -374,10 +390,20 @@ class BridgeNode(Node):
                   "watchdog_trips": self.watchdog.trips, "rejected_commands": self.mapper.rejected,
                   "clamped_commands": self.mapper.clamped, "reconnects": self.reconnects,
                   "disconnects": self.disconnects, "command_stale": stale}
+        errors = {k: values[k] for k in ("framing_errors", "crc_errors", "overflows", "unknown_types")}
+        new_errors = {k: v - self._error_marks.get(k, 0) for k, v in errors.items()}
+        self._error_marks = errors
         if not self.connected:
             return ERROR, f"serial link down: {self.link_problem}", values
         if sensor_hz < 50.0:
-            return WARN, f"sensor frames at {sensor_hz:.0f} Hz (< 50 Hz)", values
+            if sum(new_errors.values()) and sensor_hz < 1.0:
+                said = ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in new_errors.items() if v)
+                why = (f"bytes arrive on {self.port} but make no valid frame ({said} in {dt:.1f} s): wrong baud rate "
+                       f"({self.baud}), wrong port, or not the LHD firmware? Stop frames sent")
+                self.get_logger().error(why, throttle_duration_sec=10.0)
+                return ERROR, why, values
+            return WARN, (f"sensor frames at {sensor_hz:.0f} Hz (< 50 Hz)"
+                          f"{': stop frames sent' if self.device_silent(now) else ''}"), values
         if stale:
             return WARN, "no valid command: machine stopped", values
         return OK, "ok", values

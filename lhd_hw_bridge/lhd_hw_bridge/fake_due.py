@@ -102,6 +102,7 @@ class FakeDue:
     load_cell_calibrated: bool = True         # False: a firmware without LOAD_CELL_SCALE
     load_cell_tared: bool = True              # False: no zero yet (taring at power-up)
     load_cell_stale: bool = False             # the amplifier stopped converting
+    silent: bool = False                      # sends no sensor frames (a frozen firmware, a broken RX wire); still reads
     seed: int = 0
     plant: Plant = field(default_factory=Plant)
 
@@ -171,7 +172,8 @@ class FakeDue:
             if dt > 0:
                 self.plant.step(dt, self.drift_front, self.drift_rear)
             if fd is not None and now >= t_next:
-                self._send(fd, now - t0)
+                if not self.silent:
+                    self._send(fd, now - t0)
                 t_next += period
                 if t_next < now:
                     t_next = now + period

@@ -93,11 +93,54 @@ def test_unsafe_and_malformed_commands_never_move_the_machine(rig):
     n_before = len(dev.last_commands())
     drive(node, pub, [float("nan"), 0.0, 0.0], 0.3)
     drive(node, pub, [1.0, 0.0], 0.3)
-    # rejected: the watchdog (no *valid* command) stops the machine
+    # rejected: a stop at once, and the watchdog (no *valid* command) keeps it stopped
     assert dev.last_commands()[-1][1].is_stop and len(dev.last_commands()) > n_before
     ok = spin_until(node, lambda: any(kv.key == "rejected_commands" and int(kv.value) >= 2
                                       for d in got["diag"] for s in d.status for kv in s.values), timeout=3.0)
     assert ok
+
+
+def test_a_rejected_command_stops_the_machine_at_once(rig):
+    """A NaN command after valid ones: the stop leaves at once, not at the watchdog 0.3 s later on
+    the last valid command (a review, 2026-11-28: 12 more motion frames, the stop 0.245 s later);
+    the next valid command moves the machine again."""
+    dev, bridge, node, pub, got = rig
+    drive(node, pub, [2.0, -0.191, 0.2], 0.5)
+    assert not dev.last_commands()[-1][1].is_stop
+    t_bad = time.monotonic()
+    pub.publish(Float64MultiArray(data=[float("nan"), 0.0, 0.0]))
+    spin_until(node, lambda: False, timeout=0.25)
+    after = [(t, m) for t, m in dev.last_commands() if t > t_bad]
+    first_stop = min(t for t, m in after if m.is_stop) - t_bad
+    assert first_stop < 0.1, first_stop                 # DDS delivery and a loaded machine, not 0.3 s
+    assert not any(not m.is_stop for t, m in after if t > t_bad + first_stop), "motion after the stop"
+    drive(node, pub, [2.0, -0.191, 0.2], 0.3)
+    assert dev.last_commands()[-1][1] == CommandFrame(2.0, 1, 1, True)
+
+
+def test_a_silent_device_is_sent_stops_and_bytes_without_frames_are_named(rig):
+    """The device stops sending sensor frames while commands keep coming: after cmd_timeout (0.3 s)
+    without one the bridge sends stops, and says so; garbage on the line (what a wrong baud rate
+    gives) is named as such; frames again: motion again."""
+    dev, bridge, node, pub, got = rig
+    drive(node, pub, [2.0, -0.191, 0.2], 0.5)
+    t_mute = time.monotonic()
+    dev.silent = True
+    t_end = time.monotonic() + 2.5
+    while time.monotonic() < t_end:
+        pub.publish(Float64MultiArray(data=[2.0, -0.191, 0.2]))
+        dev.send_raw(bytes([0x41, 0x7E, 0x13, 0xFF, 0x00]) * 8)     # bytes, never a valid frame
+        spin_until(node, lambda: False, timeout=0.05)
+    after = [(t, m) for t, m in dev.last_commands() if t > t_mute]
+    moving = [t - t_mute for t, m in after if not m.is_stop]
+    assert after and after[-1][1].is_stop
+    assert not moving or max(moving) < 0.3 + 0.05 + 0.05, max(moving)
+    st = link_status(got)
+    assert st["level"] == DiagnosticStatus.ERROR and "but make no valid frame" in st["message"] and \
+        "wrong baud rate (115200)" in st["message"], st
+    dev.silent = False
+    drive(node, pub, [2.0, -0.191, 0.2], 0.5)
+    assert dev.last_commands()[-1][1] == CommandFrame(2.0, 1, 1, True)
 
 
 def stop_delay(dev, node, pub, wait=0.8) -> float:
@@ -256,6 +299,7 @@ def link_status(got) -> dict:
                               "half its 250 ms watchdog (it would stop the machine); expected >= 16 Hz"),
     ("cmd_timeout", 2.0, "'cmd_timeout' = 2.0 is invalid: out of range; expected a number in [0.01, 1.0]"),
     ("baud", "fast", "'baud' = 'fast' is invalid; expected an integer"),
+    ("port", "''", "'port' = '' is invalid: is empty: expected the Due's serial device, e.g. /dev/ttyACM0"),
 ])
 def test_unsafe_or_wrong_parameters_end_the_node_with_one_line_and_exit_2(ros, tmp_path, name, value, needle):
     bridge = RosProcess("lhd_hw_bridge.bridge_node", {"port": str(tmp_path / "none"), name: value},

@@ -947,6 +947,22 @@ def test_mass_refused_while_an_attempt_runs(kin):
         r.sv.set_mass(20.0)
 
 
+def test_an_attempt_that_ended_while_armed_takes_no_mass(kin):
+    """Aborted while armed: the bucket on the scale is an earlier attempt's; the mass is refused
+    (its status says ran false), where an attempt aborted while running takes it (ran true)."""
+    r = Rig(kin).ready()
+    r.arm()
+    assert r.sv.abort(r.t)[0] and r.sv.attempt.running_at is None
+    with pytest.raises(ValueError, match="attempt 1 ended before it ran: nothing was loaded"):
+        r.sv.set_mass(23.4)
+    assert r.sv.attempt.mass is None and r.sv.status_values(r.t)["ran"] == "false"
+    r = Rig(kin, arm_delay=0.0).ready()
+    r.arm()
+    r.step(0.3)
+    assert r.sv.state == "running" and r.sv.abort(r.t)[0]
+    assert r.sv.set_mass(23.4).mass_kg == 23.4 and r.sv.status_values(r.t)["ran"] == "true"
+
+
 def test_load_cell_median_after_the_machine_stopped(kin):
     r = Rig(kin, arm_delay=0.0, mass_settle_s=1.0).ready()
     r.arm()

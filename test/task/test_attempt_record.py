@@ -105,8 +105,28 @@ def test_a_csv_without_the_columns_is_not_a_record(tmp_path):
         read_rows(p)
 
 
+def test_weighing_skips_an_attempt_that_ended_before_it_ran(tmp_path):
+    """Attempt 2 was aborted while armed (elapsed 0): `lhd attempt mass KG` weighs attempt 1, whose
+    bucket is on the scale, and refuses attempt 2 by number (a review: the mass went to row 2, row 1
+    kept none). An attempt of 0.4 s that was aborted did run and is weighed."""
+    p = tmp_path / "attempts.csv"
+    armed = dataclasses.replace(mk(2, outcome="aborted", elapsed=0.0), reason="aborted by the operator (/lhd/abort)")
+    estop = mk(3, outcome="estop", elapsed=0.0)
+    write_rows(p, [mk(1), armed, estop])
+    new = weigh_row(p, None, 23.4, PHI_T)
+    assert (new.attempt, new.mass_kg) == (1, 23.4)
+    assert read_rows(p)[1:] == [armed, estop]
+    for n, outcome in ((2, "aborted"), (3, "estop")):
+        with pytest.raises(ValueError, match=f"attempt {n} ended \\({outcome}\\) before it ran: nothing was loaded"):
+            weigh_row(p, n, 23.4, PHI_T)
+    short = mk(4, outcome="aborted", elapsed=0.4)
+    write_rows(p, [mk(1), short])
+    assert weigh_row(p, None, 21.0, PHI_T).attempt == 4
+
+
 @pytest.mark.parametrize("value, message", [(math.nan, "not a finite number"), (-0.5, "negative"),
-                                            (200.5, "not a plausible bucket load"), ("abc", "not a number")])
+                                            (200.5, "not a plausible bucket load"), ("abc", "not a number"),
+                                            ("2_3", "not a number"), ("1_0.5", "not a number")])
 def test_check_mass_refuses(value, message):
     with pytest.raises(ValueError, match=message):
         check_mass(value)

@@ -191,6 +191,9 @@ def attempt_mass_main(argv=None) -> int:
         if st.get("state") not in ENDED:
             what = "no attempt has ended yet" if st.get("state") == "idle" else f"attempt {n} is {st.get('state')}"
             return _err(prog, f"refused: {what}; weigh the bucket after the attempt ends")
+        if st.get("ran") == "false":
+            return _err(prog, f"refused: attempt {n} ended before it ran: nothing was loaded. To weigh an "
+                              "earlier attempt: `lhd attempt mass KG --attempt N`")
         pub = ros.node.create_publisher(Float64, f"{ns}/attempt/mass", MASS_QOS)
         if not ros.spin_until(lambda: pub.get_subscription_count() > 0, args.timeout):
             return _err(prog, f"no supervisor subscribes {ns}/attempt/mass")

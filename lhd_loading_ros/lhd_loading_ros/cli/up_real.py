@@ -161,16 +161,21 @@ def up_real(args) -> int:
     ros_args = ["--params-file", str(params_file)] if params_file else []
     quiet = not args.verbose
     stop = threading.Event()
-    state = {"episode": None, "state": None, "ended": 0, "preflight": None, "printed_preflight": False}
+    state = {"episode": None, "state": None, "ended": 0, "preflight": None, "printed_preflight": None,
+             "kv": {}, "link": {}}
 
     def on_status(msg):
         kv = {k.key: k.value for k in msg.values}
+        state["kv"] = kv
         key = (kv.get("episode"), kv.get("state"))
         if key == (state["episode"], state["state"]):
+            # every mass the supervisor takes, a correction too (the record keeps the last)
+            mass = (key, kv.get("loaded_mass"))
             if kv.get("state") in ENDED and kv.get("loaded_mass") not in (None, "", "nan") and \
-                    state.get("mass_shown") != key:
-                state["mass_shown"] = key
-                print(f"attempt {kv.get('episode')}: weighed {float(kv['loaded_mass']):.2f} kg, SL "
+                    state.get("mass_shown") != mass:
+                state["mass_shown"] = mass
+                print(f"attempt {kv.get('episode')}: weighed {float(kv['loaded_mass']):.2f} kg"
+                      f"{' (load cell)' if kv.get('mass_source') == 'load_cell' else ''}, SL "
                       f"{kv.get('success_level', '?')}, success {kv.get('success', '?')}", flush=True)
             return
         state["episode"], state["state"] = key
@@ -189,6 +194,16 @@ def up_real(args) -> int:
         for st in msg.status:
             if st.name.endswith("supervisor: preflight"):
                 state["preflight"] = st
+            elif st.name.endswith(": serial link") and state.get("settled"):
+                # the bridge's link (a port that does not open, bytes that never make a frame): the
+                # checklist only says "no joint states"; printed when its problem changes, and once
+                # when it is ok again
+                ok = st.level == DiagnosticStatus.OK
+                key = "ok" if ok else _NUMBER.sub("#", st.message)
+                last = state["link"].get(st.name)
+                if key != last and (not ok or last is not None):
+                    print(f"serial link: {st.message}", flush=True)
+                state["link"][st.name] = key if (not ok or last is not None) else None
 
     children: list[Child] = []
     failed = True
@@ -225,10 +240,13 @@ def up_real(args) -> int:
                 rclpy.spin_once(node, timeout_sec=0.05)
                 check_children(children, quiet)
                 pf = state["preflight"]
-                if pf is not None and time.monotonic() - t0 > args.settle and pf.message != state["printed_preflight"]:
-                    # the checklist once the nodes settled, and again whenever it changes
-                    first = not state["printed_preflight"]
-                    state["printed_preflight"] = pf.message
+                state["settled"] = time.monotonic() - t0 > args.settle
+                if pf is not None and state["settled"] and \
+                        preflight_key(pf) != state["printed_preflight"]:
+                    # the checklist once the nodes settled, and again whenever its problems change
+                    # (not their figures: an age or a coordinate changes every second)
+                    first = state["printed_preflight"] is None
+                    state["printed_preflight"] = preflight_key(pf)
                     print(format_preflight(pf), flush=True)
                     if first and console.enabled:
                         print("keys: Enter = arm | a = abort | m KG = weighed mass | q = quit", flush=True)
@@ -245,12 +263,13 @@ def up_real(args) -> int:
                     elif line == "a" and pending is None:
                         pending = ("abort", abort.call_async(Trigger.Request()))
                     elif line.startswith("m "):
-                        try:
-                            kg = float(line[2:])
-                        except ValueError:
-                            print(f"`{line}`: expected `m KG`, e.g. `m 23.4`", flush=True)
+                        why = mass_refusal(line[2:].strip(), state["kv"])
+                        if why:
+                            print(f"`{line}` refused: {why}", flush=True)
                             continue
+                        kg = float(line[2:])
                         pub_mass.publish(Float64(data=kg))
+                        print(f"attempt {state['kv'].get('episode')}: {kg:g} kg sent to the supervisor", flush=True)
                     else:
                         print(f"`{line}`: keys are Enter (arm), a (abort), m KG (mass), q (quit)", flush=True)
                 if args.attempts and state["ended"] >= args.attempts and \
@@ -329,14 +348,53 @@ def note_crash(run_dir: Path, what: str, prog: str = "lhd up real", found_at: fl
     print(f"{prog}: attempt {row.attempt} recorded as {row.outcome}: {row.reason}", file=sys.stderr, flush=True)
 
 
+def preflight_problems(st) -> list[str]:
+    """The problems of the supervisor's preflight status: its values problem_1..n (a sentence may
+    hold "; " itself), or, from a supervisor without them, its message split on "; "."""
+    kv = {k.key: k.value for k in st.values}
+    listed = [kv[f"problem_{k}"] for k in range(1, 1 + len(kv)) if f"problem_{k}" in kv]
+    if listed:
+        return listed
+    head, _, rest = st.message.partition(": ")
+    return rest.split("; ") if rest and head.startswith("not ready") else []
+
+
+def mass_refusal(text: str, status: dict) -> str:
+    """Why the operator's `m KG` cannot weigh the supervisor's latest attempt (its /lhd/episode
+    values `status`), or "": the supervisor refuses the same, but only in its log."""
+    from lhd_loading_ros.task.attempt_record import check_mass
+
+    try:
+        check_mass(text)
+    except ValueError as exc:
+        return f"{exc} (`m KG`, e.g. `m 23.4`)"
+    n, s = status.get("episode", "0"), status.get("state")
+    if s not in ENDED:
+        return ("no attempt has ended yet" if s in (None, "idle") else f"attempt {n} is {s}") + \
+            ": weigh the bucket after the attempt ends"
+    if status.get("ran") == "false":
+        return (f"attempt {n} ended before it ran: nothing was loaded. To weigh an earlier attempt: "
+                "`lhd attempt mass KG --attempt N`")
+    return ""
+
+
 def format_preflight(st) -> str:
     """The supervisor's preflight status (its `preflight` diagnostics: "ready to arm", or "not
     ready to arm: <problem>; <problem>") as a checklist, one problem per line."""
-    msg = st.message
-    head, _, rest = msg.partition(": ")
-    if not rest or not head.startswith("not ready"):
-        return f"preflight: {msg}"
-    return "\n".join([f"preflight: {head}"] + [f"  [--] {p}" for p in rest.split("; ")])
+    problems = preflight_problems(st)
+    if not problems:
+        return f"preflight: {st.message}"
+    return "\n".join(["preflight: not ready to arm"] + [f"  [--] {p}" for p in problems])
+
+
+_NUMBER = re.compile(r"[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?")
+
+
+def preflight_key(st) -> tuple:
+    """What makes the checklist worth printing again: the set of problems with their numbers left
+    out (an input's age, the tip's coordinates change every second; the problem does not)."""
+    problems = preflight_problems(st)
+    return tuple(sorted(_NUMBER.sub("#", p) for p in problems)) if problems else (st.message,)
 
 
 def parser() -> argparse.ArgumentParser:

@@ -464,7 +464,10 @@ class SupervisorNode(Node):
         if self.core.state in LIVE:
             return OK, f"attempt {self.core.attempt.number} {self.core.state}", {}
         if problems:
-            return WARN, "not ready to arm: " + "; ".join(problems), {"problems": len(problems)}
+            # each problem also as its own value (problem_1..n): a reader lists them without
+            # splitting the message, whose sentences may hold "; " themselves
+            return WARN, "not ready to arm: " + "; ".join(problems), {
+                "problems": len(problems), **{f"problem_{k}": p for k, p in enumerate(problems, 1)}}
         return OK, "ready to arm", {}
 
     def _diag_record(self):

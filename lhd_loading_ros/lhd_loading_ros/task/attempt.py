@@ -661,6 +661,11 @@ class Supervisor:
             raise ValueError("no attempt to weigh yet")
         if self.state in LIVE:
             raise ValueError(f"attempt {a.number} is {self.state}: weigh the bucket after it ends")
+        if a.running_at is None:
+            # ended while armed (aborted, e-stop): the bucket on the scale is an earlier attempt's, whose row
+            # would keep no mass while this one got it
+            raise ValueError(f"attempt {a.number} ended before it ran: nothing was loaded. To weigh an earlier "
+                             "attempt: `lhd attempt mass KG --attempt N`")
         if source == "load_cell" and a.mass_source == "operator":
             raise ValueError(f"attempt {a.number} was weighed by the operator; the load cell does not replace it")
         a.mass, a.mass_source = m, source
@@ -733,6 +738,7 @@ class Supervisor:
                 v["elapsed_s"] = f"{now - a.running_at:.2f}"
         if a is not None and self.state in ENDED:
             r = a.row()
+            v["ran"] = "true" if a.running_at is not None else "false"     # ended while armed: nothing to weigh
             v.update({"elapsed_s": f"{r.elapsed_s:.2f}", "front_drift_pct": f"{r.front_drift_pct:.2f}",
                       "rear_drift_pct": f"{r.rear_drift_pct:.2f}",
                       "phi_final_deg": f"{r.phi_final_deg:.2f}" if _finite(r.phi_final_deg) else "nan"})

@@ -63,6 +63,8 @@ def bag_name(attempt: int) -> str:
 def check_mass(kg) -> float:
     """The weighed mass as a float, or ValueError saying what is wrong and what is expected."""
     try:
+        if isinstance(kg, str) and "_" in kg:
+            raise ValueError     # Python reads 2_3 as 23: a typo here, not a number
         v = float(kg)
     except (TypeError, ValueError):
         raise ValueError(f"mass {kg!r} is not a number; expected kilograms, e.g. 23.4") from None
@@ -236,16 +238,28 @@ def upsert_row(path, row: AttemptRow) -> None:
     write_rows(path, rows + [row])
 
 
+def never_ran(row: AttemptRow) -> bool:
+    """An attempt that ended while armed (aborted by the operator or by a set-up that changed, the
+    e-stop, a silent input): it never ran, so nothing was loaded; the supervisor writes it with an
+    elapsed time of 0."""
+    return row.elapsed_s == 0.0 and not is_unended(row)
+
+
 def weigh_row(path, attempt: int | None, mass_kg: float, phi_thresh_rad: float) -> AttemptRow:
-    """Set the mass of attempt `attempt` (None: the latest) in the record; returns the new row."""
+    """Set the mass of attempt `attempt` (None: the latest that ran) in the record; returns the new row."""
     rows = read_rows(path)
     if not rows:
         raise ValueError(f"{path}: no attempts recorded")
     live = {r.attempt for r in rows if is_unended(r)}
+    idle = {r.attempt for r in rows if never_ran(r)}
+    if attempt in idle:
+        raise ValueError(f"{path}: attempt {attempt} ended ({[r.outcome for r in rows if r.attempt == attempt][0]}) "
+                         "before it ran: nothing was loaded")
     if attempt is None:
         # the latest attempt that ended: the row written at the next one's arming is not it (a
-        # review: the mass went to the live attempt's row and was lost when its end replaced it)
-        ended = [r.attempt for r in rows if r.attempt not in live]
+        # review: the mass went to the live attempt's row and was lost when its end replaced it),
+        # nor one aborted while armed (a review: the mass of the bucket on the scale went there)
+        ended = [r.attempt for r in rows if r.attempt not in live and r.attempt not in idle]
         if not ended:
             raise ValueError(f"{path}: no attempt has ended yet (attempt {max(live)} is running, or its supervisor "
                              "died): weigh the bucket after the attempt ends")

@@ -1,0 +1,53 @@
+"""What `lhd up real` prints for the operator: the preflight checklist (one line per problem, even
+where a problem's sentence holds "; "; printed again only when the problems change, not their
+figures) and the `m KG` key's refusals (a review, 2026-11-28: a typo was taken silently, a bad
+mass vanished into the supervisor's log, the checklist split sentences and reprinted every second)."""
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+
+from lhd_loading_ros.cli.up_real import format_preflight, mass_refusal, preflight_key, preflight_problems
+
+P1 = "joint states 0.90 s old (timeout 0.5 s; /lhd/joint_states, the bridge)"
+P2 = "bucket tip already in the end zone (x 0.812, y 0.003, z 0.411 m): back the machine off to the attack pose"
+
+
+def status(problems, with_values=True):
+    st = DiagnosticStatus(name="/lhd_supervisor: preflight", message="not ready to arm: " + "; ".join(problems))
+    if with_values:
+        st.values = [KeyValue(key="problems", value=str(len(problems)))] + [
+            KeyValue(key=f"problem_{k}", value=p) for k, p in enumerate(problems, 1)]
+    return st
+
+
+def test_each_problem_is_one_line_even_with_a_semicolon_inside():
+    assert format_preflight(status([P1, P2])).splitlines() == [
+        "preflight: not ready to arm", f"  [--] {P1}", f"  [--] {P2}"]
+    # a supervisor without the values (an older one): the message split, as before
+    assert preflight_problems(status(["no pile slope received", "no pile zones received"], False)) == [
+        "no pile slope received", "no pile zones received"]
+    assert format_preflight(DiagnosticStatus(message="ready to arm")) == "preflight: ready to arm"
+
+
+def test_the_checklist_is_printed_again_when_its_problems_change_not_their_figures():
+    older = P1.replace("0.90", "1.95")
+    moved = P2.replace("0.812", "0.790").replace("0.003", "-0.010")
+    assert preflight_key(status([P1, P2])) == preflight_key(status([older, moved]))
+    assert preflight_key(status([P1, P2])) != preflight_key(status([P1]))
+    assert preflight_key(status([P1])) != preflight_key(status([P1.replace("joint states", "odometry")]))
+    assert preflight_key(DiagnosticStatus(message="ready to arm")) != preflight_key(status([P1]))
+
+
+def test_m_kg_refusals_name_what_is_wrong():
+    ended = {"episode": "3", "state": "success", "ran": "true"}
+    assert mass_refusal("23.4", ended) == ""
+    for text, why in (("nan", "not a finite number"), ("-3", "negative"), ("500", "not a plausible bucket load"),
+                      ("inf", "not a finite number"), ("1_0", "not a number"), ("23,4", "not a number")):
+        msg = mass_refusal(text, ended)
+        assert why in msg and "`m KG`, e.g. `m 23.4`" in msg, (text, msg)
+    assert mass_refusal("23.4", {"episode": "0", "state": "idle"}) == (
+        "no attempt has ended yet: weigh the bucket after the attempt ends")
+    assert mass_refusal("23.4", {}) == "no attempt has ended yet: weigh the bucket after the attempt ends"
+    assert mass_refusal("23.4", {"episode": "4", "state": "running"}) == (
+        "attempt 4 is running: weigh the bucket after the attempt ends")
+    assert mass_refusal("23.4", {"episode": "5", "state": "aborted", "ran": "false"}).startswith(
+        "attempt 5 ended before it ran: nothing was loaded. To weigh an earlier attempt: "
+        "`lhd attempt mass KG --attempt N`")
