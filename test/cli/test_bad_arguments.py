@@ -36,6 +36,14 @@ LHD = [sys.executable, "-m", "lhd_loading_ros.cli.main"]
      "--randomize and --stress are alternatives"),
     # a misspelled twin parameter: ROS would drop an undeclared -p override silently (a plane pile
     # where a rough one was asked for, found by a reviewer on 2026-11-28)
+    # `lhd up real`: a port that does not exist, an attempt timeout the supervisor would refuse
+    # (it used to start nine nodes, then the bridge retried for ever or the supervisor exited 2)
+    (["up", "real", "--port", "/dev/ttyNOPE"], "--port '/dev/ttyNOPE' does not exist: expected the Due's serial "
+                                                "device, e.g. /dev/ttyACM0"),
+    (["up", "real", "--port", "/dev/null", "--attempt-timeout", "nan"], "--attempt-timeout nan: expected seconds in "
+                                                                        "[0.1, 600]"),
+    (["up", "real", "--port", "/dev/null", "--attempt-timeout", "1000"], "--attempt-timeout 1000: expected seconds in "
+                                                                         "[0.1, 600]"),
     (["up", "twin", "--twin-param", "pile_releif_sd=0.03"],
      "the twin node has no parameter 'pile_releif_sd'; did you mean 'pile_relief_sd'?"),
 ])

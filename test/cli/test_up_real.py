@@ -143,8 +143,9 @@ def ros():
     shutdown_ros()
 
 
-def start_stack(tmp_path, slope_deg=20.0, bucket_mass=BUCKET_MASS, attempt_timeout=6.0):
-    """Emulator, test node, synthetic world and `lhd up real` as a process."""
+def start_stack(tmp_path, slope_deg=20.0, bucket_mass=BUCKET_MASS, attempt_timeout=6.0, interactive=False):
+    """Emulator, test node, synthetic world and `lhd up real` as a process (with `interactive`, its
+    keys from a pipe: stop.send_keys(text))."""
     cfg = load_config()
     kin = ArmKinematics.from_config(cfg)
     r = cfg["machine"]["wheel_radius"]
@@ -171,9 +172,11 @@ def start_stack(tmp_path, slope_deg=20.0, bucket_mass=BUCKET_MASS, attempt_timeo
     log = open(tmp_path / "up_real.log", "w")
     proc = subprocess.Popen([sys.executable, "-m", "lhd_loading_ros.cli.main", "up", "real", "--port", link,
                              "--controller", "rld", "--run-dir", str(run_dir), "--params-file", str(params),
-                             "--attempt-timeout", str(attempt_timeout), "--scan-topic", "/scan"],
+                             "--attempt-timeout", str(attempt_timeout), "--scan-topic", "/scan",
+                             *(["--interactive"] if interactive else [])],
                             stdout=log, stderr=subprocess.STDOUT, env=dict(os.environ, PYTHONUNBUFFERED="1"),
-                            start_new_session=True)
+                            start_new_session=True, stdin=subprocess.PIPE if interactive else subprocess.DEVNULL,
+                            text=True)
 
     def out():
         return (tmp_path / "up_real.log").read_text()[-4000:] + "".join(
@@ -195,6 +198,11 @@ def start_stack(tmp_path, slope_deg=20.0, bucket_mass=BUCKET_MASS, attempt_timeo
         dev.stop()
         return rc
 
+    def send_keys(text: str) -> None:
+        proc.stdin.write(text)
+        proc.stdin.flush()
+
+    stop.send_keys = send_keys
     return dev, node, statuses, arm, world, run_dir, out, stop
 
 
@@ -215,7 +223,7 @@ def arm_when_ready(node, arm, out, within=60.0):
 
 
 def test_up_real_arms_runs_stops_records_and_replays(ros, tmp_path):
-    dev, node, statuses, arm, world, run_dir, out, stop = start_stack(tmp_path)
+    dev, node, statuses, arm, world, run_dir, out, stop = start_stack(tmp_path, interactive=True)
 
     def state():
         return statuses[-1][0].get("state") if statuses else None
@@ -269,6 +277,15 @@ def test_up_real_arms_runs_stops_records_and_replays(ros, tmp_path):
         assert rw["attempt"] == str(n_attempt) and rw["controller"] == "rld" and rw["outcome"] == end_kv["state"]
         assert abs(float(rw["mass_kg"]) - BUCKET_MASS) < 0.1
         assert abs(float(rw["slope_deg"]) - 20.0) < 1.0
+        # the operator's scale over the console: a typo refused on the console (not only in the
+        # supervisor's log), the mass and its correction each confirmed, the record keeping the last
+        stop.send_keys("m 2_3\nm 23.4\nm 24.0\n")
+        assert spin_until(node, lambda: row() is not None and float(row()["mass_kg"]) == 24.0, 10.0), out()
+        assert spin_until(node, lambda: f"attempt {n_attempt}: weighed 24.00 kg" in out(), 5.0), out()
+        text = out()
+        assert "`m 2_3` refused: mass '2_3' is not a number" in text, text
+        assert f"attempt {n_attempt}: 23.4 kg sent to the supervisor" in text, text
+        assert f"attempt {n_attempt}: weighed 23.40 kg" in text, text
     finally:
         rc = stop()
     assert rc == 0, out()

@@ -51,3 +51,26 @@ def test_m_kg_refusals_name_what_is_wrong():
     assert mass_refusal("23.4", {"episode": "5", "state": "aborted", "ran": "false"}).startswith(
         "attempt 5 ended before it ran: nothing was loaded. To weigh an earlier attempt: "
         "`lhd attempt mass KG --attempt N`")
+
+
+def test_output_cut_off_by_its_reader_ends_without_a_traceback(tmp_path):
+    """`lhd attempts RUN | head`: the reader goes away before `lhd` writes (here: the pipe closed
+    at once); a review saw a BrokenPipeError traceback. Status 1, nothing on stderr."""
+    import subprocess
+    import sys
+
+    from lhd_loading_ros.task.attempt_record import AttemptRow, upsert_row
+
+    for n in range(1, 4):
+        upsert_row(tmp_path / "attempts.csv", AttemptRow(
+            attempt=n, started_utc="2026-11-28T05:00:00Z", controller="rld", slope_deg=20.0, material="homogeneous",
+            outcome="success", reason="end zone", mass_kg=25.0, elapsed_s=4.0, front_drift_pct=1.0,
+            rear_drift_pct=2.0, phi_final_deg=45.0, success_level=5, success=True, bag=f"bags/attempt_{n:04d}"))
+    p = subprocess.Popen([sys.executable, "-m", "lhd_loading_ros.cli.main", "attempts", str(tmp_path)],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    p.stdout.close()
+    err = p.stderr.read()
+    assert p.wait(60) == 1 and "Traceback" not in err and "BrokenPipe" not in err, err
+    whole = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "attempts", str(tmp_path)],
+                           capture_output=True, text=True, timeout=60)
+    assert whole.returncode == 0 and "RLD" in whole.stdout, whole.stderr

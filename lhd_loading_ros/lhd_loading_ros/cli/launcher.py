@@ -124,16 +124,18 @@ def stop_stack(children: list, node) -> None:
 
 
 class _StopOnSignals:
-    """SIGTERM, and SIGINT unless it was ignored when we started (a script's background job),
-    set `event`; the previous handlers come back on exit. Only the flag is touched in the
-    handler, so the stop runs in order from the main loop (as in ros/run.py's run_node)."""
+    """SIGTERM, and SIGINT and SIGHUP unless ignored when we started (a script's background job,
+    nohup), set `event`; the previous handlers come back on exit. Only the flag is touched in the
+    handler, so the stop runs in order from the main loop (as in ros/run.py's run_node). SIGHUP (the
+    terminal closed, an SSH session dropped) used to kill the launcher at once: its nodes then all
+    got SIGTERM together, out of order, and one was once left hung (a review, 2026-11-28)."""
 
     def __init__(self, event: threading.Event):
         self.event, self.previous = event, {}
 
     def __enter__(self):
         if threading.current_thread() is threading.main_thread():
-            for sig in (signal.SIGINT, signal.SIGTERM):
+            for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
                 if signal.getsignal(sig) is not signal.SIG_IGN:
                     self.previous[sig] = signal.signal(sig, lambda *_: self.event.set())
         return self

@@ -366,6 +366,21 @@ def _mjcf(args) -> int:
 
 
 def main(argv=None) -> int:
+    """`lhd ...`; output cut off by its reader (`lhd attempts RUN | head`) ends quietly, not with a
+    BrokenPipeError traceback (status 1, as the Python documentation's SIGPIPE note does)."""
+    try:
+        rc = _main(argv)
+        sys.stdout.flush()
+        return rc
+    except BrokenPipeError:
+        import os
+
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())   # the interpreter's own flush at exit must not raise again
+        return 1
+
+
+def _main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     from lhd_loading_ros.task.randomization import STRESS_CASES   # names only (numpy, no simulator)
 

@@ -25,9 +25,9 @@ docs/real_machine.md is the guide.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import re
-import select
 import shutil
 import sys
 import threading
@@ -115,14 +115,12 @@ class Console:
             threading.Thread(target=self._read, daemon=True).start()
 
     def _read(self):
-        while True:
-            r, _, _ = select.select([sys.stdin], [], [], 0.5)
-            if r:
-                line = sys.stdin.readline()
-                if not line:
-                    return
-                with self._lock:
-                    self.lines.append(line.strip())
+        # a blocking read in a daemon thread: select() on the descriptor beside the buffered
+        # sys.stdin left every line after the first of a burst (keys typed fast, a paste) in
+        # Python's buffer until the next key came
+        for line in sys.stdin:
+            with self._lock:
+                self.lines.append(line.strip())
 
     def take(self) -> list[str]:
         with self._lock:
@@ -537,8 +535,12 @@ def stack_problem(params_file: Path | None, controller: str, config: str | None 
 
 def check_args(ap: argparse.ArgumentParser, args) -> None:
     """The checks argparse cannot make (ap.error, exit 2, on a bad value)."""
-    if args.attempt_timeout <= 0:
-        ap.error(f"--attempt-timeout must be positive, got {args.attempt_timeout}")
+    from lhd_loading_ros.task.attempt import ATTEMPT_TIMEOUT_RANGE_S
+
+    lo, hi = ATTEMPT_TIMEOUT_RANGE_S
+    if not (math.isfinite(args.attempt_timeout) and lo <= args.attempt_timeout <= hi):
+        ap.error(f"--attempt-timeout {args.attempt_timeout:g}: expected seconds in [{lo:g}, {hi:g}] (the paper: 10 s, "
+                 "to protect the motors)")
     if args.attempts < 0:
         ap.error(f"--attempts must be >= 0, got {args.attempts}")
     if args.end_zone != "lidar" and not Path(args.end_zone).is_file():
@@ -565,6 +567,11 @@ def main(argv=None) -> int:
     ap = parser()
     args = ap.parse_args(argv)
     check_args(ap, args)
+    if not Path(args.port).exists():
+        # the bridge would retry a missing port for ever while eight nodes wait: a typo, or the Due
+        # not plugged in, is said before anything starts
+        ap.error(f"--port {args.port!r} does not exist: expected the Due's serial device, e.g. /dev/ttyACM0 "
+                 "(`ls /dev/ttyACM* /dev/serial/by-id/`); plug the Due in first")
     return up_real(args)
 
 

@@ -51,7 +51,8 @@ from lhd_loading_ros.ros.markers import supervisor_markers
 from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
 from lhd_loading_ros.ros.qos import LATCHED_QOS, MEASUREMENT_QOS, STATUS_QOS
 from lhd_loading_ros.ros.run import run_node
-from lhd_loading_ros.task.attempt import ENDED, LIVE, STATUS_TIMEOUT_S, HwStatus, Settings, Supervisor
+from lhd_loading_ros.task.attempt import (ATTEMPT_TIMEOUT_RANGE_S, ENDED, LIVE, STATUS_TIMEOUT_S, HwStatus, Settings,
+                                         Supervisor)
 from lhd_loading_ros.task.attempt_record import MATERIALS, csv_path, read_rows, upsert_row
 from lhd_loading_ros.task.config import load_config
 from lhd_loading_ros.task.kinematics import ArmKinematics
@@ -110,7 +111,8 @@ class SupervisorNode(Node):
             Param("material", "homogeneous", "pile material written to the record; a change applies from the next "
                   "arming", choices=MATERIALS, on_change=lambda v: setattr(self.core, "material", v)),
             Param("attempt_timeout", 10.0, "s from running to timeout (paper: a timeout of 10 s); a change applies "
-                  "from the next arming", lo=0.1, hi=600.0, on_change=lambda v: self.core.set_attempt_timeout(v),
+                  "from the next arming", lo=ATTEMPT_TIMEOUT_RANGE_S[0], hi=ATTEMPT_TIMEOUT_RANGE_S[1],
+                  on_change=lambda v: self.core.set_attempt_timeout(v),
                   warn_change="the paper's 10 s protects the motors from pushing at full power against the pile"),
             Param("arm_delay", 1.0, "s between armed and running (0: at once)", lo=0.0, hi=60.0),
             Param("status_timeout", STATUS_TIMEOUT_S, "s: the controllers' status_timeout (policy node, command mux: "

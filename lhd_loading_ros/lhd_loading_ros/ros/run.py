@@ -21,13 +21,19 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
 SPIN_PERIOD_S = 0.1     # the longest a stop request waits for the spin loop to see it
+# the longest the clean-up may take once a stop was requested: past it the kernel ends the process
+# (SIGALRM, whose default action needs no Python: a clean-up stuck inside rclpy holding the GIL
+# was seen at 80 % CPU ignoring SIGTERM, a review, 2026-11-28). The launchers kill a node 10 s
+# after their SIGTERM as well; a node whose launcher died has only this.
+SHUTDOWN_DEADLINE_S = 10
 
 
 def run_node(make_node: Callable, name: str, args=None, before_destroy: Callable | None = None,
-             stop: threading.Event | None = None) -> int:
+             stop: threading.Event | None = None, shutdown_deadline_s: int = SHUTDOWN_DEADLINE_S) -> int:
     """Run one node until SIGINT/SIGTERM (or `stop` is set); returns the exit status:
     0 after a requested stop, 2 for a bad parameter (message printed). `before_destroy(node)`
-    runs while the node can still publish and talk to its hardware."""
+    runs while the node can still publish and talk to its hardware. In the main thread the
+    clean-up gets `shutdown_deadline_s` s (SIGALRM ends the process past it)."""
     stop = stop or threading.Event()
     try:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
@@ -53,6 +59,10 @@ def run_node(make_node: Callable, name: str, args=None, before_destroy: Callable
         print(f"{name}: {exc}", flush=True)
         rc = 2
     finally:
+        main = threading.current_thread() is threading.main_thread()
+        if main and shutdown_deadline_s > 0:
+            signal.signal(signal.SIGALRM, signal.SIG_DFL)
+            signal.alarm(shutdown_deadline_s)
         try:
             if node is not None:
                 try:
@@ -67,4 +77,6 @@ def run_node(make_node: Callable, name: str, args=None, before_destroy: Callable
                 rclpy.shutdown()
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
+            if main and shutdown_deadline_s > 0:
+                signal.alarm(0)
     return rc

@@ -74,6 +74,7 @@ RANGE_TOL_DEG = 1e-6       # a slope published in rad at exactly a range end is 
 # the machine's present state is decided: no start after the arm delay, no success; the safety ends
 # stay (docs/supervisor.md "A stalled supervisor").
 STALL_S = 0.1
+ATTEMPT_TIMEOUT_RANGE_S = (0.1, 600.0)   # the supervisor's attempt_timeout (the paper: 10 s)
 # s: the controllers (policy node, command mux; their `status_timeout`) end a running attempt whose
 # <prefix>/episode status is older than this: the supervisor crashed or hung. The supervisor, which
 # publishes its status at 5 Hz, aborts an attempt over which it did not run for nearly this long
