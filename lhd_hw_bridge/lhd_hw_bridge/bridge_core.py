@@ -201,11 +201,40 @@ def detect_drift(f: SensorFrame, v_machine: float | None, p: BridgeParams) -> tu
     return front, rear
 
 
-def joint_state_arrays(f: SensorFrame) -> tuple[list, list]:
-    """(position, velocity) in JOINT_NAMES order. Wheel positions are not measured (NaN);
-    both rear wheels report the rear motor's speed (one motor through a differential)."""
-    nan = float("nan")
-    pos = [f.boom_angle, f.bucket_angle, nan, nan, nan, nan]
+DEVICE_CLOCK_WRAP_US = 1 << 32     # the device's uint32 microsecond clock wraps every 71.6 min
+WHEEL_GAP_MAX_S = 0.5              # a longer gap between sensor frames (a reset, a lost link): not integrated
+
+
+class WheelAngles:
+    """The wheels' angles (rad), integrated from the speeds the device reports over its own clock
+    (device_time_us, wrap-around included; a frame after a gap over WHEEL_GAP_MAX_S, or with the
+    clock going back, restarts the integration from the angles reached). The device measures the
+    wheels' speeds only; a NaN position (as before 2026-11-28) is what JointState allows but what
+    robot_state_publisher and tf cannot take, and the project's rule is that no NaN reaches a
+    topic. The angles are for display and tf, not a measurement: nothing here controls from them."""
+
+    def __init__(self):
+        self.angles = [0.0, 0.0, 0.0, 0.0]        # fl, fr, rl, rr
+        self._last: tuple[int, tuple[float, ...]] | None = None   # (device time, speeds) of the last frame
+
+    def update(self, f: SensorFrame) -> list[float]:
+        speeds = (f.wheel_fl, f.wheel_fr, f.wheel_rear, f.wheel_rear)
+        if self._last is not None:
+            t0, v0 = self._last
+            dt = ((f.device_time_us - t0) % DEVICE_CLOCK_WRAP_US) * 1e-6
+            if 0.0 < dt <= WHEEL_GAP_MAX_S:
+                # trapezoid between the two frames' speeds
+                self.angles = [a + 0.5 * (u + v) * dt for a, u, v in zip(self.angles, v0, speeds)]
+        self._last = (f.device_time_us, speeds)
+        return list(self.angles)
+
+
+def joint_state_arrays(f: SensorFrame, wheels: WheelAngles | None = None) -> tuple[list, list]:
+    """(position, velocity) in JOINT_NAMES order. Wheel positions: integrated by `wheels` (0.0
+    without it); both rear wheels report the rear motor's speed (one motor through a
+    differential)."""
+    wheel_pos = wheels.update(f) if wheels is not None else [0.0] * 4
+    pos = [f.boom_angle, f.bucket_angle, *wheel_pos]
     vel = [f.boom_rate, f.bucket_rate, f.wheel_fl, f.wheel_fr, f.wheel_rear, f.wheel_rear]
     return pos, vel
 

@@ -54,7 +54,7 @@ from lhd_loading_ros.task.config import load_config
 
 from .bridge_core import (CMD_TIMEOUT_MAX, JOINT_NAMES, BridgeParams, CommandMapper, CommandRejected,
                           LoadCellMonitor, Watchdog, CommandScheduler, command_rate_problem, deadband_problem,
-                          detect_drift, joint_state_arrays)
+                          WheelAngles, detect_drift, joint_state_arrays)
 from .protocol import (FLAG_ENABLED, FLAG_ESTOP, FLAG_WATCHDOG, TYPE_LOAD_CELL, TYPE_SENSOR, CommandFrame,
                        FrameParser, HeartbeatFrame, LoadCellFrame, SensorFrame, TxSequence)
 
@@ -124,6 +124,7 @@ class BridgeNode(Node):
         # one for the node's life: counters survive reconnects
         self.parser = FrameParser(accept={TYPE_SENSOR, TYPE_LOAD_CELL})
         self.load_cell = LoadCellMonitor()
+        self.wheels = WheelAngles()      # wheel angles integrated from the reported speeds (no NaN on the topic)
         self._load_cell_said = None      # the last load-cell problem logged (logged once per change)
         self._tx = TxSequence()
         self._ser: serial.Serial | None = None
@@ -312,7 +313,7 @@ class BridgeNode(Node):
         js = JointState()
         js.header.stamp = self.get_clock().now().to_msg()
         js.name = list(JOINT_NAMES)
-        js.position, js.velocity = joint_state_arrays(f)
+        js.position, js.velocity = joint_state_arrays(f, self.wheels)
         self.pub_js.publish(js)
         v = None
         if self._v_machine is not None and now - self._v_machine[1] <= self.p.odom_timeout:

@@ -64,8 +64,34 @@ def test_drift_from_speed_mismatch_and_from_current(bp):
 def test_joint_state_contents():
     f = SensorFrame(0, -0.2, 0.3, -0.19, 0.2, 1.0, 1.1, 1.2, 0, 0, 0, 1, 1, 1)
     pos, vel = joint_state_arrays(f)
-    assert pos[:2] == [-0.2, 0.3] and all(math.isnan(p) for p in pos[2:])
+    assert pos == [-0.2, 0.3, 0.0, 0.0, 0.0, 0.0]
     assert vel == [-0.19, 0.2, 1.0, 1.1, 1.2, 1.2]
+
+
+def test_wheel_angles_are_the_reported_speeds_integrated_on_the_device_clock():
+    """By hand: 100 frames 10 ms apart at 2.0 / 1.0 / 0.5 rad/s are 0.99 s of travel: 1.98, 0.99,
+    0.495 rad (the first frame only starts the clock); a speed ramp integrates as a trapezoid; the
+    uint32 microsecond clock wrapping is 10 ms like any other; a gap of 2 s (a lost link) or the
+    clock going back adds nothing; never a NaN."""
+    from lhd_hw_bridge.bridge_core import DEVICE_CLOCK_WRAP_US, WheelAngles
+
+    def frame(t_us, fl, fr, rear):
+        return SensorFrame(t_us % DEVICE_CLOCK_WRAP_US, 0, 0, 0, 0, fl, fr, rear, 0, 0, 0, 1, 0, 0)
+
+    w = WheelAngles()
+    for k in range(100):
+        pos, _ = joint_state_arrays(frame(5_000_000 + 10_000 * k, 2.0, 1.0, 0.5), w)
+    assert pos[2:] == pytest.approx([1.98, 0.99, 0.495, 0.495], abs=1e-12)
+    w = WheelAngles()
+    w.update(frame(0, 0.0, 0.0, 0.0))
+    assert w.update(frame(100_000, 1.0, 1.0, 1.0)) == pytest.approx([0.05] * 4)      # (0 + 1) / 2 x 0.1 s
+    w = WheelAngles()
+    w.update(frame(DEVICE_CLOCK_WRAP_US - 5_000, 1.0, 1.0, 1.0))
+    assert w.update(frame(DEVICE_CLOCK_WRAP_US + 5_000, 1.0, 1.0, 1.0)) == pytest.approx([0.01] * 4)
+    before = w.update(frame(DEVICE_CLOCK_WRAP_US + 2_005_000, 1.0, 1.0, 1.0))      # 2 s later
+    assert before == pytest.approx([0.01] * 4)
+    assert w.update(frame(DEVICE_CLOCK_WRAP_US + 1_000_000, 1.0, 1.0, 1.0)) == pytest.approx([0.01] * 4)
+    assert all(math.isfinite(a) for a in w.angles)
 
 
 def test_a_zero_dead_band_would_open_the_valves_for_a_zero_command_and_is_refused(bp):
