@@ -57,6 +57,7 @@ from std_msgs.msg import Bool, Float64, Float64MultiArray, MultiArrayDimension
 from std_srvs.srv import Trigger
 
 from lhd_loading_ros.task import transition
+from lhd_loading_ros.task.metrics import SL_BANDS
 from lhd_loading_ros.task.config import config_hash, load_config
 from lhd_loading_ros.ros.qos import COMMAND_QOS, LATCHED_QOS, MEASUREMENT_QOS, STATUS_QOS
 from lhd_loading_ros.ros.diagnostics import OK, WARN, Diagnostics
@@ -392,8 +393,9 @@ class SimNode(Node):
             self._ended_at = time.monotonic()
             r = self.result
             self.get_logger().info(
-                f"episode {self.episode} {self.outcome}: loaded {r.loaded:.1f} kg, SL {r.success_level}, "
-                f"{r.elapsed_s:.1f} s, drift front {r.front_drift_pct:.0f} % rear {r.rear_drift_pct:.0f} %")
+                f"episode {self.episode} {self.outcome}{' (not a success)' if self._judgement() else ''}: loaded "
+                f"{r.loaded:.1f} kg, SL {r.success_level}, {r.elapsed_s:.1f} s, drift front {r.front_drift_pct:.0f} % "
+                f"rear {r.rear_drift_pct:.0f} %")
         self.publish_state()
         if self.outcome != "running" and self.mode == "lockstep":
             self._lockstep_next()    # realtime: after reset_delay, in _tick_realtime
@@ -442,8 +444,13 @@ class SimNode(Node):
         st = DiagnosticStatus()
         st.name = "lhd_sim/episode"
         st.hardware_id = "mujoco"
-        st.message = self.outcome + (" (all episodes done)" if self._finished_all() else "")
-        st.level = DiagnosticStatus.OK if self.outcome in ("running", "success") else DiagnosticStatus.WARN
+        # state "success" is the episode's end in the end zone (the task's term, as the supervisor's);
+        # the paper's success also needs the load and the final pitch (success_level >= 1): an end
+        # zone reached with 2 kg is said to be no success, at WARN (a review, 2026-11-28)
+        st.message = self.outcome + self._judgement() + (" (all episodes done)" if self._finished_all() else "")
+        st.level = (DiagnosticStatus.OK if self.outcome == "running" or (self.outcome == "success" and self.result is not None
+                                                                          and self.result.success)
+                    else DiagnosticStatus.WARN)
         s = self.env.state
         vals = {
             "state": self.outcome, "episode": self.episode, "seed": self.episode_seed,
@@ -468,9 +475,19 @@ class SimNode(Node):
                          "max_tilt_deg": f"{r.max_tilt_deg:.3f}",
                          "reason": {"success": "bucket tip reached the end zone",
                                     "failure": "bucket tip entered the restricted zone",
-                                    "timeout": f"{self.env.p.max_steps} control steps passed"}[self.outcome]})
+                                    "timeout": f"{self.env.p.max_steps} control steps passed"}[self.outcome]
+                         + self._judgement()})
         st.values = [KeyValue(key=k, value=str(v)) for k, v in vals.items()]
         return st
+
+    def _judgement(self) -> str:
+        """For an end in the end zone (or at the timeout) that fails the paper's success test: why."""
+        r = self.result
+        if r is None or r.success or self.outcome not in ("success", "timeout"):
+            return ""
+        return (f"; not a success: SL {r.success_level}, {r.loaded:.1f} kg, final pitch {math.degrees(r.phi_final):.1f} "
+                f"deg (the paper's success needs at least {SL_BANDS[-1][0]:g} kg and a final pitch above "
+                f"{math.degrees(self.env.p.phi_thresh_pitch):.0f} deg)")
 
     def publish_state(self) -> None:
         self._last_publish = time.monotonic()

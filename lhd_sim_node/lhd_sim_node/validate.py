@@ -568,17 +568,10 @@ def write_plots(res: dict, out_dir: str) -> list[str]:
 
 
 def _jsonable(o):
-    if isinstance(o, dict):
-        return {k: _jsonable(v) for k, v in o.items() if k != "series"}
-    if isinstance(o, (list, tuple)):
-        return [_jsonable(v) for v in o]
-    if isinstance(o, (np.floating, float)):
-        return float(o) if math.isfinite(o) else None
-    if isinstance(o, (np.integer,)):
-        return int(o)
-    if isinstance(o, np.bool_):
-        return bool(o)
-    return o
+    """The report as JSON values: the per-step series left out, non-finite numbers as null."""
+    from lhd_loading_ros.task.json_out import jsonable
+
+    return jsonable(o, drop_keys=("series",))
 
 
 def main(argv=None) -> int:
@@ -597,7 +590,7 @@ def main(argv=None) -> int:
     res = run(cfg, quick=a.quick)
     if a.plots:
         res["plots"] = write_plots(res, a.plots)
-    print(json.dumps(_jsonable(res)) if a.json else format_report(res))
+    print(json.dumps(_jsonable(res), allow_nan=False) if a.json else format_report(res))
     if a.plots and not a.json:
         print("plots: " + ", ".join(res["plots"]))
     return 0

@@ -53,7 +53,8 @@ def test_a_small_study_end_to_end(tmp_path):
     for r in rows:
         assert r["success"] in ("True", "False") and 0.0 <= float(r["loaded_kg"]) < 60.0
         assert 0.0 < float(r["elapsed_s"]) <= ex.TIME_LIMIT_S + 1e-9
-    summary = json.loads((out / "summary.json").read_text())
+    # strict JSON: a metric over no successful attempt is null, not a bare NaN (a review)
+    summary = json.loads((out / "summary.json").read_text(), parse_constant=lambda c: pytest.fail(f"bare {c}"))
     assert summary["attempts"] == 6 and summary["time_limit_s"] == 10.0
     # the paired table: RLD against the heuristic on the one pile they share, its masses from attempts.csv
     (pr,) = [r for r in summary["paired_table"] if r["slope_deg"] == "all"]

@@ -50,3 +50,32 @@ def test_an_unstable_state_aborts_the_episode_and_the_next_one_starts():
     finally:
         node.destroy_node()
         shutdown_ros()
+
+
+def test_an_end_zone_reached_nearly_empty_is_said_to_be_no_success():
+    """State `success` is the end in the end zone (the task's and the supervisor's term); the
+    paper's success also needs 20 kg and a final pitch above 40 deg. Boom up and bucket curled from
+    the first step reaches the end zone with about 2 kg (a review, 2026-11-28, saw `episode 0
+    success: loaded 2.2 kg, SL 0` at level OK): the status's message and reason say it is no
+    success, at WARN; the state stays `success`."""
+    from diagnostic_msgs.msg import DiagnosticStatus
+
+    from lhd_sim_node.sim_node import SimNode
+    init_ros()
+    node = SimNode(parameter_overrides=[Parameter("mode", value="lockstep"), Parameter("auto_reset", value=False),
+                                        Parameter("slope_deg", value=20.0), Parameter("seed", value=3)])
+    try:
+        for _ in range(200):
+            if node.outcome != "running":
+                break
+            node._on_cmd(type("M", (), {"data": [2.7, -0.191, 0.2]})())
+        st = node._status()
+        kv = {k.key: k.value for k in st.values}
+        assert kv["state"] == "success" and kv["success"] == "False" and kv["success_level"] == "0", kv
+        assert float(kv["loaded_mass"]) < 20.0
+        assert st.level == DiagnosticStatus.WARN and "not a success: SL 0" in st.message, st.message
+        assert kv["reason"].startswith("bucket tip reached the end zone; not a success: SL 0") and \
+            "at least 20 kg and a final pitch above 40 deg" in kv["reason"], kv["reason"]
+    finally:
+        node.destroy_node()
+        shutdown_ros()

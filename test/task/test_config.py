@@ -74,6 +74,28 @@ def test_relations_between_keys(cfg):
         validate(cfg)
 
 
+@pytest.mark.parametrize("section, key, value, needle", [
+    ("paper.control", "frequency_hz", 20.0, "sim.timestep divides the control period"),   # 0.05 / 0.004 = 12.5
+    ("sim", "timestep", 0.03, "sim.timestep divides the control period"),                  # 0.1 / 0.03 = 3.33
+    ("sim", "fee_every", 3, "sim.fee_every divides the physics steps"),                    # 25 % 3 = 1
+])
+def test_the_simulators_step_relations_are_checked_with_the_file(cfg, section, key, value, needle):
+    """A file the simulator would refuse with a traceback (a review: `lhd config check` said ok,
+    `lhd eval` then failed inside the simulator) is refused by the config's own check; the default
+    (0.004 s, 25 steps of 0.1 s, FEE every 5) passes, and so do 20 Hz with 0.005 s and FEE every 10."""
+    node = cfg
+    for part in section.split("."):
+        node = node[part]
+    node[key] = value
+    with pytest.raises(ConfigError, match=f"relation violated: {needle}"):
+        validate(cfg)
+
+
+def test_other_whole_step_divisions_pass(cfg):
+    cfg["paper"]["control"]["frequency_hz"], cfg["sim"]["timestep"], cfg["sim"]["fee_every"] = 20.0, 0.005, 10
+    validate(cfg)
+
+
 def test_file_errors_name_the_file(tmp_path, cfg):
     bad = copy.deepcopy(cfg)
     bad["sim"]["timestep"] = -1

@@ -14,10 +14,10 @@ Also `python -m lhd_loading_ros.cli.attempts attempts|mass|arm|abort ...`."""
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 
+from lhd_loading_ros.task import json_out
 from lhd_loading_ros.cli.argtypes import pos_int
 from lhd_loading_ros.task.attempt import ENDED
 from lhd_loading_ros.task.attempt_record import (CSV_NAME, check_mass, csv_path, format_table, read_rows,
@@ -56,7 +56,7 @@ def main(argv=None) -> int:
         return _err("lhd attempts", str(exc))
     summary = summarize(rows)
     if args.json:
-        print(json.dumps({"csv": str(path), **summary}, indent=2))
+        print(json_out.dumps({"csv": str(path), **summary}, indent=2))
     else:
         print(format_table(summary, title=f"Attempts in {path}"))
     return 0

@@ -37,7 +37,6 @@ command period, pty). --json: the last line is one JSON object with the same key
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import shutil
@@ -49,6 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lhd_loading_ros.task import json_out
 from lhd_loading_ros.cli.argtypes import nonneg_int
 from lhd_loading_ros.cli.launcher import Child, _StopOnSignals, check_children, stop_stack
 
@@ -331,7 +331,7 @@ def main(argv=None) -> int:
     print(f"  decisions {r['decisions']}: matched {r['n']}, same set-point as the previous {r['unchanged']}, "
           f"unmatched {r['unmatched']}, fallback/no odometry {r['fallback']}; {r['command_frames']} command frames")
     if args.json:
-        print(json.dumps(r))
+        print(json_out.dumps(r))
     if r["n"] == 0:
         print("lhd bench twin: no decision could be matched to a command frame", file=sys.stderr)
         return 1

@@ -5,8 +5,9 @@ nodes. The flags of `lhd demo` that apply to it are honoured as the nodes' demo 
 name, never ignored."""
 from __future__ import annotations
 
-import json
 import sys
+
+from lhd_loading_ros.task import json_out
 
 # lhd demo's flags that only concern the nodes: refused with --scripted
 NODE_ONLY_FLAGS = (("--policy", "policy"), ("--mode", "mode"), ("--namespace", "namespace"),
@@ -67,7 +68,7 @@ def scripted_demo(args, prog: str = "lhd demo") -> int:
         rows.update(run_scripted([int(slope) if slope.is_integer() else slope], n, args.material, args.seed,
                                  args.config))
     if args.json:
-        print(json.dumps(rows))
+        print(json_out.dumps(rows))
         return 0
     per = {n for _, n in plan}
     split = f"{per.pop()} per slope" if len(per) == 1 else ", ".join(f"{n} on {s:g} deg" for s, n in plan)

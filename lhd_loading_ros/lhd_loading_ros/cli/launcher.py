@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import ctypes
-import json
 import math
 import os
 import shutil
@@ -31,6 +30,7 @@ import threading
 import time
 from pathlib import Path
 
+from lhd_loading_ros.task import json_out
 from lhd_loading_ros.cli.argtypes import nonneg_int
 from lhd_loading_ros.task.metrics import EpisodeResult, result_from_status
 
@@ -477,7 +477,7 @@ def main(argv=None, demo: bool = False) -> int:
     rows = table_rows(results, slopes or sorted({round(r.alpha_deg) for r in results}), pol.meta)
     if args.json:
         ok = sum(1 for r in results if r.to_dict()["success"])
-        print(json.dumps({"success_rate": ok / len(results), "successes": ok, "attempts": len(results),
+        print(json_out.dumps({"success_rate": ok / len(results), "successes": ok, "attempts": len(results),
                           "rows": rows, "episodes": [r.to_dict() for r in results], "policy": policy,
                           "wall_s": time.monotonic() - t0}))
     else:

@@ -27,10 +27,10 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
+from lhd_loading_ros.task import json_out
 from lhd_loading_ros.cli.argtypes import nonneg_int, pos_int
 from lhd_loading_ros.task.cores import usable_cores
 
@@ -96,7 +96,7 @@ def _bench(args) -> int:
         print(f"lhd bench: unknown benchmark {args.what!r}; expected: sim, train, node, bridge, perception", file=sys.stderr)
         return 2
     if args.json:
-        print(json.dumps(res))
+        print(json_out.dumps(res))
     else:
         for k, v in res.items():
             print(f"{k:>30}: {v}")
@@ -161,7 +161,7 @@ def _train(args) -> int:
     except KeyboardInterrupt:
         print(f"\ninterrupted; run the same command again to resume from {run_dir}/checkpoint.pt", file=sys.stderr)
         return 130
-    print(json.dumps({"run": str(run_dir), "final": ev}))
+    print(json_out.dumps({"run": str(run_dir), "final": ev}))
     return 0
 
 
@@ -217,7 +217,7 @@ def _eval(args) -> int:
     res.update({"policy": str(args.policy), "variant": pol.variant, "seed": args.seed, "deploy_filter": deploy,
                 "randomize": env.randomize, "stress": args.stress})
     if args.json:
-        print(json.dumps(res))
+        print(json_out.dumps(res))
     else:
         print(format_eval(res))
     return 0
@@ -266,7 +266,7 @@ def _experiment(args) -> int:
         print(f"lhd experiment paper: {exc}", file=sys.stderr)
         return 2
     if args.json:
-        print(json.dumps({k: v for k, v in res.items() if k != "markdown"}))
+        print(json_out.dumps({k: v for k, v in res.items() if k != "markdown"}))
     else:
         print(res["markdown"])
         print(f"{res['attempts']} attempts in {res['wall_s']:.0f} s on {res['jobs']} processes; tables, CSV and "
@@ -320,7 +320,7 @@ def _report(args) -> int:
     if args.plot:
         plot_curves(groups, args.plot)
     if args.json:
-        print(json.dumps(summaries))
+        print(json_out.dumps(summaries))
     else:
         from lhd_loading_ros.learning.report import format_held_out
 

@@ -14,12 +14,12 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 import math
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from lhd_loading_ros.task import json_out
 from lhd_loading_ros.task.recording import attempt_number
 from lhd_loading_ros.task.replay import (Series, attempt_drift, attempt_window, command_stats, elapsed_s, final_pitch,
                                          pile_toe_x, tip_track)
@@ -440,7 +440,7 @@ def main(argv=None) -> int:
             return 2
     public = {k: v for k, v in m.items() if not k.startswith("_")}
     if args.json:
-        print(json.dumps(public))
+        print(json_out.dumps(public))
     else:
         print(format_text(public))
         if args.plot:

@@ -37,7 +37,6 @@ from __future__ import annotations
 
 import argparse
 import difflib
-import json
 import math
 import os
 import shutil
@@ -49,6 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lhd_loading_ros.task import json_out
 from lhd_loading_ros.cli.argtypes import nonneg_int
 from lhd_loading_ros.task.cores import usable_cores
 from lhd_loading_ros.cli.launcher import Child, _StopOnSignals
@@ -760,7 +760,7 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
           file=out, flush=True)
     if args.json:
         mp = machine_pitch_success(records)
-        print(json.dumps({"success_rate": success_rate,
+        print(json_out.dumps({"success_rate": success_rate,
                           "success_rate_machine_pitch": mp[0] / mp[1] if mp else None, "attempts": records, "errors": err, "table": summary,
                           "run_dir": str(run_dir), "controller": real_args.controller, "slopes": slopes,
                           "episodes_per_slope": args.episodes, "imu": args.imu is not None,

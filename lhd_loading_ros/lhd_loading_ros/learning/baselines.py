@@ -17,13 +17,13 @@ homogeneous` prints the table (docs/baselines.md); `lhd eval --controller tampie
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import time
 
 import numpy as np
 
+from lhd_loading_ros.task import json_out
 from lhd_loading_ros.learning.evaluate import EVAL_MATERIALS, EVAL_SLOPES
 from lhd_loading_ros.policy.tampier import TampierController, TampierParams, load_tampier_config
 from lhd_loading_ros.task.metrics import EpisodeResult, aggregate
@@ -193,7 +193,7 @@ def run_cli(episodes: int, seed: int, slopes: str, material: str, time_limit: fl
         print(f"tampier eval: {exc}", file=sys.stderr)
         return 2
     res.update({"controller": "tampier", "seed": seed})
-    print(json.dumps(res) if as_json else format_tampier(res))
+    print(json_out.dumps(res) if as_json else format_tampier(res))
     return 0
 
 

@@ -37,7 +37,6 @@ paired_comparison), mass_vs_time.png, tip_trajectories.png, slope_error.png, sum
 from __future__ import annotations
 
 import csv
-import json
 import math
 import os
 import sys
@@ -47,6 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lhd_loading_ros.task import json_out
 from lhd_loading_ros.task.cores import usable_cores
 
 CONTROLLERS = ("rld", "rlc", "tampier", "scripted", "teacher")
@@ -543,7 +543,7 @@ def paper(out: str | os.PathLike, episodes: int = 10, controllers=CONTROLLERS, s
                "time_limit_s": TIME_LIMIT_S, "seed": seed, "stress": stress, "wall_s": time.monotonic() - t0,
                "jobs": jobs_n or usable_cores(), "figures": figs, "controllers_table": ctl, "slope_error_table": err,
                "paired_table": paired}
-    (out / "summary.json").write_text(json.dumps(summary, indent=1))
+    (out / "summary.json").write_text(json_out.dumps(summary, indent=1))
     head = "" if stress is None else (f"Every attempt under the stress case `{stress}` (physical conditions on every "
                                       f"controller, sensor noise on the RL actors only).\n\n")
     summary["markdown"] = (head + md_c + ("\n### RLD against the other controllers on the same piles\n\n" + md_p if md_p else "")

@@ -22,6 +22,7 @@ import json
 import shutil
 from pathlib import Path
 
+from lhd_loading_ros.task import json_out
 from lhd_loading_ros.task.config import load_config, trained_randomized
 from lhd_loading_ros.policy.actor_file import load_policy
 from lhd_loading_ros.learning.evaluate import EVAL_SLOPES, evaluate, evaluate_under
@@ -250,7 +251,7 @@ def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=prin
     ev["randomized"] = _brief(evaluate_under("randomized", variant, pol.actor, cfg, episodes, eval_seed))
     ev["stress_placement"] = _brief(evaluate_under("placement", variant, pol.actor, cfg, episodes, eval_seed))
     ev["evaluation_seed"] = eval_seed
-    (out / "evaluation.json").write_text(json.dumps(ev, indent=1) + "\n")
+    (out / "evaluation.json").write_text(json_out.dumps(ev, indent=1) + "\n")
     m = pol.meta
     lo_deg, hi_deg, _ = pol.trained_slope_range_deg(cfg)
     own_note = {"own": (" Under a parameter file that scales the observation otherwise (the default "

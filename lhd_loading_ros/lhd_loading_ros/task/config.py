@@ -145,8 +145,23 @@ SCHEMA: dict[str, Any] = {
     },
 }
 
+def _physics_steps(c: dict) -> float:
+    """MuJoCo steps in a control period (the simulator needs a whole number)."""
+    return 1.0 / c["paper"]["control"]["frequency_hz"] / c["sim"]["timestep"]
+
+
+def _whole(x: float) -> bool:
+    return abs(x - round(x)) <= 1e-6
+
+
 # Relations between keys: (description, predicate).
 _RELATIONS = [
+    # the simulator's own checks (simulator.py), said here so that `lhd config check` and every
+    # command refuse such a file with one line instead of a traceback from the simulator (a review)
+    ("sim.timestep divides the control period 1 / paper.control.frequency_hz into whole physics steps (0.004 s "
+     "into 0.1 s: 25)", lambda c: _whole(_physics_steps(c))),
+    ("sim.fee_every divides the physics steps of a control period (5 of 25)",
+     lambda c: not _whole(_physics_steps(c)) or round(_physics_steps(c)) % c["sim"]["fee_every"] == 0),
     ("training.demo_bc_return_filter = 1 only with training.demo_bc > 0 (it chooses which demonstration rows are "
      "cloned)", lambda c: not c["training"]["demo_bc_return_filter"] or c["training"]["demo_bc"] > 0.0),
     ("training.demo_crowd_min <= training.demo_crowd_max",
