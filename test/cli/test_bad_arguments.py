@@ -36,6 +36,10 @@ LHD = [sys.executable, "-m", "lhd_loading_ros.cli.main"]
      "--randomize and --stress are alternatives"),
     # a misspelled twin parameter: ROS would drop an undeclared -p override silently (a plane pile
     # where a rough one was asked for, found by a reviewer on 2026-11-28)
+    # `lhd experiment paper` (a review: a raw multiprocessing message, an internal option name)
+    (["experiment", "paper", "--episodes", "1", "--jobs", "-1"], "--jobs must be >= 0 (0: one per core), got -1"),
+    (["experiment", "paper", "--episodes", "1", "--slopes", "10,20"],
+     "--slopes: 10 deg outside the piles of the parameter file (15-30 deg"),
     # `lhd up real`: a port that does not exist, an attempt timeout the supervisor would refuse
     # (it used to start nine nodes, then the bridge retried for ever or the supervisor exited 2)
     (["up", "real", "--port", "/dev/ttyNOPE"], "--port '/dev/ttyNOPE' does not exist: expected the Due's serial "
@@ -52,6 +56,22 @@ def test_a_bad_value_is_one_line_and_exit_2(args, needle):
     assert p.returncode == 2, (p.returncode, p.stdout[-500:], p.stderr[-1500:])
     assert needle in p.stderr, p.stderr[-1500:]
     assert "Traceback" not in p.stderr and p.stdout == ""
+
+
+def test_a_refused_experiment_leaves_no_folder_and_a_path_that_cannot_be_written_is_one_line(tmp_path):
+    """A refused `lhd experiment paper` used to leave its empty --out folder; an --out under a file,
+    or `lhd mjcf --out` into a folder that does not exist, ended with a traceback (a review)."""
+    out = tmp_path / "refused"
+    p = subprocess.run(LHD + ["experiment", "paper", "--episodes", "0", "--out", str(out)], capture_output=True,
+                       text=True, timeout=120)
+    assert p.returncode == 2 and "episodes must be >= 1" in p.stderr and not out.exists(), p.stderr
+    (tmp_path / "a_file").write_text("x")
+    for args, needle in ((["experiment", "paper", "--episodes", "1", "--out", str(tmp_path / "a_file" / "x")],
+                          "lhd experiment paper: [Errno 20] Not a directory"),
+                         (["mjcf", "--out", str(tmp_path / "no_such_dir" / "m.xml")],
+                          "lhd mjcf: [Errno 2] No such file or directory")):
+        p = subprocess.run(LHD + args, capture_output=True, text=True, timeout=120)
+        assert p.returncode == 1 and p.stderr.startswith(needle) and "Traceback" not in p.stderr, p.stderr
 
 
 @pytest.mark.parametrize("module", ["lhd_loading_ros.nodes.cmd_mux_node", "lhd_sim_node.sim_node"])

@@ -367,8 +367,9 @@ def main(argv=None, demo: bool = False) -> int:
                     "sim node mode (default realtime; lockstep with --count)")
     ap.add_argument("--seed", type=nonneg_int, default=0)
     ap.add_argument("--config", default=None)
-    ap.add_argument("--namespace", help="run both nodes in this ROS namespace (their topics move from /lhd to it); "
-                    "with --count, the base of the sim nodes' namespaces (default /sim: /sim0, /sim1, ...)")
+    ap.add_argument("--namespace", help="run both nodes in this ROS namespace (their topics move from /lhd to it)"
+                    + ("" if demo else "; with --count, the base of the sim nodes' namespaces (default /sim: /sim0, "
+                                       "/sim1, ...)"))
     if not demo:
         ap.add_argument("--count", type=nonneg_int, default=0, help="start N sim nodes for learners, in namespaces "
                         "/sim0../simN-1, lockstep unless --mode says otherwise, no policy node; they run until "

@@ -159,7 +159,11 @@ def _train(args) -> int:
         print(f"lhd train: {exc}{again}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
-        print(f"\ninterrupted; run the same command again to resume from {run_dir}/checkpoint.pt", file=sys.stderr)
+        if (run_dir / "checkpoint.pt").exists():
+            print(f"\ninterrupted; run the same command again to resume from {run_dir}/checkpoint.pt", file=sys.stderr)
+        else:       # before the first checkpoint (every training.checkpoint_every steps)
+            print(f"\ninterrupted before the first checkpoint: nothing to resume from in {run_dir}; the same command "
+                  "starts the run again", file=sys.stderr)
         return 130
     print(json_out.dumps({"run": str(run_dir), "final": ev}))
     return 0
@@ -377,6 +381,12 @@ def main(argv=None) -> int:
 
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())   # the interpreter's own flush at exit must not raise again
+        return 1
+    except OSError as exc:
+        # a file or folder the command cannot read or write (`--out /etc/passwd/x`, a folder that does
+        # not exist): the path and the system's reason in one line, not a traceback (a review)
+        words = [a for a in (sys.argv[1:] if argv is None else list(argv)) if not a.startswith("-") and "/" not in a][:2]
+        print(f"lhd {' '.join(words)}: {exc}", file=sys.stderr)
         return 1
 
 

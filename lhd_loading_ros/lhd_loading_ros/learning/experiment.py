@@ -216,6 +216,16 @@ def run(jobs: list[Job], jobs_n: int = 0, config=None, policy_dirs: dict | None 
     from lhd_loading_ros.policy.actor_file import load_policy
     from lhd_loading_ros.task.config import load_config
     cfg = config if isinstance(config, dict) else load_config(config)
+    if jobs_n < 0:
+        raise ValueError(f"--jobs must be >= 0 (0: one per core), got {jobs_n}")
+    ep = cfg["paper"]["episode"]
+    lo, hi = ep["alpha_min_deg"], ep["alpha_max_deg"]
+    outside = sorted({j.slope_deg for j in jobs if not lo <= j.slope_deg <= hi})
+    if outside:      # before the pool: the environment would refuse each pile with its own option name
+        where = "--slopes" if any(j.table == "controllers" and j.slope_deg in outside for j in jobs) else \
+            "the slope-error table's piles"
+        raise ValueError(f"{where}: {', '.join(f'{a:g}' for a in outside)} deg outside the piles of the parameter file "
+                         f"({lo:g}-{hi:g} deg, paper.episode.alpha_min_deg / alpha_max_deg)")
     for c in sorted({j.controller for j in jobs} & {"rld", "rlc"}):
         load_policy(dirs[c]).check_config(cfg)    # before the pool: an actor trained with another scaling is refused
     n = jobs_n or usable_cores()
@@ -516,10 +526,16 @@ def paper(out: str | os.PathLike, episodes: int = 10, controllers=CONTROLLERS, s
           errors=ERRORS, jobs_n: int = 0, seed: int = 3_000_000, config=None, policy_dirs: dict | None = None,
           progress=sys.stderr, stress: str | None = None) -> dict:
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    created = not out.exists()
+    out.mkdir(parents=True, exist_ok=True)      # first: a folder that cannot be made is said before the run
     t0 = time.monotonic()
-    jobs = grid(controllers, slopes, materials, errors, ERROR_PILES, episodes, seed, stress)
-    rows = run(jobs, jobs_n, config, policy_dirs, progress)
+    try:
+        jobs = grid(controllers, slopes, materials, errors, ERROR_PILES, episodes, seed, stress)
+        rows = run(jobs, jobs_n, config, policy_dirs, progress)
+    except BaseException:
+        if created and not any(out.iterdir()):
+            out.rmdir()          # a refused or interrupted run leaves no empty folder behind
+        raise
     ctl = summarize_controllers(rows)
     err = summarize_slope_error(rows)
     _write_csv(out / "attempts.csv", rows)
