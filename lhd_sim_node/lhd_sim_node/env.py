@@ -32,6 +32,7 @@ from lhd_loading_ros.task.zones import classify
 from .simulator import MATERIALS, AttackError, LhdSimulator, SimulationError
 
 VARIANTS = ("rld", "rlc")
+RESET_OPTIONS = frozenset(("slope_deg", "material", "conditions", "d_attack", "attack_speed"))
 
 
 class LhdLoadingEnv(gym.Env):
@@ -73,6 +74,13 @@ class LhdLoadingEnv(gym.Env):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
         options = options or {}
+        unknown = sorted(set(options) - RESET_OPTIONS)
+        if unknown:       # a misspelt option would otherwise be dropped without a word (a review)
+            import difflib
+
+            hints = [f"{k!r} (did you mean {near[0]!r}?)" if (near := difflib.get_close_matches(k, RESET_OPTIONS, n=1))
+                     else repr(k) for k in unknown]
+            raise ValueError(f"unknown reset option {', '.join(hints)}; expected some of {', '.join(sorted(RESET_OPTIONS))}")
         slope = options.get("slope_deg", self.slope_deg)
         self._check_slope(slope, "options['slope_deg']")
         alpha = None if slope is None else math.radians(slope)

@@ -91,6 +91,7 @@ def test_a_rate_from_the_config_names_the_config(tmp_path):
 
     cfg = load_config(None)
     cfg["paper"]["control"]["frequency_hz"] = 4.0
+    cfg["sim"]["timestep"] = 0.005          # whole physics steps in 0.25 s (50; the FEE every 5 of them)
     c = tmp_path / "lhd_params_4hz.yaml"
     c.write_text(yaml.safe_dump(cfg))
     msg = command_timing_problem(default_params_file(), str(c))

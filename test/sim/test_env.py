@@ -95,3 +95,16 @@ def test_rld_filter_reaches_the_actuators(env):
     rlc.reset(seed=4)
     _, _, _, _, info = rlc.step(np.array([0.0, 0.2, -0.3]))
     assert info["command"] == pytest.approx([1.35, -0.191 * 0.4, 0.2 * 0.35])
+
+
+def test_a_misspelt_reset_option_is_refused_with_the_known_ones():
+    """reset(options={"slop_deg": 20}) used to run a random slope without a word (a review)."""
+    from lhd_loading_ros.task.config import load_config
+    from lhd_sim_node.env import LhdLoadingEnv
+
+    env = LhdLoadingEnv("rld", load_config())
+    with pytest.raises(ValueError, match=r"unknown reset option 'slop_deg' \(did you mean 'slope_deg'\?\); expected "
+                                         r"some of attack_speed, conditions, d_attack, material, slope_deg"):
+        env.reset(seed=0, options={"slop_deg": 20.0})
+    obs, _ = env.reset(seed=0, options={"slope_deg": 20.0, "material": "homogeneous"})
+    assert obs.shape == (12,)
