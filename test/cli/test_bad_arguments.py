@@ -36,6 +36,7 @@ LHD = [sys.executable, "-m", "lhd_loading_ros.cli.main"]
      "--randomize and --stress are alternatives"),
     # a misspelled twin parameter: ROS would drop an undeclared -p override silently (a plane pile
     # where a rough one was asked for, found by a reviewer on 2026-11-28)
+    (["up", "sim", "--slope", "nan"], "--slope nan: not a finite number; expected slopes in degrees, e.g. 20"),
     # `lhd experiment paper` (a review: a raw multiprocessing message, an internal option name)
     (["experiment", "paper", "--episodes", "1", "--jobs", "-1"], "--jobs must be >= 0 (0: one per core), got -1"),
     (["experiment", "paper", "--episodes", "1", "--slopes", "10,20"],

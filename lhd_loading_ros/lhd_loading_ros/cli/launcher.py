@@ -165,7 +165,10 @@ def slope_range_problem(slopes, cfg: dict, flag: str, config_name: str) -> str:
     actors were trained on), as the sim node and the environment require; refused, not clipped."""
     ep = cfg["paper"]["episode"]
     lo, hi = float(ep["alpha_min_deg"]), float(ep["alpha_max_deg"])
-    out = [s for s in slopes if not (math.isfinite(s) and lo - 1e-9 <= s <= hi + 1e-9)]
+    bad = [s for s in slopes if not math.isfinite(s)]
+    if bad:
+        return f"{flag} {' '.join(f'{s:g}' for s in bad)}: not a finite number; expected slopes in degrees, e.g. 20"
+    out = [s for s in slopes if not lo - 1e-9 <= s <= hi + 1e-9]
     if not out:
         return ""
     return (f"{flag} {' '.join(f'{s:g}' for s in out)}: outside the pile range [{lo:g}, {hi:g}] deg of {config_name} "
