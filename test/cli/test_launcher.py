@@ -236,7 +236,8 @@ def test_up_sim_rejects_a_bad_namespace():
 
 @pytest.mark.parametrize("argv, msg", [
     (["up", "sim", "--slope", "12"], "--slope 12: outside the pile range [15, 30] deg of config/lhd_params.yaml"),
-    (["demo", "--slopes", "20", "40", "nan"], "--slopes 40 nan: outside the pile range [15, 30] deg"),
+    (["demo", "--slopes", "20", "40", "nan"], "--slopes nan: not a finite number; expected slopes in degrees"),
+    (["demo", "--slopes", "20", "40"], "--slopes 40: outside the pile range [15, 30] deg"),
     (["demo", "--policy", "policies/rld_twin", "--config", "policies/rld_twin/lhd_params.yaml", "--slopes", "9.5", "35"],
      "--slopes 9.5: outside the pile range [10, 35] deg of policies/rld_twin/lhd_params.yaml"),
 ])
