@@ -135,7 +135,7 @@ def test_up_sim_refuses_a_bad_parameter_file_before_any_node_starts(tmp_path):
     part.write_text("machine: {wheel_friction: 0.45}\n")
     p = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "up", "sim", "--episodes", "1",
                         "--config", str(part)], capture_output=True, text=True, timeout=60, env=env)
-    assert p.returncode == 1, p.stderr
+    assert p.returncode == 2, p.stderr          # bad input, as a bad option
     first = p.stderr.splitlines()[0]
     assert first == f"lhd up sim: {part}: invalid LHD parameters:", p.stderr
     assert "  - missing key 'paper'" in p.stderr and "... and 23 more" in p.stderr

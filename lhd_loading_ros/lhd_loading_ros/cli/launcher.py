@@ -446,9 +446,9 @@ def main(argv=None, demo: bool = False) -> int:
         pol = load_policy(policy)
         cfg_checked = load_config(args.config)   # a bad parameter file is refused before any node starts
         pol.check_config(cfg_checked)
-    except (PolicyFileError, ConfigError) as exc:
+    except (PolicyFileError, ConfigError) as exc:     # bad input, as a bad option: status 2
         print(f"{ap.prog}: {exc}", file=sys.stderr)
-        return 1
+        return 2
     if slopes:    # before any node starts: the sim node would refuse it too
         bad = slope_range_problem(slopes, cfg_checked, "--slopes" if args.slopes else "--slope",
                                   config_name(args.config))

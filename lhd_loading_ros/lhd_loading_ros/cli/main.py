@@ -249,7 +249,9 @@ def _floats(text: str, what: str) -> tuple:
     try:
         return tuple(float(v) for v in text.split(",") if v.strip())
     except ValueError:
-        raise SystemExit(f"lhd experiment paper: --{what} {text!r}: expected comma-separated numbers, e.g. 15,20,25,30")
+        print(f"lhd experiment paper: --{what} {text!r}: expected comma-separated numbers, e.g. 15,20,25,30",
+              file=sys.stderr)
+        raise SystemExit(2) from None
 
 
 def _experiment(args) -> int:
@@ -306,7 +308,7 @@ def _report(args) -> int:
         dirs = sorted(d for d in p.glob("seed_*") if d.is_dir()) if not (p / "evals.csv").exists() else [p]
         if not dirs:
             print(f"lhd report: {r} holds no training run (no evals.csv, no seed_*/)", file=sys.stderr)
-            return 1
+            return 2
         groups[p.name if len(dirs) > 1 else str(p)] = dirs
     try:
         summaries = {k: summarize(v) for k, v in groups.items()}
