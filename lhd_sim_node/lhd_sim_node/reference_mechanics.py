@@ -314,6 +314,14 @@ GRAVEL_DENSITY = {
 }
 
 
+# The paper's real machine pushing without lifting into a pile it could not lift out of: RLC and RLD
+# told 15 deg on a 30 deg pile "end by a timeout, with the machine being stuck and trying to move
+# forward without lifting the bucket" with 23.86 +- 0.70 and 25.94 +- 0.80 kg (its slope-error
+# table, error -15 deg; the paper notes the bucket full). Whether they curled the bucket before is
+# not said: the simulator's push with the arm still is the nearest like-for-like it has.
+MACHINE_STUCK_PUSH_30DEG_KG = {"RLC": 23.86, "RLD": 25.94}
+
+
 def rating_density(heaped_m3: float, rated_kg: float) -> float:
     """The loose material density at which a bucket of heaped volume `heaped_m3` (SAE J742 / ISO
     7546, 2:1 heap) holds its rated payload `rated_kg`: a loader bucket is sized so that rated

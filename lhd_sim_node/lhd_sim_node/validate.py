@@ -396,7 +396,7 @@ def naive_controllers(cfg: dict, slopes=SLOPES, materials=MATERIALS, seeds=(0, 1
                     res.append(_run(env, pol, s, a, mat))
                     if name == "push_only":
                         push_end.append((abs(env.state.v_x) < 0.02, float(env.sim.loaded_mass),
-                                         float(getattr(env.sim, "spilled_mass", math.nan))))
+                                         float(getattr(env.sim, "spilled_mass", math.nan)), float(a), mat))
         out[name] = _summ(res)
     stalled = [e[0] for e in push_end]
     loads = [e[1] for e in push_end]
@@ -405,6 +405,12 @@ def naive_controllers(cfg: dict, slopes=SLOPES, materials=MATERIALS, seeds=(0, 1
     out["push_only"]["loaded_at_end_kg_mean"] = float(np.mean(loads))
     out["push_only"]["loaded_at_end_kg_max"] = float(np.max(loads))
     out["push_only"]["full_kg"] = full_kg
+    # the load a push with the arm still ends with, by slope: on 30 deg piles next to the machine's
+    # stuck pushes (reference_mechanics.MACHINE_STUCK_PUSH_30DEG_KG; docs/modeling.md "Open physics findings")
+    # (homogeneous piles, as the machine's)
+    homo = [e for e in push_end if e[4] == "homogeneous"]
+    out["push_only"]["loaded_at_end_kg_by_slope"] = {
+        f"{a:g}": float(np.mean([e[1] for e in homo if e[3] == a])) for a in sorted({e[3] for e in homo})}
     out["push_stalls_before_full"] = bool(all(stalled) and (not math.isfinite(full_kg) or max(loads) < full_kg))
     out["all_at_most_20pct"] = bool(all(out[k]["success_rate"] <= 0.2 for k in ctl))
     return out
@@ -491,6 +497,13 @@ def format_report(res: dict) -> str:
     L.append(f"      push only: stalled in {p['stalled_fraction']*100:.0f} % of attempts with {p['loaded_at_end_kg_mean']:.1f} kg "
              f"(max {p['loaded_at_end_kg_max']:.1f}; spilled {_f(p['spilled_kg_mean'], '{:.1f}')}) against a full bucket of {_f(p['full_kg'], '{:.1f}')} kg: "
              f"stalls before full: {nv['push_stalls_before_full']}; all <= 20 %: {nv['all_at_most_20pct']}")
+    by = p.get("loaded_at_end_kg_by_slope", {})
+    if by:
+        from .reference_mechanics import MACHINE_STUCK_PUSH_30DEG_KG as ref
+        L.append("      push only on homogeneous piles, load at the end by slope: " + ", ".join(f"{a} deg {v:.1f} kg" for a, v in by.items())
+                 + "; the paper's machine stuck pushing on 30 deg piles (told 15 deg): "
+                 + " / ".join(f"{k} {v:.1f}" for k, v in ref.items()) + " kg"
+                 + (f" (the simulator's 30 deg push: {by['30'] / np.mean(list(ref.values())):.2f} of it)" if "30" in by else ""))
     L.append(f"({res['wall_s']:.0f} s)")
     return "\n".join(L)
 

@@ -44,6 +44,8 @@ def test_validate_physics_quick_json_and_plots(tmp_path, capsys):
     for k in ("push_only", "curl_lift_no_drive", "random"):
         assert 0.0 <= res["naive"][k]["success_rate"] <= 1.0
     assert isinstance(res["naive"]["push_stalls_before_full"], bool)
+    by = res["naive"]["push_only"]["loaded_at_end_kg_by_slope"]
+    assert set(by) >= {"15", "30"} and all(_finite(v) and v >= 0.0 for v in by.values())
     # the plots
     assert len(res["plots"]) == 4
     for p in res["plots"]:
