@@ -21,7 +21,7 @@ from lhd_loading_ros.task import json_out
 from lhd_loading_ros.cli.argtypes import pos_int
 from lhd_loading_ros.task.attempt import ENDED
 from lhd_loading_ros.task.attempt_record import (CSV_NAME, check_mass, csv_path, format_table, read_rows,
-                                                 summarize, weigh_row)
+                                                 never_ran_refusal, summarize, weigh_row)
 
 WAIT_S = 5.0
 HISTORY_S = 0.3          # s to let a latched topic's history arrive after its first message
@@ -192,8 +192,7 @@ def attempt_mass_main(argv=None) -> int:
             what = "no attempt has ended yet" if st.get("state") == "idle" else f"attempt {n} is {st.get('state')}"
             return _err(prog, f"refused: {what}; weigh the bucket after the attempt ends")
         if st.get("ran") == "false":
-            return _err(prog, f"refused: attempt {n} ended before it ran: nothing was loaded. To weigh an "
-                              "earlier attempt: `lhd attempt mass KG --attempt N`")
+            return _err(prog, f"refused: {never_ran_refusal(n)}")
         pub = ros.node.create_publisher(Float64, f"{ns}/attempt/mass", MASS_QOS)
         if not ros.spin_until(lambda: pub.get_subscription_count() > 0, args.timeout):
             return _err(prog, f"no supervisor subscribes {ns}/attempt/mass")

@@ -360,7 +360,7 @@ def preflight_problems(st) -> list[str]:
 def mass_refusal(text: str, status: dict) -> str:
     """Why the operator's `m KG` cannot weigh the supervisor's latest attempt (its /lhd/episode
     values `status`), or "": the supervisor refuses the same, but only in its log."""
-    from lhd_loading_ros.task.attempt_record import check_mass
+    from lhd_loading_ros.task.attempt_record import check_mass, never_ran_refusal
 
     try:
         check_mass(text)
@@ -371,8 +371,7 @@ def mass_refusal(text: str, status: dict) -> str:
         return ("no attempt has ended yet" if s in (None, "idle") else f"attempt {n} is {s}") + \
             ": weigh the bucket after the attempt ends"
     if status.get("ran") == "false":
-        return (f"attempt {n} ended before it ran: nothing was loaded. To weigh an earlier attempt: "
-                "`lhd attempt mass KG --attempt N`")
+        return never_ran_refusal(n)
     return ""
 
 

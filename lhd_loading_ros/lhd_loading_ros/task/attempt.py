@@ -43,7 +43,8 @@ import statistics
 from collections import deque
 from dataclasses import dataclass, field, fields, replace
 
-from lhd_loading_ros.task.attempt_record import INTERRUPTED_REASON, AttemptRow, bag_name, check_mass, judge
+from lhd_loading_ros.task.attempt_record import (INTERRUPTED_REASON, AttemptRow, bag_name, check_mass, judge,
+                                                 never_ran_refusal)
 from lhd_loading_ros.task.kinematics import ArmKinematics, nose_down_pitch, quat_to_mat, state_from_measurements, with_tilt
 from lhd_loading_ros.task.metrics import drift_pct
 from lhd_loading_ros.task.state import LhdState
@@ -665,8 +666,7 @@ class Supervisor:
         if a.running_at is None:
             # ended while armed (aborted, e-stop): the bucket on the scale is an earlier attempt's, whose row
             # would keep no mass while this one got it
-            raise ValueError(f"attempt {a.number} ended before it ran: nothing was loaded. To weigh an earlier "
-                             "attempt: `lhd attempt mass KG --attempt N`")
+            raise ValueError(never_ran_refusal(a.number))
         if source == "load_cell" and a.mass_source == "operator":
             raise ValueError(f"attempt {a.number} was weighed by the operator; the load cell does not replace it")
         a.mass, a.mass_source = m, source

@@ -238,6 +238,13 @@ def upsert_row(path, row: AttemptRow) -> None:
     write_rows(path, rows + [row])
 
 
+def never_ran_refusal(attempt) -> str:
+    """Why a mass for `attempt`, which ended while armed, is refused: one wording for the supervisor,
+    `lhd attempt mass` and the launcher's `m KG`."""
+    return (f"attempt {attempt} ended before it ran: nothing was loaded. To weigh an earlier attempt: "
+            "`lhd attempt mass KG --attempt N`")
+
+
 def never_ran(row: AttemptRow) -> bool:
     """An attempt that ended while armed (aborted by the operator or by a set-up that changed, the
     e-stop, a silent input): it never ran, so nothing was loaded; the supervisor writes it with an
