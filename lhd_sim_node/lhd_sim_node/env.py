@@ -7,8 +7,12 @@ Observation: the 12-vector of lhd_loading_ros.task.observation. Action: [-1, 1]^
 randomize=True (default: the config's randomization.enabled) draws each episode's conditions
 (task/randomization.py: slope-estimate error, sensor noise, dropouts and delays, actuator dead
 time, material, tyre friction, start pose); reset(options={"conditions": Conditions(...)}) sets
-them instead. The reward and the episode's outcome use the true state; only the observation
-carries the sensor errors.
+them instead. The reward and the episode's outcome use the true state of the machine and the
+pile; the observation carries the sensor errors. A slope-estimate error (conditions.slope_error_deg,
+and a rough face's scanned slice) also moves the zones when zones_from_estimate is on (default: the
+config's randomization.zones_from_slope_estimate): on the machine the end-zone node builds them from
+the LiDAR's slope, so the observed d_end, the end zone and the restricted zone that end the episode
+(the supervisor's) are the estimate's (task/zones.zones_for_slope_estimate); the pile is the true one.
 An episode ends with success (bucket tip in the end zone), failure (restricted zone), or
 truncation after max_steps (200) control steps, which is not a terminal state.
 """
@@ -27,7 +31,7 @@ from lhd_loading_ros.task.metrics import EpisodeResult, drift_pct, success_level
 from lhd_loading_ros.task.observation import OBS_HIGH, OBS_LOW, build_observation
 from lhd_loading_ros.task.randomization import NOMINAL, Conditions, ObservationCorruptor, RandomizationRanges, draw
 from lhd_loading_ros.task.reward import RewardTracker
-from lhd_loading_ros.task.zones import classify
+from lhd_loading_ros.task.zones import classify, zones_for_slope_estimate
 
 from .simulator import MATERIALS, AttackError, LhdSimulator, SimulationError
 
@@ -39,7 +43,8 @@ class LhdLoadingEnv(gym.Env):
     metadata = {"render_modes": [], "render_fps": 10}
 
     def __init__(self, variant: str = "rld", config: dict | str | None = None, slope_deg: float | None = None,
-                 material: str | None = None, deploy_filter: bool = False, randomize: bool | None = None):
+                 material: str | None = None, deploy_filter: bool = False, randomize: bool | None = None,
+                 zones_from_estimate: bool | None = None):
         if variant not in VARIANTS:
             raise ValueError(f"variant must be one of {VARIANTS}, got {variant!r}")
         if material is not None and material not in MATERIALS:
@@ -54,6 +59,10 @@ class LhdLoadingEnv(gym.Env):
         self.deploy_filter = deploy_filter
         self.ranges = RandomizationRanges.from_config(self.cfg)
         self.randomize = self.ranges.enabled if randomize is None else bool(randomize)
+        self.zones_from_estimate = (self.ranges.zones_from_slope_estimate if zones_from_estimate is None
+                                    else bool(zones_from_estimate))
+        self.zones = None
+        self.zones_from = "pile"
         self.conditions = NOMINAL
         self.observation_space = gym.spaces.Box(OBS_LOW, OBS_HIGH, dtype=np.float32)
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
@@ -99,9 +108,10 @@ class LhdLoadingEnv(gym.Env):
             slice_err = math.degrees(self.sim.pile.slice_slope(0.0) - self.sim.pile.alpha)
             c_obs = replace(c, slope_error_deg=c.slope_error_deg + slice_err)
         self._sensors = None if c_obs == NOMINAL else ObservationCorruptor(c_obs, self.np_random)
+        self.zones, self.zones_from = self._task_zones(c_obs)
         s = self.sim.state()
         # the reward's x_midgoal: the paper's constant, or this pile's x_min (task.midgoal_from_pile)
-        self.tracker = RewardTracker(self.p.for_pile(self.sim.zones), self.sim.zones, self.p.h_pile)
+        self.tracker = RewardTracker(self.p.for_pile(self.zones), self.zones, self.p.h_pile)
         self.tracker.reset(s, self.sim.loaded_mass)
         self.steps = 0
         self.ret = 0.0
@@ -130,7 +140,7 @@ class LhdLoadingEnv(gym.Env):
         self.sim.step(u)
         s = self.sim.state()
         self.steps += 1
-        zone = classify(s.x_shovel, s.y_shovel, s.z_shovel, self.sim.zones)
+        zone = classify(s.x_shovel, s.y_shovel, s.z_shovel, self.zones)
         outcome = {"end": "success", "restricted": "failure"}.get(zone, "running")
         pile = self.sim.pile
         inside = 0.0 <= s.x_shovel < pile.L and s.z_shovel < pile.surface_height(s.x_shovel)
@@ -153,19 +163,34 @@ class LhdLoadingEnv(gym.Env):
         return self._obs(s), r, terminated, truncated, info
 
     # ------------------------------------------------------------------ helpers
+    def _task_zones(self, c_obs: Conditions):
+        """The zones the episode is observed and ended with, and where they come from: the pile's
+        own, or (zones_from_estimate, a slope-estimate error) those the end-zone node builds from
+        the estimate. An estimate outside the LiDAR's physical range gets none on the machine (the
+        attempt would not start); here the pile's own zones stand in ("pile, estimate out of range")."""
+        zones = self.sim.zones
+        if not self.zones_from_estimate or c_obs.slope_error_deg == 0.0:
+            return zones, "pile"
+        alpha = self.sim.pile.alpha
+        try:
+            return zones_for_slope_estimate(zones, alpha, alpha + math.radians(c_obs.slope_error_deg), self.p), \
+                "estimate"
+        except ValueError:
+            return zones, "pile, estimate out of range"
+
     def _obs(self, s):
         alpha = self.sim.pile.alpha
         if self._sensors is not None:        # what the camera and the LiDAR tell the policy
             v_x, alpha = self._sensors.observe(s.v_x, alpha)
             s = replace(s, v_x=v_x)
-        return build_observation(s, alpha, self.sim.zones.x_max, self.p)
+        return build_observation(s, alpha, self.zones.x_max, self.p)
 
     def _info(self, s, outcome: str, terms: dict, u=None) -> dict[str, Any]:
         return {
             "outcome": outcome, "terms": terms, "loaded_mass": self.sim.loaded_mass,
             "spilled_mass": self.sim.spilled_mass,  # kg loaded beyond the bucket's capacity and spilled
             "alpha_deg": math.degrees(self.sim.pile.alpha), "material": self.sim.material,
-            "x_min": self.sim.zones.x_min, "x_max": self.sim.zones.x_max,
+            "x_min": self.zones.x_min, "x_max": self.zones.x_max, "zones_from": self.zones_from,
             "drift_front": s.drift_front, "drift_rear": s.drift_rear,
             "command": None if u is None else u.tolist(),
             "conditions": self.conditions,

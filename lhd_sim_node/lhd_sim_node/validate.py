@@ -503,7 +503,10 @@ def format_report(res: dict) -> str:
         L.append("      push only on homogeneous piles, load at the end by slope: " + ", ".join(f"{a} deg {v:.1f} kg" for a, v in by.items())
                  + "; the paper's machine stuck pushing on 30 deg piles (told 15 deg): "
                  + " / ".join(f"{k} {v:.1f}" for k, v in ref.items()) + " kg"
-                 + (f" (the simulator's 30 deg push: {by['30'] / np.mean(list(ref.values())):.2f} of it)" if "30" in by else ""))
+                 + (f" (the simulator's 30 deg push: {by['30'] / np.mean(list(ref.values())):.2f} of it)" if "30" in by else "")
+                 + "; not like for like: the machine stalled 'with the bucket of material full' after its own lift and"
+                 " curl; the same experiment with the paper-protocol actor is `lhd experiment paper --rld policies/rld_paper`"
+                 " (table b; docs/modeling.md \"Open physics findings\")")
     L.append(f"({res['wall_s']:.0f} s)")
     return "\n".join(L)
 

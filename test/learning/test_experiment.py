@@ -29,6 +29,25 @@ def test_grid_gives_every_controller_the_same_piles():
         ex.grid(("ppo",))
 
 
+def test_the_told_slope_is_the_lidars_estimate_alpha_and_zones():
+    """A 15 deg pile told 30 deg in table (b): alpha is the told slope and the zones are the 30 deg
+    wedge's (the end-zone node's, from the estimate): the attempt's d_end measures to the told
+    x_max (1.299 -> 0.885 m at 1,880 kg/m^3: by the ratio sqrt(tan 15 / tan 30) = 0.681)."""
+    from lhd_loading_ros.policy.actor_file import default_policy_dir
+    ex._setup(None, {"rld": str(default_policy_dir("rld"))})   # what each pool worker gets
+    job = ex.Job("slope_error", "rld", 15.0, 30.0, "homogeneous", 77)
+    row = ex.run_job(job)                       # the real actor, simulator and zones
+    assert row["told_deg"] == 30.0 and 0.0 < row["loaded_kg"] < 60.0
+    env = ex._env("rld")
+    assert env.zones_from_estimate and env.zones_from == "estimate"
+    k = math.sqrt(math.tan(math.radians(15.0)) / math.tan(math.radians(30.0)))
+    assert env.zones.x_max == pytest.approx(env.sim.zones.x_max * k)
+    assert env.zones.x_cutoff == pytest.approx(0.68 / math.tan(math.radians(30.0)) - 0.1)
+    # no error: the pile's own zones
+    ex.run_job(ex.Job("slope_error", "rld", 15.0, 15.0, "homogeneous", 77))
+    assert env.zones_from == "pile" and env.zones == env.sim.zones
+
+
 def test_the_told_slope_changes_only_the_observed_alpha():
     from lhd_sim_node.env import LhdLoadingEnv
     env = LhdLoadingEnv("rld")

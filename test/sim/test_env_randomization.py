@@ -364,3 +364,49 @@ def test_cohesive_stress_case_reaches_the_voxels_and_stalls_the_push_sooner(cfg)
     assert f_n == pytest.approx(drive_limit, rel=0.1) and f_c == pytest.approx(drive_limit, rel=0.1)
     assert x_c < x_n - 0.05, ends               # stalled at least 5 cm short
     assert d_c < d_n - 0.02, ends               # with the lip at least 2 cm less deep
+
+
+def test_a_slope_estimate_error_moves_the_zones_the_episode_is_observed_and_ended_with(cfg):
+    """On the machine the end-zone node builds the zones from the LiDAR's slope: a 15 deg pile told
+    45 deg gets the 45 deg wedge's zones, whose restricted zone starts at 0.68 / tan 45 - 0.1 =
+    0.58 m, where the pile's own starts at 0.68 / tan 15 - 0.1 = 2.44 m. Pushing into it with the
+    arm still ends the episode there as a failure (the supervisor's restricted zone); with the
+    slope error in the observed alpha only (zones_from_estimate=False) the same push goes on past
+    it. The observed d_end is measured to the estimate's x_max in both the reset and the steps."""
+    told = Conditions(slope_error_deg=30.0)
+    opts = dict(slope_deg=15.0, material="homogeneous", conditions=told, d_attack=0.15, attack_speed=2.7)
+    est = LhdLoadingEnv("rld", cfg, zones_from_estimate=True)
+    own = LhdLoadingEnv("rld", cfg, zones_from_estimate=False)
+    oe, ie = est.reset(seed=3, options=opts)
+    oo, io = own.reset(seed=3, options=opts)
+    assert ie["zones_from"] == "estimate" and io["zones_from"] == "pile"
+    pile_z = own.sim.zones
+    k = math.sqrt(math.tan(math.radians(15)) / math.tan(math.radians(45)))
+    # scaled by the wedge's ratio, at most the told wedge's depth (0.68 m at 45 deg)
+    assert ie["x_max"] == pytest.approx(min(pile_z.x_max * k, 0.68)) and io["x_max"] == pile_z.x_max
+    assert est.zones.x_cutoff == pytest.approx(0.68 - 0.1) and pile_z.x_cutoff == pytest.approx(0.68 / math.tan(
+        math.radians(15)) - 0.1)
+    p = est.p
+    x = est.state.x_shovel
+    assert oe[10] == pytest.approx(abs(x - ie["x_max"]) / p.d_end_max, abs=1e-6)
+    assert oo[10] == pytest.approx(abs(x - pile_z.x_max) / p.d_end_max, abs=1e-6)
+    np.testing.assert_array_equal(np.delete(oe, 10), np.delete(oo, 10))   # the rest is the same sensor reading
+    push = np.array([2.7, 0.0, 0.0])            # rad/s: full wheel speed, boom and bucket still
+    ends = {}
+    for name, env in (("est", est), ("own", own)):
+        for k_step in range(60):
+            obs, r, term, trunc, info = env.step_actuator(push)
+            if term or trunc:
+                break
+        ends[name] = (info["outcome"], env.state.x_shovel, k_step)
+    # judged at the end of a 0.1 s period: past the limit by at most a period's travel (0.37 m/s)
+    assert ends["est"][0] == "failure" and 0.58 <= ends["est"][1] < 0.58 + 0.04, ends
+    assert ends["own"][0] == "running" and ends["own"][1] > 0.62, ends
+
+
+def test_an_estimate_outside_the_lidars_range_leaves_the_piles_zones(cfg):
+    """A 15 deg pile told 0 deg: the end-zone node publishes nothing (the attempt would not start on
+    the machine); the simulated episode keeps the pile's zones and says so."""
+    env = LhdLoadingEnv("rld", cfg, zones_from_estimate=True)
+    _, info = env.reset(seed=3, options=dict(slope_deg=15.0, conditions=Conditions(slope_error_deg=-15.0)))
+    assert info["zones_from"] == "pile, estimate out of range" and info["x_max"] == env.sim.zones.x_max

@@ -216,7 +216,8 @@ def _eval(args) -> int:
         print(f"lhd eval: {exc}", file=sys.stderr)
         return 1
     deploy = args.deploy_filter
-    env = LhdLoadingEnv(pol.variant, cfg, deploy_filter=deploy, randomize=args.randomize or None)
+    env = LhdLoadingEnv(pol.variant, cfg, deploy_filter=deploy, randomize=args.randomize or None,
+                        zones_from_estimate=True)
     res = evaluate(env, pol.actor, args.episodes, args.seed, cfg["task"]["bucket_capacity"], stress=args.stress)
     res.update({"policy": str(args.policy), "variant": pol.variant, "seed": args.seed, "deploy_filter": deploy,
                 "randomize": env.randomize, "stress": args.stress})

@@ -44,7 +44,7 @@ def run_tampier_episode(env, ctl: TampierController, seed: int, options: dict,
     pitch, loaded mass) for tests and plots."""
     env.reset(seed=seed, options=options)
     ctl.reset()
-    z = env.sim.zones
+    z = env.zones      # what the end-zone node gives the controller (the estimate's, with a slope error)
     end_zone = (z.x_min, z.x_max, z.z_min)
     limit = None if time_limit_s is None else max(1, int(round(time_limit_s / env.p.control_dt)))
     s0 = env.state

@@ -79,6 +79,7 @@ def evaluate_under(condition: str, variant: str, actor, cfg: dict, episodes: int
     if condition not in CONDITIONS + STRESS_CASES:
         raise ValueError(f"unknown condition {condition!r}; expected nominal, randomized or one of "
                          f"{', '.join(STRESS_CASES)}")
-    env = LhdLoadingEnv(variant, cfg, deploy_filter=(variant == "rlc"), randomize=(condition == "randomized"))
+    env = LhdLoadingEnv(variant, cfg, deploy_filter=(variant == "rlc"), randomize=(condition == "randomized"),
+                        zones_from_estimate=True)
     return evaluate(env, actor, episodes, seed, cfg["task"]["bucket_capacity"], breakdown=breakdown,
                     stress=None if condition in CONDITIONS else condition)

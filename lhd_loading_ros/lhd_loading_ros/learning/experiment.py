@@ -5,9 +5,11 @@
     rate, and over the SUCCESSFUL attempts (as the paper reports them) loaded mass, time, front and
     rear drift, mean and standard deviation.
 (b) **Slope error** (the paper's robustness table and a sweep): the RL actors on 15 and 30 deg
-    piles told a wrong slope (the observation's alpha is the told slope, everything else the true
-    pile): the paper's two cases (a 15 deg pile told 30, a 30 deg pile told 15) are the +15 and -15
-    deg entries of a sweep over `errors`.
+    piles told a wrong slope: the observation's alpha is the told slope, and the zones are those the
+    end-zone node builds from it (d_end, the end zone and the restricted zone that end the attempt;
+    task/zones.zones_for_slope_estimate; before 2026-11-28 the true pile's), everything else the
+    true pile: the paper's two cases (a 15 deg pile told 30, a 30 deg pile told 15) are the +15 and
+    -15 deg entries of a sweep over `errors`.
 
 Controllers: `rld`, `rlc` (the shipped actors, policies/; RLC with the deployment filter, as on the
 machine), `tampier` (the Tampier-style heuristic, config/tampier.yaml), `scripted` (the fixed
@@ -28,7 +30,8 @@ the RL actors' observations: the heuristic and the scripted maneuvers read the s
 
 A told slope outside the actors' trained range (15-30 deg) is given to the actor as it is, as a
 wrong LiDAR estimate would be: the normalised alpha then leaves [0, 1]. The nodes refuse such a
-slope; this table shows what the actor alone would do.
+slope; this table shows what the actor alone would do. Below the LiDAR's 5 deg the end-zone node
+builds no zones; such a cell keeps the pile's own.
 
 Writes to `out`: attempts.csv (one row per attempt), table_controllers.md/.csv,
 table_slope_error.md/.csv, table_paired.md/.csv (RLD against each other controller on the same piles:
@@ -41,7 +44,7 @@ import math
 import os
 import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -120,7 +123,7 @@ def _env(variant: str, deploy_filter: bool = False):
     if key not in _WORKER:
         cfg = _WORKER.get("config")
         cfg = cfg if isinstance(cfg, dict) else load_config(cfg)
-        _WORKER[key] = LhdLoadingEnv(variant, cfg, deploy_filter=deploy_filter)
+        _WORKER[key] = LhdLoadingEnv(variant, cfg, deploy_filter=deploy_filter, zones_from_estimate=True)
     return _WORKER[key]
 
 
@@ -159,6 +162,13 @@ def run_job(job: Job) -> dict:
     if job.stress is not None:
         from lhd_loading_ros.task.randomization import stress_conditions
         opts["conditions"] = stress_conditions(job.stress, job.attempt, env.cfg)
+    if job.told_deg != job.slope_deg:
+        # the told slope is the LiDAR's estimate: the environment builds the zones from it (d_end, the end
+        # and restricted zones), as the end-zone node does on the machine; told_observation below puts it
+        # into alpha as it is, also outside [alpha_min, alpha_max], where the environment would clip it
+        from lhd_loading_ros.task.randomization import NOMINAL
+        c0 = opts.get("conditions", NOMINAL)
+        opts["conditions"] = replace(c0, slope_error_deg=c0.slope_error_deg + job.told_deg - job.slope_deg)
     obs, _ = env.reset(seed=job.seed, options=opts)
     profile = None
     if job.trace:
@@ -173,7 +183,7 @@ def run_job(job: Job) -> dict:
             _WORKER[("tampier",)] = TampierController(load_tampier_config(), env.p)
         ctl = _WORKER[("tampier",)]
         ctl.reset()
-        z = env.sim.zones
+        z = env.zones      # what the end-zone node gives the controller (the estimate's, with a slope error)
         end_zone = (z.x_min, z.x_max, z.z_min)
     path = [(env.state.x_shovel, env.state.z_shovel)]
     while True:

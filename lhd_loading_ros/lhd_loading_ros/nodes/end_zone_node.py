@@ -42,6 +42,7 @@ from lhd_loading_ros.task.config import load_config
 from lhd_loading_ros.task.end_zone import (DENSITY_RANGE, InputLimits, Republisher, density_problem, largest_change,
                                            load_survey, nominal_density, zones_of_pile)
 from lhd_loading_ros.task.params import TaskParams
+from lhd_loading_ros.task.zones import ESTIMATE_SLOPE_RANGE_DEG
 
 SOURCES = ("lidar", "surveyed")
 OVERTAKEN_NS = 1_000_000_000    # a sample this much older (source time) than the one taken came late
@@ -67,9 +68,9 @@ class EndZoneNode(Node):
             Param("republish_threshold", 0.02, "m: a new estimate is published when x_min, x_max or x_cutoff "
                   "moved by more than this from the published one (the first is always published)", lo=0.0, hi=1.0,
                   on_change=self._set_threshold),
-            Param("slope_min_deg", 5.0, "smallest pile slope accepted (deg)", lo=0.5, hi=89.5,
+            Param("slope_min_deg", ESTIMATE_SLOPE_RANGE_DEG[0], "smallest pile slope accepted (deg)", lo=0.5, hi=89.5,
                   check=lambda v: self._range_problem(v, None)),
-            Param("slope_max_deg", 50.0, "largest pile slope accepted (deg)", lo=0.5, hi=89.5,
+            Param("slope_max_deg", ESTIMATE_SLOPE_RANGE_DEG[1], "largest pile slope accepted (deg)", lo=0.5, hi=89.5,
                   check=lambda v: self._range_problem(None, v)),
             Param("toe_x_limit", 5.0, "m: a toe farther than this from the pile frame's origin is refused",
                   lo=0.01, hi=100.0),

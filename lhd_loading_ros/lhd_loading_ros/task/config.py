@@ -130,6 +130,7 @@ SCHEMA: dict[str, Any] = {
         "heading_max_deg": _f(0.0, 45.0), "lateral_offset_max": _f(0.0, 1.0),
         "drive_gain_min": _f(0.1, 2.0), "drive_gain_max": _f(0.1, 2.0),
         "hydraulic_gain_min": _f(0.1, 2.0), "hydraulic_gain_max": _f(0.1, 2.0),
+        "zones_from_slope_estimate": _i(0, 1),
     },
     "training": {
         "total_steps": _i(1, 100_000_000), "noise_decay_steps": _i(0, 100_000_000), "noise_final_scale": _f(0.0, 1.0),
@@ -272,7 +273,10 @@ OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curric
                      ("training", "demo_bc_return_filter"): 0,
                      # actuator gains drawn per episode (task/randomization.py); 1 = the simulator's actuators
                      ("randomization", "drive_gain_min"): 1.0, ("randomization", "drive_gain_max"): 1.0,
-                     ("randomization", "hydraulic_gain_min"): 1.0, ("randomization", "hydraulic_gain_max"): 1.0}
+                     ("randomization", "hydraulic_gain_min"): 1.0, ("randomization", "hydraulic_gain_max"): 1.0,
+                     # 0: a slope-estimate error reached the observed alpha only, not the zones built from it
+                     # (before 2026-11-28; task/zones.zones_for_slope_estimate)
+                     ("randomization", "zones_from_slope_estimate"): 0}
 ACTUATOR_GAIN_KEYS = ("drive_gain_min", "drive_gain_max", "hydraulic_gain_min", "hydraulic_gain_max")
 
 
@@ -426,9 +430,15 @@ def config_hash(cfg: dict) -> str:
         cfg = {**cfg, "machine": {k: v for k, v in cfg["machine"].items() if k != "rear_differential"}}
     if int(cfg.get("randomization", {}).get("enabled", 0)) == 0:
         cfg = {k: v for k, v in cfg.items() if k != "randomization"}
-    elif all(float(cfg["randomization"].get(k, 1.0)) == 1.0 for k in ACTUATOR_GAIN_KEYS):
-        # actuator gains at 1 (off): the hash randomised actors had before the keys existed (2026-11-28)
-        cfg = {**cfg, "randomization": {k: v for k, v in cfg["randomization"].items() if k not in ACTUATOR_GAIN_KEYS}}
+    else:
+        drop = set()
+        if all(float(cfg["randomization"].get(k, 1.0)) == 1.0 for k in ACTUATOR_GAIN_KEYS):
+            # actuator gains at 1 (off): the hash randomised actors had before the keys existed (2026-11-28)
+            drop.update(ACTUATOR_GAIN_KEYS)
+        if int(cfg["randomization"].get("zones_from_slope_estimate", 0)) == 0:
+            drop.add("zones_from_slope_estimate")      # likewise: the slope error in the observed alpha only
+        if drop:
+            cfg = {**cfg, "randomization": {k: v for k, v in cfg["randomization"].items() if k not in drop}}
     if "task" in cfg and float(cfg["task"].get("r_success_pitch_margin_deg", 0.0)) == 0.0:
         cfg = {**cfg, "task": {k: v for k, v in cfg["task"].items() if k != "r_success_pitch_margin_deg"}}
     if "task" in cfg and float(cfg["task"].get("r_tilt_per_deg", 0.0)) == 0.0:
@@ -441,8 +451,10 @@ def training_variants(cfg: dict, trained_margin_deg: float | None = None,
     """`cfg` with its TRAINING_ONLY settings at every value an actor that runs on it may have
     been trained with: randomisation on or off (this config's ranges), r_success's pitch
     margin at 0 (actors trained before it existed), at this config's value, or at
-    `trained_margin_deg` (the card's `trained_with`), and the tilt penalty off, at this
-    config's (r_tilt_per_deg, r_tilt_free_deg) or at `trained_tilt` (the card's)."""
+    `trained_margin_deg` (the card's `trained_with`), the tilt penalty off, at this
+    config's (r_tilt_per_deg, r_tilt_free_deg) or at `trained_tilt` (the card's), and, randomised,
+    a slope-estimate error in the observed alpha only or also in the zones
+    (randomization.zones_from_slope_estimate 0 or this config's)."""
     rands = [0, 1] if "randomization" in cfg else [None]
     task = cfg.get("task", {})
     margins = {0.0, float(task.get("r_success_pitch_margin_deg", 0.0))}
@@ -451,9 +463,14 @@ def training_variants(cfg: dict, trained_margin_deg: float | None = None,
     tilts = {(0.0, 0.0), (float(task.get("r_tilt_per_deg", 0.0)), float(task.get("r_tilt_free_deg", 0.0)))}
     if trained_tilt is not None:
         tilts.add((float(trained_tilt[0]), float(trained_tilt[1])))
+    zfe = {0, int(cfg.get("randomization", {}).get("zones_from_slope_estimate", 0))}
     out = []
+    cs = []
     for rand in rands:
         c = cfg if rand is None else _with(cfg, "randomization", "enabled", rand)
+        # where a slope-estimate error went while it trained (randomised only: alpha alone before 2026-11-28)
+        cs += [c] if rand != 1 else [_with(c, "randomization", "zones_from_slope_estimate", z) for z in sorted(zfe)]
+    for c in cs:
         for m in sorted(margins):
             cm = _with(c, "task", "r_success_pitch_margin_deg", m)
             for per_deg, free in sorted(tilts):

@@ -78,6 +78,7 @@ class RandomizationRanges:
     chunk_s: float                      # the grain of the actuator delay (one FEE chunk)
     drive_gain: tuple[float, float] = (1.0, 1.0)
     hydraulic_gain: tuple[float, float] = (1.0, 1.0)
+    zones_from_slope_estimate: bool = False   # a slope-estimate error also moves the zones (task/zones.py)
 
     @classmethod
     def from_config(cls, cfg: dict) -> "RandomizationRanges":
@@ -99,6 +100,7 @@ class RandomizationRanges:
             chunk_s=cfg["sim"]["timestep"] * cfg["sim"]["fee_every"],
             drive_gain=(r.get("drive_gain_min", 1.0), r.get("drive_gain_max", 1.0)),
             hydraulic_gain=(r.get("hydraulic_gain_min", 1.0), r.get("hydraulic_gain_max", 1.0)),
+            zones_from_slope_estimate=bool(r.get("zones_from_slope_estimate", 0)),
         )
 
 

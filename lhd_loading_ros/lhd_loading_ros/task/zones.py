@@ -95,6 +95,38 @@ def wedge_x_at_mass(m: float, alpha: float, density: float, w: float, h: float) 
     return min(math.sqrt(2.0 * m / (density * w * tan_a)), h / tan_a)
 
 
+# The LiDAR slope node's physical range (its and the end-zone node's slope_min_deg / slope_max_deg
+# defaults): an estimate outside it publishes no zones on the machine.
+ESTIMATE_SLOPE_RANGE_DEG = (5.0, 50.0)
+
+
+def zones_for_slope_estimate(zones: Zones, alpha_true: float, alpha_est: float, p) -> Zones:
+    """The zones the machine works with when the LiDAR estimates the face at alpha_est while it
+    rises at alpha_true: the end-zone node builds them from the estimate with the wedge of
+    `for_measured_pile`, so they move with the slope error. `zones` are the pile's own (for_pile);
+    its x_min / x_max are scaled by the wedge's ratio s_est / s_true = sqrt(tan alpha_true /
+    tan alpha_est) (s(m) = sqrt(2 m / (rho w tan alpha)) at the same mass and density, so the
+    pile's own density, rocks and voxels stay in them: no error, no change), capped at the
+    estimated wedge's depth L_est = h / tan alpha_est; the restricted zone starts at
+    L_est - d_cutoff, as the end-zone node puts it. The observation zone, y_half, z_min and z_top
+    do not depend on the slope. An estimate outside ESTIMATE_SLOPE_RANGE_DEG: ValueError (the end-zone
+    node publishes nothing for it)."""
+    lo, hi = (math.radians(a) for a in ESTIMATE_SLOPE_RANGE_DEG)
+    if not (math.isfinite(alpha_est) and lo <= alpha_est <= hi):
+        raise ValueError(f"slope estimate {math.degrees(alpha_est) if math.isfinite(alpha_est) else alpha_est!r} deg "
+                         f"outside the LiDAR's physical range [{ESTIMATE_SLOPE_RANGE_DEG[0]:g}, "
+                         f"{ESTIMATE_SLOPE_RANGE_DEG[1]:g}] deg: the end-zone node publishes no zones for it")
+    if not (math.isfinite(alpha_true) and 0.0 < alpha_true < math.pi / 2):
+        raise ValueError(f"pile slope {alpha_true!r} rad: expected a finite angle in (0, pi/2)")
+    if alpha_est == alpha_true:
+        return zones
+    k = math.sqrt(math.tan(alpha_true) / math.tan(alpha_est))
+    L_est = p.h_pile / math.tan(alpha_est)
+    return Zones(x_min=min(zones.x_min * k, L_est), x_max=min(zones.x_max * k, L_est), z_min=zones.z_min,
+                 x_cutoff=L_est - p.d_cutoff, x_obs_start=zones.x_obs_start, x_obs_end=zones.x_obs_end,
+                 y_half=zones.y_half, z_top=zones.z_top)
+
+
 def derived_normalisers(cfg: dict) -> tuple[float, float]:
     """(d_end_max, x_obs) derived from the pile family instead of the paper's table (config
     task.normalisers_from_pile; docs/modeling.md "Normalisers from the pile geometry").
