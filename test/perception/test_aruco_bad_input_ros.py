@@ -262,9 +262,14 @@ def test_a_recalibration_another_cameras_info_and_bad_imu_samples(ros, tmp_path)
         info(1.03)
         for k in range(8, 16):
             send(k)
-        assert spin_until(rig.node, lambda: len(rig.odom) >= n + 6, 5.0), rig.proc.log()
+        # the frames sent after the recalibration, by their stamps (an odometry of frame 7 may still
+        # arrive after n was counted when the machine is loaded: seen with a training beside the tests)
+        def after():
+            return [o for o in rig.odom if sent[(o.header.stamp.sec, o.header.stamp.nanosec)] >= 8]
+        assert spin_until(rig.node, lambda: len(after()) >= 6, 5.0), rig.proc.log()
         spin_until(rig.node, lambda: False, 0.2)
-        got = rig.odom[n:]
+        got = after()
+        assert len(rig.odom) >= n + 6
         assert [sent[(o.header.stamp.sec, o.header.stamp.nanosec)] for o in got] == list(range(10, 16))
         assert all(abs(o.twist.twist.linear.x - SPEED / 1.03) < 0.02 for o in got), [o.twist.twist.linear.x for o in got]
         assert "the camera model changed (K, D or size; fx 601.6 -> 619.6" in rig.proc.log()
