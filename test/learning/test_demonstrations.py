@@ -136,3 +136,118 @@ def test_the_sim_nodes_are_refused(cfg, tmp_path):
     with pytest.raises(ValueError, match="demo_share > 0 .* needs the in-process environment"):
         train("rld", 0, tmp_path, steps=10, config=small(cfg, 0.2), resume=False, progress=False,
               env_kind="ros", namespaces=["/sim0"])
+
+
+# ---------------------------------------------------------------- a teacher that knows what the actor knows
+def test_the_end_zone_stop_by_hand(cfg):
+    """scripted_action's end_zone_stop, state by state: while the arm moves and the tip is below
+    z_min within the stop distance of x_max the wheels stop (-1: zero speed); short of the band,
+    or above z_min, they crowd; with the arm still (before the lift) they drive in at full speed."""
+    from dataclasses import replace
+
+    from lhd_sim_node.env import LhdLoadingEnv
+    from lhd_sim_node.scripted import scripted_action
+
+    env = LhdLoadingEnv("rld", cfg)
+    env.reset(seed=1, options={"slope_deg": 20.0})
+    s0 = env.state
+    crowd, ez = 0.6, (0.9, 0.35)               # x_max 0.9 m, z_min 0.35 m
+    lifting = replace(s0, phi_shovel=0.5)      # curled past pre_curl: lift and curl
+    cases = [(0.60, 0.10, 2 * crowd - 1),      # short of the band (0.9 - 0.2 = 0.7): crowd
+             (0.71, 0.10, -1.0),               # in the band, below z_min: stopped
+             (0.95, 0.30, -1.0),               # past x_max, still below z_min: stopped
+             (0.80, 0.36, 2 * crowd - 1)]      # above z_min: crowd on into the end zone
+    for x, z, wheels in cases:
+        a = scripted_action(replace(lifting, x_shovel=x, z_shovel=z), 0.3, crowd, 0.3, end_zone=ez, end_zone_stop=0.2)
+        assert a[0] == pytest.approx(wheels), (x, z)
+        np.testing.assert_array_equal(a[1:], [-1.0, 1.0])
+    still = replace(s0, x_shovel=0.75, z_shovel=0.05, phi_shovel=0.0, drift=False)
+    np.testing.assert_array_equal(scripted_action(still, 0.8, crowd, 0.3, end_zone=ez, end_zone_stop=0.2),
+                                  [1.0, 1.0, -1.0])     # before the lift: the stop does not apply
+    # off (0) or no end zone given: exactly the maneuver as before
+    a = replace(lifting, x_shovel=0.85, z_shovel=0.1)
+    np.testing.assert_array_equal(scripted_action(a, 0.3, crowd, 0.3, end_zone=ez, end_zone_stop=0.0),
+                                  scripted_action(a, 0.3, crowd, 0.3))
+
+
+def _teach(env, told_zones, stop, crowd=0.625):
+    from lhd_loading_ros.task.randomization import Conditions
+
+    env.reset(seed=5, options={"slope_deg": 15.0, "material": "homogeneous",
+                               "conditions": Conditions(slope_error_deg=15.0)})
+    zones, stopped = env.zones, 0
+    while True:
+        a = demo_action(env, crowd, 0.3, told_zones, stop)
+        s = env.state
+        if stop > 0 and a[1] < 1.0 and s.z_shovel < zones.z_min and s.x_shovel > zones.x_max - stop:
+            assert a[0] == -1.0
+            stopped += 1
+        _, _, term, trunc, info = env.step(a)
+        if term or trunc:
+            return info["episode_result"], zones, stopped
+
+
+def test_a_teacher_told_a_slope_too_steep(cfg):
+    """A 15 deg pile told 30 deg, the zones built from the told slope (as the end-zone node does):
+    x_max 0.88 m where the pile's own is 1.29 m (task.zones_for_slope_estimate; worked by hand in
+    test_zones_slope_estimate). The teacher that reads the pile's own zones lifts at the pile's
+    x_min (0.80 m) and is still below z_min when it crosses the told end zone: it never succeeds.
+    The teacher that reads the told zones and stops its wheels within 0.2 m of the told x_max
+    lifts in place and ends in the told end zone with more than the success test's 20 kg, curled
+    past 40 deg: what the actor sees is enough to load this pile."""
+    from lhd_sim_node.env import LhdLoadingEnv
+
+    env = LhdLoadingEnv("rld", cfg, zones_from_estimate=True)
+    old, zones, _ = _teach(env, False, 0.0)
+    assert env.zones_from == "estimate"
+    assert zones.x_max == pytest.approx(0.88, abs=0.02) and env.sim.zones.x_max == pytest.approx(1.29, abs=0.02)
+    assert not old.success and not old.reached_end_zone
+    new, _, stopped = _teach(env, True, 0.2)
+    assert stopped > 0
+    assert new.success and new.reached_end_zone and not new.failed
+    assert new.loaded > 20.0 and math.degrees(new.phi_final) > 40.0
+    # and on the pile it is told the truth about, the told-zones teacher is the teacher as before
+    env2 = LhdLoadingEnv("rld", cfg, zones_from_estimate=True)
+    env2.reset(seed=5, options={"slope_deg": 15.0})
+    a_old = demo_action(env2, 0.625, 0.3)
+    a_new = demo_action(env2, 0.625, 0.3, True, 0.2)
+    np.testing.assert_array_equal(a_old, a_new)
+
+
+def test_the_told_teacher_keys(cfg):
+    """training.demo_told_zones / demo_end_zone_stop: read into DemoConfig (off by default), range
+    checked, left out of the config hash (how the learner learned, not what the actor sees)."""
+    c = copy.deepcopy(cfg)
+    c["training"].update({"demo_share": 0.4})
+    d = DemoConfig.from_training(validate(c)["training"])
+    assert (d.told_zones, d.end_zone_stop) == (False, 0.0)
+    base_hash = config_hash(validate(c))
+    c["training"].update({"demo_told_zones": 1, "demo_end_zone_stop": 0.2})
+    d = DemoConfig.from_training(validate(c)["training"])
+    assert (d.told_zones, d.end_zone_stop) == (True, 0.2)
+    assert config_hash(validate(c)) == base_hash
+    c["training"]["demo_end_zone_stop"] = 1.5
+    with pytest.raises(ConfigError, match="demo_end_zone_stop"):
+        validate(c)
+
+
+def test_the_card_names_the_told_teacher(cfg, tmp_path):
+    """The actor's card (trained_with) records what the teacher read and where it stopped, and
+    lhd ship's recipe note says it in words; a teacher of the pile's own zones adds nothing."""
+    from lhd_loading_ros.learning.export import export_actor
+    from lhd_loading_ros.learning.mlp import FlatMlp
+    from lhd_loading_ros.learning.ship import _recipe_note
+    from lhd_loading_ros.policy.actor_file import load_policy
+
+    c = copy.deepcopy(cfg)
+    c["training"].update({"demo_share": 0.4, "demo_told_zones": 1, "demo_end_zone_stop": 0.2})
+    c = validate(c)
+    export_actor(tmp_path / "a", FlatMlp([12, 8, 3], out_act="tanh"), c, {"variant": "rld", "seed": 0, "steps": 0})
+    tw = load_policy(tmp_path / "a").meta["trained_with"]
+    assert tw["demo_told_zones"] == 1 and tw["demo_end_zone_stop"] == 0.2     # beside demo_bc, as demo_until_step
+    note = _recipe_note(tw)
+    assert "reading the zones built from the told slope" in note and "within 0.2 m of its far side" in note
+    c["training"].update({"demo_told_zones": 0, "demo_end_zone_stop": 0.0})
+    export_actor(tmp_path / "b", FlatMlp([12, 8, 3], out_act="tanh"), c, {"variant": "rld", "seed": 0, "steps": 0})
+    tw = load_policy(tmp_path / "b").meta["trained_with"]
+    assert "demo_told_zones" not in tw and "demo_end_zone_stop" not in tw and "told slope" not in _recipe_note(tw)

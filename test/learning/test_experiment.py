@@ -21,8 +21,12 @@ def test_grid_gives_every_controller_the_same_piles():
     seeds = {c: sorted(j.seed for j in table_a if j.controller == c) for c in ("rld", "tampier")}
     assert seeds["rld"] == seeds["tampier"] and len(set(seeds["rld"])) == 6
     table_b = [j for j in jobs if j.table == "slope_error"]
-    assert {j.controller for j in table_b} == {"rld"}                       # the heuristic reads no slope
-    assert len(table_b) == 2 * 3 * 3
+    assert {j.controller for j in table_b} == {"rld", "tampier"}            # the heuristic reads the told end zone
+    assert len(table_b) == 2 * 2 * 3 * 3
+    tb = {c: sorted(j.seed for j in table_b if j.controller == c) for c in ("rld", "tampier")}
+    assert tb["rld"] == tb["tampier"]                                      # the same piles for both
+    only = ex.grid(("scripted", "rlc"), (15.0,), ("homogeneous",), (0.0, 5.0), episodes=2)
+    assert {j.controller for j in only if j.table == "slope_error"} == {"rlc"}   # scripted reads neither
     assert {(j.slope_deg, j.told_deg) for j in table_b} >= {(15.0, 30.0), (30.0, 15.0)}   # the paper's two cases
     assert all(j.told_deg == j.slope_deg for j in table_a)
     with pytest.raises(ValueError, match="unknown controller 'ppo'"):
@@ -68,13 +72,13 @@ def test_a_small_study_end_to_end(tmp_path):
     assert p.returncode == 0, p.stderr[-3000:]
     assert "Success rate [%]" in p.stdout and "| 15 | 30 | +15 |" in p.stdout
     rows = list(csv.DictReader((out / "attempts.csv").open()))
-    assert len(rows) == 2 + 2 * 2                          # table (a): 2 controllers; (b): RLD, 2 piles x 2 errors
+    assert len(rows) == 2 + 2 * 2 * 2                      # table (a): 2 controllers; (b): both, 2 piles x 2 errors
     for r in rows:
         assert r["success"] in ("True", "False") and 0.0 <= float(r["loaded_kg"]) < 60.0
         assert 0.0 < float(r["elapsed_s"]) <= ex.TIME_LIMIT_S + 1e-9
     # strict JSON: a metric over no successful attempt is null, not a bare NaN (a review)
     summary = json.loads((out / "summary.json").read_text(), parse_constant=lambda c: pytest.fail(f"bare {c}"))
-    assert summary["attempts"] == 6 and summary["time_limit_s"] == 10.0
+    assert summary["attempts"] == 10 and summary["time_limit_s"] == 10.0
     # the paired table: RLD against the heuristic on the one pile they share, its masses from attempts.csv
     (pr,) = [r for r in summary["paired_table"] if r["slope_deg"] == "all"]
     a = {r["controller"]: r for r in rows if r["table"] == "controllers"}
@@ -91,6 +95,7 @@ def test_a_small_study_end_to_end(tmp_path):
     md = (out / "table_slope_error.md").read_text()
     assert "| RLD | 30 | 45 * | +15 |" in md and "| RLD | 15 | 30 | +15 |" in md and "| RLD | 15 | 15 * |" not in md
     assert "the policy node refuses such an estimate" in md and "(15-30 deg)" in md
+    assert "| TAMPIER | 30 | 45 | +15 |" in md        # the heuristic has no trained range: no mark
     # bad input: one line, exit 2
     p = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "experiment", "paper", "--slopes", "20,x",
                         "--out", str(tmp_path / "bad")], capture_output=True, text=True, timeout=60)
@@ -116,7 +121,7 @@ def test_the_teacher_is_the_demonstrations_maneuver(cfg):
     from lhd_sim_node.env import LhdLoadingEnv
     from lhd_sim_node.scripted import scripted_action
 
-    assert ex.teacher_setting(cfg) == (0.625, 0.3)
+    assert ex.teacher_setting(cfg) == (0.625, 0.3, False, 0.0)
     ex._setup(None, {})
     job = ex.Job("controllers", "teacher", 15.0, 15.0, "homogeneous", 3_150_000)   # the first pile of the 15 deg cell
     row = ex.run_job(job)

@@ -18,6 +18,15 @@ training only, and no actor depends on it at run time.
 Which episodes are demonstrations and their crowd follow from the episode's seed alone (a stream
 of its own), so a run without demonstrations draws exactly what it drew before, and a resumed run
 the same as an uninterrupted one.
+
+With training.demo_told_zones = 1 the demonstration reads the zones the actor is told (env.zones:
+with a slope-estimate error, those the end-zone node builds from the estimate) instead of the
+pile's own, and with training.demo_end_zone_stop > 0 it stops the wheels while it lifts below the
+end zone's z_min within that distance of its x_max (lhd_sim_node.scripted). The teacher then knows
+no more of the pile than the actor does (the tip, the drift flags and the told zones, which the
+observation's alpha and d_end carry) and still loads piles shallower than it is told: 4 of 4
+attempts in every cell of a 15 deg pile told 0..+15 deg too steep, where the pile's-own-zones
+teacher loads none at +10 and +15 (docs/training.md "A teacher that knows what the actor knows").
 """
 from __future__ import annotations
 
@@ -35,6 +44,8 @@ class DemoConfig:
     crowd_max: float
     pre_curl: float       # rad: bucket curl before the lift
     until_step: int       # no demonstration starts at or after this step (demo_until_step, 0: noise_decay_steps)
+    told_zones: bool = False      # read the told zones (env.zones), not the pile's own (demo_told_zones)
+    end_zone_stop: float = 0.0    # m: wheels stop while lifting below z_min within this of x_max (0: off)
 
     @classmethod
     def from_training(cls, t: dict) -> "DemoConfig | None":
@@ -46,7 +57,11 @@ class DemoConfig:
             raise ValueError(f"training.demo_crowd_min / demo_crowd_max = {lo:g} / {hi:g}: expected "
                              "0 < demo_crowd_min <= demo_crowd_max <= 1 (shares of full wheel speed)")
         until = int(t.get("demo_until_step", 0)) or int(t["noise_decay_steps"])
-        return cls(share, lo, hi, float(t.get("demo_pre_curl", 0.3)), until)
+        stop = float(t.get("demo_end_zone_stop", 0.0))
+        if not (0.0 <= stop <= 1.0):
+            raise ValueError(f"training.demo_end_zone_stop = {stop:g}: expected 0 (off) to 1 m")
+        return cls(share, lo, hi, float(t.get("demo_pre_curl", 0.3)), until,
+                   bool(int(t.get("demo_told_zones", 0))), stop)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -61,11 +76,19 @@ class DemoConfig:
             return None
         return float(rng.uniform(self.crowd_min, self.crowd_max))
 
+    def action(self, env, crowd: float) -> np.ndarray:
+        return demo_action(env, crowd, self.pre_curl, self.told_zones, self.end_zone_stop)
 
-def demo_action(env, crowd: float, pre_curl: float) -> np.ndarray:
+
+def demo_action(env, crowd: float, pre_curl: float, told_zones: bool = False,
+                end_zone_stop: float = 0.0) -> np.ndarray:
     """The scripted maneuver's normalised action for env's current state: arm still and wheels
-    full until the tip passes the pile's x_min or a wheel drifts, then curl to pre_curl and lift
-    and curl at full rate with the wheels at `crowd` of full speed."""
+    full until the tip passes x_min (the pile's own, or with told_zones the told one) or a wheel
+    drifts, then curl to pre_curl and lift and curl at full rate with the wheels at `crowd` of full
+    speed; with end_zone_stop > 0 the wheels stop while the tip is below z_min within that distance
+    of x_max (of the same zones)."""
     from lhd_sim_node.scripted import scripted_action
 
-    return scripted_action(env.state, env.sim.zones.x_min, crowd=crowd, pre_curl=pre_curl, lift_on_drift=True)
+    z = env.zones if told_zones else env.sim.zones
+    return scripted_action(env.state, z.x_min, crowd=crowd, pre_curl=pre_curl, lift_on_drift=True,
+                           end_zone=(z.x_max, z.z_min), end_zone_stop=end_zone_stop)

@@ -4,8 +4,10 @@
     25 and 30 deg piles, homogeneous and nonhomogeneous, `episodes` attempts per cell; success
     rate, and over the SUCCESSFUL attempts (as the paper reports them) loaded mass, time, front and
     rear drift, mean and standard deviation.
-(b) **Slope error** (the paper's robustness table and a sweep): the RL actors on 15 and 30 deg
-    piles told a wrong slope: the observation's alpha is the told slope, and the zones are those the
+(b) **Slope error** (the paper's robustness table and a sweep): the RL actors (the paper's table
+    has only them) and the controllers that read the end zone (`tampier`, and `teacher`, which reads
+    the told zones with training.demo_told_zones and the pile's own otherwise; `scripted` reads
+    neither and is left out) on 15 and 30 deg piles told a wrong slope: the observation's alpha is the told slope, and the zones are those the
     end-zone node builds from it (d_end, the end zone and the restricted zone that end the attempt;
     task/zones.zones_for_slope_estimate; before 2026-11-28 the true pile's), everything else the
     true pile: the paper's two cases (a 15 deg pile told 30, a 30 deg pile told 15) are the +15 and
@@ -17,7 +19,8 @@ maneuver of lhd_sim_node.scripted, lifting at the paper's x_midgoal) and `teache
 maneuver as the training demonstrations drive it, learning/demonstrations.py: lifting at the pile's
 x_min or the first wheel drift, the bucket curled to training.demo_pre_curl first, the wheels at the
 middle of [demo_crowd_min, demo_crowd_max] while lifting; it reads the simulator's state, the pile's
-x_min included, which no machine-side controller has). Every attempt is limited to the paper's real-world 10 s.
+x_min included, which no machine-side controller has; with training.demo_told_zones the told zones
+instead, and training.demo_end_zone_stop stops its wheels in the end zone). Every attempt is limited to the paper's real-world 10 s.
 Each attempt has its own seed (base seed + index in the grid), so a cell is the same set of piles
 for every controller; the attempts run on a process pool (`jobs`) and print their progress.
 
@@ -53,6 +56,7 @@ from lhd_loading_ros.task import json_out
 from lhd_loading_ros.task.cores import usable_cores
 
 CONTROLLERS = ("rld", "rlc", "tampier", "scripted", "teacher")
+SLOPE_ERROR_CONTROLLERS = ("rld", "rlc", "tampier", "teacher")   # table (b): those a slope estimate reaches
 SLOPES = (15.0, 20.0, 25.0, 30.0)
 MATERIALS = ("homogeneous", "nonhomogeneous")
 ERRORS = (-15.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0)
@@ -96,7 +100,7 @@ def grid(controllers=CONTROLLERS, slopes=SLOPES, materials=MATERIALS, errors=ERR
                     jobs.append(Job("controllers", c, float(a), float(a), m, seed + 1000 * key + k,
                                     trace=(a == 20.0 and m == "homogeneous" and k < TRACE_ATTEMPTS), stress=stress,
                                     attempt=k))
-    for c in (c for c in controllers if c in ("rld", "rlc")):
+    for c in (c for c in controllers if c in SLOPE_ERROR_CONTROLLERS):
         for a in error_piles:
             for e in errors:
                 key = 900 + int(round(a))
@@ -143,11 +147,13 @@ def told_observation(obs: np.ndarray, told_rad: float, p) -> np.ndarray:
     return out
 
 
-def teacher_setting(cfg: dict) -> tuple[float, float]:
-    """(crowd, pre_curl) of the `teacher` controller: the middle of the demonstrations' crowd range
-    and their pre-curl (config training.demo_*)."""
+def teacher_setting(cfg: dict) -> tuple[float, float, bool, float]:
+    """(crowd, pre_curl, told_zones, end_zone_stop) of the `teacher` controller: the middle of the
+    demonstrations' crowd range, their pre-curl, the zones they read and where they stop the
+    wheels (config training.demo_*)."""
     t = cfg["training"]
-    return 0.5 * (float(t["demo_crowd_min"]) + float(t["demo_crowd_max"])), float(t["demo_pre_curl"])
+    return (0.5 * (float(t["demo_crowd_min"]) + float(t["demo_crowd_max"])), float(t["demo_pre_curl"]),
+            bool(int(t.get("demo_told_zones", 0))), float(t.get("demo_end_zone_stop", 0.0)))
 
 
 def run_job(job: Job) -> dict:
@@ -442,14 +448,15 @@ def markdown_slope_error(summary: list[dict], told_range: tuple[float, float] | 
     machine would not move), so that cell is what the actor alone would do, not what the machine does."""
     if not summary:
         return ""
-    out_of = (lambda t: told_range is not None and not (told_range[0] - 1e-9 <= t <= told_range[1] + 1e-9))  # noqa: E731
+    out_of = (lambda r: told_range is not None and r["controller"] in ("rld", "rlc")    # noqa: E731
+              and not (told_range[0] - 1e-9 <= r["told_deg"] <= told_range[1] + 1e-9))
     L = ["| controller | pile [deg] | told [deg] | error [deg] | success [%] | loaded mass [kg] | vs no error [%] |",
          "|---|---|---|---|---|---|---|"]
     for r in summary:
-        L.append(f"| {r['controller'].upper()} | {r['slope_deg']:g} | {r['told_deg']:g}{' *' if out_of(r['told_deg']) else ''} | "
+        L.append(f"| {r['controller'].upper()} | {r['slope_deg']:g} | {r['told_deg']:g}{' *' if out_of(r) else ''} | "
                  f"{r['error_deg']:+g} | {100 * r['success_rate']:.0f} | {_f(r['loaded_kg'])} ± {_f(r['loaded_kg_sd'])} | "
                  f"{_f(r['mass_change_pct'], '{:+.0f}')} |")
-    if any(out_of(r["told_deg"]) for r in summary):
+    if any(out_of(r) for r in summary):
         L += ["", f"\\* told a slope outside the pile range the actors were trained on ({told_range[0]:g}-"
                   f"{told_range[1]:g} deg): the policy node refuses such an estimate and commands zero, so on the "
                   "machine these attempts would not start; the row is what the actor alone does with it."]

@@ -156,6 +156,11 @@ def _recipe_note(tw: dict) -> str:
                          f"value of the actor (weight {float(tw['demo_bc']):g})" if tw.get("demo_bc_filter") == "return"
                          else f" with Q-filtered behaviour cloning on them (weight {float(tw['demo_bc']):g})")
                         if float(tw.get("demo_bc", 0.0) or 0.0) > 0 else ""))
+        if int(tw.get("demo_told_zones", 0) or 0):
+            stop = float(tw.get("demo_end_zone_stop", 0.0) or 0.0)
+            parts.append("the demonstrations reading the zones built from the told slope, as the actor does"
+                         + (f", and stopping their wheels while they lift below the end zone within {stop:g} m of its "
+                            "far side" if stop > 0 else ""))
     if int(tw.get("midgoal_from_pile", 0) or 0):
         parts.append("the mid goal x_midgoal at the start of the pile's end zone (`task.midgoal_from_pile`, a "
                      "departure from the paper's reward)")

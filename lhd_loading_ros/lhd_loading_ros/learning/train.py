@@ -37,7 +37,7 @@ import torch
 from lhd_loading_ros.task.config import config_hash, load_config
 from lhd_loading_ros.task.metrics import result_from_status
 from lhd_loading_ros.learning.curriculum import CurriculumConfig, SlopeCurriculum
-from lhd_loading_ros.learning.demonstrations import DemoConfig, demo_action
+from lhd_loading_ros.learning.demonstrations import DemoConfig
 from lhd_loading_ros.learning.ddpg import DdpgAgent, DdpgConfig, OUNoise, ReplayBuffer, TiltRamp, lr_scale, noise_scale
 from lhd_loading_ros.learning.evaluate import evaluate
 from lhd_loading_ros.learning.export import export_actor
@@ -436,7 +436,7 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
     try:
         while step < dc.total_steps:
             scale = noise_scale(step, dc.noise_decay_steps, dc.noise_final_scale, dc.noise_after_decay)
-            acts = {i: (demo_action(env, demo_crowd[i], demos.pre_curl) if i in demo_crowd
+            acts = {i: (demos.action(env, demo_crowd[i]) if i in demo_crowd
                         else np.clip(agent.act(obs[i]) + scale * noises[i].sample(), -1.0, 1.0))
                     for i in slots[: dc.total_steps - step]}
             results = step_slots(acts)

@@ -143,6 +143,7 @@ SCHEMA: dict[str, Any] = {
         "demo_share": _f(0.0, 0.9), "demo_crowd_min": _f(0.05, 1.0), "demo_crowd_max": _f(0.05, 1.0),
         "demo_pre_curl": _f(0.0, 1.4), "demo_bc": _f(0.0, 100.0), "demo_until_step": _i(0, 100_000_000),
         "critic_huber": _f(0.0, 1e6), "noise_after_decay": _f(0.0, 1.0), "demo_bc_return_filter": _i(0, 1),
+        "demo_told_zones": _i(0, 1), "demo_end_zone_stop": _f(0.0, 1.0),
     },
 }
 
@@ -271,6 +272,8 @@ OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curric
                      ("training", "demo_until_step"): 0, ("training", "critic_huber"): 0.0,
                      ("training", "noise_after_decay"): 0.0, ("task", "r_success_mass_margin_kg"): 0.0,
                      ("training", "demo_bc_return_filter"): 0,
+                     # the demonstrations read the told zones and stop in the end zone (learning/demonstrations.py)
+                     ("training", "demo_told_zones"): 0, ("training", "demo_end_zone_stop"): 0.0,
                      # actuator gains drawn per episode (task/randomization.py); 1 = the simulator's actuators
                      ("randomization", "drive_gain_min"): 1.0, ("randomization", "drive_gain_max"): 1.0,
                      ("randomization", "hydraulic_gain_min"): 1.0, ("randomization", "hydraulic_gain_max"): 1.0,
@@ -402,6 +405,8 @@ TRAINING_SCHEDULE_KEYS = ("twin_critics", "slope_curriculum", "slope_curriculum_
                           "demo_share", "demo_crowd_min", "demo_crowd_max", "demo_pre_curl",
                           # the actor's Q-filtered behaviour-cloning term on them (DDPGfD), and its filter
                           "demo_bc", "demo_until_step", "demo_bc_return_filter",
+                          # what the demonstrations read and where they stop the wheels
+                          "demo_told_zones", "demo_end_zone_stop",
                           # the critics' Huber loss (learning/ddpg.py)
                           "critic_huber",
                           # the exploration noise after its decay, when not noise_final_scale (a late change
