@@ -1,20 +1,22 @@
 #!/usr/bin/env bash
 # Held-out evaluation of the told-teacher study (docs/training.md "A teacher that knows what the actor
-# knows"), run from the repository root after
-#   lhd train --variant rld --seeds 0-4 --jobs 5 --randomize \
-#       --config docs/evidence/told_teacher/lhd_params_told_teacher.yaml --out runs/told_teacher_rld
+# knows"), run from the repository root as `bash docs/evidence/told_teacher/evaluate.sh rld|rlc` after
+#   lhd train --variant <rld|rlc> --seeds 0-4 --jobs 5 --randomize \
+#       --config docs/evidence/told_teacher/lhd_params_told_teacher.yaml --out runs/told_teacher_<rld|rlc>
 # Every seed's final actor: 120 held-out episodes (seed 2,000,000) per condition (lhd report), and the
 # slope-error sweep on 15 and 30 deg piles (lhd experiment paper, 20 attempts a cell), the zones built
-# from the told slope as on the machine.
+# from the told slope as on the machine (RLC with the deployment filter, as the nodes run it).
 set -euo pipefail
+V=${1:?usage: evaluate.sh rld|rlc}
 E=docs/evidence/told_teacher
 CFG=$E/lhd_params_told_teacher.yaml
 NOM=$E/lhd_params_told_teacher_nominal_eval.yaml
-RUNS=${RUNS:-runs/told_teacher_rld}
+RUNS=runs/told_teacher_$V
 .venv/bin/lhd report $RUNS --held-out nominal,randomized,placement --config $CFG --jobs 2 --json \
-    > $E/told_teacher_rld_report.json 2> $E/told_teacher_rld_report.log
+    > $E/told_teacher_${V}_report.json 2> $E/told_teacher_${V}_report.log
 for s in 0 1 2 3 4; do
-  .venv/bin/lhd experiment paper --controllers rld --rld $RUNS/seed_$s/final --config $NOM --slopes 15 \
-      --materials homogeneous --errors=-15,-10,-5,0,5,10,15 --episodes 20 --jobs 2 --out /tmp/told_exp_seed$s > /dev/null 2>&1
-  mkdir -p $E/told_teacher_rld_seed$s && cp /tmp/told_exp_seed$s/table_slope_error.md /tmp/told_exp_seed$s/table_slope_error.csv $E/told_teacher_rld_seed$s/
+  .venv/bin/lhd experiment paper --controllers $V --$V $RUNS/seed_$s/final --config $NOM --slopes 15 \
+      --materials homogeneous --errors=-15,-10,-5,0,5,10,15 --episodes 20 --jobs 2 --out /tmp/told_exp_${V}_seed$s > /dev/null 2>&1
+  mkdir -p $E/told_teacher_${V}_seed$s
+  cp /tmp/told_exp_${V}_seed$s/table_slope_error.md /tmp/told_exp_${V}_seed$s/table_slope_error.csv $E/told_teacher_${V}_seed$s/
 done
