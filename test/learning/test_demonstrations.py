@@ -215,10 +215,13 @@ def test_a_teacher_told_a_slope_too_steep(cfg):
 
 
 def test_the_told_teacher_keys(cfg):
-    """training.demo_told_zones / demo_end_zone_stop: read into DemoConfig (off by default), range
-    checked, left out of the config hash (how the learner learned, not what the actor sees)."""
+    """training.demo_told_zones / demo_end_zone_stop: on in config/lhd_params.yaml (1, 0.2 m), off in a
+    parameter file without them (the recipes before them), read into DemoConfig, range checked, left
+    out of the config hash (how the learner learned, not what the actor sees)."""
+    assert (cfg["training"]["demo_told_zones"], cfg["training"]["demo_end_zone_stop"]) == (1, 0.2)
     c = copy.deepcopy(cfg)
     c["training"].update({"demo_share": 0.4})
+    del c["training"]["demo_told_zones"], c["training"]["demo_end_zone_stop"]
     d = DemoConfig.from_training(validate(c)["training"])
     assert (d.told_zones, d.end_zone_stop) == (False, 0.0)
     base_hash = config_hash(validate(c))
