@@ -116,20 +116,24 @@ def test_slope_error_table_marks_told_slopes_outside_the_trained_range():
 
 def test_the_teacher_is_the_demonstrations_maneuver(cfg):
     """The `teacher` controller drives the training demonstrations' maneuver at the middle of their
-    crowd range: its attempt equals one driven here with scripted_action at the pile's x_min,
-    crowd (0.5 + 0.75) / 2 and pre-curl 0.3, step for step; on a 15 deg pile it loads over 30 kg."""
+    crowd range: its attempt equals one driven here with scripted_action at the told zones' x_min
+    (no slope error here: the pile's), crowd (0.5 + 0.75) / 2, pre-curl 0.3 and the wheels stopped
+    within 0.2 m of the end zone's far side (config/lhd_params.yaml's told teacher), step for step;
+    on a 15 deg pile it loads over 30 kg."""
     from lhd_sim_node.env import LhdLoadingEnv
     from lhd_sim_node.scripted import scripted_action
 
-    assert ex.teacher_setting(cfg) == (0.625, 0.3, False, 0.0)
+    assert ex.teacher_setting(cfg) == (0.625, 0.3, True, 0.2)
     ex._setup(None, {})
     job = ex.Job("controllers", "teacher", 15.0, 15.0, "homogeneous", 3_150_000)   # the first pile of the 15 deg cell
     row = ex.run_job(job)
     env = LhdLoadingEnv("rld", cfg)
     env.reset(seed=job.seed, options={"slope_deg": 15.0, "material": "homogeneous"})
     while True:
-        _, _, term, trunc, info = env.step(scripted_action(env.state, env.sim.zones.x_min, crowd=0.625, pre_curl=0.3,
-                                                           lift_on_drift=True))
+        z = env.zones
+        _, _, term, trunc, info = env.step(scripted_action(env.state, z.x_min, crowd=0.625, pre_curl=0.3,
+                                                           lift_on_drift=True, end_zone=(z.x_max, z.z_min),
+                                                           end_zone_stop=0.2))
         if term or trunc or env.steps >= 100:
             break
     assert row["loaded_kg"] == pytest.approx(env.sim.loaded_mass, abs=1e-9)
