@@ -64,6 +64,8 @@ def test_the_launchers_stop_on_sighup_unless_nohup():
         from lhd_loading_ros.cli.launcher import _StopOnSignals
         if sys.argv[1] == "nohup":
             signal.signal(signal.SIGHUP, signal.SIG_IGN)
+        else:   # a terminal's default, whatever this test run inherited (a suite run under nohup ignores SIGHUP)
+            signal.signal(signal.SIGHUP, signal.SIG_DFL)
         ev = threading.Event()
         with _StopOnSignals(ev):
             os.kill(os.getpid(), signal.SIGHUP)
