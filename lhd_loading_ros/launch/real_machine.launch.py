@@ -1,4 +1,4 @@
-"""ros2 launch lhd_loading_ros real_machine.launch.py port:=/dev/ttyACM0 [controller:=rld|rlc|tampier|teleop]
+"""ros2 launch lhd_loading_ros real_machine.launch.py port:=/dev/ttyACM0 [controller:=rld|rlc|tampier|teacher|teleop]
     [policy_dir:=DIR] [camera_topic:=/camera/image_raw] [camera_info_topic:=/camera/camera_info]
     [scan_topic:=/scan] [end_zone:=lidar|FILE.yaml] [joy_mapping:=xbox] [material:=homogeneous]
     [run_dir:=runs/real/NAME] [attempt_timeout:=10.0] [record:=true] [storage:=mcap]
@@ -49,7 +49,7 @@ def generate_launch_description():
     stamp = datetime.now(timezone.utc).strftime("%Y%m%d-%H%M%S")
     args = [
         DeclareLaunchArgument("port", description="serial device of the Due, e.g. /dev/ttyACM0"),
-        DeclareLaunchArgument("controller", default_value="rld", description="rld | rlc | tampier | teleop"),
+        DeclareLaunchArgument("controller", default_value="rld", description="rld | rlc | tampier | teacher | teleop"),
         DeclareLaunchArgument("policy_dir", default_value="", description="exported actor (default: the shipped one)"),
         DeclareLaunchArgument("camera_topic", default_value="/camera/image_raw"),
         DeclareLaunchArgument("camera_info_topic", default_value="/camera/camera_info"),
@@ -95,8 +95,8 @@ def generate_launch_description():
         Node(package="lhd_loading_ros", executable="policy_node", name="lhd_policy", output="screen",
              remappings=[("/lhd/cmd", "/lhd/cmd/auto")],
              parameters=[pf, {"policy_dir": ParameterValue(policy_dir, value_type=str),
-                              "controller": PythonExpression(["'tampier' if '", controller,
-                                                              "' == 'tampier' else 'actor'"])}],
+                              "controller": PythonExpression(["'", controller, "' if '", controller,
+                                                              "' in ('tampier', 'teacher') else 'actor'"])}],
              condition=IfCondition(PythonExpression(["'", controller, "' != 'teleop'"]))),
         Node(package="lhd_loading_ros", executable="recorder_node", name="lhd_recorder", output="screen",
              parameters=[pf, {"run_dir": text("run_dir"), "storage": text("storage")}],

@@ -1,7 +1,8 @@
-"""ros2 launch lhd_sim_node sim_loading.launch.py [policy_dir:=DIR] [slope_deg:=20.0] [episodes:=N] [mode:=realtime]
+"""ros2 launch lhd_sim_node sim_loading.launch.py [policy_dir:=DIR | controller:=tampier|teacher] [slope_deg:=20.0] [episodes:=N] [mode:=realtime]
     [namespace:=/lhd2] [use_sim_time:=true]
 
-The sim node and the policy node (the shipped RLD actor unless policy_dir is given), as
+The sim node and the policy node (the shipped RLD actor unless policy_dir is given; controller:=tampier
+or teacher runs the Tampier-style heuristic or the demonstrations' teacher instead), as
 `lhd up sim` starts them where `ros2 launch` is not installed. Under a namespace every /lhd
 topic moves there, and /clock is remapped to the relative `clock` (so `<ns>/clock`; in the
 root namespace that is /clock itself), as `lhd up sim --namespace` does."""
@@ -21,6 +22,7 @@ def text(name):
 def generate_launch_description():
     args = [
         DeclareLaunchArgument("policy_dir", default_value="", description="exported actor (default: shipped RLD)"),
+        DeclareLaunchArgument("controller", default_value="actor", description="actor | tampier | teacher"),
         DeclareLaunchArgument("slope_deg", default_value="-1.0", description="pile slope, deg (negative: random)"),
         DeclareLaunchArgument("material", default_value="random", description="homogeneous | nonhomogeneous | random"),
         DeclareLaunchArgument("episodes", default_value="0", description="episodes before the sim stops (0: no limit)"),
@@ -38,7 +40,7 @@ def generate_launch_description():
         "mode": text("mode"), "slope_deg": ParameterValue(LaunchConfiguration("slope_deg"), value_type=float),
         "material": text("material"), "episodes": ParameterValue(LaunchConfiguration("episodes"), value_type=int),
         "seed": ParameterValue(LaunchConfiguration("seed"), value_type=int)}])
-    policy_common = {"policy_dir": text("policy_dir"), "use_sim_time": sim_time}
+    policy_common = {"policy_dir": text("policy_dir"), "controller": text("controller"), "use_sim_time": sim_time}
     policy_lockstep = Node(package="lhd_loading_ros", executable="policy_node", name="lhd_policy", namespace=ns, output="screen",
                            remappings=clock, parameters=[{**policy_common, "trigger": "lockstep", "input_qos": "reliable"}],
                            condition=IfCondition(lockstep))

@@ -184,6 +184,52 @@ def test_up_sim_first_attempt_time_is_the_environments(tmp_path):
     assert first["elapsed_s"] == pytest.approx(ref.elapsed_s, abs=0.2 + 1e-9), (first, ref)
 
 
+def test_demo_runs_the_teacher_through_the_nodes(tmp_path):
+    """`lhd demo --controller teacher` (lockstep): the policy node runs the demonstrations' maneuver
+    on the sim node's topics, and each attempt is the same seed's attempt in process, command for
+    command (loaded mass and steps). `--controller tampier` takes the same path (the policy node's
+    `controller` parameter; the heuristic's own node test is test_policy_gating's)."""
+    from lhd_sim_node.env import LhdLoadingEnv
+
+    from lhd_loading_ros.learning.demonstrations import demo_action
+    from lhd_loading_ros.learning.experiment import teacher_setting
+
+    seed, slope = 7, 20.0
+    env = LhdLoadingEnv("rld")
+    crowd, pre_curl, _, stop = teacher_setting(env.cfg)
+    refs = []
+    for k in range(2):
+        env.reset(seed=seed + k, options={"slope_deg": slope, "material": "homogeneous"})
+        while True:
+            _, _, term, trunc, info = env.step(demo_action(env, crowd, pre_curl, True, stop))
+            if term or trunc:
+                refs.append(info["episode_result"])
+                break
+    p = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "demo", "--controller", "teacher",
+                        "--mode", "lockstep", "--episodes", "2", "--slopes", str(slope), "--seed", str(seed), "--json"],
+                       capture_output=True, text=True, timeout=240, env=env_with_domain())
+    assert p.returncode == 0, p.stderr[-3000:]
+    res = json.loads(p.stdout)
+    assert res["controller"] == "teacher" and res["policy"] is None
+    assert [e["success"] for e in res["episodes"]] == [r.success for r in refs] == [True, True]
+    for e, r in zip(res["episodes"], refs):
+        assert e["loaded"] == pytest.approx(r.loaded, abs=1e-3) and e["steps"] == r.steps, (e, r)
+
+
+@pytest.mark.parametrize("argv, msg", [
+    (["demo", "--controller", "teacher", "--policy", "policies/rld"],
+     "--policy is the actor's; --controller teacher runs no actor"),
+    (["demo", "--scripted", "--controller", "tampier"], "--controller applies to the nodes only"),
+    (["up", "sim", "--count", "1", "--controller", "teacher"], "--controller do not apply"),
+    (["demo", "--controller", "scripted"], "argument --controller: invalid choice: 'scripted'"),
+])
+def test_controller_flags_that_do_not_apply_are_refused(argv, msg):
+    p = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", *argv], capture_output=True, text=True,
+                       timeout=60, env=env_with_domain(), cwd=REPO)
+    assert p.returncode == 2, (p.returncode, p.stderr)
+    assert msg in p.stderr and "Traceback" not in p.stderr
+
+
 def test_up_sim_namespace_and_sim_time(tmp_path):
     """--namespace: both nodes under /lhd_ns, so a simulator in the root namespace of the same
     domain is neither refused nor disturbed; --use-sim-time: both nodes on the sim's clock,

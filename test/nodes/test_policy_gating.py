@@ -203,6 +203,32 @@ def test_tampier_controller_over_dds(ros, tmp_path):
         rig.close()
 
 
+def test_teacher_controller_over_dds(ros, tmp_path):
+    """controller:=teacher: the same gating; the demonstrations' maneuver from the topics (wheels full
+    and the arm still before the end zone's x_min, a drifting wheel starts the curl with the wheels
+    at 0.625 of full speed, config training.demo_*); no slope range to refuse."""
+    rig = Rig(ros, slope_deg=40.0)           # outside every actor's range: the teacher never reads it
+    pol = RosProcess(POLICY, {"controller": "teacher"}, tmp_path / "pol.log")
+    try:
+        rig.publish_status("idle")
+        assert spin_until(ros, lambda: rig.has("inputs", DiagnosticStatus.OK, "all inputs fresh")
+                          and rig.has("teacher", DiagnosticStatus.OK, "demonstrations' teacher"), 60), pol.log()
+        assert rig.watch(1.0) == []
+        rig.publish_status("running")
+        assert rig.wait_commanding(10, lambda c: c == [WHEELS, 0.0, 0.0]), pol.log()[-2000:]
+        assert spin_until(ros, lambda: rig.has("decision", DiagnosticStatus.OK, "teacher commanding (stage approach)"), 10)
+        rig.drift = True
+        assert rig.wait_commanding(10, lambda c: c == pytest.approx([0.625 * WHEELS, 0.0, CURL])), rig.cmds[-20:]
+        assert spin_until(ros, lambda: rig.has("decision", DiagnosticStatus.OK, "teacher commanding (stage pre-curl)"), 10)
+        t_end = rig.publish_status("failure")
+        assert_stops(rig, t_end, "failure")
+        assert "teacher (the demonstrations' maneuver) from config/lhd_params.yaml training.demo_*: crowd 0.625" \
+            in pol.log()
+    finally:
+        assert pol.stop() == 0, pol.log()
+        rig.close()
+
+
 def test_an_attempt_keeps_the_slope_it_was_armed_with(ros, tmp_path):
     """slope_source attempt (the default): the slope in the running status (the supervisor's armed
     slope_deg) is alpha for the whole attempt; a LiDAR fit that drifts out of the trained range

@@ -10,7 +10,7 @@ import sys
 from lhd_loading_ros.task import json_out
 
 # lhd demo's flags that only concern the nodes: refused with --scripted
-NODE_ONLY_FLAGS = (("--policy", "policy"), ("--mode", "mode"), ("--namespace", "namespace"),
+NODE_ONLY_FLAGS = (("--policy", "policy"), ("--controller", "controller"), ("--mode", "mode"), ("--namespace", "namespace"),
                    ("--use-sim-time", "use_sim_time"), ("--log-dir", "log_dir"), ("--verbose", "verbose"))
 SCRIPTED_MATERIALS = ("homogeneous", "nonhomogeneous")
 

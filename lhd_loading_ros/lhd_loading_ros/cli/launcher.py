@@ -159,6 +159,11 @@ def namespace_ros_args(namespace: str | None, use_sim_time: bool) -> list[str]:
     return args
 
 
+# what `lhd up sim` / `lhd demo --controller` start in the policy node (its `controller` parameter)
+SIM_CONTROLLERS = ("actor", "tampier", "teacher")
+CONTROLLER_LABELS = {"tampier": "Tampier-style heuristic", "teacher": "demonstrations' teacher"}
+
+
 def slope_range_problem(slopes, cfg: dict, flag: str, config_name: str) -> str:
     """Why these pile slopes cannot be loaded under `cfg` ("" if they can): each must lie in the
     pile range the parameter file gives (paper.episode alpha_min_deg..alpha_max_deg, the range its
@@ -177,7 +182,8 @@ def slope_range_problem(slopes, cfg: dict, flag: str, config_name: str) -> str:
 
 def up_sim(policy: str | None, slopes: list[float] | None, episodes: int, material: str, mode: str, seed: int,
            config: str | None, quiet: bool = True, log_dir: Path | None = None, timeout_s: float = 0.0,
-           on_episode=None, namespace: str | None = None, use_sim_time: bool = False) -> list[EpisodeResult]:
+           on_episode=None, namespace: str | None = None, use_sim_time: bool = False,
+           controller: str = "actor") -> list[EpisodeResult]:
     """Run sim node + policy node until `episodes` episodes ended (0: until Ctrl-C / SIGTERM).
     Logs go to `log_dir` (kept) or to a temporary folder, removed unless something failed."""
     import rclpy
@@ -199,7 +205,9 @@ def up_sim(policy: str | None, slopes: list[float] | None, episodes: int, materi
         sim_params["slopes_deg"] = ",".join(f"{s:g}" for s in slopes)
     pol_params = {**common, "trigger": "lockstep" if mode == "lockstep" else "timer",
                   "input_qos": "reliable" if mode == "lockstep" else "sensor_data"}
-    if policy:
+    if controller != "actor":
+        pol_params["controller"] = controller
+    elif policy:
         pol_params["policy_dir"] = str(Path(policy).resolve())
     stop = threading.Event()
     seen: dict[int, EpisodeResult] = {}
@@ -355,6 +363,10 @@ def main(argv=None, demo: bool = False) -> int:
                                               "the paper's results table" if demo else
                                               "sim node + policy node over DDS"))
     ap.add_argument("--policy", help="policy directory (default: policies/rld, the shipped RLD actor)")
+    ap.add_argument("--controller", choices=SIM_CONTROLLERS, default=None,
+                    help="what the policy node runs: actor (--policy, the default), tampier (the Tampier-style "
+                    "heuristic, config/tampier.yaml) or teacher (the training's demonstration maneuver on the end "
+                    "zone, the parameter file's training.demo_*)")
     ap.add_argument("--slope", type=float, help="one slope for every episode, degrees (default: " +
                     ("the --slopes cycle 15 20 25 30)" if demo else "random)"))
     ap.add_argument("--slopes", type=float, nargs="+", help="cycle through these slopes, degrees" +
@@ -397,7 +409,8 @@ def main(argv=None, demo: bool = False) -> int:
     if count:
         if count < 0 or count > 64:
             ap.error(f"--count must be in 1..64, got {count}")
-        given = [f for f, v in (("--policy", args.policy), ("--slope", args.slope), ("--slopes", args.slopes),
+        given = [f for f, v in (("--policy", args.policy), ("--controller", args.controller),
+                                ("--slope", args.slope), ("--slopes", args.slopes),
                                 ("--episodes", args.episodes), ("--use-sim-time", args.use_sim_time)) if v]
         if given:
             ap.error(f"--count starts sim nodes for learners only; {', '.join(given)} do not apply (the learner "
@@ -439,14 +452,31 @@ def main(argv=None, demo: bool = False) -> int:
     from lhd_loading_ros.policy.actor_file import PolicyFileError, load_policy
     from lhd_loading_ros.nodes.policy_node import default_policy_dir
 
+    controller = args.controller or "actor"
+    if controller != "actor" and args.policy:
+        ap.error(f"--policy is the actor's; --controller {controller} runs no actor (drop --policy, or use "
+                 "--controller actor)")
     policy = args.policy or str(default_policy_dir("rld"))
     from lhd_loading_ros.task.config import ConfigError, config_name, load_config
 
     try:
-        pol = load_policy(policy)
         cfg_checked = load_config(args.config)   # a bad parameter file is refused before any node starts
-        pol.check_config(cfg_checked)
-    except (PolicyFileError, ConfigError) as exc:     # bad input, as a bad option: status 2
+        if controller == "actor":
+            pol = load_policy(policy)
+            pol.check_config(cfg_checked)
+            meta, label = pol.meta, f"{pol.variant.upper()} actor {policy}"
+        else:
+            meta = {"bucket_capacity": float(cfg_checked["task"]["bucket_capacity"])}
+            label = CONTROLLER_LABELS[controller]
+            if controller == "teacher":      # its setting is refused here as the node would refuse it
+                from lhd_loading_ros.policy.teacher import TeacherSetting
+
+                TeacherSetting.from_config(cfg_checked)
+            else:
+                from lhd_loading_ros.policy.tampier import load_tampier_config
+
+                load_tampier_config()
+    except (PolicyFileError, ConfigError, ValueError) as exc:     # bad input, as a bad option: status 2
         print(f"{ap.prog}: {exc}", file=sys.stderr)
         return 2
     if slopes:    # before any node starts: the sim node would refuse it too
@@ -464,13 +494,13 @@ def main(argv=None, demo: bool = False) -> int:
                   f"drift front {r.front_drift_pct:4.1f} % rear {r.rear_drift_pct:4.1f} %", flush=True)
 
     if not args.json:
-        print(f"{ap.prog}: sim node ({args.mode}) + policy node ({pol.variant.upper()} actor {policy}), "
+        print(f"{ap.prog}: sim node ({args.mode}) + policy node ({label}), "
               f"{args.episodes or 'unlimited'} episodes, Ctrl-C or SIGTERM stops", flush=True)
     t0 = time.monotonic()
     try:
         results = up_sim(policy, slopes, args.episodes, args.material, args.mode, args.seed, args.config,
                          quiet=not args.verbose, log_dir=args.log_dir, on_episode=show, namespace=args.namespace,
-                         use_sim_time=args.use_sim_time)
+                         use_sim_time=args.use_sim_time, controller=controller)
     except (RuntimeError, TimeoutError) as exc:
         print(f"{ap.prog}: {exc}", file=sys.stderr)
         return 1
@@ -478,13 +508,15 @@ def main(argv=None, demo: bool = False) -> int:
         return 0
     from lhd_sim_node.demo import format_table, table_rows
 
-    rows = table_rows(results, slopes or sorted({round(r.alpha_deg) for r in results}), pol.meta)
+    rows = table_rows(results, slopes or sorted({round(r.alpha_deg) for r in results}), meta)
     if args.json:
         ok = sum(1 for r in results if r.to_dict()["success"])
         print(json_out.dumps({"success_rate": ok / len(results), "successes": ok, "attempts": len(results),
-                          "rows": rows, "episodes": [r.to_dict() for r in results], "policy": policy,
+                          "rows": rows, "episodes": [r.to_dict() for r in results],
+                          "controller": controller, "policy": policy if controller == "actor" else None,
                           "wall_s": time.monotonic() - t0}))
     else:
-        print(format_table(rows, f"{pol.variant.upper()} policy through the ROS nodes ({args.mode}), {args.material} "
+        what = f"{pol.variant.upper()} policy" if controller == "actor" else CONTROLLER_LABELS[controller].capitalize()
+        print(format_table(rows, f"{what} through the ROS nodes ({args.mode}), {args.material} "
                                  f"material, {len(results)} attempts, {time.monotonic() - t0:.0f} s"))
     return 0

@@ -1,7 +1,7 @@
 """The `lhd` command line.
 
   lhd demo                                 the main job: sim node + policy node (shipped RLD actor) on 15-30 deg piles
-  lhd up sim [--policy DIR] [--slope DEG] [--episodes N] [--namespace NS] [--use-sim-time] [--log-dir DIR]
+  lhd up sim [--policy DIR | --controller tampier|teacher] [--slope DEG] [--episodes N] [--namespace NS] [--use-sim-time] [--log-dir DIR]
                                            sim node + policy node over DDS until done / Ctrl-C / SIGTERM
   lhd echo TOPIC [--count N]               print a topic's messages as YAML (QoS matched to the publishers)
   lhd bench sim [--json] [--steps N] [--ros]  simulator speed (--ros: through a sim node over DDS)
@@ -568,7 +568,7 @@ def _main(argv=None) -> int:
         return real_main(argv[2:])
     if argv[:1] == ["up"]:
         print("lhd up: expected `lhd up sim [--policy DIR] [--slope DEG] [--episodes N]`, "
-              "`lhd up real --port DEV [--controller rld|rlc|tampier|teleop]` or `lhd up twin [--slopes ...]`",
+              "`lhd up real --port DEV [--controller rld|rlc|tampier|teacher|teleop]` or `lhd up twin [--slopes ...]`",
               file=sys.stderr)
         return 2
     if argv[:1] == ["echo"]:

@@ -9,8 +9,9 @@ Starts, as separate processes on real DDS, in this order:
   supervisor    nodes.supervisor_node          /lhd/episode, /lhd/arm, the attempts CSV
   mux           nodes.cmd_mux_node             the only writer of /lhd/cmd (gated on the attempt)
   teleop        nodes.teleop_node              /joy -> /lhd/cmd/teleop (deadman, e-stop)
-  controller    nodes.policy_node              RLD / RLC actor or the Tampier heuristic, on
-                                               /lhd/cmd/auto (none for --controller teleop)
+  controller    nodes.policy_node              RLD / RLC actor, the Tampier heuristic or the
+                                               demonstrations' teacher, on /lhd/cmd/auto (none
+                                               for --controller teleop)
   recorder      nodes.recorder_node            one rosbag2 per attempt under <run-dir>/bags
 Then it prints the supervisor's preflight checklist and every attempt's events. With a
 terminal on stdin: Enter arms an attempt, `a` aborts it, `m 23.4` records the weighed mass, `q`
@@ -38,7 +39,7 @@ from pathlib import Path
 from lhd_loading_ros.cli.launcher import Child, _StopOnSignals, check_children, stop_stack
 from lhd_loading_ros.ros.params import discovery_wait_s
 
-CONTROLLERS = ("rld", "rlc", "tampier", "teleop")
+CONTROLLERS = ("rld", "rlc", "tampier", "teacher", "teleop")
 ENDED = ("success", "failure", "timeout", "estop", "lost_input", "aborted")
 
 
@@ -84,8 +85,8 @@ def stack(args, run_dir: Path) -> list[tuple[str, str, dict, list[str]]]:
     ]
     if args.controller != "teleop":
         params = {**common, "trigger": "timer"}
-        if args.controller == "tampier":
-            params["controller"] = "tampier"
+        if args.controller in ("tampier", "teacher"):
+            params["controller"] = args.controller
         else:
             params["policy_dir"] = policy_dir
         nodes.append(("controller", "lhd_loading_ros.nodes.policy_node", params, ["-r", "/lhd/cmd:=/lhd/cmd/auto"]))
@@ -550,6 +551,17 @@ def check_args(ap: argparse.ArgumentParser, args) -> None:
     problem = stack_problem(params_file, args.controller, args.config)
     if problem:
         ap.error(problem)
+    if args.policy and args.controller not in ("rld", "rlc"):
+        ap.error(f"--policy is the actor's; --controller {args.controller} runs no actor (drop --policy, or use "
+                 "--controller rld|rlc)")
+    if args.controller == "teacher":      # its setting refused here as the policy node would refuse it
+        from lhd_loading_ros.policy.teacher import TeacherSetting
+        from lhd_loading_ros.task.config import ConfigError, load_config
+
+        try:
+            TeacherSetting.from_config(load_config(args.config))
+        except (ConfigError, ValueError) as exc:
+            ap.error(f"--controller teacher: {exc}")
     if args.policy:
         from lhd_loading_ros.policy.actor_file import PolicyFileError, load_policy
 

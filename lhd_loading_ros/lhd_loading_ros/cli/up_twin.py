@@ -782,7 +782,7 @@ def slope_range_problem(slopes, config: str | None, flag: str = "--slopes") -> s
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="lhd up twin", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--controller", choices=("rld", "rlc", "tampier"), default="rld")
+    ap.add_argument("--controller", choices=("rld", "rlc", "tampier", "teacher"), default="rld")
     ap.add_argument("--policy", help="exported actor for rld/rlc (default: the shipped policies/<controller>)")
     ap.add_argument("--slopes", type=float, nargs="+", default=list(DEFAULT_SLOPES),
                     help="pile slopes, degrees, cycled (default 15 20 25 30)")

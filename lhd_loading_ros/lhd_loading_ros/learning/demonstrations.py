@@ -87,8 +87,8 @@ def demo_action(env, crowd: float, pre_curl: float, told_zones: bool = False,
     drifts, then curl to pre_curl and lift and curl at full rate with the wheels at `crowd` of full
     speed; with end_zone_stop > 0 the wheels stop while the tip is below z_min within that distance
     of x_max (of the same zones)."""
-    from lhd_sim_node.scripted import scripted_action
+    from lhd_loading_ros.policy.teacher import TeacherSetting, teacher_action
 
     z = env.zones if told_zones else env.sim.zones
-    return scripted_action(env.state, z.x_min, crowd=crowd, pre_curl=pre_curl, lift_on_drift=True,
-                           end_zone=(z.x_max, z.z_min), end_zone_stop=end_zone_stop)
+    return teacher_action(env.state, (z.x_min, z.x_max, z.z_min),
+                          TeacherSetting(crowd, pre_curl, told_zones, end_zone_stop))

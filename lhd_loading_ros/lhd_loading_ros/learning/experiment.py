@@ -150,10 +150,11 @@ def told_observation(obs: np.ndarray, told_rad: float, p) -> np.ndarray:
 def teacher_setting(cfg: dict) -> tuple[float, float, bool, float]:
     """(crowd, pre_curl, told_zones, end_zone_stop) of the `teacher` controller: the middle of the
     demonstrations' crowd range, their pre-curl, the zones they read and where they stop the
-    wheels (config training.demo_*)."""
-    t = cfg["training"]
-    return (0.5 * (float(t["demo_crowd_min"]) + float(t["demo_crowd_max"])), float(t["demo_pre_curl"]),
-            bool(int(t.get("demo_told_zones", 0))), float(t.get("demo_end_zone_stop", 0.0)))
+    wheels (config training.demo_*; policy/teacher.TeacherSetting, which the policy node's
+    controller:=teacher reads too)."""
+    from lhd_loading_ros.policy.teacher import TeacherSetting
+
+    return TeacherSetting.from_config(cfg).as_tuple()
 
 
 def run_job(job: Job) -> dict:

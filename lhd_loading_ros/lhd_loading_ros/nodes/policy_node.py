@@ -1,5 +1,6 @@
 """`ros2 run lhd_loading_ros policy_node`: a loading controller at 10 Hz, the exported actor
-(controller:=actor, the default) or the Tampier-style heuristic (controller:=tampier).
+(controller:=actor, the default), the Tampier-style heuristic (controller:=tampier) or the
+training's demonstration maneuver on the end zone it is given (controller:=teacher; policy/teacher.py).
 
 It moves the machine only while an attempt is running: /lhd/episode (published by the sim node in
 simulation, by the episode supervisor on hardware) must say state = running. Before any status has
@@ -18,7 +19,8 @@ from /lhd/odom and /lhd/joint_states, drift flags, slope, end zone) and decides 
 (policy.core.DecisionCore): the actor builds the 12-vector with the environment's own code
 (lhd_loading_ros.task.observation), runs (numpy, no torch), and its variant's deployment filter
 applies; the heuristic steps its state machine (policy/tampier.py, thresholds in
-config/tampier.yaml). Both publish /lhd/cmd in rad/s (the actor also /lhd/observation). The zero
+config/tampier.yaml); the teacher runs the demonstrations' maneuver on the tip pose, the drift flags
+and the end zone (its setting: the parameter file's training.demo_*). All publish /lhd/cmd in rad/s (the actor also /lhd/observation). The zero
 command (wheels stopped, arm held) and a throttled warning, with the reason on /diagnostics, when:
 an input is missing or older than its timeout (input_timeout for the 10 Hz inputs; slope_timeout /
 end_zone_timeout for the slow ones, none by default: a latched constant never goes stale), a value
@@ -81,13 +83,14 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float32MultiArray, Float64, Float64MultiArray
 
 from lhd_loading_ros.task.attempt import STATUS_TIMEOUT_S
-from lhd_loading_ros.task.config import load_config
+from lhd_loading_ros.task.config import config_name, load_config
 from lhd_loading_ros.task.kinematics import ArmKinematics
 from lhd_loading_ros.task.params import TaskParams
 from lhd_loading_ros.policy.status_watch import StatusWatch
 from lhd_loading_ros.policy.core import INPUTS, SLOW_INPUTS, Inputs, PolicyCore, ZERO_COMMAND
 from lhd_loading_ros.policy.actor_file import PolicyFileError, default_policy_dir, load_policy  # noqa: F401 (re-exported)
 from lhd_loading_ros.policy.tampier import TampierCore, default_tampier_path, load_tampier_config
+from lhd_loading_ros.policy.teacher import TeacherCore, TeacherSetting
 from lhd_loading_ros.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
 from lhd_loading_ros.ros.qos import COMMAND_QOS, MEASUREMENT_QOS, STATUS_QOS
@@ -102,7 +105,7 @@ from lhd_loading_ros.ros.run import run_node
 # Observation and decision trace out: MEASUREMENT_QOS. Episode status in: STATUS_QOS (transient local: a node started
 # during an attempt learns at once whether it may command).
 TRIGGERS = ("timer", "lockstep", "odom")
-CONTROLLERS = ("actor", "tampier")
+CONTROLLERS = ("actor", "tampier", "teacher")
 SLOPE_SOURCES = ("attempt", "live")
 RUNNING = "running"              # the only /lhd/episode state in which a controller may move the machine
 NO_PUBLISHER = "no attempt running (no /lhd/episode publisher: start the sim node or the supervisor)"
@@ -122,12 +125,14 @@ class PolicyNode(Node):
     def __init__(self, **node_kwargs):
         super().__init__("lhd_policy", **node_kwargs)
         # the parameter file first: it gives the defaults and ranges of the others
-        cfg = load_config(Params(self, [Param("config", "", "lhd_params.yaml to use; empty: found automatically "
-                                                "(LHD_CONFIG, then the package's)")])["config"] or None)
+        cfg_path = Params(self, [Param("config", "", "lhd_params.yaml to use; empty: found automatically "
+                                       "(LHD_CONFIG, then the package's)")])["config"] or None
+        cfg = load_config(cfg_path)
         p = TaskParams.from_config(cfg)
         self.params = Params(self, [
             Param("controller", "actor", "actor: the exported actor (policy_dir); tampier: the Tampier-style "
-                  "heuristic (tampier_config)", choices=CONTROLLERS),
+                  "heuristic (tampier_config); teacher: the training's demonstration maneuver on the end zone "
+                  "(the parameter file's training.demo_*)", choices=CONTROLLERS),
             Param("policy_dir", "", "exported actor (actor.npz + policy.json); empty: the shipped policies/rld"),
             Param("tampier_config", "", "controller tampier: its thresholds (tampier.yaml); empty: found "
                   "automatically (LHD_TAMPIER_CONFIG, then the package's config/tampier.yaml)"),
@@ -184,6 +189,13 @@ class PolicyNode(Node):
             dt = p.control_dt if self.trigger == "lockstep" else 1.0 / self.rate_hz
             self.core = TampierCore(tp, p, ArmKinematics.from_config(cfg), dt)
             self.get_logger().info(f"Tampier-style heuristic from {path} (control period {dt:g} s)")
+        elif self.controller == "teacher":
+            # a bad training.demo_* value is a ValueError: one line, exit status 2
+            setting = TeacherSetting.from_config(cfg)
+            path = f"{config_name(cfg_path)} training.demo_*"
+            self.core = TeacherCore(setting, p, ArmKinematics.from_config(cfg))
+            self.get_logger().info(f"teacher (the demonstrations' maneuver) from {path}: crowd {setting.crowd:g}, "
+                                   f"pre-curl {setting.pre_curl:g} rad, end-zone stop {setting.end_zone_stop:g} m")
         else:
             path = gp("policy_dir") or str(default_policy_dir("rld"))
             actor, variant, slope_range = None, "rld", None
@@ -247,7 +259,7 @@ class PolicyNode(Node):
             steady_timer(self, 1.0 / self.rate_hz, self._on_timer)
         elif self.trigger == "odom":
             steady_timer(self, 1.0 / (FALLBACK_CHECKS * self.rate_hz), self._on_fallback_check)
-        what = "actor" if self.controller == "actor" else "heuristic"
+        what = {"actor": "actor", "tampier": "heuristic", "teacher": "teacher"}[self.controller]
         self.diagnostics = Diagnostics(self, {what: self._diag_controller, "inputs": self._diag_inputs,
                                               "decision": self._diag_decision}, hardware_id=path)
 
@@ -556,6 +568,11 @@ class PolicyNode(Node):
             c = self.core.controller
             return OK, f"Tampier-style heuristic, stage {c.stage}", {"path": self.policy_path, "stage": c.stage,
                                                                       "attempts": self.attempts}
+        if self.controller == "teacher":
+            st = self.core.setting
+            return OK, f"demonstrations' teacher, stage {self.core.stage}", {
+                "path": self.policy_path, "stage": self.core.stage, "crowd": st.crowd, "pre_curl_rad": st.pre_curl,
+                "end_zone_stop_m": st.end_zone_stop, "attempts": self.attempts}
         if self.core.actor is None:
             return ERROR, f"no actor loaded from {self.policy_path}: zero commands only", {}
         lo, hi = self.core.slope_range_deg

@@ -103,7 +103,7 @@ class SupervisorNode(Node):
             Param("config", "", "lhd_params.yaml to use; empty: found automatically (LHD_CONFIG, then the package's)"),
             Param("run_dir", f"runs/real/{_utc_stamp()}", "run folder: attempts.csv and bags/attempt_NNNN "
                   "(give the recorder the same one)"),
-            Param("controller", "rld", "label of the controller written to the record (rld, rlc, tampier, teleop); "
+            Param("controller", "rld", "label of the controller written to the record (rld, rlc, tampier, teacher, teleop); "
                   "a change applies from the next arming", check=_label_problem,
                   on_change=lambda v: setattr(self.core, "controller", v)),
             Param("policy_dir", "", "exported actor whose card gives the slope range "

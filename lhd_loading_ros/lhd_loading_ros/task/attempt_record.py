@@ -51,8 +51,8 @@ INTERRUPTED_REASON = ("the supervisor ended during the attempt without recording
                       "lost power)")
 MAX_MASS_KG = 200.0                          # a bucket rated 30 kg (heaped 37.5): anything above is a typo
 SLOPE_BIN_DEG = 5.0
-PAPER_ORDER = ("rlc", "rld", "tampier", "teleop")
-LABELS = {"rlc": "RLC", "rld": "RLD", "tampier": "Tampier", "teleop": "Teleop"}
+PAPER_ORDER = ("rlc", "rld", "tampier", "teacher", "teleop")
+LABELS = {"rlc": "RLC", "rld": "RLD", "tampier": "Tampier", "teacher": "Teacher", "teleop": "Teleop"}
 
 
 def bag_name(attempt: int) -> str:

@@ -1,0 +1,109 @@
+"""The demonstrations' teacher as a controller of the policy node (controller:=teacher), ROS-free.
+
+The training's scripted demonstrations (learning/demonstrations.py, docs/training.md "A teacher
+that knows what the actor knows") run the maneuver of policy/maneuver.py on the zones the actor is
+told: arm still and wheels full until the bucket tip passes the end zone's x_min or a wheel drifts,
+then curl to `pre_curl` and lift and curl at full rate with the wheels at `crowd` of full speed;
+with `end_zone_stop` > 0 the wheels stop while the tip is below z_min within that distance of
+x_max, so the tip rises into the end zone in place. Everything it reads is on the machine's topics:
+the tip pose from odometry and joint angles (forward kinematics), the drift flags and
+/lhd/pile/end_zone [x_min, x_max, z_min], the end-zone node's zones from the LiDAR's slope. It never
+reads the slope itself, so it has no trained slope range to refuse; a slope estimate that is wrong
+reaches it only through the end zone, as it reached the demonstrations in training.
+
+Its setting is the training's (config `training.demo_*`, the one source of truth): the middle of
+the demonstrations' crowd range, their pre-curl and their end-zone stop. In `lhd experiment paper`
+this controller (`teacher`) succeeds in every cell of the slope-error sweep on 15 and 30 deg piles
+(docs/evidence/told_teacher/teacher_told_zones); here it is the third baseline beside the actor and
+the Tampier-style heuristic, one that a user can run on the machine without a trained actor.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from lhd_loading_ros.policy.core import Decision, DecisionCore, Inputs
+from lhd_loading_ros.policy.maneuver import scripted_action
+from lhd_loading_ros.task.actions import rld_filter, to_actuator
+from lhd_loading_ros.task.kinematics import ArmKinematics, state_from_measurements
+from lhd_loading_ros.task.params import TaskParams
+from lhd_loading_ros.task.state import LhdState
+
+
+@dataclass(frozen=True)
+class TeacherSetting:
+    crowd: float           # wheel speed while lifting, share of full speed
+    pre_curl: float        # rad: bucket curl before the lift
+    told_zones: bool       # the simulator's teacher reads the told zones (on the machine: always)
+    end_zone_stop: float   # m: wheels stop below z_min within this of x_max (0: off)
+
+    @classmethod
+    def from_config(cls, cfg: dict) -> "TeacherSetting":
+        """config `training.demo_*`: the middle of [demo_crowd_min, demo_crowd_max], demo_pre_curl,
+        demo_told_zones, demo_end_zone_stop (the last two 0 when absent). ValueError naming the key
+        when a value is out of its range."""
+        t = cfg["training"]
+        lo, hi = float(t["demo_crowd_min"]), float(t["demo_crowd_max"])
+        if not (0.0 < lo <= hi <= 1.0):
+            raise ValueError(f"training.demo_crowd_min / demo_crowd_max = {lo:g} / {hi:g}: expected "
+                             "0 < demo_crowd_min <= demo_crowd_max <= 1 (shares of full wheel speed)")
+        pre_curl = float(t["demo_pre_curl"])
+        if not (math.isfinite(pre_curl) and 0.0 <= pre_curl < math.pi / 2):
+            raise ValueError(f"training.demo_pre_curl = {pre_curl!r}: expected an angle in [0, pi/2) rad")
+        stop = float(t.get("demo_end_zone_stop", 0.0))
+        if not (0.0 <= stop <= 1.0):
+            raise ValueError(f"training.demo_end_zone_stop = {stop:g}: expected 0 (off) to 1 m")
+        return cls(0.5 * (lo + hi), pre_curl, bool(int(t.get("demo_told_zones", 0))), stop)
+
+    def as_tuple(self) -> tuple[float, float, bool, float]:
+        return (self.crowd, self.pre_curl, self.told_zones, self.end_zone_stop)
+
+
+def teacher_action(s: LhdState, end_zone, setting: TeacherSetting) -> np.ndarray:
+    """The teacher's normalised action for state s and end zone (x_min, x_max, z_min): the
+    demonstrations' maneuver (learning.demonstrations.demo_action with these zones)."""
+    x_min, x_max, z_min = end_zone
+    return scripted_action(s, x_min, crowd=setting.crowd, pre_curl=setting.pre_curl, lift_on_drift=True,
+                           end_zone=(x_max, z_min), end_zone_stop=setting.end_zone_stop)
+
+
+class TeacherCore(DecisionCore):
+    """The policy node's decision path (input checks, timeouts, zero command on doubt: DecisionCore)
+    with the demonstrations' teacher in place of the actor. Stateless: every command follows from
+    the current tip pose, drift flags and end zone. Through the RLD filter, as in `lhd experiment
+    paper` (its boom and bucket commands are already full rate or still)."""
+
+    name = "teacher"
+
+    def __init__(self, setting: TeacherSetting, p: TaskParams, kin: ArmKinematics):
+        super().__init__(p, kin, slope_range_deg=None)
+        self.setting = setting
+        self.stage = "approach"
+
+    def reset(self) -> None:
+        self.stage = "approach"
+
+    def _act(self, inp: Inputs) -> Decision:
+        pos, quat, v_x = inp.values["odom"]
+        s = state_from_measurements(self.kin, pos, quat, v_x, inp.values["joints"], inp.values["drift_front"],
+                                    inp.values["drift_rear"])
+        for name in ("v_x", "phi_shovel", "x_shovel", "z_shovel"):
+            if not math.isfinite(getattr(s, name)):
+                raise ValueError(f"state {name} = {getattr(s, name)!r}: expected a finite number")
+        zone = tuple(float(v) for v in inp.values["end_zone"])
+        if len(zone) != 3 or not all(math.isfinite(v) for v in zone):
+            raise ValueError(f"end zone {list(zone)}: expected 3 finite values [x_min, x_max, z_min]")
+        a = teacher_action(s, zone, self.setting)
+        if a[1] < 1.0 or a[2] > -1.0:
+            x_max, z_min = zone[1], zone[2]
+            stopped = a[0] <= -1.0 and s.z_shovel < z_min and s.x_shovel > x_max - self.setting.end_zone_stop
+            self.stage = "lift in place" if stopped else ("pre-curl" if a[1] >= 1.0 else "lift and curl")
+        else:
+            self.stage = "approach"
+        u = to_actuator(rld_filter(np.clip(a, -1.0, 1.0), self.p), self.p)
+        return Decision(tuple(float(v) for v in u), None, a, "", note=f"stage {self.stage}")
+
+
+__all__ = ["TeacherSetting", "TeacherCore", "teacher_action"]
