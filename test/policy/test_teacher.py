@@ -87,6 +87,29 @@ def test_the_core_decides_through_the_shared_path(cfg, params):
     assert core.decide(inp, 5.0, 0.5).command == (WHEELS, 0.0, 0.0)
 
 
+def test_a_drift_flag_must_hold_before_it_starts_the_lift(cfg, params):
+    """drift_confirm = 3: the start-up slip of the machine's wheels (one or two decisions with a drift
+    flag, the camera's v_x still near 0) leaves the arm still; a flag up three decisions in a row (a
+    stall) starts the curl; a flag that drops in between counts again from the start."""
+    core = TeacherCore(TeacherSetting(0.625, 0.3, True, 0.2), params, ArmKinematics.from_config(cfg), 3)
+    inp = Inputs()
+    push, curl = (WHEELS, 0.0, 0.0), tuple(to_actuator(np.array([0.25, 1.0, 1.0]), params))
+    cmds = []
+    for k, drift in enumerate([True, True, False, True, True, True]):
+        feed(inp, float(k), v_x=0.0 if k < 2 else 0.3, drift=drift)
+        cmds.append(core.decide(inp, float(k), 0.5).command)
+    assert cmds[:5] == [push] * 5 and cmds[5] == pytest.approx(curl)
+    core.reset()
+    feed(inp, 10.0, drift=True)
+    assert core.decide(inp, 10.0, 0.5).command == push          # the count starts again with each attempt
+    # 1: the training's teacher, a single flag starts the curl
+    one = TeacherCore(core.setting, params, ArmKinematics.from_config(cfg))
+    assert one.decide(inp, 10.0, 0.5).command == pytest.approx(curl)
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(ValueError, match="drift_confirm"):
+            TeacherCore(core.setting, params, ArmKinematics.from_config(cfg), bad)
+
+
 def drive(env, core, reset_opts, seed, told):
     """One attempt of TeacherCore on the simulator, fed what the sim node publishes (measurements)
     and the zones the end-zone node would publish (env.zones: built from the told slope); at every

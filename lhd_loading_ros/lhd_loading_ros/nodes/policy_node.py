@@ -136,6 +136,10 @@ class PolicyNode(Node):
             Param("policy_dir", "", "exported actor (actor.npz + policy.json); empty: the shipped policies/rld"),
             Param("tampier_config", "", "controller tampier: its thresholds (tampier.yaml); empty: found "
                   "automatically (LHD_TAMPIER_CONFIG, then the package's config/tampier.yaml)"),
+            Param("teacher_drift_confirm", 1, "controller teacher: consecutive decisions a drift flag must be up "
+                  "before it starts the lift; 1: the training's teacher (the simulator's flags are true slip); "
+                  "on the machine the wheels slip while they spin up from rest (config/real_machine.yaml: 4)",
+                  lo=1, hi=50),
             Param("rate_hz", float(cfg["paper"]["control"]["frequency_hz"]), "decisions per second (trigger timer)",
                   lo=0.1, hi=1000.0),
             Param("input_timeout", 0.5, "s: a 10 Hz input (joints, odometry, drift) older than this gives the "
@@ -193,9 +197,11 @@ class PolicyNode(Node):
             # a bad training.demo_* value is a ValueError: one line, exit status 2
             setting = TeacherSetting.from_config(cfg)
             path = f"{config_name(cfg_path)} training.demo_*"
-            self.core = TeacherCore(setting, p, ArmKinematics.from_config(cfg))
+            confirm = gp("teacher_drift_confirm")
+            self.core = TeacherCore(setting, p, ArmKinematics.from_config(cfg), confirm)
             self.get_logger().info(f"teacher (the demonstrations' maneuver) from {path}: crowd {setting.crowd:g}, "
-                                   f"pre-curl {setting.pre_curl:g} rad, end-zone stop {setting.end_zone_stop:g} m")
+                                   f"pre-curl {setting.pre_curl:g} rad, end-zone stop {setting.end_zone_stop:g} m, "
+                                   f"drift confirmed after {confirm} decision(s)")
         else:
             path = gp("policy_dir") or str(default_policy_dir("rld"))
             actor, variant, slope_range = None, "rld", None
@@ -572,7 +578,8 @@ class PolicyNode(Node):
             st = self.core.setting
             return OK, f"demonstrations' teacher, stage {self.core.stage}", {
                 "path": self.policy_path, "stage": self.core.stage, "crowd": st.crowd, "pre_curl_rad": st.pre_curl,
-                "end_zone_stop_m": st.end_zone_stop, "attempts": self.attempts}
+                "end_zone_stop_m": st.end_zone_stop, "drift_confirm": self.core.drift_confirm,
+                "attempts": self.attempts}
         if self.core.actor is None:
             return ERROR, f"no actor loaded from {self.policy_path}: zero commands only", {}
         lo, hi = self.core.slope_range_deg

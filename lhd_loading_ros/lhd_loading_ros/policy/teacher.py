@@ -20,7 +20,7 @@ the Tampier-style heuristic, one that a user can run on the machine without a tr
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -71,19 +71,37 @@ def teacher_action(s: LhdState, end_zone, setting: TeacherSetting) -> np.ndarray
 
 class TeacherCore(DecisionCore):
     """The policy node's decision path (input checks, timeouts, zero command on doubt: DecisionCore)
-    with the demonstrations' teacher in place of the actor. Stateless: every command follows from
-    the current tip pose, drift flags and end zone. Through the RLD filter, as in `lhd experiment
-    paper` (its boom and bucket commands are already full rate or still)."""
+    with the demonstrations' teacher in place of the actor. Every command follows from the current
+    tip pose, drift flags and end zone, with one piece of memory: `drift_confirm` (decisions, >= 1).
+    A drift flag starts the lift only once it has been up for that many consecutive decisions; 1 is
+    the training's teacher (the simulator's drift flags are its wheels' true slip). On the machine the
+    bridge flags drift when a rim outruns the camera's v_x, and an attempt starts from rest: while
+    the wheels spin up and the camera's v_x lags, both axles read as drifting (in the digital twin
+    for 70 ms, with odometry up to 0.3 s old on 2 cores), and one such decision made the teacher lift
+    at the start line with 6-9 kg where it loads 40 (docs/baselines.md "The demonstrations' teacher
+    as a controller"). A stall's drift lasts for seconds. Through the RLD filter, as in `lhd
+    experiment paper` (its boom and bucket commands are already full rate or still)."""
 
     name = "teacher"
 
-    def __init__(self, setting: TeacherSetting, p: TaskParams, kin: ArmKinematics):
+    def __init__(self, setting: TeacherSetting, p: TaskParams, kin: ArmKinematics, drift_confirm: int = 1):
         super().__init__(p, kin, slope_range_deg=None)
+        if isinstance(drift_confirm, bool) or not isinstance(drift_confirm, int) or drift_confirm < 1:
+            raise ValueError(f"drift_confirm = {drift_confirm!r}: expected a whole number of decisions >= 1")
         self.setting = setting
-        self.stage = "approach"
+        self.drift_confirm = drift_confirm
+        self.reset()
 
     def reset(self) -> None:
         self.stage = "approach"
+        self.drift_run = 0          # consecutive decisions with a drift flag up
+
+    def confirmed(self, s: LhdState) -> LhdState:
+        """s with its drift flags down until they have been up for drift_confirm decisions in a row."""
+        self.drift_run = self.drift_run + 1 if s.drift else 0
+        if s.drift and self.drift_run < self.drift_confirm:
+            return replace(s, drift=False, drift_front=False, drift_rear=False)
+        return s
 
     def _act(self, inp: Inputs) -> Decision:
         pos, quat, v_x = inp.values["odom"]
@@ -95,7 +113,7 @@ class TeacherCore(DecisionCore):
         zone = tuple(float(v) for v in inp.values["end_zone"])
         if len(zone) != 3 or not all(math.isfinite(v) for v in zone):
             raise ValueError(f"end zone {list(zone)}: expected 3 finite values [x_min, x_max, z_min]")
-        a = teacher_action(s, zone, self.setting)
+        a = teacher_action(self.confirmed(s), zone, self.setting)
         if a[1] < 1.0 or a[2] > -1.0:
             x_max, z_min = zone[1], zone[2]
             stopped = a[0] <= -1.0 and s.z_shovel < z_min and s.x_shovel > x_max - self.setting.end_zone_stop
