@@ -50,3 +50,14 @@ def test_flags_that_do_not_apply_are_refused(tmp_path, capsys):
     with pytest.raises(SystemExit):
         check_args(ap, args)
     assert "relation violated: training.demo_crowd_min <= training.demo_crowd_max" in capsys.readouterr().err
+
+
+def test_the_machine_parameter_file_confirms_the_teachers_drift():
+    """config/real_machine.yaml, which `lhd up real` and `lhd up twin` pass to every node, gives the
+    policy node teacher_drift_confirm 6 (the start-up wheel slip; docs/baselines.md), read as rcl
+    reads it; the node's own default stays the training's 1 (config/policy_node.yaml)."""
+    from lhd_loading_ros.cli.up_real import default_params_file, node_params
+
+    assert node_params(default_params_file(), "/lhd_policy")["teacher_drift_confirm"] == 6
+    own = yaml.safe_load((ROOT / "config" / "policy_node.yaml").read_text())
+    assert own["lhd_policy"]["ros__parameters"]["teacher_drift_confirm"] == 1

@@ -208,22 +208,24 @@ def test_teacher_controller_over_dds(ros, tmp_path):
     and the arm still before the end zone's x_min, a drifting wheel starts the curl with the wheels
     at 0.625 of full speed, config training.demo_*); no slope range to refuse."""
     rig = Rig(ros, slope_deg=40.0)           # outside every actor's range: the teacher never reads it
-    pol = RosProcess(POLICY, {"controller": "teacher"}, tmp_path / "pol.log")
+    pol = RosProcess(POLICY, {"controller": "teacher", "teacher_drift_confirm": 2}, tmp_path / "pol.log")
     try:
         rig.publish_status("idle")
         assert spin_until(ros, lambda: rig.has("inputs", DiagnosticStatus.OK, "all inputs fresh")
                           and rig.has("teacher", DiagnosticStatus.OK, "demonstrations' teacher"), 60), pol.log()
+        st = rig.diag["/lhd_policy: teacher"]
+        assert {kv.key: kv.value for kv in st.values}["drift_confirm"] == "2"      # the parameter reached the core
         assert rig.watch(1.0) == []
         rig.publish_status("running")
         assert rig.wait_commanding(10, lambda c: c == [WHEELS, 0.0, 0.0]), pol.log()[-2000:]
         assert spin_until(ros, lambda: rig.has("decision", DiagnosticStatus.OK, "teacher commanding (stage approach)"), 10)
-        rig.drift = True
+        rig.drift = True          # fresh flags at 10 Hz: the second decision with one up starts the curl
         assert rig.wait_commanding(10, lambda c: c == pytest.approx([0.625 * WHEELS, 0.0, CURL])), rig.cmds[-20:]
         assert spin_until(ros, lambda: rig.has("decision", DiagnosticStatus.OK, "teacher commanding (stage pre-curl)"), 10)
         t_end = rig.publish_status("failure")
         assert_stops(rig, t_end, "failure")
         assert "teacher (the demonstrations' maneuver) from config/lhd_params.yaml training.demo_*: crowd 0.625" \
-            in pol.log()
+            in pol.log() and "drift confirmed after 2 decision(s)" in pol.log()
     finally:
         assert pol.stop() == 0, pol.log()
         rig.close()

@@ -44,6 +44,7 @@ def test_the_setting_is_the_trainings():
     ("demo_end_zone_stop", -0.1, "training.demo_end_zone_stop = -0.1"),
 ])
 def test_a_bad_setting_names_the_key(cfg, key, value, expected):
+    """A mapping built by hand (load_config refuses such a parameter file before this is reached)."""
     c = copy.deepcopy(cfg)
     c["training"][key] = value
     with pytest.raises(ValueError, match=expected.replace(".", r"\.").replace("/", "/")):
@@ -102,6 +103,18 @@ def test_a_drift_flag_must_hold_before_it_starts_the_lift(cfg, params):
     core.reset()
     feed(inp, 10.0, drift=True)
     assert core.decide(inp, 10.0, 0.5).command == push          # the count starts again with each attempt
+    # one drift sample held (no newer one arrives within the input timeout): it counts once
+    assert [core.decide(inp, 10.0 + 0.1 * k, 0.5).command for k in range(1, 5)] == [push] * 4
+    assert core.drift_run == 1
+    # a zero command (here a stale input) between flags starts the count again
+    core.reset()
+    for k in range(2):
+        feed(inp, 20.0 + 0.1 * k, drift=True)
+        core.decide(inp, 20.0 + 0.1 * k, 0.5)
+    assert core.drift_run == 2
+    assert core.decide(inp, 21.0, 0.5).command == ZERO_COMMAND and core.stage == "zero command"
+    feed(inp, 21.1, drift=True)
+    assert core.decide(inp, 21.1, 0.5).command == push and core.drift_run == 1
     # 1: the training's teacher, a single flag starts the curl
     one = TeacherCore(core.setting, params, ArmKinematics.from_config(cfg))
     assert one.decide(inp, 10.0, 0.5).command == pytest.approx(curl)
@@ -113,18 +126,23 @@ def test_a_drift_flag_must_hold_before_it_starts_the_lift(cfg, params):
 def drive(env, core, reset_opts, seed, told):
     """One attempt of TeacherCore on the simulator, fed what the sim node publishes (measurements)
     and the zones the end-zone node would publish (env.zones: built from the told slope); at every
-    step the command must be the training demonstration's for the environment's own state."""
+    step the command must be the training demonstration's for the environment's own state. This
+    checks the measurement path (forward kinematics, drift flags, zones, actuator map) against the
+    environment's state; the maneuver itself is checked by hand, state by state, in
+    test/learning/test_demonstrations.py::test_the_end_zone_stop_by_hand."""
     env.reset(seed=seed, options=reset_opts)
     st = core.setting
     z = env.zones
     inp, stages = Inputs(), []
     core.reset()
+    now = 0.0
     while True:
+        now += env.p.control_dt
         pos, quat, v, joints, f, r = measurements(env)
         for name, value in (("joints", joints), ("odom", (pos, quat, v)), ("drift_front", f), ("drift_rear", r),
                             ("slope", math.radians(told)), ("end_zone", (z.x_min, z.x_max, z.z_min))):
-            inp.put(name, value, 0.0)
-        d = core.decide(inp, 0.0, 0.5)
+            inp.put(name, value, now)
+        d = core.decide(inp, now, 0.5)
         assert d.reason == "", d.reason
         ref = to_actuator(demo_action(env, st.crowd, st.pre_curl, True, st.end_zone_stop), env.p)
         np.testing.assert_allclose(d.command, ref, atol=1e-12)
@@ -150,5 +168,5 @@ def test_in_the_simulator_it_is_the_training_teacher(cfg):
     res, stages = drive(env, core, {"slope_deg": 15.0, "material": "homogeneous",
                                     "conditions": Conditions(slope_error_deg=15.0)}, 5, 30.0)
     assert env.zones.x_max == pytest.approx(0.88, abs=0.02)
-    assert "stage lift in place" in stages
+    assert "stage lift and curl in place" in stages
     assert res.success and res.reached_end_zone and res.loaded > 20.0

@@ -138,7 +138,8 @@ class PolicyNode(Node):
                   "automatically (LHD_TAMPIER_CONFIG, then the package's config/tampier.yaml)"),
             Param("teacher_drift_confirm", 1, "controller teacher: consecutive decisions a drift flag must be up "
                   "before it starts the lift; 1: the training's teacher (the simulator's flags are true slip); "
-                  "on the machine the wheels slip while they spin up from rest (config/real_machine.yaml: 4)",
+                  "only fresh drift samples count, a zero command restarts the count; on the machine the wheels read "
+                  "as slipping while they spin up from rest (config/real_machine.yaml: 6)",
                   lo=1, hi=50),
             Param("rate_hz", float(cfg["paper"]["control"]["frequency_hz"]), "decisions per second (trigger timer)",
                   lo=0.1, hi=1000.0),

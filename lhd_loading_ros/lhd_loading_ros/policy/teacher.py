@@ -43,15 +43,16 @@ class TeacherSetting:
     def from_config(cls, cfg: dict) -> "TeacherSetting":
         """config `training.demo_*`: the middle of [demo_crowd_min, demo_crowd_max], demo_pre_curl,
         demo_told_zones, demo_end_zone_stop (the last two 0 when absent). ValueError naming the key
-        when a value is out of its range."""
+        when a value is out of its range: load_config refuses such a file first; this guards a
+        mapping built by hand."""
         t = cfg["training"]
         lo, hi = float(t["demo_crowd_min"]), float(t["demo_crowd_max"])
         if not (0.0 < lo <= hi <= 1.0):
             raise ValueError(f"training.demo_crowd_min / demo_crowd_max = {lo:g} / {hi:g}: expected "
                              "0 < demo_crowd_min <= demo_crowd_max <= 1 (shares of full wheel speed)")
         pre_curl = float(t["demo_pre_curl"])
-        if not (math.isfinite(pre_curl) and 0.0 <= pre_curl < math.pi / 2):
-            raise ValueError(f"training.demo_pre_curl = {pre_curl!r}: expected an angle in [0, pi/2) rad")
+        if not (math.isfinite(pre_curl) and 0.0 <= pre_curl <= 1.4):      # the parameter file's own range
+            raise ValueError(f"training.demo_pre_curl = {pre_curl!r}: expected an angle in [0, 1.4] rad")
         stop = float(t.get("demo_end_zone_stop", 0.0))
         if not (0.0 <= stop <= 1.0):
             raise ValueError(f"training.demo_end_zone_stop = {stop:g}: expected 0 (off) to 1 m")
@@ -72,15 +73,18 @@ def teacher_action(s: LhdState, end_zone, setting: TeacherSetting) -> np.ndarray
 class TeacherCore(DecisionCore):
     """The policy node's decision path (input checks, timeouts, zero command on doubt: DecisionCore)
     with the demonstrations' teacher in place of the actor. Every command follows from the current
-    tip pose, drift flags and end zone, with one piece of memory: `drift_confirm` (decisions, >= 1).
-    A drift flag starts the lift only once it has been up for that many consecutive decisions; 1 is
-    the training's teacher (the simulator's drift flags are its wheels' true slip). On the machine the
-    bridge flags drift when a rim outruns the camera's v_x, and an attempt starts from rest: while
-    the wheels spin up and the camera's v_x lags, both axles read as drifting (in the digital twin
-    for 70 ms, with odometry up to 0.3 s old on 2 cores), and one such decision made the teacher lift
-    at the start line with 6-9 kg where it loads 40 (docs/baselines.md "The demonstrations' teacher
-    as a controller"). A stall's drift lasts for seconds. Through the RLD filter, as in `lhd
-    experiment paper` (its boom and bucket commands are already full rate or still)."""
+    tip pose, drift flags and end zone, with one piece of memory: `drift_confirm` (>= 1). A drift flag
+    starts the lift only once drift_confirm decisions in a row have each had a fresh drift sample
+    (a new arrival on /lhd/wheel_drift/front or rear) with a flag up; a decision on the same held
+    sample does not count again, and a decision that gives the zero command (stale or bad input)
+    starts the count afresh. 1 is the training's teacher (the simulator's drift flags are its wheels'
+    true slip). On the machine the bridge flags drift when a rim outruns the camera's v_x, and an
+    attempt starts from rest: while the wheels spin up and the camera's v_x lags, both axles read as
+    drifting (in the digital twin for 0.05-0.5 s, median 0.1 s, the longest when the ArUco odometry
+    ran 0.3-0.4 s late on 2 cores), and one such decision made the teacher lift at the start line
+    with 6-9 kg where it loads 40 (docs/baselines.md "The demonstrations' teacher as a controller").
+    A stall's drift lasts for seconds. Through the RLD filter, as in `lhd experiment paper` (its
+    boom and bucket commands are already full rate or still)."""
 
     name = "teacher"
 
@@ -94,11 +98,27 @@ class TeacherCore(DecisionCore):
 
     def reset(self) -> None:
         self.stage = "approach"
-        self.drift_run = 0          # consecutive decisions with a drift flag up
+        self.drift_run = 0          # consecutive decisions with a fresh drift sample and a flag up
+        self._drift_arrival = None  # arrival times of the drift samples the last decision used
 
-    def confirmed(self, s: LhdState) -> LhdState:
-        """s with its drift flags down until they have been up for drift_confirm decisions in a row."""
-        self.drift_run = self.drift_run + 1 if s.drift else 0
+    def decide(self, inp: Inputs, now: float, timeout: float, timeouts: dict | None = None) -> Decision:
+        d = super().decide(inp, now, timeout, timeouts)
+        if d.reason:                # the zero command: the machine is told to stop, the count starts again
+            self.drift_run, self._drift_arrival = 0, None
+            self.stage = "zero command"
+        return d
+
+    def confirmed(self, s: LhdState, arrival=None) -> LhdState:
+        """s with its drift flags down until they have been up for drift_confirm decisions in a row,
+        each on a fresh sample (`arrival`: the drift samples' arrival times; None: always fresh)."""
+        if self.drift_confirm == 1:       # the training's teacher: every flag counts at once
+            return s
+        fresh = arrival is None or arrival != self._drift_arrival
+        self._drift_arrival = arrival
+        if not s.drift:
+            self.drift_run = 0
+        elif fresh:
+            self.drift_run += 1
         if s.drift and self.drift_run < self.drift_confirm:
             return replace(s, drift=False, drift_front=False, drift_rear=False)
         return s
@@ -113,11 +133,11 @@ class TeacherCore(DecisionCore):
         zone = tuple(float(v) for v in inp.values["end_zone"])
         if len(zone) != 3 or not all(math.isfinite(v) for v in zone):
             raise ValueError(f"end zone {list(zone)}: expected 3 finite values [x_min, x_max, z_min]")
-        a = teacher_action(self.confirmed(s), zone, self.setting)
+        arrival = (inp.arrival.get("drift_front"), inp.arrival.get("drift_rear"))
+        a = teacher_action(self.confirmed(s, arrival), zone, self.setting)
         if a[1] < 1.0 or a[2] > -1.0:
-            x_max, z_min = zone[1], zone[2]
-            stopped = a[0] <= -1.0 and s.z_shovel < z_min and s.x_shovel > x_max - self.setting.end_zone_stop
-            self.stage = "lift in place" if stopped else ("pre-curl" if a[1] >= 1.0 else "lift and curl")
+            move = "pre-curl" if a[1] >= 1.0 else "lift and curl"
+            self.stage = f"{move} in place" if a[0] <= -1.0 else move
         else:
             self.stage = "approach"
         u = to_actuator(rld_filter(np.clip(a, -1.0, 1.0), self.p), self.p)
