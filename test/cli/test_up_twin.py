@@ -110,6 +110,18 @@ def test_bad_arguments_are_refused_before_anything_starts(argv, expected, capsys
 
 
 
+def test_a_broken_parameter_file_is_refused_by_name(tmp_path, capsys):
+    """--config naming a file that is not a valid parameter file: exit 2 with the loader's message
+    naming the file, no traceback (a reviewer's find, 2026-11-29: it was a traceback and exit 1)."""
+    from lhd_loading_ros.cli.up_twin import main
+
+    bad = tmp_path / "broken.yaml"
+    bad.write_text("paper: [1, 2\n")
+    with pytest.raises(SystemExit) as exc:
+        main(["--config", str(bad)])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and "broken.yaml" in err and "Traceback" not in err, err
+
 def test_the_twins_slope_refusal_names_the_file_lhd_config_points_to(monkeypatch):
     """No --config: the twin reads $LHD_CONFIG's file where it is set, and its refusal names that one."""
     from lhd_loading_ros.cli.up_twin import slope_range_problem

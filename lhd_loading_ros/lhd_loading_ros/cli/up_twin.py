@@ -840,7 +840,12 @@ def main(argv=None) -> int:
                      + f" Its parameters: {', '.join(sorted(known))}")
     if args.arm_timeout <= 0:
         ap.error(f"--arm-timeout must be positive, got {args.arm_timeout}")
-    bad = slope_range_problem(args.slopes, args.config)
+    from lhd_loading_ros.task.config import ConfigError
+
+    try:
+        bad = slope_range_problem(args.slopes, args.config)
+    except ConfigError as exc:      # a broken parameter file: one message, exit 2, before any node starts
+        ap.error(str(exc))
     if bad:
         ap.error(bad)
     if args.imu is not None and not (math.isfinite(args.imu) and 0.0 <= args.imu <= 45.0):
