@@ -3,6 +3,7 @@ wheel-drift detection, joint-state contents, the load cell's validity and report
 (bridge_node.py) is thin over this."""
 from __future__ import annotations
 
+import bisect
 import math
 from collections import deque
 from dataclasses import dataclass
@@ -33,6 +34,7 @@ class BridgeParams:
     odom_timeout: float
     backoff_min: float
     backoff_max: float
+    control_period: float = 0.1   # s, the policy's period: the drift window (DriftWindow), as in training
 
     @classmethod
     def from_config(cls, cfg: dict) -> "BridgeParams":
@@ -45,6 +47,7 @@ class BridgeParams:
             drift_min_speed=t["drift_min_speed"], drift_current_front=h["drift_current_front"],
             drift_current_rear=h["drift_current_rear"], odom_timeout=h["odom_timeout"],
             backoff_min=h["reconnect_backoff_min"], backoff_max=h["reconnect_backoff_max"],
+            control_period=1.0 / c["frequency_hz"],
         )
 
 
@@ -186,19 +189,139 @@ class Watchdog:
         return s
 
 
-def detect_drift(f: SensorFrame, v_machine: float | None, p: BridgeParams) -> tuple[bool, bool]:
-    """(front, rear) drift, as in the paper: wheel rotation without matching machine movement
-    (when the machine speed is known), or motor current beyond the no-drift presets."""
-    def slips(omega: float) -> bool:
-        if v_machine is None:
-            return False
-        rim = omega * p.wheel_radius
-        return abs(rim - v_machine) > max(p.drift_min_speed, p.drift_slip_ratio * max(abs(rim), abs(v_machine)))
+def detect_drift(f: SensorFrame, slip: tuple[bool, bool] | None, p: BridgeParams) -> tuple[bool, bool]:
+    """(front, rear) drift. With the machine's travel known, `slip` (DriftWindow.slips: the training's
+    rule, wheel travel against machine travel over the last control period) decides alone. Without it
+    (no fresh odometry, or not yet a period of it), the motor currents beyond their no-drift presets:
+    the paper's real-machine cue ("power usage of the wheel motors"), the only one left. A current
+    alone is not drift while the travel is known: a motor at its limit while it accelerates the
+    machine, or stalls with the wheels held (the paper's RLD, stuck with a full bucket, "the front axle
+    cannot turn"), draws as much as one whose wheel spins, and the simulator the actors trained in
+    counts neither (docs/hardware_bridge.md "Drift")."""
+    if slip is not None:
+        return slip
+    return (f.current_fl > p.drift_current_front or f.current_fr > p.drift_current_front,
+            f.current_rear > p.drift_current_rear)
 
-    front = slips(f.wheel_fl) or slips(f.wheel_fr) or f.current_fl > p.drift_current_front \
-        or f.current_fr > p.drift_current_front
-    rear = slips(f.wheel_rear) or f.current_rear > p.drift_current_rear
-    return front, rear
+
+def _interp(ts: list[float], vs: list, t: float):
+    """vs at t, linear between the samples of increasing ts around it (t within [ts[0], ts[-1]])."""
+    i = bisect.bisect_left(ts, t)
+    if i < len(ts) and ts[i] == t:
+        return vs[i]
+    t0, t1 = ts[i - 1], ts[i]
+    w = (t - t0) / (t1 - t0)
+    v0, v1 = vs[i - 1], vs[i]
+    if isinstance(v0, tuple):
+        return tuple(a + w * (b - a) for a, b in zip(v0, v1))
+    return v0 + w * (v1 - v0)
+
+
+class DriftWindow:
+    """The simulator's drift rule (LhdSimulator.wheel_drift, what every actor read in training) on the
+    machine's own signals: over one control period T ending at the newest odometry's instant t1, a
+    wheel drifts when its rim travel r (theta(t1) - theta(t1 - T)) and the machine's travel over the
+    same window differ by more than max(drift_min_speed T, drift_slip_ratio x the larger of the two).
+
+    Time-aligned: the machine's travel comes from /lhd/odom's pose at its stamps (the camera image's
+    instant, 20-100 ms before it arrives), the wheels' from their integrated angles at the frames'
+    arrival times, both on the ROS clock, interpolated to t1 - T and t1. Comparing the newest wheel
+    speed with the newest (older) camera speed, as the bridge did until 2026-11-29, flagged drift
+    whenever the machine accelerated: at every start from rest, where the training's window saw none
+    (docs/hardware_bridge.md "Drift"). The machine's travel is its displacement along its heading at
+    t1 (the simulator takes the world x; 0.14 % apart at the 3 deg of a machine placed by hand). The
+    rear wheels: the device reports the differential's carrier, the mean of the two.
+
+    ROS-free; the node feeds it from two threads under its own lock."""
+
+    def __init__(self, period: float, keep_s: float = 2.0):
+        if not period > 0.0:
+            raise ValueError(f"drift window period {period!r} s: expected > 0 (the control period)")
+        self.period = float(period)
+        self.keep_s = max(float(keep_s), 3.0 * self.period)
+        self._wt: list[float] = []                     # wheel frames: arrival time (ROS clock, s)
+        self._wa: list[tuple[float, float, float]] = []   # their angles (fl, fr, rear), rad
+        self._ws: list[int] = []                       # their integration segment (WheelAngles.restarts)
+        self._ot: list[float] = []                     # odometry: stamp (s)
+        self._op: list[tuple[float, float]] = []       # its position (x, y), m
+        self._oyaw: list[float] = []
+
+    def add_wheels(self, t: float, angles: tuple[float, float, float], segment: int) -> None:
+        if self._wt and t <= self._wt[-1]:
+            if t < self._wt[-1] - self.keep_s:      # the clock stepped back (a new ROS time source): start over
+                self._wt, self._wa, self._ws = [], [], []
+            else:
+                return
+        self._wt.append(float(t))
+        self._wa.append(tuple(float(a) for a in angles))
+        self._ws.append(int(segment))
+        self._trim(self._wt, self._wa, self._ws)
+
+    def add_odom(self, t: float, x: float, y: float, yaw: float) -> bool:
+        """False (and nothing kept) for a non-finite pose or a stamp not newer than the last."""
+        if not all(math.isfinite(v) for v in (t, x, y, yaw)):
+            return False
+        if self._ot and t <= self._ot[-1]:
+            if t < self._ot[-1] - self.keep_s:
+                self._ot, self._op, self._oyaw = [], [], []
+            else:
+                return False
+        self._ot.append(float(t))
+        self._op.append((float(x), float(y)))
+        self._oyaw.append(float(yaw))
+        self._trim(self._ot, self._op, self._oyaw)
+        return True
+
+    def _trim(self, ts, *lists) -> None:
+        cut = bisect.bisect_left(ts, ts[-1] - self.keep_s)
+        if cut > 0:
+            del ts[:cut]
+            for lst in lists:
+                del lst[:cut]
+
+    @property
+    def newest(self) -> tuple[float | None, float | None]:
+        """(newest odometry stamp, newest wheel frame time), s; None where there is none."""
+        return (self._ot[-1] if self._ot else None), (self._wt[-1] if self._wt else None)
+
+    def travels(self) -> tuple[float, tuple[float, float, float]] | None:
+        """(machine travel, (rim travel fl, fr, rear) / wheel radius = angle change) over the newest
+        window the two histories both cover, or None (not yet a period of odometry inside the wheel
+        frames, or a restart of the wheels' integration inside it)."""
+        if len(self._ot) < 2 or len(self._wt) < 2:
+            return None
+        # the newest odometry instant the wheel frames already reach
+        j = bisect.bisect_right(self._ot, self._wt[-1]) - 1
+        if j < 1:
+            return None
+        t1 = self._ot[j]
+        t0 = t1 - self.period
+        if t0 < self._ot[0] or t0 < self._wt[0]:
+            return None
+        i0, i1 = bisect.bisect_left(self._wt, t0), bisect.bisect_left(self._wt, t1)
+        lo = max(i0 - 1, 0)
+        if len(set(self._ws[lo:i1 + 1])) != 1:
+            return None
+        x0, y0 = _interp(self._ot[:j + 1], self._op[:j + 1], t0)
+        x1, y1 = self._op[j]
+        yaw = self._oyaw[j]
+        dx = (x1 - x0) * math.cos(yaw) + (y1 - y0) * math.sin(yaw)
+        a0, a1 = _interp(self._wt, self._wa, t0), _interp(self._wt, self._wa, t1)
+        return dx, tuple(b - a for a, b in zip(a0, a1))
+
+    def slips(self, p: BridgeParams) -> tuple[bool, bool] | None:
+        """(front, rear) by the simulator's rule over the window of `travels`, or None."""
+        tr = self.travels()
+        if tr is None:
+            return None
+        dx, dtheta = tr
+        tol_min = p.drift_min_speed * self.period
+
+        def slip(d: float) -> bool:
+            rim = d * p.wheel_radius
+            return abs(rim - dx) > max(tol_min, p.drift_slip_ratio * max(abs(rim), abs(dx)))
+
+        return slip(dtheta[0]) or slip(dtheta[1]), slip(dtheta[2])
 
 
 DEVICE_CLOCK_WRAP_US = 1 << 32     # the device's uint32 microsecond clock wraps every 71.6 min
@@ -216,6 +339,7 @@ class WheelAngles:
     def __init__(self):
         self.angles = [0.0, 0.0, 0.0, 0.0]        # fl, fr, rl, rr
         self._last: tuple[int, tuple[float, ...]] | None = None   # (device time, speeds) of the last frame
+        self.restarts = 0                          # integrations started (the first frame, after each gap)
 
     def update(self, f: SensorFrame) -> list[float]:
         speeds = (f.wheel_fl, f.wheel_fr, f.wheel_rear, f.wheel_rear)
@@ -225,6 +349,10 @@ class WheelAngles:
             if 0.0 < dt <= WHEEL_GAP_MAX_S:
                 # trapezoid between the two frames' speeds
                 self.angles = [a + 0.5 * (u + v) * dt for a, u, v in zip(self.angles, v0, speeds)]
+            else:
+                self.restarts += 1
+        else:
+            self.restarts += 1
         self._last = (f.device_time_us, speeds)
         return list(self.angles)
 

@@ -7,8 +7,8 @@ report on <prefix>/hw/status (diagnostic_msgs/DiagnosticStatus: e-stop and watch
 currents, valve states); when the device has the bucket's load cell (optional: load-cell frames,
 type 0x04), <prefix>/load_cell/mass (std_msgs/Float64, kg) for valid frames only; and
 /diagnostics (serial link, device, load_cell). Subscribes <prefix>/cmd
-([u_wheels, u_boom, u_bucket] rad/s) and <prefix>/odom (machine speed for drift detection; on
-hardware it comes from the ArUco node).
+([u_wheels, u_boom, u_bucket] rad/s) and <prefix>/odom (the machine's pose at each image's instant: its
+travel for drift detection, bridge_core.DriftWindow; on hardware it comes from the ArUco node).
 
 Fail-safe behaviour (docs/hardware_bridge.md):
 * every command goes through CommandMapper (no reverse wheels, no boom lowering, no bucket
@@ -54,7 +54,7 @@ from lhd_loading_ros.task.config import load_config
 
 from .bridge_core import (CMD_TIMEOUT_MAX, JOINT_NAMES, BridgeParams, CommandMapper, CommandRejected,
                           LoadCellMonitor, Watchdog, CommandScheduler, command_rate_problem, deadband_problem,
-                          WheelAngles, detect_drift, joint_state_arrays)
+                          WheelAngles, DriftWindow, detect_drift, joint_state_arrays)
 from .protocol import (FLAG_ENABLED, FLAG_ESTOP, FLAG_WATCHDOG, TYPE_LOAD_CELL, TYPE_SENSOR, CommandFrame,
                        FrameParser, HeartbeatFrame, LoadCellFrame, SensorFrame, TxSequence)
 
@@ -130,7 +130,11 @@ class BridgeNode(Node):
         self._ser: serial.Serial | None = None
         self._ser_lock = threading.Lock()
         self._cmd: CommandFrame | None = None
-        self._v_machine: tuple[float, float] | None = None  # (speed, arrival time)
+        self._odom_arrival: float | None = None   # monotonic arrival time of the newest usable odometry
+        self.drift_window = DriftWindow(self.p.control_period)   # the training's drift rule (bridge_core)
+        self._drift_lock = threading.Lock()      # odometry (executor) and frames (reader thread) feed it
+        self.drift_from = "currents: no odometry yet"   # what decided the last frame's drift flags (diagnostics)
+        self._unaligned_since: float | None = None      # fresh odometry, but no window over it since then
         self._device: tuple[SensorFrame, float] | None = None  # (latest sensor frame, arrival time)
         self._estop = False
         self._stop_evt = threading.Event()
@@ -188,9 +192,15 @@ class BridgeNode(Node):
         self._send_command(now, self.current_command(now), tripped=False)   # a changed one leaves at once
 
     def _on_odom(self, msg: Odometry) -> None:
-        v = msg.twist.twist.linear.x
-        if math.isfinite(v):
-            self._v_machine = (v, time.monotonic())
+        """The machine's pose at the image's instant (its stamp; an unstamped message: its arrival) for
+        the drift window; a non-finite pose or a stamp not newer than the last is not used."""
+        st = msg.header.stamp
+        t = st.sec + st.nanosec * 1e-9 if (st.sec or st.nanosec) else self.get_clock().now().nanoseconds * 1e-9
+        p, q = msg.pose.pose.position, msg.pose.pose.orientation
+        yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+        with self._drift_lock:
+            if self.drift_window.add_odom(t, p.x, p.y, yaw):
+                self._odom_arrival = time.monotonic()
 
     # ------------------------------------------------------------------ output to the device
     def _write(self, msg) -> bool:
@@ -311,14 +321,26 @@ class BridgeNode(Node):
         now = time.monotonic()
         self.sensor_frames += 1
         js = JointState()
-        js.header.stamp = self.get_clock().now().to_msg()
+        stamp = self.get_clock().now()
+        js.header.stamp = stamp.to_msg()
         js.name = list(JOINT_NAMES)
         js.position, js.velocity = joint_state_arrays(f, self.wheels)
         self.pub_js.publish(js)
-        v = None
-        if self._v_machine is not None and now - self._v_machine[1] <= self.p.odom_timeout:
-            v = self._v_machine[0]
-        front, rear = detect_drift(f, v, self.p)
+        a = self.wheels.angles
+        with self._drift_lock:
+            self.drift_window.add_wheels(stamp.nanoseconds * 1e-9, (a[0], a[1], 0.5 * (a[2] + a[3])), self.wheels.restarts)
+            fresh = self._odom_arrival is not None and now - self._odom_arrival <= self.p.odom_timeout
+            slip = self.drift_window.slips(self.p) if fresh else None
+            t_odom, t_wheels = self.drift_window.newest
+        if slip is not None:
+            self.drift_from, self._unaligned_since = "travel", None
+        elif not fresh:
+            self.drift_from, self._unaligned_since = f"currents: no odometry for {self.p.odom_timeout:g} s", None
+        else:
+            self._unaligned_since = now if self._unaligned_since is None else self._unaligned_since
+            self.drift_from = (f"currents: odometry stamps ({t_odom:.3f} s) do not cover a {self.p.control_period:g} s "
+                               f"window inside the wheel frames' times (newest {t_wheels:.3f} s, ROS clock)")
+        front, rear = detect_drift(f, slip, self.p)
         self.pub_front.publish(Bool(data=front))
         self.pub_rear.publish(Bool(data=rear))
         self.pub_drift.publish(Bool(data=front or rear))
@@ -390,7 +412,7 @@ class BridgeNode(Node):
                   "command_frame_rate_hz": round(command_hz, 1), **self.parser.counters(),
                   "watchdog_trips": self.watchdog.trips, "rejected_commands": self.mapper.rejected,
                   "clamped_commands": self.mapper.clamped, "reconnects": self.reconnects,
-                  "disconnects": self.disconnects, "command_stale": stale}
+                  "disconnects": self.disconnects, "command_stale": stale, "drift_from": self.drift_from}
         errors = {k: values[k] for k in ("framing_errors", "crc_errors", "overflows", "unknown_types")}
         new_errors = {k: v - self._error_marks.get(k, 0) for k, v in errors.items()}
         self._error_marks = errors
@@ -407,6 +429,11 @@ class BridgeNode(Node):
                           f"{': stop frames sent' if self.device_silent(now) else ''}"), values
         if stale:
             return WARN, "no valid command: machine stopped", values
+        if self._unaligned_since is not None and now - self._unaligned_since > 1.0:
+            # odometry arrives but its stamps never meet the wheel frames: another clock (use_sim_time on one
+            # side, a camera driver's own time base), so the drift flags fall back on the motor currents
+            return WARN, (f"drift from the motor currents only: {self.drift_from}; expected /lhd/odom stamped "
+                          "with the image's instant on this node's clock"), values
         return OK, "ok", values
 
     def shutdown(self) -> None:

@@ -49,6 +49,10 @@ class AttackError(RuntimeError):
     """The machine did not bury the bucket d_init into the pile within the attack timeout."""
 
 
+REST_SPEED = 0.005     # m/s: the machine and every wheel rim slower than this stand still (a start from rest)
+REST_TIMEOUT = 3.0     # s: a machine still moving this long after its wheels were stopped is an AttackError
+
+
 @dataclass
 class FeeReport:
     """The last FEE evaluation (for tests, debugging and the sim node)."""
@@ -313,6 +317,31 @@ class LhdSimulator:
                               f"{self.attack_timeout} s (tip at x = {self.data.site_xpos[self.sid_tip][0]:.3f} m)")
         if self.use_kernel:     # the kernel's state accumulates in self._kst: read it once, after the drive
             self._sync_from_kernel()
+        if c.rest_start:
+            self.come_to_rest()
+
+    def come_to_rest(self) -> None:
+        """Every actuator commanded to zero, one FEE chunk at a time, until the machine and its
+        wheels stand (all slower than REST_SPEED): how an attempt starts on the machine and in the
+        digital twin, where the machine stands in the attack pose with the tip in the pile when the
+        supervisor arms (placed there by hand, or stopped there after the drive in), instead of
+        hitting the pile at the attack speed as the paper's episodes do. The first period after it
+        then accelerates the machine from rest, bucket in the pile (the tyres may slip: the drift
+        flags of a start from rest are physical, docs/modeling.md "A start from rest"). The tip
+        ends at or beyond d_init (the machine coasts a little). AttackError if it does not stand
+        within REST_TIMEOUT."""
+        zero = np.zeros(3)
+        r = self.wheel_radius
+        t = 0.0
+        while True:
+            self.advance(zero)
+            t += self.fee_dt
+            if abs(float(self._qvel[0])) < REST_SPEED and float(np.max(np.abs(self.wheel_speeds()))) * r < REST_SPEED:
+                break
+            if t > REST_TIMEOUT:
+                raise AttackError(f"the machine did not come to rest within {REST_TIMEOUT} s of stopping its wheels "
+                                  f"(v_x {float(self._qvel[0]):.3f} m/s); expected it to stand in the pile")
+        self._u_prev = zero      # the previous command was zero: a dead time runs zero in the first period
 
     # ------------------------------------------------------------------ stepping
     def set_command(self, u: np.ndarray) -> None:

@@ -3,8 +3,8 @@ import math
 
 import pytest
 
-from lhd_hw_bridge.bridge_core import (BridgeParams, CommandMapper, CommandRejected, CommandScheduler, Watchdog,
-                                       detect_drift, joint_state_arrays)
+from lhd_hw_bridge.bridge_core import (BridgeParams, CommandMapper, CommandRejected, CommandScheduler, DriftWindow,
+                                       Watchdog, WheelAngles, detect_drift, joint_state_arrays)
 from lhd_hw_bridge.protocol import CommandFrame, SensorFrame
 
 
@@ -52,13 +52,116 @@ def test_watchdog_times_out_and_rearms(bp):
     assert not w.stale(2.25)
 
 
-def test_drift_from_speed_mismatch_and_from_current(bp):
+def test_drift_from_the_window_and_from_current_only_without_it(bp):
     f = SensorFrame(0, 0, 0, 0, 0, 2.7, 2.7, 2.7, 3.0, 3.0, 5.0, 0, 0, 0)
-    assert detect_drift(f, 0.37, bp) == (False, False)        # rim 0.37 m/s, machine 0.37 m/s
-    assert detect_drift(f, 0.02, bp) == (True, True)          # spinning in place
-    assert detect_drift(f, None, bp) == (False, False)        # speed unknown: currents only
     hot = SensorFrame(0, 0, 0, 0, 0, 2.7, 2.7, 2.7, 9.0, 3.0, 13.0, 0, 0, 0)
-    assert detect_drift(hot, None, bp) == (True, True)
+    assert detect_drift(f, None, bp) == (False, False)            # travel unknown, currents under the presets
+    assert detect_drift(hot, None, bp) == (True, True)            # travel unknown: the currents decide
+    assert detect_drift(hot, (False, False), bp) == (False, False)  # travel known: a motor at its limit is not drift
+    assert detect_drift(f, (True, False), bp) == (True, False)
+
+
+def _feed(w, wheel_rim, machine_x, t_end, latency, r, frame_dt=0.02, odom_dt=1 / 30, yaw=0.0):
+    """Wheel frames every frame_dt with the angles rim(t) / r; odometry every odom_dt, stamped with its
+    image's instant and handed over `latency` later (only those arrived by t_end)."""
+    t = 0.0
+    while t <= t_end + 1e-9:
+        a = wheel_rim(t) / r
+        w.add_wheels(t, (a, a, a), 0)
+        t += frame_dt
+    t = 0.0
+    while t + latency <= t_end + 1e-9:
+        x = machine_x(t)
+        w.add_odom(t, x * math.cos(yaw), x * math.sin(yaw), yaw)
+        t += odom_dt
+
+
+def test_drift_window_is_the_simulators_rule_over_one_period(bp):
+    """The simulator's rule (LhdSimulator.wheel_drift) by hand: over T = 0.1 s a wheel drifts when
+    |rim travel - machine travel| > max(0.05 m/s x T, 0.3 x the larger)."""
+    r, T = bp.wheel_radius, bp.control_period
+    assert T == pytest.approx(0.1) and bp.drift_slip_ratio == 0.3 and bp.drift_min_speed == 0.05
+    for rim_speed, machine_speed, expected in [(0.30, 0.30, False), (0.30, 0.22, False), (0.30, 0.20, True),
+                                               (0.04, 0.0, False), (0.06, 0.0, True), (0.0, 0.0, False)]:
+        # (0.30 vs 0.22: 0.08 < 0.3 x 0.30 = 0.09; vs 0.20: 0.10 > 0.09; at rest the 0.05 m/s floor)
+        w = DriftWindow(T)
+        _feed(w, lambda t: rim_speed * t, lambda t: machine_speed * t, 1.0, 0.0, r)
+        dx, dth = w.travels()
+        assert dx == pytest.approx(machine_speed * T, abs=1e-9)
+        assert dth[0] * r == pytest.approx(rim_speed * T, abs=1e-9)
+        assert w.slips(bp) == (expected, expected), (rim_speed, machine_speed)
+
+
+def test_drift_window_aligns_the_late_camera_with_the_wheels(bp):
+    """A machine that accelerates from rest at 2 m/s^2 with its wheels rolling (no slip at all), seen by
+    a camera whose odometry arrives 80 ms after its image. The newest wheel speed (0.40 m/s at 0.2 s)
+    against the newest camera speed (0.24 m/s, from 0.12 s) differ by 0.16 > 0.3 x 0.40: the comparison
+    the bridge made before 2026-11-29 called it drift. The window, at the image's instant, does not."""
+    r = bp.wheel_radius
+    a = 2.0
+    w = DriftWindow(bp.control_period)
+    _feed(w, lambda t: 0.5 * a * t * t, lambda t: 0.5 * a * t * t, 0.2, 0.08, r)
+    rim_now, v_cam = a * 0.2, a * 0.12
+    assert abs(rim_now - v_cam) > max(bp.drift_min_speed, bp.drift_slip_ratio * rim_now)   # the old rule
+    assert w.slips(bp) == (False, False)
+    # the same, the front wheels spinning 60 % faster than they roll: drift, rear still rolling
+    w = DriftWindow(bp.control_period)
+    t_end, lat = 0.5, 0.08
+    t = 0.0
+    while t <= t_end + 1e-9:
+        x = 0.5 * a * t * t / r
+        w.add_wheels(t, (1.6 * x, 1.6 * x, x), 0)
+        t += 0.02
+    t = 0.0
+    while t + lat <= t_end + 1e-9:
+        w.add_odom(t, 0.5 * a * t * t, 0.0, 0.0)
+        t += 1 / 30
+    assert w.slips(bp) == (True, False)
+
+
+def test_drift_window_heading_history_and_bad_input(bp):
+    r, T = bp.wheel_radius, bp.control_period
+    # placed by hand at 90 deg: the travel is along the heading, not along x
+    w = DriftWindow(T)
+    _feed(w, lambda t: 0.3 * t, lambda t: 0.3 * t, 1.0, 0.03, r, yaw=math.pi / 2)
+    assert w.travels()[0] == pytest.approx(0.03, abs=1e-9) and w.slips(bp) == (False, False)
+    # not yet a period of odometry inside the wheel frames: no answer (the currents decide)
+    w = DriftWindow(T)
+    assert w.travels() is None
+    _feed(w, lambda t: 0.3 * t, lambda t: 0.3 * t, 0.08, 0.0, r)
+    assert w.travels() is None and w.slips(bp) is None
+    # a restart of the wheels' integration (a link gap) inside the window: no answer
+    w = DriftWindow(T)
+    for k in range(30):
+        t = 0.02 * k
+        w.add_wheels(t, (0.3 * t / r,) * 3, 0 if t < 0.5 else 1)
+        w.add_odom(t, 0.3 * t, 0.0, 0.0)
+    assert w.travels() is None
+    w.add_wheels(0.7, (0.3 * 0.7 / r,) * 3, 1)
+    w.add_odom(0.66, 0.3 * 0.66, 0.0, 0.0)
+    assert w.travels()[0] == pytest.approx(0.03)  # 0.56..0.66 lies in segment 1 (frames 0.54 and 0.70 around it)
+    for k in range(36, 50):
+        t = 0.02 * k
+        w.add_wheels(t, (0.3 * t / r,) * 3, 1)
+        w.add_odom(t, 0.3 * t, 0.0, 0.0)
+    assert w.slips(bp) == (False, False)
+    # a non-finite pose and a stamp that does not advance are not kept
+    assert not w.add_odom(2.0, float("nan"), 0.0, 0.0)
+    assert not w.add_odom(0.9, 0.0, 0.0, 0.0)
+    assert w.slips(bp) == (False, False)
+    with pytest.raises(ValueError, match="control period"):
+        DriftWindow(0.0)
+
+
+def test_wheel_angles_count_their_restarts():
+    wa = WheelAngles()
+    mk = lambda us: SensorFrame(us, 0, 0, 0, 0, 1.0, 1.0, 1.0, 0, 0, 0, 0, 0, 0)   # noqa: E731
+    wa.update(mk(0))
+    assert wa.restarts == 1
+    wa.update(mk(20_000))
+    assert wa.restarts == 1 and wa.angles[0] == pytest.approx(0.02)
+    wa.update(mk(1_000_000))                      # a 0.98 s gap: not integrated, a new segment
+    assert wa.restarts == 2 and wa.angles[0] == pytest.approx(0.02)
 
 
 def test_joint_state_contents():

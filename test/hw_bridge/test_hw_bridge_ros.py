@@ -230,28 +230,65 @@ def test_bridge_parser_benchmark_runs():
     assert parser_throughput(2000) > 1000.0
 
 
-def test_drift_from_odometry_speed_mismatch(rig):
-    """Wheels turning at 2 rad/s (0.27 m/s at the rim) while /lhd/odom says the machine stands."""
+def test_drift_from_odometry_travel_mismatch(rig):
+    """Wheels turning at 2 rad/s (0.27 m/s at the rim) while /lhd/odom's pose, stamped at each image's
+    instant, stands still: drift on both axles; then the pose moving with the wheels: none. The bridge
+    compares travels over the policy's period (bridge_core.DriftWindow), not the speed field."""
     from nav_msgs.msg import Odometry
     from rclpy.qos import qos_profile_sensor_data
 
     dev, bridge, node, pub, got = rig
     pub_odom = node.create_publisher(Odometry, "/lhd/odom", qos_profile_sensor_data)
+
+    def odom(x: float) -> Odometry:
+        o = Odometry()
+        o.header.stamp = node.get_clock().now().to_msg()
+        o.pose.pose.position.x = x
+        o.pose.pose.orientation.w = 1.0
+        o.twist.twist.linear.x = 0.0      # a speed field that says nothing: the pose decides
+        return o
+
     t_end = time.monotonic() + 1.5
     while time.monotonic() < t_end:
         pub.publish(Float64MultiArray(data=[2.0, 0.0, 0.0]))
-        pub_odom.publish(Odometry())  # twist.linear.x = 0
-        spin_until(node, lambda: False, timeout=0.05)
+        pub_odom.publish(odom(-1.5))
+        spin_until(node, lambda: False, timeout=0.03)
     assert all(got["front"][-5:]) and all(got["rear"][-5:]) and all(got["drift"][-5:])
     # the machine moves with its wheels: no drift
-    t_end = time.monotonic() + 1.0
+    t0 = time.monotonic()
+    while time.monotonic() < t0 + 1.0:
+        pub.publish(Float64MultiArray(data=[2.0, 0.0, 0.0]))
+        pub_odom.publish(odom(-1.5 + 2.0 * 0.137 * (time.monotonic() - t0)))
+        spin_until(node, lambda: False, timeout=0.03)
+    assert not any(got["front"][-5:]) and not any(got["rear"][-5:])
+
+
+def test_odometry_on_another_clock_is_named_and_the_currents_decide(rig):
+    """/lhd/odom stamped on a clock 1,000 s behind the bridge's (a camera driver's own time base, or
+    use_sim_time on one side): its stamps never meet the wheel frames, so the drift flags come from the
+    motor currents, and the serial link's diagnostics say why with a WARN instead of going quiet."""
+    from nav_msgs.msg import Odometry
+    from rclpy.qos import qos_profile_sensor_data
+
+    dev, bridge, node, pub, got = rig
+    pub_odom = node.create_publisher(Odometry, "/lhd/odom", qos_profile_sensor_data)
+
+    def link():
+        return [s for d in got["diag"] for s in d.status if s.name.endswith(": serial link")]
+
+    t_end = time.monotonic() + 2.5
     while time.monotonic() < t_end:
         pub.publish(Float64MultiArray(data=[2.0, 0.0, 0.0]))
         o = Odometry()
-        o.twist.twist.linear.x = 2.0 * 0.137
-        pub_odom.publish(o)
-        spin_until(node, lambda: False, timeout=0.05)
-    assert not any(got["front"][-5:]) and not any(got["rear"][-5:])
+        now_ns = node.get_clock().now().nanoseconds - 1_000 * 10**9
+        o.header.stamp.sec, o.header.stamp.nanosec = divmod(now_ns, 10**9)
+        o.pose.pose.orientation.w = 1.0
+        pub_odom.publish(o)           # a machine that stands: drift by travel, were the stamps usable
+        spin_until(node, lambda: False, timeout=0.03)
+    st = link()[-1]
+    assert st.level == DiagnosticStatus.WARN and "drift from the motor currents only" in st.message, st.message
+    assert "do not cover" in {kv.key: kv.value for kv in st.values}["drift_from"]
+    assert not any(got["front"][-5:])     # the emulator's currents sit under the presets: no drift
 
 
 def test_corrupted_and_dropped_frames_are_counted_and_the_link_carries_on(ros, tmp_path):

@@ -410,3 +410,62 @@ def test_an_estimate_outside_the_lidars_range_leaves_the_piles_zones(cfg):
     env = LhdLoadingEnv("rld", cfg, zones_from_estimate=True)
     _, info = env.reset(seed=3, options=dict(slope_deg=15.0, conditions=Conditions(slope_error_deg=-15.0)))
     assert info["zones_from"] == "pile, estimate out of range" and info["x_max"] == env.sim.zones.x_max
+
+
+def test_a_start_from_rest(cfg):
+    """`Conditions.rest_start` (`lhd eval --stress rest`, `randomization.rest_start_share`): after the drive
+    in, the machine stops with the tip in the pile, as an attempt on the machine starts. Against the same
+    pile, start distance and attack speed without it: the paper's episode starts at the attack speed."""
+    from lhd_loading_ros.task.randomization import stress_conditions
+
+    fixed = dict(alpha=math.radians(20.0), material="homogeneous", d_attack=0.15, attack_speed=2.7)
+    a, b = LhdSimulator(cfg), LhdSimulator(cfg)
+    a.reset(np.random.default_rng(4), **fixed)
+    b.reset(np.random.default_rng(4), conditions=stress_conditions("rest", 0, cfg), **fixed)
+    r = a.wheel_radius
+    assert a.state().v_x > 0.2                                   # hits the pile moving
+    sb = b.state()
+    assert abs(sb.v_x) < 0.005 and float(np.max(np.abs(b.wheel_speeds()))) * r < 0.005
+    assert sb.x_shovel >= a.state().x_shovel >= a.p.d_init        # it coasted a little further in
+    assert (sb.drift_front, sb.drift_rear) == (False, False)      # standing: no slip over the last period
+    assert b.loaded_mass >= a.loaded_mass >= 0.0
+    # full wheels from rest: the machine moves off, no faster than its motors can push it. By hand: four
+    # wheel motors at machine.wheel_torque_limit on wheels of radius r accelerate the machine's mass at
+    # most 4 tau / (r m) (the pile only holds it back), so v_x <= that x one period
+    m_total = float(sum(b.model.body_mass))
+    a_max = 4.0 * cfg["machine"]["wheel_torque_limit"] / (r * m_total)
+    b.step(np.array([2.7, 0.0, 0.0]))
+    assert 0.1 < b.state().v_x <= a_max * 0.1, (b.state().v_x, a_max)
+    # the stress case changes nothing else
+    assert stress_conditions("rest", 5, cfg) == Conditions(rest_start=True)
+
+
+def test_starts_from_rest_are_drawn_last_and_only_where_set(cfg):
+    import copy
+    from dataclasses import replace
+
+    from lhd_loading_ros.task.config import ConfigError, config_hash, validate
+    from lhd_loading_ros.task.randomization import RandomizationRanges, draw
+
+    on = copy.deepcopy(cfg)
+    on["randomization"].update(enabled=1, rest_start_share=0.25)
+    off = copy.deepcopy(cfg)
+    off["randomization"]["enabled"] = 1
+    rr_on, rr_off = RandomizationRanges.from_config(on), RandomizationRanges.from_config(off)
+    assert rr_off.rest_start_share == 0.0 and rr_on.rest_start_share == 0.25
+    ra, rb = np.random.default_rng(7), np.random.default_rng(7)
+    c_on, c_off = draw(ra, rr_on), draw(rb, rr_off)
+    assert replace(c_on, rest_start=False) == c_off
+    rb.random()
+    assert ra.bit_generator.state == rb.bit_generator.state          # exactly one more number drawn
+    share = np.mean([draw(ra, rr_on).rest_start for _ in range(4000)])
+    assert abs(share - 0.25) < 0.03
+    assert not any(draw(rb, rr_off).rest_start for _ in range(200))
+    # the share is a training setting: at 0 it leaves the hash as it was; the key is checked
+    assert config_hash(off) == config_hash({**off, "randomization": {k: v for k, v in off["randomization"].items()
+                                                                      if k != "rest_start_share"}})
+    assert config_hash(on) != config_hash(off)
+    bad = copy.deepcopy(cfg)
+    bad["randomization"]["rest_start_share"] = 1.5
+    with pytest.raises(ConfigError, match="rest_start_share"):
+        validate(bad)

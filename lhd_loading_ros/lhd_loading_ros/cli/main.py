@@ -485,7 +485,8 @@ def _main(argv=None) -> int:
                              "with a 3 cm relief, the policy told the scanned slice's slope; slow_drive: the wheels at 80 %% of the commanded "
                              "speed; slow_hydraulics: boom and bucket at 75 %% of the commanded rates; cohesive: moist gravel "
                              "with fines, 1,500 Pa of cohesion; dense_placement: placement in front of dense gravel, the pair that "
-                             "failed where each alone passed)")
+                             "failed where each alone passed; rest: every attempt from rest with the tip in the pile, "
+                             "as on the machine)")
     p_eval.add_argument("--randomize", action="store_true",
                         help="actor: every episode under drawn conditions (config section randomization): how the "
                              "actor fares when the machine differs from the simulator")

@@ -130,7 +130,7 @@ SCHEMA: dict[str, Any] = {
         "heading_max_deg": _f(0.0, 45.0), "lateral_offset_max": _f(0.0, 1.0),
         "drive_gain_min": _f(0.1, 2.0), "drive_gain_max": _f(0.1, 2.0),
         "hydraulic_gain_min": _f(0.1, 2.0), "hydraulic_gain_max": _f(0.1, 2.0),
-        "zones_from_slope_estimate": _i(0, 1),
+        "zones_from_slope_estimate": _i(0, 1), "rest_start_share": _f(0.0, 1.0),
     },
     "training": {
         "total_steps": _i(1, 100_000_000), "noise_decay_steps": _i(0, 100_000_000), "noise_final_scale": _f(0.0, 1.0),
@@ -279,7 +279,9 @@ OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curric
                      ("randomization", "hydraulic_gain_min"): 1.0, ("randomization", "hydraulic_gain_max"): 1.0,
                      # 0: a slope-estimate error reached the observed alpha only, not the zones built from it
                      # (before 2026-11-28; task/zones.zones_for_slope_estimate)
-                     ("randomization", "zones_from_slope_estimate"): 0}
+                     ("randomization", "zones_from_slope_estimate"): 0,
+                     # 0: every episode starts at the attack speed (the paper's), none from rest (2026-11-29)
+                     ("randomization", "rest_start_share"): 0.0}
 ACTUATOR_GAIN_KEYS = ("drive_gain_min", "drive_gain_max", "hydraulic_gain_min", "hydraulic_gain_max")
 
 
@@ -442,6 +444,8 @@ def config_hash(cfg: dict) -> str:
             drop.update(ACTUATOR_GAIN_KEYS)
         if int(cfg["randomization"].get("zones_from_slope_estimate", 0)) == 0:
             drop.add("zones_from_slope_estimate")      # likewise: the slope error in the observed alpha only
+        if float(cfg["randomization"].get("rest_start_share", 0.0)) == 0.0:
+            drop.add("rest_start_share")               # likewise: no start from rest (before 2026-11-29)
         if drop:
             cfg = {**cfg, "randomization": {k: v for k, v in cfg["randomization"].items() if k not in drop}}
     if "task" in cfg and float(cfg["task"].get("r_success_pitch_margin_deg", 0.0)) == 0.0:

@@ -47,6 +47,8 @@ class Conditions:
     surface_corr: float = 0.15          # m, the relief's correlation length (VoxelPile.roughen)
     drive_gain: float = 1.0             # the wheels turn at this times the commanded speed (battery, speed loop)
     hydraulic_gain: float = 1.0         # the boom and bucket move at this times the commanded rate (pump flow)
+    rest_start: bool = False            # after the drive in, the machine stops: the episode starts from rest with
+                                        # the tip in the pile, as an attempt on the machine does (LhdSimulator.come_to_rest)
 
     def summary(self) -> dict:
         """A flat dict of the drawn values (for info and CSVs)."""
@@ -79,6 +81,7 @@ class RandomizationRanges:
     drive_gain: tuple[float, float] = (1.0, 1.0)
     hydraulic_gain: tuple[float, float] = (1.0, 1.0)
     zones_from_slope_estimate: bool = False   # a slope-estimate error also moves the zones (task/zones.py)
+    rest_start_share: float = 0.0       # this share of the episodes starts from rest (Conditions.rest_start)
 
     @classmethod
     def from_config(cls, cfg: dict) -> "RandomizationRanges":
@@ -101,6 +104,7 @@ class RandomizationRanges:
             drive_gain=(r.get("drive_gain_min", 1.0), r.get("drive_gain_max", 1.0)),
             hydraulic_gain=(r.get("hydraulic_gain_min", 1.0), r.get("hydraulic_gain_max", 1.0)),
             zones_from_slope_estimate=bool(r.get("zones_from_slope_estimate", 0)),
+            rest_start_share=float(r.get("rest_start_share", 0.0)),
         )
 
 
@@ -127,6 +131,8 @@ def draw(rng: np.random.Generator, rr: RandomizationRanges) -> Conditions:
         gains["drive_gain"] = float(u(*rr.drive_gain))
     if rr.hydraulic_gain != (1.0, 1.0):
         gains["hydraulic_gain"] = float(u(*rr.hydraulic_gain))
+    if rr.rest_start_share > 0.0:       # likewise drawn last, only where set
+        gains["rest_start"] = bool(rng.random() < rr.rest_start_share)
     return replace(c, **gains) if gains else c
 
 
@@ -202,6 +208,11 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
                passes alone; together they cost rld_twin 12 % of its attempts (a review, 2026-11-28:
                dense shallow piles leave loads 1-4 kg above the 20 kg, and an attempt off the
                pile's axis loses those kg; docs/training.md "Combined departures"), so the pair is named
+    rest       every attempt starts from rest with the tip d_init in the pile (LhdSimulator.come_to_rest), as
+               an attempt on the machine and in the digital twin does (the supervisor arms a machine that
+               stands in the attack pose), not at the attack speed of the paper's episodes; nothing else
+               changes. The tyres may slip while the machine accelerates with its bucket in the pile, and
+               the drift flags say so (docs/modeling.md "A start from rest")
     rough      the pile's surface not a plane: a random relief of sd ROUGH_SD (3 cm) and correlation
                length ROUGH_CORR (15 cm) about it (VoxelPile.roughen). A pile dumped by a feeder or by
                hand has bumps of about the size of its largest pieces (the paper's 8-15 cm rocks in 2-5
@@ -233,6 +244,8 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
         return Conditions(soil=replace(SoilRanges.from_config(cfg), rocks=(n, n)))
     if name == "rough":
         return Conditions(surface_sd=ROUGH_SD, surface_corr=ROUGH_CORR)
+    if name == "rest":
+        return Conditions(rest_start=True)
     if name == "slow_drive":
         return Conditions(drive_gain=SLOW_DRIVE_GAIN)
     if name == "slow_hydraulics":
@@ -243,7 +256,7 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
 
 
 STRESS_CASES = ("placement", "sensors", "delay", "light", "dense", "rocky", "rough", "slow_drive", "slow_hydraulics",
-                "cohesive", "dense_placement")
+                "cohesive", "dense_placement", "rest")
 SLOW_DRIVE_GAIN = 0.8       # the wheels at 80 % of the commanded speed: a battery near its cut-off (a DC motor's
                             # speed follows its voltage; about -20 % from full charge) or a speed loop 20 % off
 SLOW_HYDRAULIC_GAIN = 0.75  # boom and bucket at 75 % of the commanded rate: less pump flow (a sagging battery
