@@ -96,6 +96,20 @@ def _label_problem(v: str) -> str | None:
     return None if LABEL.match(v) else "expected a label of 1-32 letters, digits, '_', '-' or '.', e.g. rld"
 
 
+def untrained_slope_range_deg(cfg: dict) -> tuple[float, float, str]:
+    """(lo, hi, source) of the piles a controller without a trained range may be armed on (the Tampier
+    heuristic, the teacher, teleoperation: no policy_dir). Below paper.episode.alpha_min_deg the end zone
+    of the lightest pile lies beyond the zones the config derives (its x_max sets the observation and
+    permitted zones' reach: docs/modeling.md "Normalisers from the pile geometry"); above the gravel's
+    angle of repose (task.bucket_repose_deg) no gravel pile stands, so a steeper reading is a wrong
+    estimate. Between alpha_max_deg and the repose a pile stands and the zones exist: the heuristic and
+    the teacher have no range they were trained on to leave (a 30 deg pile the LiDAR reads as 30.1 deg
+    stopped a twin run of the teacher; 2026-11-28)."""
+    ep = cfg["paper"]["episode"]
+    lo, hi = float(ep["alpha_min_deg"]), max(float(ep["alpha_max_deg"]), float(cfg["task"]["bucket_repose_deg"]))
+    return lo, hi, "config alpha_min_deg to the gravel's angle of repose task.bucket_repose_deg (no trained range)"
+
+
 class SupervisorNode(Node):
     def __init__(self, **node_kwargs):
         super().__init__("lhd_supervisor", **node_kwargs)
@@ -107,7 +121,8 @@ class SupervisorNode(Node):
                   "a change applies from the next arming", check=_label_problem,
                   on_change=lambda v: setattr(self.core, "controller", v)),
             Param("policy_dir", "", "exported actor whose card gives the slope range "
-                  "(trained_ranges.slope_deg); empty: the config's alpha range"),
+                  "(trained_ranges.slope_deg); empty (the heuristic, the teacher, teleoperation): the config's "
+                  "alpha_min_deg up to the larger of alpha_max_deg and task.bucket_repose_deg"),
             Param("material", "homogeneous", "pile material written to the record; a change applies from the next "
                   "arming", choices=MATERIALS, on_change=lambda v: setattr(self.core, "material", v)),
             Param("attempt_timeout", 10.0, "s from running to timeout (paper: a timeout of 10 s); a change applies "
@@ -164,9 +179,7 @@ class SupervisorNode(Node):
                 raise ValueError(f"parameter 'policy_dir' = {gp('policy_dir')!r}: {exc}") from None
             source = f"{gp('policy_dir')}: {source}"
         else:
-            ep = cfg["paper"]["episode"]
-            lo, hi, source = float(ep["alpha_min_deg"]), float(ep["alpha_max_deg"]), \
-                "config alpha_min_deg/alpha_max_deg"
+            lo, hi, source = untrained_slope_range_deg(cfg)
         settings = Settings(slope_range_deg=(lo, hi), slope_source=source, phi_thresh=p.phi_thresh_pitch,
                             control_dt=p.control_dt, attempt_timeout=gp("attempt_timeout"),
                             arm_delay=gp("arm_delay"), input_timeout=gp("input_timeout"),
