@@ -205,7 +205,7 @@ def detect_drift(f: SensorFrame, slip: tuple[bool, bool] | None, p: BridgeParams
 
 
 def _interp(ts: list[float], vs: list, t: float):
-    """vs at t, linear between the samples of increasing ts around it (t within [ts[0], ts[-1]])."""
+    """vs at t, linear between the samples of strictly increasing ts around it (t within [ts[0], ts[-1]])."""
     i = bisect.bisect_left(ts, t)
     if i < len(ts) and ts[i] == t:
         return vs[i]
@@ -217,59 +217,76 @@ def _interp(ts: list[float], vs: list, t: float):
     return v0 + w * (v1 - v0)
 
 
+def _integral(ts: list[float], vs: list[float], a: float, b: float) -> float:
+    """The integral of v from a to b (a <= b within [ts[0], ts[-1]]), v linear between the samples."""
+    total, t_prev, v_prev = 0.0, a, _interp(ts, vs, a)
+    i = bisect.bisect_right(ts, a)
+    while i < len(ts) and ts[i] < b:
+        total += 0.5 * (v_prev + vs[i]) * (ts[i] - t_prev)
+        t_prev, v_prev = ts[i], vs[i]
+        i += 1
+    return total + 0.5 * (v_prev + _interp(ts, vs, b)) * (b - t_prev)
+
+
+DRIFT_ODOM_MAX_AGE = 0.3   # s: the window's odometry image at most this older than the newest wheel frame (the
+                           # ArUco odometry arrives 20-110 ms after its image in the twin); older, no answer
+
+
 class DriftWindow:
     """The simulator's drift rule (LhdSimulator.wheel_drift, what every actor read in training) on the
     machine's own signals: over one control period T ending at the newest odometry's instant t1, a
     wheel drifts when its rim travel r (theta(t1) - theta(t1 - T)) and the machine's travel over the
     same window differ by more than max(drift_min_speed T, drift_slip_ratio x the larger of the two).
 
-    Time-aligned: the machine's travel comes from /lhd/odom's pose at its stamps (the camera image's
-    instant, 20-100 ms before it arrives), the wheels' from their integrated angles at the frames'
-    arrival times, both on the ROS clock, interpolated to t1 - T and t1. Comparing the newest wheel
-    speed with the newest (older) camera speed, as the bridge did until 2026-11-29, flagged drift
-    whenever the machine accelerated: at every start from rest, where the training's window saw none
-    (docs/hardware_bridge.md "Drift"). The machine's travel is its displacement along its heading at
-    t1 (the simulator takes the world x; 0.14 % apart at the 3 deg of a machine placed by hand). The
-    rear wheels: the device reports the differential's carrier, the mean of the two.
+    Time-aligned: the machine's travel is the integral of /lhd/odom's speed between its stamps (each
+    image's instant, 20-100 ms before the message arrives; the ArUco node's Kalman speed, whose noise
+    over a window is a fraction of the 5 mm floor, where the difference of two raw poses would carry
+    the marker's 2-5 mm position noise twice), the wheels' from their integrated angles at the frames'
+    instants (DeviceClock: the device's clock on the ROS clock), interpolated to t1 - T and t1.
+    Comparing the newest wheel speed with the newest (older) camera speed, as the bridge did until
+    2026-11-29, flagged drift whenever the machine accelerated. The flags lag the simulator's by the
+    odometry's latency: the window ends at the newest image, and an image older than
+    DRIFT_ODOM_MAX_AGE against the newest wheel frame gives no answer (the motor currents decide). The
+    rear wheels: the device reports the differential's carrier, the mean of the two, where the
+    simulator judges each rear wheel.
 
-    ROS-free; the node feeds it from two threads under its own lock."""
+    ROS-free; the node feeds it from two threads under its own lock. `reason` says why the last
+    `travels` had no answer."""
 
-    def __init__(self, period: float, keep_s: float = 2.0):
+    def __init__(self, period: float, keep_s: float = 2.0, max_age: float = DRIFT_ODOM_MAX_AGE):
         if not period > 0.0:
             raise ValueError(f"drift window period {period!r} s: expected > 0 (the control period)")
         self.period = float(period)
-        self.keep_s = max(float(keep_s), 3.0 * self.period)
-        self._wt: list[float] = []                     # wheel frames: arrival time (ROS clock, s)
+        self.max_age = float(max_age)
+        self.keep_s = max(float(keep_s), 3.0 * self.period + self.max_age)
+        self._wt: list[float] = []                     # wheel frames: measurement time (ROS clock, s)
         self._wa: list[tuple[float, float, float]] = []   # their angles (fl, fr, rear), rad
         self._ws: list[int] = []                       # their integration segment (WheelAngles.restarts)
         self._ot: list[float] = []                     # odometry: stamp (s)
-        self._op: list[tuple[float, float]] = []       # its position (x, y), m
-        self._oyaw: list[float] = []
+        self._ov: list[float] = []                     # its speed v_x, m/s
+        self.reason = "no odometry yet"
 
     def add_wheels(self, t: float, angles: tuple[float, float, float], segment: int) -> None:
+        """A frame at t; a t not after the last one (a clock stepped back) restarts the history."""
         if self._wt and t <= self._wt[-1]:
-            if t < self._wt[-1] - self.keep_s:      # the clock stepped back (a new ROS time source): start over
-                self._wt, self._wa, self._ws = [], [], []
-            else:
-                return
+            self._wt, self._wa, self._ws = [], [], []
         self._wt.append(float(t))
         self._wa.append(tuple(float(a) for a in angles))
         self._ws.append(int(segment))
         self._trim(self._wt, self._wa, self._ws)
 
-    def add_odom(self, t: float, x: float, y: float, yaw: float) -> bool:
-        """False (and nothing kept) for a non-finite pose or a stamp not newer than the last."""
-        if not all(math.isfinite(v) for v in (t, x, y, yaw)):
+    def add_odom(self, t: float, v: float) -> bool:
+        """False (and nothing kept) for a non-finite stamp or speed, or a repeated stamp; a stamp before
+        the last one (a camera restart, a clock stepped back) restarts the history."""
+        if not (math.isfinite(t) and math.isfinite(v)):
             return False
         if self._ot and t <= self._ot[-1]:
-            if t < self._ot[-1] - self.keep_s:
-                self._ot, self._op, self._oyaw = [], [], []
-            else:
+            if t == self._ot[-1]:
                 return False
+            self._ot, self._ov = [], []
         self._ot.append(float(t))
-        self._op.append((float(x), float(y)))
-        self._oyaw.append(float(yaw))
-        self._trim(self._ot, self._op, self._oyaw)
+        self._ov.append(float(v))
+        self._trim(self._ot, self._ov)
         return True
 
     def _trim(self, ts, *lists) -> None:
@@ -285,28 +302,34 @@ class DriftWindow:
         return (self._ot[-1] if self._ot else None), (self._wt[-1] if self._wt else None)
 
     def travels(self) -> tuple[float, tuple[float, float, float]] | None:
-        """(machine travel, (rim travel fl, fr, rear) / wheel radius = angle change) over the newest
-        window the two histories both cover, or None (not yet a period of odometry inside the wheel
-        frames, or a restart of the wheels' integration inside it)."""
+        """(machine travel m, (angle change of fl, fr, rear) rad) over the newest window both histories
+        cover, or None (and `reason`): no period of odometry inside the wheel frames yet, an odometry
+        image too old against the newest wheel frame, or a restart of the wheels' integration inside it."""
         if len(self._ot) < 2 or len(self._wt) < 2:
+            self.reason = "no odometry yet" if len(self._ot) < 2 else "no wheel frames yet"
             return None
-        # the newest odometry instant the wheel frames already reach
-        j = bisect.bisect_right(self._ot, self._wt[-1]) - 1
+        j = bisect.bisect_right(self._ot, self._wt[-1]) - 1     # the newest image the wheel frames reach
         if j < 1:
+            self.reason = (f"odometry stamps ({self._ot[-1]:.3f} s) do not meet the wheel frames' times "
+                           f"({self._wt[0]:.3f}-{self._wt[-1]:.3f} s, ROS clock)")
             return None
         t1 = self._ot[j]
+        if self._wt[-1] - t1 > self.max_age:
+            self.reason = (f"the newest odometry image is {self._wt[-1] - t1:.3f} s older than the newest wheel frame "
+                           f"(at most {self.max_age:g} s)")
+            return None
         t0 = t1 - self.period
         if t0 < self._ot[0] or t0 < self._wt[0]:
+            self.reason = (f"odometry stamps ({self._ot[0]:.3f}-{t1:.3f} s) do not cover a {self.period:g} s window "
+                           f"inside the wheel frames' times ({self._wt[0]:.3f}-{self._wt[-1]:.3f} s, ROS clock)")
             return None
         i0, i1 = bisect.bisect_left(self._wt, t0), bisect.bisect_left(self._wt, t1)
-        lo = max(i0 - 1, 0)
-        if len(set(self._ws[lo:i1 + 1])) != 1:
+        if len(set(self._ws[max(i0 - 1, 0):i1 + 1])) != 1:
+            self.reason = "a gap in the wheel frames (their integration restarted) inside the window"
             return None
-        x0, y0 = _interp(self._ot[:j + 1], self._op[:j + 1], t0)
-        x1, y1 = self._op[j]
-        yaw = self._oyaw[j]
-        dx = (x1 - x0) * math.cos(yaw) + (y1 - y0) * math.sin(yaw)
+        dx = _integral(self._ot[:j + 1], self._ov[:j + 1], t0, t1)
         a0, a1 = _interp(self._wt, self._wa, t0), _interp(self._wt, self._wa, t1)
+        self.reason = ""
         return dx, tuple(b - a for a, b in zip(a0, a1))
 
     def slips(self, p: BridgeParams) -> tuple[bool, bool] | None:
@@ -322,6 +345,42 @@ class DriftWindow:
             return abs(rim - dx) > max(tol_min, p.drift_slip_ratio * max(abs(rim), abs(dx)))
 
         return slip(dtheta[0]) or slip(dtheta[1]), slip(dtheta[2])
+
+
+DEVICE_CLOCK_WINDOW_S = 2.0   # s of frames over which the device clock's offset is the smallest delay seen
+
+
+class DeviceClock:
+    """The instant each sensor frame was measured, on the host's ROS clock: the device's own clock
+    (device_time_us, uint32 microseconds, wrap-around unwrapped) plus an offset, the smallest
+    (arrival - device time) over the last DEVICE_CLOCK_WINDOW_S: the frame that met the least delay
+    on the way (USB, the reader thread). Frames arrive in bursts (one read returns several, all with
+    about the same arrival time) and late when the host is busy; the device's clock does not jitter.
+    A device clock that goes back or jumps more than WHEEL_GAP_MAX_S (a reset, a lost link) starts the
+    estimate over."""
+
+    def __init__(self, window_s: float = DEVICE_CLOCK_WINDOW_S):
+        self.window_s = float(window_s)
+        self._raw: int | None = None
+        self._dev = 0.0                                  # unwrapped device time, s
+        self._cands: deque = deque()                     # (device time s, arrival - device time)
+
+    def stamp(self, device_time_us: int, arrival: float) -> float:
+        if self._raw is not None:
+            dt = ((device_time_us - self._raw) % DEVICE_CLOCK_WRAP_US) * 1e-6
+            if 0.0 < dt <= WHEEL_GAP_MAX_S:
+                self._dev += dt
+            else:
+                self._cands.clear()
+                self._dev = 0.0
+        self._raw = device_time_us
+        c = arrival - self._dev
+        while self._cands and self._cands[-1][1] >= c:   # monotone deque: the minimum at the front
+            self._cands.pop()
+        self._cands.append((self._dev, c))
+        while self._cands[0][0] < self._dev - self.window_s:
+            self._cands.popleft()
+        return self._dev + self._cands[0][1]
 
 
 DEVICE_CLOCK_WRAP_US = 1 << 32     # the device's uint32 microsecond clock wraps every 71.6 min

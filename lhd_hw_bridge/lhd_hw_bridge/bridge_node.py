@@ -7,7 +7,7 @@ report on <prefix>/hw/status (diagnostic_msgs/DiagnosticStatus: e-stop and watch
 currents, valve states); when the device has the bucket's load cell (optional: load-cell frames,
 type 0x04), <prefix>/load_cell/mass (std_msgs/Float64, kg) for valid frames only; and
 /diagnostics (serial link, device, load_cell). Subscribes <prefix>/cmd
-([u_wheels, u_boom, u_bucket] rad/s) and <prefix>/odom (the machine's pose at each image's instant: its
+([u_wheels, u_boom, u_bucket] rad/s) and <prefix>/odom (the machine's speed at each image's instant: its
 travel for drift detection, bridge_core.DriftWindow; on hardware it comes from the ArUco node).
 
 Fail-safe behaviour (docs/hardware_bridge.md):
@@ -54,7 +54,7 @@ from lhd_loading_ros.task.config import load_config
 
 from .bridge_core import (CMD_TIMEOUT_MAX, JOINT_NAMES, BridgeParams, CommandMapper, CommandRejected,
                           LoadCellMonitor, Watchdog, CommandScheduler, command_rate_problem, deadband_problem,
-                          WheelAngles, DriftWindow, detect_drift, joint_state_arrays)
+                          WheelAngles, DeviceClock, DriftWindow, detect_drift, joint_state_arrays)
 from .protocol import (FLAG_ENABLED, FLAG_ESTOP, FLAG_WATCHDOG, TYPE_LOAD_CELL, TYPE_SENSOR, CommandFrame,
                        FrameParser, HeartbeatFrame, LoadCellFrame, SensorFrame, TxSequence)
 
@@ -132,6 +132,7 @@ class BridgeNode(Node):
         self._cmd: CommandFrame | None = None
         self._odom_arrival: float | None = None   # monotonic arrival time of the newest usable odometry
         self.drift_window = DriftWindow(self.p.control_period)   # the training's drift rule (bridge_core)
+        self.device_clock = DeviceClock()        # each sensor frame's measurement instant on the ROS clock
         self._drift_lock = threading.Lock()      # odometry (executor) and frames (reader thread) feed it
         self.drift_from = "currents: no odometry yet"   # what decided the last frame's drift flags (diagnostics)
         self._unaligned_since: float | None = None      # fresh odometry, but no window over it since then
@@ -192,14 +193,12 @@ class BridgeNode(Node):
         self._send_command(now, self.current_command(now), tripped=False)   # a changed one leaves at once
 
     def _on_odom(self, msg: Odometry) -> None:
-        """The machine's pose at the image's instant (its stamp; an unstamped message: its arrival) for
-        the drift window; a non-finite pose or a stamp not newer than the last is not used."""
+        """The machine's speed at the image's instant (its stamp; an unstamped message: its arrival) for
+        the drift window; a non-finite speed or a repeated stamp is not used."""
         st = msg.header.stamp
         t = st.sec + st.nanosec * 1e-9 if (st.sec or st.nanosec) else self.get_clock().now().nanoseconds * 1e-9
-        p, q = msg.pose.pose.position, msg.pose.pose.orientation
-        yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
         with self._drift_lock:
-            if self.drift_window.add_odom(t, p.x, p.y, yaw):
+            if self.drift_window.add_odom(t, msg.twist.twist.linear.x):
                 self._odom_arrival = time.monotonic()
 
     # ------------------------------------------------------------------ output to the device
@@ -327,19 +326,19 @@ class BridgeNode(Node):
         js.position, js.velocity = joint_state_arrays(f, self.wheels)
         self.pub_js.publish(js)
         a = self.wheels.angles
+        t_frame = self.device_clock.stamp(f.device_time_us, stamp.nanoseconds * 1e-9)   # measured, not arrived
         with self._drift_lock:
-            self.drift_window.add_wheels(stamp.nanoseconds * 1e-9, (a[0], a[1], 0.5 * (a[2] + a[3])), self.wheels.restarts)
+            self.drift_window.add_wheels(t_frame, (a[0], a[1], 0.5 * (a[2] + a[3])), self.wheels.restarts)
             fresh = self._odom_arrival is not None and now - self._odom_arrival <= self.p.odom_timeout
             slip = self.drift_window.slips(self.p) if fresh else None
-            t_odom, t_wheels = self.drift_window.newest
+            reason = self.drift_window.reason
         if slip is not None:
             self.drift_from, self._unaligned_since = "travel", None
         elif not fresh:
             self.drift_from, self._unaligned_since = f"currents: no odometry for {self.p.odom_timeout:g} s", None
         else:
+            self.drift_from = f"currents: {reason}"      # fresh odometry, no window: named in /diagnostics after 1 s
             self._unaligned_since = now if self._unaligned_since is None else self._unaligned_since
-            self.drift_from = (f"currents: odometry stamps ({t_odom:.3f} s) do not cover a {self.p.control_period:g} s "
-                               f"window inside the wheel frames' times (newest {t_wheels:.3f} s, ROS clock)")
         front, rear = detect_drift(f, slip, self.p)
         self.pub_front.publish(Bool(data=front))
         self.pub_rear.publish(Bool(data=rear))
@@ -430,10 +429,11 @@ class BridgeNode(Node):
         if stale:
             return WARN, "no valid command: machine stopped", values
         if self._unaligned_since is not None and now - self._unaligned_since > 1.0:
-            # odometry arrives but its stamps never meet the wheel frames: another clock (use_sim_time on one
-            # side, a camera driver's own time base), so the drift flags fall back on the motor currents
+            # odometry arrives but gives no window for a second: its stamps on another clock (use_sim_time on
+            # one side, a camera driver's own time base) or far late, so the drift flags fall back on the currents
             return WARN, (f"drift from the motor currents only: {self.drift_from}; expected /lhd/odom stamped "
-                          "with the image's instant on this node's clock"), values
+                          "with the image's instant on this node's clock, at most "
+                          f"{self.drift_window.max_age:g} s before the newest sensor frame"), values
         return OK, "ok", values
 
     def shutdown(self) -> None:

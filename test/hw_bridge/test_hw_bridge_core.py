@@ -3,8 +3,9 @@ import math
 
 import pytest
 
-from lhd_hw_bridge.bridge_core import (BridgeParams, CommandMapper, CommandRejected, CommandScheduler, DriftWindow,
-                                       Watchdog, WheelAngles, detect_drift, joint_state_arrays)
+from lhd_hw_bridge.bridge_core import (DRIFT_ODOM_MAX_AGE, BridgeParams, CommandMapper, CommandRejected,
+                                       CommandScheduler, DeviceClock, DriftWindow, Watchdog, WheelAngles, detect_drift,
+                                       joint_state_arrays)
 from lhd_hw_bridge.protocol import CommandFrame, SensorFrame
 
 
@@ -61,9 +62,10 @@ def test_drift_from_the_window_and_from_current_only_without_it(bp):
     assert detect_drift(f, (True, False), bp) == (True, False)
 
 
-def _feed(w, wheel_rim, machine_x, t_end, latency, r, frame_dt=0.02, odom_dt=1 / 30, yaw=0.0):
-    """Wheel frames every frame_dt with the angles rim(t) / r; odometry every odom_dt, stamped with its
-    image's instant and handed over `latency` later (only those arrived by t_end)."""
+def _feed(w, wheel_rim, machine_v, t_end, latency, r, frame_dt=0.02, odom_dt=1 / 30):
+    """Wheel frames every frame_dt with the angles rim(t) / r; odometry every odom_dt with the speed
+    machine_v(t), stamped with its image's instant and handed over `latency` later (only those arrived
+    by t_end)."""
     t = 0.0
     while t <= t_end + 1e-9:
         a = wheel_rim(t) / r
@@ -71,8 +73,7 @@ def _feed(w, wheel_rim, machine_x, t_end, latency, r, frame_dt=0.02, odom_dt=1 /
         t += frame_dt
     t = 0.0
     while t + latency <= t_end + 1e-9:
-        x = machine_x(t)
-        w.add_odom(t, x * math.cos(yaw), x * math.sin(yaw), yaw)
+        w.add_odom(t, machine_v(t))
         t += odom_dt
 
 
@@ -85,7 +86,7 @@ def test_drift_window_is_the_simulators_rule_over_one_period(bp):
                                                (0.04, 0.0, False), (0.06, 0.0, True), (0.0, 0.0, False)]:
         # (0.30 vs 0.22: 0.08 < 0.3 x 0.30 = 0.09; vs 0.20: 0.10 > 0.09; at rest the 0.05 m/s floor)
         w = DriftWindow(T)
-        _feed(w, lambda t: rim_speed * t, lambda t: machine_speed * t, 1.0, 0.0, r)
+        _feed(w, lambda t: rim_speed * t, lambda t: machine_speed, 1.0, 0.0, r)
         dx, dth = w.travels()
         assert dx == pytest.approx(machine_speed * T, abs=1e-9)
         assert dth[0] * r == pytest.approx(rim_speed * T, abs=1e-9)
@@ -96,61 +97,94 @@ def test_drift_window_aligns_the_late_camera_with_the_wheels(bp):
     """A machine that accelerates from rest at 2 m/s^2 with its wheels rolling (no slip at all), seen by
     a camera whose odometry arrives 80 ms after its image. The newest wheel speed (0.40 m/s at 0.2 s)
     against the newest camera speed (0.24 m/s, from 0.12 s) differ by 0.16 > 0.3 x 0.40: the comparison
-    the bridge made before 2026-11-29 called it drift. The window, at the image's instant, does not."""
+    the bridge made before 2026-11-29 called it drift. The window, at the image's instant, does not: its
+    travel, the speed's integral over 0.02-0.12 s, is a (0.12^2 - 0.02^2) / 2 = 14.0 mm, by hand."""
     r = bp.wheel_radius
     a = 2.0
     w = DriftWindow(bp.control_period)
-    _feed(w, lambda t: 0.5 * a * t * t, lambda t: 0.5 * a * t * t, 0.2, 0.08, r)
+    _feed(w, lambda t: 0.5 * a * t * t, lambda t: a * t, 0.2, 0.08, r, odom_dt=0.02)
     rim_now, v_cam = a * 0.2, a * 0.12
     assert abs(rim_now - v_cam) > max(bp.drift_min_speed, bp.drift_slip_ratio * rim_now)   # the old rule
+    dx, dth = w.travels()
+    assert dx == pytest.approx(0.5 * a * (0.12 ** 2 - 0.02 ** 2), abs=1e-9)
+    assert dth[0] * r == pytest.approx(dx, abs=1e-9)
     assert w.slips(bp) == (False, False)
     # the same, the front wheels spinning 60 % faster than they roll: drift, rear still rolling
     w = DriftWindow(bp.control_period)
-    t_end, lat = 0.5, 0.08
     t = 0.0
-    while t <= t_end + 1e-9:
+    while t <= 0.5 + 1e-9:
         x = 0.5 * a * t * t / r
         w.add_wheels(t, (1.6 * x, 1.6 * x, x), 0)
         t += 0.02
     t = 0.0
-    while t + lat <= t_end + 1e-9:
-        w.add_odom(t, 0.5 * a * t * t, 0.0, 0.0)
+    while t + 0.08 <= 0.5 + 1e-9:
+        w.add_odom(t, a * t)
         t += 1 / 30
     assert w.slips(bp) == (True, False)
 
 
-def test_drift_window_heading_history_and_bad_input(bp):
+def test_drift_window_has_no_answer_on_stale_odometry_or_a_gap(bp):
     r, T = bp.wheel_radius, bp.control_period
-    # placed by hand at 90 deg: the travel is along the heading, not along x
+    # not yet a period of odometry inside the wheel frames
     w = DriftWindow(T)
-    _feed(w, lambda t: 0.3 * t, lambda t: 0.3 * t, 1.0, 0.03, r, yaw=math.pi / 2)
-    assert w.travels()[0] == pytest.approx(0.03, abs=1e-9) and w.slips(bp) == (False, False)
-    # not yet a period of odometry inside the wheel frames: no answer (the currents decide)
+    assert w.travels() is None and w.reason == "no odometry yet"
+    _feed(w, lambda t: 0.3 * t, lambda t: 0.3, 0.08, 0.0, r)
+    assert w.travels() is None and w.slips(bp) is None and "do not cover" in w.reason
+    # odometry stops (the marker lost) while the wheels spin up: the last window is not reused past
+    # DRIFT_ODOM_MAX_AGE; with no answer the motor currents decide
     w = DriftWindow(T)
-    assert w.travels() is None
-    _feed(w, lambda t: 0.3 * t, lambda t: 0.3 * t, 0.08, 0.0, r)
-    assert w.travels() is None and w.slips(bp) is None
-    # a restart of the wheels' integration (a link gap) inside the window: no answer
+    _feed(w, lambda t: 0.3 * t, lambda t: 0.3, 1.0, 0.0, r)
+    assert w.slips(bp) == (False, False)
+    t_last = w.newest[0]
+    for k in range(1, 30):
+        t = 1.0 + 0.02 * k
+        w.add_wheels(t, ((0.3 + 1.5 * (t - 1.0)) * t / r,) * 3, 0)
+        if t - t_last <= DRIFT_ODOM_MAX_AGE:
+            assert w.travels() is not None
+        else:
+            assert w.slips(bp) is None and "older than the newest wheel frame" in w.reason
+    # a restart of the wheels' integration (a link gap) inside the window: no answer until a period after it
     w = DriftWindow(T)
     for k in range(30):
         t = 0.02 * k
         w.add_wheels(t, (0.3 * t / r,) * 3, 0 if t < 0.5 else 1)
-        w.add_odom(t, 0.3 * t, 0.0, 0.0)
-    assert w.travels() is None
-    w.add_wheels(0.7, (0.3 * 0.7 / r,) * 3, 1)
-    w.add_odom(0.66, 0.3 * 0.66, 0.0, 0.0)
-    assert w.travels()[0] == pytest.approx(0.03)  # 0.56..0.66 lies in segment 1 (frames 0.54 and 0.70 around it)
-    for k in range(36, 50):
+        w.add_odom(t, 0.3)
+    assert w.travels() is None and "gap" in w.reason
+    for k in range(30, 40):
         t = 0.02 * k
         w.add_wheels(t, (0.3 * t / r,) * 3, 1)
-        w.add_odom(t, 0.3 * t, 0.0, 0.0)
+        w.add_odom(t, 0.3)
     assert w.slips(bp) == (False, False)
-    # a non-finite pose and a stamp that does not advance are not kept
-    assert not w.add_odom(2.0, float("nan"), 0.0, 0.0)
-    assert not w.add_odom(0.9, 0.0, 0.0, 0.0)
+    # a non-finite speed and a repeated stamp are not kept; a stamp or a frame time that goes back
+    # (a restarted camera, a clock stepped back) starts that history over
+    assert not w.add_odom(0.9, float("nan")) and not w.add_odom(0.78, 0.3)
     assert w.slips(bp) == (False, False)
+    assert w.add_odom(0.5, 0.3) and w.travels() is None
+    w.add_wheels(0.1, (0.0, 0.0, 0.0), 1)
+    assert w.newest == (0.5, 0.1)
     with pytest.raises(ValueError, match="control period"):
         DriftWindow(0.0)
+
+
+def test_device_clock_stamps_frames_when_they_were_measured():
+    """Frames measured every 20 ms by the device, arriving in bursts and late (2-40 ms, never less than
+    2 ms): each stamp is the device's instant plus the smallest delay seen, so it is the measurement
+    instant plus 2 ms, whatever its own arrival delay; the uint32 clock's wrap is unwrapped, and a
+    device reset starts over."""
+    import random
+
+    rng = random.Random(3)
+    dc = DeviceClock()
+    t0 = 1000.0
+    start_us = (1 << 32) - 1_000_000              # the device clock wraps 1 s into the run
+    for k in range(300):
+        t_meas = t0 + 0.02 * k
+        delay = 0.002 if k % 25 == 0 else 0.002 + rng.uniform(0.0, 0.038)
+        st = dc.stamp((start_us + 20_000 * k) % (1 << 32), t_meas + delay)
+        if k >= 25:                                # once a frame has come through with the least delay
+            assert st == pytest.approx(t_meas + 0.002, abs=1e-9), k
+    dc.stamp(5, 2000.0)                            # a reset: the device clock went back
+    assert dc.stamp(20_005, 2000.03) == pytest.approx(2000.02)
 
 
 def test_wheel_angles_count_their_restarts():

@@ -97,14 +97,15 @@ def test_arm_refused_with_every_missing_input(rig):
 
 def test_arm_refused_for_bad_zones_and_a_slope_out_of_range(rig):
     rig.feed = dict.fromkeys(rig.feed, True)
-    rig.pub_slope.publish(Float64(data=math.radians(36.0)))
+    rig.pub_slope.publish(Float64(data=math.radians(36.5)))
     rig.pub_zones.publish(Float64MultiArray(data=[1.0, 0.5] + ZONES[2:]))        # x_min > x_max
     time.sleep(0.5)
     res = rig.call(rig.arm_client)
     assert not res.success
     assert "pile zones invalid (/lhd/pile/zones): zones: x_min 1 must be below x_max 0.5" in res.message, res.message
-    # no policy_dir: the config's alpha_min_deg up to the gravel's angle of repose, task.bucket_repose_deg
-    assert "pile slope 36.0 deg is outside the controller's range [15, 35] deg" in res.message, res.message
+    # no policy_dir: the config's alpha_min_deg up to the gravel's angle of repose, task.bucket_repose_deg,
+    # each widened by 1 deg for the estimate's error
+    assert "pile slope 36.5 deg is outside the controller's range [14, 36] deg" in res.message, res.message
     assert res.message.count(";") == 1, res.message          # those two problems only: every input is alive
     rig.pub_zones.publish(Float64MultiArray(data=ZONES))
     rig.pub_slope.publish(Float64(data=math.radians(20.0)))

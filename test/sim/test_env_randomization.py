@@ -469,3 +469,22 @@ def test_starts_from_rest_are_drawn_last_and_only_where_set(cfg):
     bad["randomization"]["rest_start_share"] = 1.5
     with pytest.raises(ConfigError, match="rest_start_share"):
         validate(bad)
+
+
+def test_an_actor_randomised_before_starts_from_rest_runs_on_a_file_that_has_them(cfg):
+    """An actor trained randomised before `rest_start_share` existed (the key absent: 0) matches a
+    parameter file that sets a share, as it matches one with the share at 0; one trained with a share
+    matches the file that has it."""
+    import copy
+
+    from lhd_loading_ros.task.config import config_hash, hash_matches
+
+    old = copy.deepcopy(cfg)
+    old["randomization"]["enabled"] = 1
+    del old["randomization"]["rest_start_share"]
+    with_rest = copy.deepcopy(cfg)
+    with_rest["randomization"]["rest_start_share"] = 0.25
+    assert hash_matches(config_hash(old), with_rest) and hash_matches(config_hash(old), cfg)
+    trained = copy.deepcopy(with_rest)
+    trained["randomization"]["enabled"] = 1
+    assert hash_matches(config_hash(trained), with_rest)

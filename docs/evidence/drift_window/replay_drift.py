@@ -1,8 +1,8 @@
 """Replays the bridge's drift detection on the bags of a `lhd up twin` run folder and scores it against the
 simulator's own flags (/lhd/twin/truth/drift, the training's rule): the flags the bridge published (as recorded),
 the flags the time-aligned window (lhd_hw_bridge.bridge_core.DriftWindow, the bridge since 2026-11-29) gives from
-the same bag's /lhd/joint_states (integrated wheel angles at the frames' arrival) and /lhd/odom (pose at the image's
-instant), with the motor currents of /lhd/hw/status (10 Hz) where the window has no answer, and the flags of the
+the same bag's /lhd/joint_states (integrated wheel angles at the frames' arrival: the bag has no device clock, which
+the bridge itself uses through DeviceClock) and /lhd/odom (speed at the image's instant), with the motor currents of /lhd/hw/status (10 Hz) where the window has no answer, and the flags of the
 bridge's earlier rule ("instant": each frame's wheel speeds against the newest /lhd/odom speed, or a motor current
 over its preset). Per attempt, over its running
 phase (first wheel command to the last truth sample): agreement with the truth at each truth sample (the latest
@@ -66,9 +66,7 @@ def replay(bag: Path, p: BridgeParams) -> dict:
                 if t_start is None and m.data[0] > 0:
                     t_start = tr
             elif c.topic == "/lhd/odom":
-                q = m.pose.pose.orientation
-                yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
-                if win.add_odom(stamp(m), m.pose.pose.position.x, m.pose.pose.position.y, yaw):
+                if win.add_odom(stamp(m), m.twist.twist.linear.x):
                     odom_arrival = tr
                 if math.isfinite(m.twist.twist.linear.x):
                     v_odom = (m.twist.twist.linear.x, tr)

@@ -96,18 +96,24 @@ def _label_problem(v: str) -> str | None:
     return None if LABEL.match(v) else "expected a label of 1-32 letters, digits, '_', '-' or '.', e.g. rld"
 
 
+UNTRAINED_SLOPE_MARGIN_DEG = 1.0   # the LiDAR's error on a plane face is 0.1-0.3 deg (docs/perception.md): a pile
+                                   # built at the range's edge reads a little beyond it
+
+
 def untrained_slope_range_deg(cfg: dict) -> tuple[float, float, str]:
     """(lo, hi, source) of the piles a controller without a trained range may be armed on (the Tampier
     heuristic, the teacher, teleoperation: no policy_dir). Below paper.episode.alpha_min_deg the end zone
     of the lightest pile lies beyond the zones the config derives (its x_max sets the observation and
     permitted zones' reach: docs/modeling.md "Normalisers from the pile geometry"); above the gravel's
-    angle of repose (task.bucket_repose_deg) no gravel pile stands, so a steeper reading is a wrong
-    estimate. Between alpha_max_deg and the repose a pile stands and the zones exist: the heuristic and
-    the teacher have no range they were trained on to leave (a 30 deg pile the LiDAR reads as 30.1 deg
-    stopped a twin run of the teacher; 2026-11-28)."""
+    angle of repose (task.bucket_repose_deg) no gravel pile stands. Each end widened by
+    UNTRAINED_SLOPE_MARGIN_DEG for the estimate's own error (a 30 deg pile the LiDAR read as 30.1 deg
+    stopped a twin run of the teacher, 2026-11-28). An actor's range is its card's, never widened."""
     ep = cfg["paper"]["episode"]
-    lo, hi = float(ep["alpha_min_deg"]), max(float(ep["alpha_max_deg"]), float(cfg["task"]["bucket_repose_deg"]))
-    return lo, hi, "config alpha_min_deg to the gravel's angle of repose task.bucket_repose_deg (no trained range)"
+    m = UNTRAINED_SLOPE_MARGIN_DEG
+    lo = float(ep["alpha_min_deg"]) - m
+    hi = max(float(ep["alpha_max_deg"]), float(cfg["task"]["bucket_repose_deg"])) + m
+    return lo, hi, (f"config alpha_min_deg to the gravel's angle of repose task.bucket_repose_deg, each widened by "
+                    f"{m:g} deg for the estimate's error (no trained range)")
 
 
 class SupervisorNode(Node):
@@ -122,7 +128,7 @@ class SupervisorNode(Node):
                   on_change=lambda v: setattr(self.core, "controller", v)),
             Param("policy_dir", "", "exported actor whose card gives the slope range "
                   "(trained_ranges.slope_deg); empty (the heuristic, the teacher, teleoperation): the config's "
-                  "alpha_min_deg up to the larger of alpha_max_deg and task.bucket_repose_deg"),
+                  "alpha_min_deg up to the larger of alpha_max_deg and task.bucket_repose_deg, each widened by 1 deg"),
             Param("material", "homogeneous", "pile material written to the record; a change applies from the next "
                   "arming", choices=MATERIALS, on_change=lambda v: setattr(self.core, "material", v)),
             Param("attempt_timeout", 10.0, "s from running to timeout (paper: a timeout of 10 s); a change applies "
