@@ -33,7 +33,6 @@ Fail-safe behaviour (docs/hardware_bridge.md):
 from __future__ import annotations
 
 import dataclasses
-import math
 import threading
 import time
 
