@@ -603,6 +603,14 @@ def main(argv=None) -> int:
     except ConfigError as exc:
         print(f"lhd validate physics: {exc}", file=sys.stderr)
         return 1
+    lo, hi = cfg["paper"]["episode"]["alpha_min_deg"], cfg["paper"]["episode"]["alpha_max_deg"]
+    if lo > min(SLOPES) or hi < max(SLOPES):
+        # the references are worked at the paper's piles; the environment refuses a slope outside the file's range
+        print(f"lhd validate physics: its cases are piles of {min(SLOPES):g}-{max(SLOPES):g} deg (the paper's, where "
+              f"the hand references are worked), and {a.config or 'the parameter file'} has piles of {lo:g}-{hi:g} deg "
+              f"(paper.episode.alpha_min_deg / alpha_max_deg); give a file whose range covers "
+              f"{min(SLOPES):g}-{max(SLOPES):g} deg", file=sys.stderr)
+        return 2
     res = run(cfg, quick=a.quick)
     if a.plots:
         res["plots"] = write_plots(res, a.plots)

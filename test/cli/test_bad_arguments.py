@@ -85,3 +85,50 @@ def test_a_prefix_that_is_no_ros_name_ends_the_node_with_one_line(module, prefix
     assert p.returncode == 2, out[-1500:]
     assert f"parameter 'namespace_prefix' = {prefix!r} is invalid: expected a ROS topic prefix such as /lhd" in out
     assert why in out and "Traceback" not in out
+
+
+@pytest.mark.parametrize("group, needle", [
+    ("up", "lhd up sim"), ("attempt", "lhd attempt mass KG"), ("validate", "lhd validate physics"),
+])
+def test_help_of_a_command_group_shows_its_subcommands_and_exits_0(group, needle):
+    """`lhd up --help` (and `attempt`, `validate`) print their subcommands and exit 0, as every other
+    command's --help does (a review: they exited 2 with the one-line usage error)."""
+    for flag in ("--help", "-h"):
+        r = subprocess.run(LHD + [group, flag], capture_output=True, text=True, timeout=60)
+        assert r.returncode == 0 and needle in r.stdout and "Traceback" not in r.stderr, (r.stdout, r.stderr)
+    r = subprocess.run(LHD + [group], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and needle in r.stderr
+
+
+def test_a_file_whose_piles_the_attack_cannot_enter_is_one_line(tmp_path):
+    """A legal but extreme file (a 50 kPa cohesive pile: the attack drive cannot bury the lip 0.1 m)
+    ends an in-process command with one line naming what failed, as the sim node does, not with the
+    simulator's traceback (a review)."""
+    from pathlib import Path
+    src = (Path(__file__).resolve().parents[2] / "config" / "lhd_params.yaml").read_text()
+    text = src.replace("  cohesion_min: 0.0 ", "  cohesion_min: 50000.0 ").replace("  cohesion_max: 0.0\n",
+                                                                              "  cohesion_max: 50000.0\n")
+    assert text != src
+    f = tmp_path / "cohesive.yaml"
+    f.write_text(text)
+    r = subprocess.run(LHD + ["eval", "--controller", "tampier", "--config", str(f), "--episodes", "1", "--slopes",
+                              "20"], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 1 and "Traceback" not in r.stderr, r.stderr
+    assert "the simulator could not run an episode of this parameter file: the bucket did not reach d_init" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1, r.stderr
+
+
+def test_validate_physics_names_a_file_whose_piles_miss_its_cases(tmp_path):
+    """`lhd validate physics` works its references at 15-30 deg piles: a file of 10-14 deg piles is
+    refused in one line naming both ranges, exit 2 (a review: a traceback from the environment)."""
+    from pathlib import Path
+    src = (Path(__file__).resolve().parents[2] / "config" / "lhd_params.yaml").read_text()
+    text = src.replace("    alpha_min_deg: 15.0", "    alpha_min_deg: 10.0").replace("    alpha_max_deg: 30.0",
+                                                                                 "    alpha_max_deg: 14.0")
+    assert text != src
+    f = tmp_path / "shallow.yaml"
+    f.write_text(text)
+    r = subprocess.run(LHD + ["validate", "physics", "--quick", "--config", str(f)], capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert "its cases are piles of 15-30 deg" in r.stderr and "has piles of 10-14 deg" in r.stderr

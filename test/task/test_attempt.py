@@ -282,7 +282,7 @@ def test_arm_delay_then_running_then_success_in_the_end_zone(kin):
     assert r.sv.update(r.t) is True and r.sv.state == "success"
     row = r.sv.attempt.row()
     assert row.elapsed_s == pytest.approx(r.t - t_run) and row.elapsed_s == pytest.approx(1.1)
-    assert row.phi_final_deg == pytest.approx(math.degrees(0.8))
+    assert row.phi_final_deg == pytest.approx(math.degrees(0.8), abs=0.005)     # the record's 0.01 deg
     assert row.reason == "bucket tip reached the end zone"
     assert row.success is None and row.success_level is None and row.mass_kg is None      # until weighed
     v = r.sv.status_values(r.t)
@@ -311,7 +311,7 @@ def test_end_zone_is_judged_at_the_end_of_each_control_period_as_in_the_task(kin
     r.sv.update(r.t)
     assert r.sv.state == "success"
     row = r.sv.attempt.row()
-    assert row.elapsed_s == pytest.approx(0.30) and row.phi_final_deg == pytest.approx(math.degrees(0.8))
+    assert row.elapsed_s == pytest.approx(0.30) and row.phi_final_deg == pytest.approx(math.degrees(0.8), abs=0.005)
     # end_check_period 0: judged on the update the tip enters, with the pitch it has then
     r = Rig(kin, arm_delay=0.0, end_check_period=0.0).ready()
     r.arm()
@@ -322,7 +322,7 @@ def test_end_zone_is_judged_at_the_end_of_each_control_period_as_in_the_task(kin
     r.sv.update(r.t)
     assert r.sv.state == "success"
     row = r.sv.attempt.row()
-    assert row.elapsed_s == pytest.approx(0.23) and row.phi_final_deg == pytest.approx(math.degrees(0.75))
+    assert row.elapsed_s == pytest.approx(0.23) and row.phi_final_deg == pytest.approx(math.degrees(0.75), abs=0.005)
     # the restricted zone mid-period: at once
     r = Rig(kin, arm_delay=0.0).ready()
     r.arm()
@@ -633,7 +633,7 @@ def test_success_after_a_pause_is_judged_on_the_present_tip(kin):
     assert r.sv.state == "success"
     row = r.sv.attempt.row()
     assert row.elapsed_s == pytest.approx(r.t - t_run)
-    assert row.phi_final_deg == pytest.approx(math.degrees(LIFT[1] + 0.1 - LIFT[0]))
+    assert row.phi_final_deg == pytest.approx(math.degrees(LIFT[1] + 0.1 - LIFT[0]), abs=0.005)
 
 
 def test_inputs_taken_after_the_last_check_count_a_pause_that_follows(kin):
@@ -686,7 +686,7 @@ def test_a_short_pause_defers_the_end_zone_to_the_queued_tip(kin):
     for name in INPUTS:
         _take(r, name)
     assert r.sv.state == "success"
-    assert r.sv.attempt.row().phi_final_deg == pytest.approx(math.degrees(LIFT[1] + 0.1 - LIFT[0]))
+    assert r.sv.attempt.row().phi_final_deg == pytest.approx(math.degrees(LIFT[1] + 0.1 - LIFT[0]), abs=0.005)
 
 
 def test_the_restricted_zone_is_judged_while_waiting_for_the_queue(kin):
@@ -1056,7 +1056,7 @@ def test_a_fresh_imu_puts_the_machine_pitch_into_the_final_pitch(kin):
         r.sv.inputs.put("imu", quat_zyx(DEG(50.0), DEG(3.0), 0.0), r.t - imu_age)   # its own heading: ignored
         r.sv.update(r.t)
         assert r.sv.state == "success"
-        assert r.sv.attempt.row().phi_final_deg == pytest.approx(expected, abs=1e-9)
+        assert r.sv.attempt.row().phi_final_deg == pytest.approx(expected, abs=0.005)     # the record's 0.01 deg
         # the tip's position stays the levelled pose's (what the controllers see): only the pitch changes
         x, z = tip_hand(END_X, *LIFT)
         assert (r.sv.tip.x_shovel, r.sv.tip.z_shovel) == (pytest.approx(x, abs=1e-3), pytest.approx(z, abs=1e-3))   # 3 deg about base_link: 9 cm

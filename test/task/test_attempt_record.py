@@ -236,3 +236,40 @@ def test_an_attempt_without_a_recorded_end_is_listed_apart_from_the_aborted():
     assert "not counted: attempt(s) 8\n" in out + "\n"
     assert "no end recorded (running now, or its supervisor was killed during it), not counted: attempt(s) 11" in out
     assert "no end recorded" not in format_table(summarize(rows_for_table()))
+
+
+@pytest.mark.parametrize("phi, mass, slope, verdict, sl_bin", [
+    (40.004, 25.0, 20.0, (0, False), 20.0),     # a review: success live, failure once written as 40.00 and read back
+    (40.006, 25.0, 20.0, (3, True), 20.0),      # written 40.01: over the 40 deg threshold both ways
+    (45.0, 19.996, 20.0, (1, True), 20.0),      # a review: written 20.00 kg with success false
+    (45.0, 19.994, 20.0, (0, False), 20.0),     # written 19.99 kg
+    (45.0, 25.0, 22.496, (3, True), 25.0),      # a review: written 22.50, the table bins it with 25 deg
+])
+def test_the_live_verdict_is_the_one_the_written_row_gives_again(tmp_path, phi, mass, slope, verdict, sl_bin):
+    """The supervisor judges the weighed attempt from the numbers in memory; `lhd attempt mass
+    --attempt N` judges it again from attempts.csv, which keeps two decimals. Both judge the numbers
+    as written, so the verdict does not depend on the path (expected values by hand: SL 3 for 25 kg
+    in the paper's levels, 1 from 20 kg, 0 under it or at a pitch not over 40 deg)."""
+    p = tmp_path / "attempts.csv"
+    live = mk(1, mass=None, phi=phi, slope=slope).weighed(mass, PHI_T)
+    assert (live.success_level, live.success) == verdict
+    assert live.slope_bin == sl_bin
+    upsert_row(p, mk(1, mass=None, phi=phi, slope=slope))
+    again = weigh_row(p, 1, mass, PHI_T)
+    assert again == live
+    assert read_rows(p) == [live]
+
+
+def test_a_row_holds_its_numbers_at_the_records_resolution():
+    """Property: for numbers around every rounding boundary, a row written and read back is the row,
+    and judging before or after writing agrees."""
+    import random
+    rng = random.Random(3)
+    for _ in range(500):
+        phi = 40.0 + rng.choice([-1, 1]) * rng.uniform(0.0, 0.02)
+        mass = 20.0 + rng.choice([-1, 1]) * rng.uniform(0.0, 0.02)
+        row = mk(1, mass=mass, phi=phi, slope=rng.uniform(10, 35), elapsed=rng.uniform(0, 10),
+                 front=rng.uniform(0, 100), rear=rng.uniform(0, 100))
+        back = AttemptRow.from_csv(row.to_csv())
+        assert back == row
+        assert back.weighed(mass, PHI_T) == row.weighed(mass, PHI_T)

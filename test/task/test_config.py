@@ -133,3 +133,25 @@ def test_capacity_and_normaliser_keys(cfg):
     bad["task"]["bucket_max_load"] = 37.5
     with pytest.raises(ConfigError, match="bucket_max_load"):
         validate(bad)
+
+
+@pytest.mark.parametrize("alpha_max, phi_max, refused", [
+    (30.0, 5.0, True),      # a review: a 30 deg pile of 5 deg soil was simulated as if it stood
+    (55.0, 37.0, True),     # 50-55 deg piles of the shipped gravel: steeper than any of its repose angles
+    (37.5, 37.0, True),
+    (37.0, 37.0, False),    # a face at exactly the repose angle stands (just)
+    (35.0, 37.0, False),    # the 10-35 deg files
+])
+def test_a_pile_steeper_than_its_repose_is_refused(cfg, alpha_max, phi_max, refused):
+    """A cohesionless pile's face stands at most at its friction angle (the angle of repose):
+    alpha_max_deg above pile.phi_max_deg, the largest friction angle a pile is drawn with, describes
+    piles no material of the file can build."""
+    cfg["paper"]["episode"]["alpha_max_deg"] = alpha_max
+    cfg["paper"]["episode"]["alpha_min_deg"] = min(cfg["paper"]["episode"]["alpha_min_deg"], alpha_max - 1.0)
+    cfg["pile"]["phi_max_deg"] = phi_max
+    cfg["pile"]["phi_min_deg"] = min(cfg["pile"]["phi_min_deg"], phi_max)
+    if refused:
+        with pytest.raises(ConfigError, match=r"relation violated: paper.episode.alpha_max_deg <= pile.phi_max_deg"):
+            validate(cfg)
+    else:
+        validate(cfg)

@@ -111,6 +111,14 @@ def test_survey_of_all_eight_limits(tmp_path, params):
     ("end_zone: [0.8, 0.5, 0.35]\n", "x_min 0.8 must be below x_max 0.5"),
     ("end_zone: [0.5, 0.8]\n", "'end_zone' = [0.5, 0.8]: expected 3 numbers [x_min, x_max, z_min]"),
     ("end_zone: [0.5, 0.8, 0.35]\nslope_deg: 20\n", "not both"),
+    # a review: zone sets no pile can have were published latched
+    ("end_zone: [0.5, 0.8, 0.35]\nx_cutoff: 0.2\n", "the end zone starts at x_min 0.5 m, at or beyond the restricted zone"),
+    ("end_zone: [5.5, 9.8, 0.35]\n", "x_min 5.5 m, at or beyond the restricted zone (x_cutoff 1.3725"),
+    ("end_zone: [0.5, 0.8, -5.0]\n", "z_min -5 m must lie on or above the pile's floor"),
+    ("zones: {x_min: 0.5, x_max: 0.8, z_min: 0.5, x_cutoff: 1.58, x_obs_start: -0.1, x_obs_end: 1.0, y_half: 0.2, "
+     "z_top: 0.4}\n", "below the observation zone's top z_top 0.4 m"),
+    ("zones: {x_min: 0.5, x_max: 0.8, z_min: 0.35, x_cutoff: 1.58, x_obs_start: -0.1, x_obs_end: 0.3, y_half: 0.2, "
+     "z_top: 0.4}\n", "outside the observation zone [-0.1, 0.3] m"),
     ("zones: {x_min: 0.5, x_max: 0.8}\n", "missing z_min, x_cutoff"),
     ("zones: [0.5, 0.8, 0.35, 1.5, -0.1, 1.0, 0.2, 0.4]\nend_zone: [0.5, 0.9, 0.35]\n", "disagrees"),
     ("- 0.5\n- 0.8\n", "expected a mapping"),
@@ -134,3 +142,17 @@ def test_the_shipped_example_is_a_valid_survey(params):
     example = Path(__file__).resolve().parents[2] / "config" / "end_zone_surveyed.example.yaml"
     s = load_survey(str(example), params, LIMITS)
     assert s.is_pile and s.alpha == pytest.approx(r(22.0)) and s.toe_x == 0.0
+
+
+def test_every_zone_set_the_end_zone_node_builds_is_accepted(params):
+    """The receivers (supervisor, twin) parse /lhd/pile/zones with from_list: its checks must pass
+    every zone set the end-zone node builds from a LiDAR estimate it accepts (5-50 deg) and a
+    plausible density, including the steep piles whose end zone reaches past the cut (x_max >
+    x_cutoff: the pile's 170 kg lie behind L - d_cutoff, by hand at 45 deg and 1,760 kg/m^3:
+    s = sqrt(2 x 170 / (1760 x 0.4 x 1)) = 0.695 m > L = 0.68 m, capped at 0.68, cut at 0.58)."""
+    z45 = Zones.for_measured_pile(math.radians(45.0), 0.0, 1760.0, params)
+    assert z45.x_max == pytest.approx(0.68) and z45.x_cutoff == pytest.approx(0.58)
+    for deg in range(5, 51):
+        for rho in (1400.0, 1500.0, 1760.0, 2000.0, 2200.0, 2700.0):
+            z = Zones.for_measured_pile(math.radians(deg), 0.0, rho, params)
+            assert Zones.from_list(z.as_list()) == z, (deg, rho)

@@ -385,6 +385,16 @@ def main(argv=None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())   # the interpreter's own flush at exit must not raise again
         return 1
+    except RuntimeError as exc:
+        # the simulator could not set up an episode of this file (AttackError: the attack drive did not bury the
+        # bucket; SimulationError: MuJoCo found the state unstable), e.g. a legal but extreme material: one line
+        # naming it, as the sim node does (a review: a traceback from `lhd eval --controller tampier`)
+        if type(exc).__name__ not in ("AttackError", "SimulationError"):
+            raise
+        words = [a for a in (sys.argv[1:] if argv is None else list(argv)) if not a.startswith("-") and "/" not in a][:2]
+        print(f"lhd {' '.join(words)}: the simulator could not run an episode of this parameter file: {exc}",
+              file=sys.stderr)
+        return 1
     except OSError as exc:
         # a file or folder the command cannot read or write (`--out /etc/passwd/x`, a folder that does
         # not exist): the path and the system's reason in one line, not a traceback (a review)
@@ -567,6 +577,21 @@ def _main(argv=None) -> int:
         from lhd_loading_ros.cli.up_real import main as real_main
 
         return real_main(argv[2:])
+    groups = {
+        "up": ("lhd up sim [--policy DIR | --controller tampier|teacher] [--slope DEG | --slopes ...] [--episodes N]: "
+               "the sim node and the policy node over DDS",
+               "lhd up real --port DEV [--controller rld|rlc|tampier|teacher|teleop]: the real-machine stack",
+               "lhd up twin [--controller ...] [--slopes ...] [--episodes N]: the real-machine stack against the "
+               "simulator as the Due"),
+        "attempt": ("lhd attempt mass KG [--attempt N] [--run-dir DIR]: record the weighed mass of an attempt",),
+        "validate": ("lhd validate physics [--plots DIR] [--json] [--quick] [--config F]: the simulator's physics "
+                     "next to independent hand-calculation references",),
+    }
+    if len(argv) == 2 and argv[0] in groups and argv[1] in ("-h", "--help"):
+        # a command group's help: its subcommands (each has its own --help), exit 0 as argparse's --help does
+        print(f"usage: lhd {argv[0]} SUBCOMMAND ...   (lhd {argv[0]} SUBCOMMAND --help for its options)\n")
+        print("\n".join(f"  {line}" for line in groups[argv[0]]))
+        return 0
     if argv[:1] == ["up"]:
         print("lhd up: expected `lhd up sim [--policy DIR] [--slope DEG] [--episodes N]`, "
               "`lhd up real --port DEV [--controller rld|rlc|tampier|teacher|teleop]` or `lhd up twin [--slopes ...]`",

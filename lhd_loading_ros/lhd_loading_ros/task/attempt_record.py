@@ -78,15 +78,36 @@ def check_mass(kg) -> float:
     return v
 
 
+# The record's resolution: the digits attempts.csv keeps of each number (the scale's 10 g, a hundredth
+# of a degree, a millisecond). A row holds its numbers at this resolution (AttemptRow.__post_init__)
+# and `judge` decides on them, so the verdict of a live attempt is the one its written row gives again
+# when it is read and weighed later (a review: a pitch of 40.004 deg was a success live and, written
+# as 40.00, a failure when weighed through the file; 19.996 kg was written 20.00 with success false).
+DIGITS = {"slope_deg": 2, "mass_kg": 2, "elapsed_s": 3, "front_drift_pct": 2, "rear_drift_pct": 2,
+          "phi_final_deg": 2}
+
+
+def recorded(v: float | None, digits: int) -> float | None:
+    """v as attempts.csv writes and reads it back: rounded to `digits` decimals (the same decimal
+    rounding as the writer's format); None and non-finite values unchanged."""
+    if v is None or not math.isfinite(v):
+        return v
+    return float(f"{v:.{digits}f}")
+
+
 def judge(outcome: str, mass_kg: float | None, phi_final_rad: float, phi_thresh_rad: float
           ) -> tuple[int | None, bool | None]:
     """(success level, success) of an attempt: SL from the weighed mass and the final pitch
-    (metrics.success_level; a final pitch that was never measured gives SL 0); success as in
-    the module docstring. None where the mass is still needed."""
+    (metrics.success_level; a final pitch that was never measured gives SL 0), both at the record's
+    resolution (DIGITS), so that the written row judges the same again; success as in the module
+    docstring. None where the mass is still needed."""
     if outcome not in OUTCOMES:
         raise ValueError(f"outcome {outcome!r}: expected one of {OUTCOMES}")
     sl = None
     if mass_kg is not None:
+        mass_kg = recorded(float(mass_kg), DIGITS["mass_kg"])
+        if math.isfinite(phi_final_rad):
+            phi_final_rad = math.radians(recorded(math.degrees(phi_final_rad), DIGITS["phi_final_deg"]))
         sl = success_level(mass_kg, phi_final_rad, phi_thresh_rad) if math.isfinite(phi_final_rad) else 0
     if outcome not in NEEDS_MASS:
         return sl, False
@@ -113,6 +134,11 @@ class AttemptRow:
     success: bool | None
     bag: str
 
+    def __post_init__(self):
+        # the numbers at the record's resolution: the row in memory is the row in the file
+        for name, digits in DIGITS.items():
+            object.__setattr__(self, name, recorded(getattr(self, name), digits))
+
     def weighed(self, mass_kg: float, phi_thresh_rad: float) -> "AttemptRow":
         """This row with the weighed mass, its SL and success."""
         m = check_mass(mass_kg)
@@ -128,10 +154,12 @@ class AttemptRow:
             return "" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{v:.{digits}f}"
 
         return {"attempt": str(self.attempt), "started_utc": self.started_utc, "controller": self.controller,
-                "slope_deg": num(self.slope_deg), "material": self.material, "outcome": self.outcome,
-                "reason": self.reason, "mass_kg": num(self.mass_kg), "elapsed_s": num(self.elapsed_s, 3),
-                "front_drift_pct": num(self.front_drift_pct), "rear_drift_pct": num(self.rear_drift_pct),
-                "phi_final_deg": num(self.phi_final_deg),
+                "slope_deg": num(self.slope_deg, DIGITS["slope_deg"]), "material": self.material,
+                "outcome": self.outcome, "reason": self.reason, "mass_kg": num(self.mass_kg, DIGITS["mass_kg"]),
+                "elapsed_s": num(self.elapsed_s, DIGITS["elapsed_s"]),
+                "front_drift_pct": num(self.front_drift_pct, DIGITS["front_drift_pct"]),
+                "rear_drift_pct": num(self.rear_drift_pct, DIGITS["rear_drift_pct"]),
+                "phi_final_deg": num(self.phi_final_deg, DIGITS["phi_final_deg"]),
                 "success_level": "" if self.success_level is None else str(self.success_level),
                 "success": "" if self.success is None else ("true" if self.success else "false"), "bag": self.bag}
 

@@ -171,6 +171,13 @@ _RELATIONS = [
     ("paper.end_zone.m_min < paper.end_zone.m_max", lambda c: c["paper"]["end_zone"]["m_min"] < c["paper"]["end_zone"]["m_max"]),
     ("paper.episode.alpha_min_deg < paper.episode.alpha_max_deg",
      lambda c: c["paper"]["episode"]["alpha_min_deg"] < c["paper"]["episode"]["alpha_max_deg"]),
+    # a dry granular pile stands at most at its angle of repose, which for a cohesionless pile is its
+    # internal friction angle (Terzaghi, Peck & Mesri, Soil Mechanics in Engineering Practice, 3rd ed.,
+    # art. 16): a face steeper than pile.phi_max_deg would slide, and the simulator would still resist
+    # the bucket with it (a review: a 30 deg pile of 5 deg soil pitched the machine 47 deg nose-down)
+    ("paper.episode.alpha_max_deg <= pile.phi_max_deg (a pile's face stands at most at its angle of repose, "
+     "the friction angle of a cohesionless pile)",
+     lambda c: c["paper"]["episode"]["alpha_max_deg"] <= c["pile"]["phi_max_deg"]),
     ("paper.episode.d_attack_min <= paper.episode.d_attack_max",
      lambda c: c["paper"]["episode"]["d_attack_min"] <= c["paper"]["episode"]["d_attack_max"]),
     ("hardware.reconnect_backoff_min <= hardware.reconnect_backoff_max",

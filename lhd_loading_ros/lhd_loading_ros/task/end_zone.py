@@ -211,6 +211,10 @@ def _given_zones(path: str, doc: dict, p) -> Zones:
         x_cutoff = _number(path, "x_cutoff", doc["x_cutoff"]) if "x_cutoff" in doc else x_obs_end
         vals = end + [x_cutoff, x_obs_start, x_obs_end, p.y_obs / 2.0, p.z_obs]
     try:
-        return Zones.from_list(vals)
+        z = Zones.from_list(vals)
     except ValueError as exc:
         raise ValueError(f"surveyed_file {path}: {exc}") from None
+    why = z.problem_as_surveyed()
+    if why:
+        raise ValueError(f"surveyed_file {path}: zones: {why}")
+    return z

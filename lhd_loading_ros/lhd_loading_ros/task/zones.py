@@ -69,7 +69,10 @@ class Zones:
     @classmethod
     def from_list(cls, values) -> "Zones":
         """Inverse of as_list, validated: 8 finite values with x_min < x_max and
-        x_obs_start < x_obs_end, y_half > 0; ValueError naming what is wrong otherwise."""
+        x_obs_start < x_obs_end, y_half > 0, the end zone starting before the restricted zone
+        (x_min < x_cutoff: the end zone may reach into it, as on steep piles, where the pile's 170 kg
+        lie behind the cut) and its floor on or above the pile frame's floor and below the
+        observation zone's top (0 <= z_min < z_top); ValueError naming what is wrong otherwise."""
         names = [f.name for f in fields(cls)]
         vals = [float(v) for v in values]
         if len(vals) != len(names):
@@ -84,7 +87,24 @@ class Zones:
             raise ValueError(f"zones: x_obs_start {z.x_obs_start:g} must be below x_obs_end {z.x_obs_end:g}")
         if not z.y_half > 0.0:
             raise ValueError(f"zones: y_half {z.y_half:g} must be positive")
+        if not z.x_min < z.x_cutoff:
+            raise ValueError(f"zones: the end zone starts at x_min {z.x_min:g} m, at or beyond the restricted zone "
+                             f"(x_cutoff {z.x_cutoff:g} m): no tip could reach it; expected x_min < x_cutoff")
+        if not 0.0 <= z.z_min < z.z_top:
+            raise ValueError(f"zones: the end zone's floor z_min {z.z_min:g} m must lie on or above the pile's floor "
+                             f"(z = 0) and below the observation zone's top z_top {z.z_top:g} m")
         return z
+
+    def problem_as_surveyed(self) -> str:
+        """Why a set of zones given by hand (a surveyed file) cannot be the pile in front of the
+        machine, beyond from_list's checks, or "": its end zone must start inside the observation
+        zone (x_obs_start < x_min < x_obs_end), where the tip is observed. (The end-zone node's own
+        zones from a 5-7 deg estimate start beyond it; the supervisor refuses such slopes anyway.)"""
+        if not self.x_obs_start < self.x_min < self.x_obs_end:
+            return (f"the end zone starts at x_min {self.x_min:g} m, outside the observation zone "
+                    f"[{self.x_obs_start:g}, {self.x_obs_end:g}] m where the tip is observed; expected "
+                    f"x_obs_start < x_min < x_obs_end")
+        return ""
 
 
 def wedge_x_at_mass(m: float, alpha: float, density: float, w: float, h: float) -> float:
