@@ -488,3 +488,31 @@ def test_an_actor_randomised_before_starts_from_rest_runs_on_a_file_that_has_the
     trained = copy.deepcopy(with_rest)
     trained["randomization"]["enabled"] = 1
     assert hash_matches(config_hash(trained), with_rest)
+
+
+def test_the_machine_stress_case_is_placement_from_rest_on_a_rough_pile(cfg):
+    """`--stress machine`: how an attempt on the machine goes, all at once: placed by hand (each
+    corner of `placement`, with its camera errors and dead time), from rest (`rest`) and on a pile whose
+    surface is no plane (`rough`); nothing else. In the environment the episode starts standing, off
+    the pile's axis, on a relief, and the observed slope is the scanned slice's."""
+    from dataclasses import replace
+
+    from lhd_loading_ros.task.randomization import ROUGH_CORR, ROUGH_SD, stress_conditions
+
+    for i in (0, 8, 16, 24):
+        m, place = stress_conditions("machine", i, cfg), stress_conditions("placement", i, cfg)
+        assert m == replace(place, rest_start=True, surface_sd=ROUGH_SD, surface_corr=ROUGH_CORR)
+        assert m.rest_start and m.surface_sd == 0.03 and abs(m.heading_deg) == 3.0 and abs(m.lateral_offset) == 0.05
+        assert m.drive_delay_s == m.hydraulic_delay_s == 0.1 and m.soil is None and m.slope_error_deg == 0.0
+    env = LhdLoadingEnv("rld", cfg)
+    env.reset(seed=3, options={"slope_deg": 20.0, "material": "homogeneous",
+                               "conditions": stress_conditions("machine", 0, cfg)})
+    sim = env.sim
+    assert abs(sim.state().v_x) < 0.005                         # standing
+    p = sim.pile                                                # a relief: the back two thirds off the plane
+    plane = np.tile(np.clip(p.x_centers * math.tan(p.alpha), 0.0, p.h), (p.n_y, 1))
+    back = slice(p.n_x // 3, None)
+    inner = (plane[:, back] > 0.1) & (plane[:, back] < p.h - 0.1)
+    assert 0.015 < float(np.std((p.top - plane)[:, back][inner])) < 0.045
+    w, x, y, z = sim.data.qpos[3:7]                             # the heading kept from the placement
+    assert math.degrees(math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))) == pytest.approx(3.0, abs=0.3)

@@ -213,6 +213,10 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
                stands in the attack pose), not at the attack speed of the paper's episodes; nothing else
                changes. The tyres may slip while the machine accelerates with its bucket in the pile, and
                the drift flags say so (docs/modeling.md "A start from rest")
+    machine    every attempt as one on the machine goes: placed by hand (as `placement`, with the camera's
+               errors and the 100 ms dead time), from rest with the tip in the pile (as `rest`), on a pile
+               whose surface is no plane (as `rough`, the observed slope the scanned slice's). Each passes
+               alone; an attempt on the machine has them all at once (2026-11-29)
     rough      the pile's surface not a plane: a random relief of sd ROUGH_SD (3 cm) and correlation
                length ROUGH_CORR (15 cm) about it (VoxelPile.roughen). A pile dumped by a feeder or by
                hand has bumps of about the size of its largest pieces (the paper's 8-15 cm rocks in 2-5
@@ -239,6 +243,9 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
         return Conditions(soil=replace(SoilRanges.from_config(cfg), density=band))
     if name == "dense_placement":
         return replace(stress_conditions("placement", i, cfg), soil=stress_conditions("dense", i, cfg).soil)
+    if name == "machine":
+        return replace(stress_conditions("placement", i, cfg), rest_start=True, surface_sd=ROUGH_SD,
+                       surface_corr=ROUGH_CORR)
     if name == "rocky":
         n = int(r["rocks_max"])
         return Conditions(soil=replace(SoilRanges.from_config(cfg), rocks=(n, n)))
@@ -256,7 +263,7 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
 
 
 STRESS_CASES = ("placement", "sensors", "delay", "light", "dense", "rocky", "rough", "slow_drive", "slow_hydraulics",
-                "cohesive", "dense_placement", "rest")
+                "cohesive", "dense_placement", "rest", "machine")
 SLOW_DRIVE_GAIN = 0.8       # the wheels at 80 % of the commanded speed: a battery near its cut-off (a DC motor's
                             # speed follows its voltage; about -20 % from full charge) or a speed loop 20 % off
 SLOW_HYDRAULIC_GAIN = 0.75  # boom and bucket at 75 % of the commanded rate: less pump flow (a sagging battery
