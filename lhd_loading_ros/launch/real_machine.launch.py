@@ -1,5 +1,5 @@
 """ros2 launch lhd_loading_ros real_machine.launch.py port:=/dev/ttyACM0 [controller:=rld|rlc|tampier|teacher|teleop]
-    [policy_dir:=DIR] [camera_topic:=/camera/image_raw] [camera_info_topic:=/camera/camera_info]
+    [policy_dir:=DIR] [config:=lhd_params.yaml] [camera_topic:=/camera/image_raw] [camera_info_topic:=/camera/camera_info]
     [scan_topic:=/scan] [end_zone:=lidar|FILE.yaml] [joy_mapping:=xbox] [material:=homogeneous]
     [run_dir:=runs/real/NAME] [attempt_timeout:=10.0] [record:=true] [storage:=mcap]
     [params_file:=<share>/config/real_machine.yaml] [joy:=true]
@@ -44,13 +44,32 @@ def refuse_unsound_params(context):
     return []
 
 
+def resolve_actor(context):
+    """The actor and the parameter file every node reads (cli/up_real.machine_actor, as `lhd up real`):
+    controller:=rld / rlc without policy_dir runs the machine's actor (policies/rld_gains, rlc_gains),
+    and an actor that ships its own lhd_params.yaml runs with it unless config:= names another."""
+    from launch.actions import SetLaunchConfiguration
+
+    from lhd_loading_ros.cli.up_real import machine_actor
+
+    share = get_package_share_directory("lhd_loading_ros")
+    policy, config, _ = machine_actor(LaunchConfiguration("controller").perform(context),
+                                      LaunchConfiguration("policy_dir").perform(context),
+                                      LaunchConfiguration("config").perform(context),
+                                      policies_root=os.path.join(share, "policies"))
+    return [SetLaunchConfiguration("actor_dir", policy), SetLaunchConfiguration("actor_config", config)]
+
+
 def generate_launch_description():
     share = get_package_share_directory("lhd_loading_ros")
     stamp = datetime.now(timezone.utc).strftime("%Y%m%d-%H%M%S")
     args = [
         DeclareLaunchArgument("port", description="serial device of the Due, e.g. /dev/ttyACM0"),
         DeclareLaunchArgument("controller", default_value="rld", description="rld | rlc | tampier | teacher | teleop"),
-        DeclareLaunchArgument("policy_dir", default_value="", description="exported actor (default: the shipped one)"),
+        DeclareLaunchArgument("policy_dir", default_value="", description="exported actor (default: the machine's, "
+                              "policies/rld_gains or rlc_gains: docs/real_machine.md)"),
+        DeclareLaunchArgument("config", default_value="", description="lhd_params.yaml for every node (default: the "
+                              "actor's own where it ships one, else the package's)"),
         DeclareLaunchArgument("camera_topic", default_value="/camera/image_raw"),
         DeclareLaunchArgument("camera_info_topic", default_value="/camera/camera_info"),
         DeclareLaunchArgument("scan_topic", default_value="/scan"),
@@ -67,22 +86,21 @@ def generate_launch_description():
     pf = LaunchConfiguration("params_file")
     controller = LaunchConfiguration("controller")
     is_lidar = PythonExpression(["'", LaunchConfiguration("end_zone"), "' == 'lidar'"])
-    policy_dir = PythonExpression([
-        "'", LaunchConfiguration("policy_dir"), "' or ('", os.path.join(share, "policies"), "/' + '", controller,
-        "' if '", controller, "' in ('rld', 'rlc') else '')"])
+    policy_dir = LaunchConfiguration("actor_dir")          # set by resolve_actor
+    config = {"config": ParameterValue(LaunchConfiguration("actor_config"), value_type=str)}
     nodes = [
         Node(package="lhd_hw_bridge", executable="bridge_node", name="lhd_hw_bridge", output="screen",
-             parameters=[pf, {"port": text("port")}]),
+             parameters=[pf, {"port": text("port"), **config}]),
         Node(package="lhd_loading_ros", executable="aruco_pose_node", name="aruco_pose_node", output="screen",
              parameters=[pf, {"image_topic": text("camera_topic"), "camera_info_topic": text("camera_info_topic")}]),
         Node(package="lhd_loading_ros", executable="lidar_slope_node", name="lidar_slope_node", output="screen",
              parameters=[pf, {"scan_topic": text("scan_topic")}]),
         Node(package="lhd_loading_ros", executable="end_zone_node", name="end_zone_node", output="screen",
-             parameters=[pf, {"source": PythonExpression(["'lidar' if ", is_lidar, " else 'surveyed'"]),
+             parameters=[pf, {**config, "source": PythonExpression(["'lidar' if ", is_lidar, " else 'surveyed'"]),
                               "surveyed_file": PythonExpression(["'' if ", is_lidar, " else '",
                                                                  LaunchConfiguration("end_zone"), "'"])}]),
         Node(package="lhd_loading_ros", executable="supervisor_node", name="lhd_supervisor", output="screen",
-             parameters=[pf, {"run_dir": text("run_dir"), "controller": text("controller"),
+             parameters=[pf, {**config, "run_dir": text("run_dir"), "controller": text("controller"),
                               "policy_dir": ParameterValue(policy_dir, value_type=str), "material": text("material"),
                               "attempt_timeout": ParameterValue(LaunchConfiguration("attempt_timeout"),
                                                                 value_type=float)}]),
@@ -94,7 +112,7 @@ def generate_launch_description():
              condition=IfCondition(LaunchConfiguration("joy"))),
         Node(package="lhd_loading_ros", executable="policy_node", name="lhd_policy", output="screen",
              remappings=[("/lhd/cmd", "/lhd/cmd/auto")],
-             parameters=[pf, {"policy_dir": ParameterValue(policy_dir, value_type=str),
+             parameters=[pf, {**config, "policy_dir": ParameterValue(policy_dir, value_type=str),
                               "controller": PythonExpression(["'", controller, "' if '", controller,
                                                               "' in ('tampier', 'teacher') else 'actor'"])}],
              condition=IfCondition(PythonExpression(["'", controller, "' != 'teleop'"]))),
@@ -102,4 +120,5 @@ def generate_launch_description():
              parameters=[pf, {"run_dir": text("run_dir"), "storage": text("storage")}],
              condition=IfCondition(LaunchConfiguration("record"))),
     ]
-    return LaunchDescription([*args, OpaqueFunction(function=refuse_unsound_params), *nodes])
+    return LaunchDescription([*args, OpaqueFunction(function=refuse_unsound_params),
+                              OpaqueFunction(function=resolve_actor), *nodes])

@@ -28,9 +28,40 @@ def test_the_baselines_run_in_the_policy_node_without_an_actor(controller, tmp_p
 
 
 def test_an_actor_and_teleop(tmp_path):
-    (module, params, _), sup = controller_node(["--controller", "rlc"], tmp_path)
+    (module, params, _), sup = controller_node(["--controller", "rlc", "--policy", "policies/rlc"], tmp_path)
     assert "controller" not in params and params["policy_dir"].endswith("policies/rlc")
+    assert "config" not in params                       # policies/rlc runs on the package's parameter file
     assert controller_node(["--controller", "teleop"], tmp_path)[0] is None
+
+
+@pytest.mark.parametrize("controller, actor", [("rld", "rld_gains"), ("rlc", "rlc_gains")])
+def test_the_machine_runs_the_actors_that_pass_the_machine_case_with_their_own_file(controller, actor, tmp_path):
+    """Without --policy the real stack runs the machine's actors (actor_file.MACHINE_ACTORS: placed by
+    hand, from rest, on a rough pile, `lhd eval --stress machine` 1.000 / 0.983 against the main job's
+    0.61 / 0.70, docs/evidence/machine_case/), and every node that reads a parameter file reads the
+    actor's own (the nodes refuse an actor under another file's observation scaling). A --config given
+    is kept; an actor without its own file runs on the package's."""
+    ap = parser()
+    args = ap.parse_args(["--port", "/dev/null", "--controller", controller])
+    check_args(ap, args)
+    nodes = {name: params for name, _, params, _ in stack(args, tmp_path)}
+    own = str(ROOT / "policies" / actor / "lhd_params.yaml")
+    assert nodes["controller"]["policy_dir"] == str(ROOT / "policies" / actor)
+    assert nodes["supervisor"]["policy_dir"] == str(ROOT / "policies" / actor)
+    for name in ("bridge", "end_zone", "supervisor", "controller"):
+        assert nodes[name]["config"] == own, name
+    assert f"--controller {controller}: " in args.actor_note and "the machine's default actor" in args.actor_note
+    # the same actor named: its own file, no default note
+    args = ap.parse_args(["--port", "/dev/null", "--controller", controller, "--policy", f"policies/{actor}"])
+    check_args(ap, args)
+    assert Path(args.config) == ROOT / "policies" / actor / "lhd_params.yaml"
+    assert "default" not in args.actor_note and "the actor's own" in args.actor_note
+    # a --config given wins (and is checked against the actor: the package's file has other scaling)
+    args = ap.parse_args(["--port", "/dev/null", "--controller", controller, "--config",
+                          str(ROOT / "config" / "lhd_params.yaml")])
+    with pytest.raises(SystemExit) as e:
+        check_args(ap, args)
+    assert e.value.code == 2
 
 
 def test_flags_that_do_not_apply_are_refused(tmp_path, capsys):
@@ -61,3 +92,22 @@ def test_the_machine_parameter_file_confirms_the_teachers_drift():
     assert node_params(default_params_file(), "/lhd_policy")["teacher_drift_confirm"] == 6
     own = yaml.safe_load((ROOT / "config" / "policy_node.yaml").read_text())
     assert own["lhd_policy"]["ros__parameters"]["teacher_drift_confirm"] == 1
+
+
+def test_machine_actor_is_the_launch_files_rule_too(tmp_path):
+    """real_machine.launch.py resolves the actor and the parameter file with the same function
+    (cli/up_real.machine_actor) over the installed share's policies: the machine's actor for rld /
+    rlc without policy_dir, its own file unless config:= names one; nothing for the baselines."""
+    from lhd_loading_ros.cli.up_real import machine_actor
+
+    share = tmp_path / "policies"
+    (share / "rld_gains").mkdir(parents=True)
+    (share / "rld_gains" / "lhd_params.yaml").write_text("# the actor's own\n")
+    (share / "rld").mkdir()
+    policy, config, note = machine_actor("rld", policies_root=share)
+    assert policy == str(share / "rld_gains") and config == str((share / "rld_gains" / "lhd_params.yaml").resolve())
+    assert "the machine's default actor" in note
+    assert machine_actor("rld", str(share / "rld"), policies_root=share)[:2] == (str(share / "rld"), "")
+    assert machine_actor("rld", "", "/x/mine.yaml", policies_root=share)[:2] == (str(share / "rld_gains"), "/x/mine.yaml")
+    assert machine_actor("tampier", "", "", policies_root=share) == ("", "", "")
+    assert machine_actor("teleop", "", "/x/mine.yaml", policies_root=share) == ("", "/x/mine.yaml", "")

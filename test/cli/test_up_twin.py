@@ -92,7 +92,12 @@ def test_one_twin_attempt_end_to_end(tmp_path):
 
 
 @pytest.mark.parametrize("argv, expected", [
-    (["--slopes", "100"], "--slopes 100: outside the pile range [15, 30] deg of config/lhd_params.yaml"),
+    # the machine's RLD and its own file (cli/up_real.machine_actor); with the package's file, its range
+    (["--slopes", "100"], "--slopes 100: outside the pile range [10, 35] deg of "
+                          + os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))),
+                                         "policies", "rld_gains", "lhd_params.yaml")),
+    (["--slopes", "100", "--controller", "tampier"], "--slopes 100: outside the pile range [15, 30] deg of "
+                                                      "config/lhd_params.yaml"),
     (["--slopes", "20", "nan"], "--slopes nan: not a finite number; expected slopes in degrees"),
     (["--imu", "90"], "--imu 90: expected a tilt limit in [0, 45] deg"),
     (["--imu", "nan"], "--imu nan: expected a tilt limit in [0, 45] deg"),

@@ -67,6 +67,7 @@ def stack(args, run_dir: Path) -> list[tuple[str, str, dict, list[str]]]:
     policy_dir = ""
     if args.controller in ("rld", "rlc"):
         policy_dir = str(Path(args.policy).resolve()) if args.policy else str(default_policy_dir(args.controller))
+        # (check_args has set args.policy: the machine's default actor, resolve_actor)
     nodes = [
         ("bridge", "lhd_hw_bridge.bridge_node", {**common, "port": args.port}, []),
         ("aruco", "lhd_loading_ros.nodes.aruco_pose_node",
@@ -233,6 +234,8 @@ def up_real(args) -> int:
                 children.append(Child(name, module, params, log_dir, quiet, [*ros_args, *extra]))
             print(f"lhd up real: {len(children)} nodes started ({args.controller} controller, port {args.port}); run "
                   f"folder {run_dir}; logs in {log_dir}", flush=True)
+            if getattr(args, "actor_note", ""):
+                print(f"lhd up real: {args.actor_note}", flush=True)
             t0 = time.monotonic()
             pending = None
             while not stop.is_set():
@@ -547,13 +550,14 @@ def check_args(ap: argparse.ArgumentParser, args) -> None:
         ap.error(f"--end-zone {args.end_zone!r}: expected `lidar` or a surveyed YAML file that exists")
     if args.params_file and not Path(args.params_file).is_file():
         ap.error(f"--params-file {args.params_file!r} does not exist")
+    if args.policy and args.controller not in ("rld", "rlc"):
+        ap.error(f"--policy is the actor's; --controller {args.controller} runs no actor (drop --policy, or use "
+                 "--controller rld|rlc)")
+    resolve_actor(args)
     params_file = Path(args.params_file) if args.params_file else default_params_file()
     problem = stack_problem(params_file, args.controller, args.config)
     if problem:
         ap.error(problem)
-    if args.policy and args.controller not in ("rld", "rlc"):
-        ap.error(f"--policy is the actor's; --controller {args.controller} runs no actor (drop --policy, or use "
-                 "--controller rld|rlc)")
     if args.controller == "teacher":      # its setting refused here as the policy node would refuse it
         from lhd_loading_ros.policy.teacher import TeacherSetting
         from lhd_loading_ros.task.config import ConfigError, load_config
@@ -572,6 +576,39 @@ def check_args(ap: argparse.ArgumentParser, args) -> None:
             pol.check_config(load_config(args.config))   # a bad parameter file: refused before any node starts
         except (PolicyFileError, ConfigError) as exc:
             ap.error(str(exc))
+
+
+def machine_actor(controller: str, policy: str = "", config: str = "", policies_root=None) -> tuple[str, str, str]:
+    """(policy_dir, config, note) the real-machine stack runs for `controller`: for rld / rlc without a
+    policy, the machine's actor (actor_file.MACHINE_ACTORS, the ones that pass `lhd eval --stress machine`:
+    placed by hand, from rest, on a rough pile), not the main job's; without a config, an actor that ships
+    its own parameter file runs with it, every node reading the same file (the nodes refuse an actor under
+    another file's observation scaling). Other controllers: ("", config, ""). `policies_root`: where the
+    shipped actors are (default: actor_file.default_policy_dir's). Used by `lhd up real`, `lhd up twin` and
+    real_machine.launch.py."""
+    from lhd_loading_ros.policy.actor_file import MACHINE_ACTORS, default_policy_dir, own_config
+
+    if controller not in ("rld", "rlc"):
+        return "", config, ""
+    note = ""
+    if not policy:
+        name = MACHINE_ACTORS[controller]
+        policy = str(Path(policies_root) / name if policies_root else default_policy_dir(name))
+        note = (f"--controller {controller}: {policy}, the machine's default actor (placed by hand, from rest, on a "
+                f"rough pile: docs/real_machine.md); --policy DIR runs another")
+    own = own_config(policy)
+    if not config and own is not None:
+        config = str(own.resolve())
+        note += ("; " if note else "") + f"parameter file {config} (the actor's own)"
+    return policy, config, note
+
+
+def resolve_actor(args) -> None:
+    """machine_actor on the parsed options: sets args.policy, args.config and args.actor_note (what the
+    console prints)."""
+    policy, config, args.actor_note = machine_actor(args.controller, args.policy or "", args.config or "")
+    args.policy = policy or args.policy
+    args.config = config or args.config
 
 
 def main(argv=None) -> int:

@@ -511,6 +511,8 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
     run_dir = make_run_dir(args.run_dir, "twin", "lhd up twin")
     if run_dir is None:
         return 2
+    if getattr(real_args, "actor_note", ""):
+        say(f"lhd up twin: {real_args.actor_note}")
     cores = usable_cores()          # the affinity, capped by a cgroup CPU quota
     if cores < MIN_CORES:
         say(f"note: {cores} CPU core(s) for the twin and ten real-time nodes: expect late odometry (100-350 ms), "
@@ -840,14 +842,6 @@ def main(argv=None) -> int:
                      + f" Its parameters: {', '.join(sorted(known))}")
     if args.arm_timeout <= 0:
         ap.error(f"--arm-timeout must be positive, got {args.arm_timeout}")
-    from lhd_loading_ros.task.config import ConfigError
-
-    try:
-        bad = slope_range_problem(args.slopes, args.config)
-    except ConfigError as exc:      # a broken parameter file: one message, exit 2, before any node starts
-        ap.error(str(exc))
-    if bad:
-        ap.error(bad)
     if args.imu is not None and not (math.isfinite(args.imu) and 0.0 <= args.imu <= 45.0):
         ap.error(f"--imu {args.imu:g}: expected a tilt limit in [0, 45] deg (0 or no value: no limit)")
     # the real stack's options, parsed by `lhd up real`'s own parser: its defaults are the twin's
@@ -861,7 +855,15 @@ def main(argv=None) -> int:
     rap = real_parser()
     rap.prog = ap.prog
     real_args = rap.parse_args(rargv)
-    real_check_args(rap, real_args)
+    real_check_args(rap, real_args)      # sets the actor (the machine's default) and its own parameter file
+    from lhd_loading_ros.task.config import ConfigError
+
+    try:
+        bad = slope_range_problem(args.slopes, real_args.config)    # the file the twin and the stack will read
+    except ConfigError as exc:      # a broken parameter file: one message, exit 2, before any node starts
+        ap.error(str(exc))
+    if bad:
+        ap.error(bad)
     return run_twin(args, real_args, list(args.slopes))
 
 

@@ -255,6 +255,21 @@ def _json_default(o):
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
+# The actors the real-machine stack (`lhd up real`, `lhd up twin`, real_machine.launch.py) runs for
+# --controller rld / rlc when no --policy is given: the ones that pass `lhd eval --stress machine`
+# (placed by hand, from rest, on a rough pile: how an attempt on the machine goes). The main job
+# (`lhd demo`, `lhd up sim`) keeps policies/rld and policies/rlc, the paper's protocol, which load every
+# pile of the paper's protocol but keep 0.61 / 0.70 of the machine case (docs/real_machine.md "Which actor on the machine",
+# docs/evidence/machine_case/). Both ship their own parameter file (the 10-35 deg piles' normalisers).
+MACHINE_ACTORS = {"rld": "rld_gains", "rlc": "rlc_gains"}
+
+
+def own_config(policy_dir) -> Path | None:
+    """The parameter file an actor ships with (lhd ship copies it: <policy_dir>/lhd_params.yaml), or None."""
+    f = Path(policy_dir) / "lhd_params.yaml"
+    return f if f.is_file() else None
+
+
 def default_policy_dir(variant: str = "rld") -> Path:
     """policies/<variant> of the source tree, else the installed share copy."""
     here = Path(__file__).resolve()
