@@ -30,34 +30,41 @@ def text(name):
 
 
 def refuse_unsound_params(context):
-    """Raises (the launch ends, naming the problem, before any node starts) when params_file
-    would leave every attempt without zones or commands; nothing to launch otherwise."""
-    from lhd_loading_ros.cli.up_real import stack_problem
+    """Resolves the actor, the parameter file and the supervisor's slope limits as `lhd up real` does
+    (cli/up_real.machine_actor: controller:=rld / rlc without policy_dir runs the machine's actor,
+    policies/rld_gains or rlc_gains, with its own lhd_params.yaml unless config:= or $LHD_CONFIG names
+    another), then raises (the launch ends, naming the problem, before any node starts) when params_file
+    would leave every attempt without zones or commands, or the actor does not fit the parameter file;
+    returns the launch configurations the nodes read (actor_dir, actor_config, slope_limits)."""
+    from launch.actions import SetLaunchConfiguration
+
+    from lhd_loading_ros.cli.up_real import machine_actor, stack_problem
+    from lhd_loading_ros.policy.actor_file import PolicyFileError, load_policy
+    from lhd_loading_ros.task.config import ConfigError, load_config
 
     params_file = LaunchConfiguration("params_file").perform(context)
     controller = LaunchConfiguration("controller").perform(context)
     if not Path(params_file).is_file():
         raise RuntimeError(f"real_machine.launch.py: params_file {params_file!r} does not exist")
-    problem = stack_problem(Path(params_file), controller)
+    try:
+        root = os.path.join(get_package_share_directory("lhd_loading_ros"), "policies")
+    except Exception:  # noqa: BLE001 - not installed (a source tree): actor_file.default_policy_dir finds them
+        root = None
+    chosen = machine_actor(controller, LaunchConfiguration("policy_dir").perform(context),
+                           LaunchConfiguration("config").perform(context), policies_root=root)
+    problem = stack_problem(Path(params_file), controller, chosen.config or None)
     if problem:
         raise RuntimeError(f"real_machine.launch.py refuses to start the stack: {problem}")
-    return []
-
-
-def resolve_actor(context):
-    """The actor and the parameter file every node reads (cli/up_real.machine_actor, as `lhd up real`):
-    controller:=rld / rlc without policy_dir runs the machine's actor (policies/rld_gains, rlc_gains),
-    and an actor that ships its own lhd_params.yaml runs with it unless config:= names another."""
-    from launch.actions import SetLaunchConfiguration
-
-    from lhd_loading_ros.cli.up_real import machine_actor
-
-    share = get_package_share_directory("lhd_loading_ros")
-    policy, config, _ = machine_actor(LaunchConfiguration("controller").perform(context),
-                                      LaunchConfiguration("policy_dir").perform(context),
-                                      LaunchConfiguration("config").perform(context),
-                                      policies_root=os.path.join(share, "policies"))
-    return [SetLaunchConfiguration("actor_dir", policy), SetLaunchConfiguration("actor_config", config)]
+    if chosen.policy:
+        try:
+            load_policy(chosen.policy).check_config(load_config(chosen.config or None))
+        except (PolicyFileError, ConfigError) as exc:
+            raise RuntimeError(f"real_machine.launch.py refuses to start the stack: {exc}") from None
+    if chosen.note:
+        print(f"real_machine.launch.py: {chosen.note}", flush=True)
+    limits = list(chosen.slope_limits) if chosen.slope_limits else [0.0, 90.0]
+    return [SetLaunchConfiguration("actor_dir", chosen.policy), SetLaunchConfiguration("actor_config", chosen.config),
+            SetLaunchConfiguration("slope_limits", f"[{limits[0]:.1f}, {limits[1]:.1f}]")]
 
 
 def generate_launch_description():
@@ -86,7 +93,7 @@ def generate_launch_description():
     pf = LaunchConfiguration("params_file")
     controller = LaunchConfiguration("controller")
     is_lidar = PythonExpression(["'", LaunchConfiguration("end_zone"), "' == 'lidar'"])
-    policy_dir = LaunchConfiguration("actor_dir")          # set by resolve_actor
+    policy_dir = LaunchConfiguration("actor_dir")          # set by refuse_unsound_params (machine_actor)
     config = {"config": ParameterValue(LaunchConfiguration("actor_config"), value_type=str)}
     nodes = [
         Node(package="lhd_hw_bridge", executable="bridge_node", name="lhd_hw_bridge", output="screen",
@@ -102,12 +109,14 @@ def generate_launch_description():
         Node(package="lhd_loading_ros", executable="supervisor_node", name="lhd_supervisor", output="screen",
              parameters=[pf, {**config, "run_dir": text("run_dir"), "controller": text("controller"),
                               "policy_dir": ParameterValue(policy_dir, value_type=str), "material": text("material"),
+                              # a YAML list from the launch configuration, "[14.0, 35.0]"
+                              "slope_limits_deg": LaunchConfiguration("slope_limits"),
                               "attempt_timeout": ParameterValue(LaunchConfiguration("attempt_timeout"),
                                                                 value_type=float)}]),
         Node(package="lhd_loading_ros", executable="cmd_mux_node", name="lhd_cmd_mux", output="screen",
-             parameters=[pf]),
+             parameters=[pf, config]),
         Node(package="lhd_loading_ros", executable="teleop_node", name="lhd_teleop", output="screen",
-             parameters=[pf, {"mapping": text("joy_mapping")}]),
+             parameters=[pf, {**config, "mapping": text("joy_mapping")}]),
         Node(package="joy", executable="joy_node", name="joy_node", output="screen",
              condition=IfCondition(LaunchConfiguration("joy"))),
         Node(package="lhd_loading_ros", executable="policy_node", name="lhd_policy", output="screen",
@@ -120,5 +129,4 @@ def generate_launch_description():
              parameters=[pf, {"run_dir": text("run_dir"), "storage": text("storage")}],
              condition=IfCondition(LaunchConfiguration("record"))),
     ]
-    return LaunchDescription([*args, OpaqueFunction(function=refuse_unsound_params),
-                              OpaqueFunction(function=resolve_actor), *nodes])
+    return LaunchDescription([*args, OpaqueFunction(function=refuse_unsound_params), *nodes])

@@ -114,7 +114,8 @@ def test_a_file_whose_piles_the_attack_cannot_enter_is_one_line(tmp_path):
     r = subprocess.run(LHD + ["eval", "--controller", "tampier", "--config", str(f), "--episodes", "1", "--slopes",
                               "20"], capture_output=True, text=True, timeout=300)
     assert r.returncode == 1 and "Traceback" not in r.stderr, r.stderr
-    assert "the simulator could not run an episode of this parameter file: the bucket did not reach d_init" in r.stderr
+    assert r.stderr.startswith("lhd eval: the attack drive could not bury the bucket in a pile of this parameter "
+                               "file: the bucket did not reach d_init"), r.stderr
     assert len(r.stderr.strip().splitlines()) == 1, r.stderr
 
 

@@ -90,11 +90,23 @@ def test_real_machine_launch_file_checks_its_parameters_before_any_node(tmp_path
 
     def run_check(params_file, controller="rld"):
         ctx = LaunchContext()
-        ctx.launch_configurations.update({"params_file": str(params_file), "controller": controller})
+        ctx.launch_configurations.update({"params_file": str(params_file), "controller": controller,
+                                          "policy_dir": "", "config": ""})
         return mod.refuse_unsound_params(ctx)
 
-    assert run_check(default_params_file()) == []
-    assert run_check(slow, "teleop") == []         # no controller on /lhd/cmd/auto: nothing to time
+    from launch.actions import SetLaunchConfiguration
+
+    def configs(actions):
+        assert all(isinstance(a, SetLaunchConfiguration) for a in actions)
+        ctx = LaunchContext()
+        for a in actions:
+            a.execute(ctx)
+        return {k: ctx.launch_configurations[k] for k in ("actor_dir", "actor_config", "slope_limits")}
+
+    got = configs(run_check(default_params_file()))     # the machine's RLD, its own file, its validated slopes
+    assert got["actor_dir"].endswith("rld_gains") and got["actor_config"].endswith("rld_gains/lhd_params.yaml")
+    assert got["slope_limits"] == "[14.0, 35.0]"
+    assert configs(run_check(slow, "teleop")) == {"actor_dir": "", "actor_config": "", "slope_limits": "[0.0, 90.0]"}
     with pytest.raises(RuntimeError, match="every attempt would end as lost_input"):
         run_check(slow)
     with pytest.raises(RuntimeError, match="expected one name for the pile frame"):

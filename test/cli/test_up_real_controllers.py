@@ -94,20 +94,54 @@ def test_the_machine_parameter_file_confirms_the_teachers_drift():
     assert own["lhd_policy"]["ros__parameters"]["teacher_drift_confirm"] == 1
 
 
-def test_machine_actor_is_the_launch_files_rule_too(tmp_path):
-    """real_machine.launch.py resolves the actor and the parameter file with the same function
-    (cli/up_real.machine_actor) over the installed share's policies: the machine's actor for rld /
-    rlc without policy_dir, its own file unless config:= names one; nothing for the baselines."""
+def test_machine_actor_is_the_launch_files_rule_too(tmp_path, monkeypatch):
+    """real_machine.launch.py resolves the actor, the parameter file and the supervisor's slope limits
+    with the same function (cli/up_real.machine_actor) over the installed share's policies: the
+    machine's actor for rld / rlc without policy_dir, armed on the slopes where it keeps 0.9 of the machine
+    case (rld_gains 14-35 deg: 24/30 on 10 and 12 deg; rlc_gains 10-35), its own file unless config:= or
+    $LHD_CONFIG names one; nothing for the baselines."""
     from lhd_loading_ros.cli.up_real import machine_actor
 
+    monkeypatch.delenv("LHD_CONFIG", raising=False)
     share = tmp_path / "policies"
     (share / "rld_gains").mkdir(parents=True)
     (share / "rld_gains" / "lhd_params.yaml").write_text("# the actor's own\n")
     (share / "rld").mkdir()
-    policy, config, note = machine_actor("rld", policies_root=share)
-    assert policy == str(share / "rld_gains") and config == str((share / "rld_gains" / "lhd_params.yaml").resolve())
-    assert "the machine's default actor" in note
-    assert machine_actor("rld", str(share / "rld"), policies_root=share)[:2] == (str(share / "rld"), "")
+    chosen = machine_actor("rld", policies_root=share)
+    assert chosen.policy == str(share / "rld_gains")
+    assert chosen.config == str((share / "rld_gains" / "lhd_params.yaml").resolve())
+    assert chosen.slope_limits == (14.0, 35.0) and "the machine's default actor" in chosen.note
+    assert machine_actor("rlc", policies_root=share).slope_limits == (10.0, 35.0)
+    assert machine_actor("rld", str(share / "rld"), policies_root=share)[:3] == (str(share / "rld"), "", None)
     assert machine_actor("rld", "", "/x/mine.yaml", policies_root=share)[:2] == (str(share / "rld_gains"), "/x/mine.yaml")
-    assert machine_actor("tampier", "", "", policies_root=share) == ("", "", "")
-    assert machine_actor("teleop", "", "/x/mine.yaml", policies_root=share) == ("", "/x/mine.yaml", "")
+    assert machine_actor("tampier", "", "", policies_root=share) == ("", "", None, "")
+    assert machine_actor("teleop", "", "/x/mine.yaml", policies_root=share) == ("", "/x/mine.yaml", None, "")
+    # $LHD_CONFIG is an explicit choice, as --config is: every node reads it, the note says so
+    monkeypatch.setenv("LHD_CONFIG", "/x/env.yaml")
+    chosen = machine_actor("rld", policies_root=share)
+    assert chosen.config == "" and "/x/env.yaml ($LHD_CONFIG)" in chosen.note
+
+
+def test_every_node_that_reads_a_parameter_file_reads_the_same_one(tmp_path, monkeypatch, capsys):
+    """The mux and the teleop node read the actuator ranges from the parameter file: they get the
+    stack's, as the bridge, the end zone, the supervisor and the controller do (a review: they read the
+    package's while the rest read the actor's). The supervisor gets the machine actor's slope limits."""
+    monkeypatch.delenv("LHD_CONFIG", raising=False)
+    ap = parser()
+    args = ap.parse_args(["--port", "/dev/null", "--controller", "rld"])
+    check_args(ap, args)
+    nodes = {name: params for name, _, params, _ in stack(args, tmp_path)}
+    own = str(ROOT / "policies" / "rld_gains" / "lhd_params.yaml")
+    assert {n for n, p in nodes.items() if p.get("config") == own} == {"bridge", "end_zone", "supervisor", "mux",
+                                                                       "teleop", "controller"}
+    assert nodes["supervisor"]["slope_limits_deg"] == [14.0, 35.0]
+    args = ap.parse_args(["--port", "/dev/null", "--controller", "rld", "--policy", "policies/rld_gains"])
+    check_args(ap, args)
+    assert "slope_limits_deg" not in {n: p for n, p in ((n, p) for n, _, p, _ in stack(args, tmp_path))}["supervisor"]
+    # a --config that does not fit the default actor: the refusal says the default changed and how to go back
+    args = ap.parse_args(["--port", "/dev/null", "--controller", "rld", "--config", str(ROOT / "config" / "lhd_params.yaml")])
+    capsys.readouterr()
+    with pytest.raises(SystemExit):
+        check_args(ap, args)
+    err = capsys.readouterr().err
+    assert "runs " in err and "policies/rld_gains by default since 2026-11-29" in err and "--policy policies/rld" in err

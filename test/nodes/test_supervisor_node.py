@@ -366,3 +366,20 @@ def test_an_unreadable_record_stops_the_node_with_one_line(tmp_path):
     log = p.log().strip()
     assert "parameter 'run_dir'" in log and "not an attempts record" in log and "Traceback" not in log
     assert len(log.splitlines()) == 1, log
+
+
+def test_slope_limits_narrow_the_controllers_range_and_never_widen_it(tmp_path):
+    """`slope_limits_deg` (the real stack sets the machine actor's validated slopes): the range the
+    supervisor arms on is the controller's within the limits; limits wider than it change nothing; limits
+    that leave no slope stop the node at start with one line (exit 2), over a real process."""
+    from lhd_loading_ros.nodes.supervisor_node import limited_slope_range_deg
+
+    assert limited_slope_range_deg(10.0, 35.0, "card", [14.0, 35.0]) == (14.0, 35.0, "card, within slope_limits_deg [14, 35]")
+    assert limited_slope_range_deg(15.0, 30.0, "card", [0.0, 90.0]) == (15.0, 30.0, "card")
+    assert limited_slope_range_deg(15.0, 30.0, "card", [10.0, 35.0]) == (15.0, 30.0, "card")     # never widened
+    p = RosProcess(SUPERVISOR, {"run_dir": str(tmp_path), "slope_limits_deg": [40.0, 50.0]}, tmp_path / "sv.log")
+    assert p.proc.wait(60) == 2, p.log()
+    p.stop()
+    log = p.log().strip()
+    assert "parameter 'slope_limits_deg' = [40, 50] leaves no slope of the controller's range [14, 36] deg" in log, log
+    assert "Traceback" not in log and len(log.splitlines()) == 1, log

@@ -126,7 +126,7 @@ def stack(args, run_dir: Path, link: str, params_file: Path | None) -> list[tupl
     from lhd_loading_ros.nodes.policy_node import default_policy_dir
 
     common = {"config": args.config} if args.config else {}
-    policy_dir = str(Path(args.policy).resolve()) if args.policy else str(default_policy_dir("rld"))
+    policy_dir = str(Path(args.policy).resolve()) if args.policy else str(default_policy_dir("rld"))   # main() sets it
     return [
         ("twin", "lhd_sim_node.twin_node",
          {**common, "link": link, "machine_params": str(params_file or ""), "slopes_deg": args.slopes,
@@ -140,7 +140,7 @@ def stack(args, run_dir: Path, link: str, params_file: Path | None) -> list[tupl
         ("supervisor", "lhd_loading_ros.nodes.supervisor_node",
          {**common, "run_dir": str(run_dir), "controller": "rld", "policy_dir": policy_dir,
           "attempt_timeout": args.attempt_timeout}, []),
-        ("mux", "lhd_loading_ros.nodes.cmd_mux_node", {}, []),
+        ("mux", "lhd_loading_ros.nodes.cmd_mux_node", {**common}, []),
         ("controller", "lhd_loading_ros.nodes.policy_node",
          {**common, "policy_dir": policy_dir, "trigger": args.trigger}, ["-r", "/lhd/cmd:=/lhd/cmd/auto"]),
     ]
@@ -284,9 +284,10 @@ def main(argv=None) -> int:
                     help="the paper's machine, without an IMU (`lhd up twin --no-imu`)")
     ap.add_argument("--attempt-timeout", type=float, default=10.0, help="s, the supervisor's (the paper: 10)")
     ap.add_argument("--reset-delay", type=float, default=1.5, help="s from an ended attempt to the twin's new pile")
-    ap.add_argument("--policy", help="exported actor (default: the shipped policies/rld)")
+    ap.add_argument("--policy", help="exported actor (default: the machine's, policies/rld_gains, as lhd up real)")
     ap.add_argument("--params-file", help="ROS parameter file for every node (default config/real_machine.yaml)")
-    ap.add_argument("--config", help="lhd_params.yaml (default: the package's)")
+    ap.add_argument("--config", help="lhd_params.yaml (default: as lhd up real: $LHD_CONFIG, else the actor's own, "
+                    "else the package's)")
     ap.add_argument("--log-dir", help="node logs here (kept); default: a temporary folder, removed")
     ap.add_argument("--keep", action="store_true", help="keep the temporary folder (logs, attempts)")
     ap.add_argument("--verbose", action="store_true", help="node logs on this terminal")
@@ -298,8 +299,18 @@ def main(argv=None) -> int:
         ap.error(f"--timeout must be a positive number of seconds (0: the default), got {args.timeout}")
     if args.camera_fps <= 0:
         ap.error(f"--camera-fps must be positive, got {args.camera_fps}")
+    from lhd_loading_ros.cli.up_real import machine_actor
     from lhd_loading_ros.cli.up_twin import slope_range_problem
+    from lhd_loading_ros.policy.actor_file import PolicyFileError, load_policy
+    from lhd_loading_ros.task.config import ConfigError, load_config
 
+    # the actor and the file the machine runs (cli/up_real.machine_actor), so the latency is the machine's
+    chosen = machine_actor("rld", args.policy or "", args.config or "")
+    args.policy, args.config = chosen.policy, chosen.config or args.config
+    try:
+        load_policy(args.policy).check_config(load_config(args.config or None))
+    except (PolicyFileError, ConfigError) as exc:
+        ap.error(str(exc))
     try:
         slopes = [float(v) for v in str(args.slopes).replace(",", " ").split()]
     except ValueError:

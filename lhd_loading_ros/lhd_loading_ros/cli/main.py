@@ -372,6 +372,10 @@ def _mjcf(args) -> int:
     return 0
 
 
+# commands whose second word is a subcommand (how a one-line error names the command)
+GROUPS = ("up", "attempt", "validate", "bench", "experiment", "config", "bag", "estop")
+
+
 def main(argv=None) -> int:
     """`lhd ...`; output cut off by its reader (`lhd attempts RUN | head`) ends quietly, not with a
     BrokenPipeError traceback (status 1, as the Python documentation's SIGPIPE note does)."""
@@ -391,9 +395,11 @@ def main(argv=None) -> int:
         # naming it, as the sim node does (a review: a traceback from `lhd eval --controller tampier`)
         if type(exc).__name__ not in ("AttackError", "SimulationError"):
             raise
-        words = [a for a in (sys.argv[1:] if argv is None else list(argv)) if not a.startswith("-") and "/" not in a][:2]
-        print(f"lhd {' '.join(words)}: the simulator could not run an episode of this parameter file: {exc}",
-              file=sys.stderr)
+        args = sys.argv[1:] if argv is None else list(argv)
+        words = args[:2] if args[:1] and args[0] in GROUPS and len(args) > 1 else args[:1]
+        what = ("the attack drive could not bury the bucket in a pile of this parameter file"
+                if type(exc).__name__ == "AttackError" else "MuJoCo found the simulation unstable")
+        print(f"lhd {' '.join(words)}: {what}: {exc}", file=sys.stderr)
         return 1
     except OSError as exc:
         # a file or folder the command cannot read or write (`--out /etc/passwd/x`, a folder that does
@@ -496,7 +502,8 @@ def _main(argv=None) -> int:
                              "speed; slow_hydraulics: boom and bucket at 75 %% of the commanded rates; cohesive: moist gravel "
                              "with fines, 1,500 Pa of cohesion; dense_placement: placement in front of dense gravel, the pair that "
                              "failed where each alone passed; rest: every attempt from rest with the tip in the pile, "
-                             "as on the machine)")
+                             "as on the machine; machine: placement, rest and rough at once, how an attempt on the "
+                             "machine goes)")
     p_eval.add_argument("--randomize", action="store_true",
                         help="actor: every episode under drawn conditions (config section randomization): how the "
                              "actor fares when the machine differs from the simulator")

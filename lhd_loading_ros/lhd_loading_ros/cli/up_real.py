@@ -35,6 +35,7 @@ import threading
 import time
 from datetime import datetime, timezone
 from pathlib import Path
+from typing import NamedTuple
 
 from lhd_loading_ros.cli.launcher import Child, _StopOnSignals, check_children, stop_stack
 from lhd_loading_ros.ros.params import discovery_wait_s
@@ -79,10 +80,11 @@ def stack(args, run_dir: Path) -> list[tuple[str, str, dict, list[str]]]:
                        if args.end_zone != "lidar" else {"source": "lidar"})}, []),
         ("supervisor", "lhd_loading_ros.nodes.supervisor_node",
          {**common, "run_dir": str(run_dir), "controller": args.controller, "policy_dir": policy_dir,
+          **({"slope_limits_deg": list(args.slope_limits)} if getattr(args, "slope_limits", None) else {}),
           "material": args.material, "attempt_timeout": args.attempt_timeout,
           "required_listeners": required_listeners(args)}, []),
-        ("mux", "lhd_loading_ros.nodes.cmd_mux_node", {}, []),
-        ("teleop", "lhd_loading_ros.nodes.teleop_node", {"mapping": args.joy_mapping}, []),
+        ("mux", "lhd_loading_ros.nodes.cmd_mux_node", {**common}, []),
+        ("teleop", "lhd_loading_ros.nodes.teleop_node", {**common, "mapping": args.joy_mapping}, []),
     ]
     if args.controller != "teleop":
         params = {**common, "trigger": "timer"}
@@ -405,7 +407,8 @@ def parser() -> argparse.ArgumentParser:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--port", required=True, help="serial device of the Due, e.g. /dev/ttyACM0")
     ap.add_argument("--controller", choices=CONTROLLERS, default="rld")
-    ap.add_argument("--policy", help="exported actor for rld/rlc (default: the shipped policies/<controller>)")
+    ap.add_argument("--policy", help="exported actor for rld/rlc (default: the machine's, policies/rld_gains or "
+                    "rlc_gains, armed on the slopes it was validated on: docs/real_machine.md)")
     ap.add_argument("--camera-topic", default="/camera/image_raw")
     ap.add_argument("--camera-info-topic", default="/camera/camera_info")
     ap.add_argument("--image-reliable", action="store_true", help="subscribe to images reliably (recordings)")
@@ -418,7 +421,8 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--no-record", dest="record", action="store_false", help="no rosbag2 per attempt")
     ap.add_argument("--storage", choices=["mcap", "sqlite3"], default="mcap")
     ap.add_argument("--params-file", help="ROS parameter file for every node (default config/real_machine.yaml)")
-    ap.add_argument("--config", help="lhd_params.yaml (default: the package's)")
+    ap.add_argument("--config", help="lhd_params.yaml for every node (default: $LHD_CONFIG, else the actor's own where "
+                    "it ships one, else the package's)")
     ap.add_argument("--attempts", type=int, default=0, help="stop after N attempts ended (0: until Ctrl-C)")
     ap.add_argument("--linger", type=float, default=2.0, help=argparse.SUPPRESS)
     ap.add_argument("--settle", type=float, default=3.0, help="s before the preflight checklist is printed")
@@ -575,40 +579,61 @@ def check_args(ap: argparse.ArgumentParser, args) -> None:
             pol = load_policy(args.policy)
             pol.check_config(load_config(args.config))   # a bad parameter file: refused before any node starts
         except (PolicyFileError, ConfigError) as exc:
-            ap.error(str(exc))
+            hint = ""
+            if getattr(args, "default_actor", False):
+                hint = (f" (--controller {args.controller} runs {args.policy} by default since 2026-11-29, with its own "
+                        f"parameter file; drop --config / $LHD_CONFIG for it, or name the actor for your file: "
+                        f"--policy policies/{args.controller} for the main job's)")
+            ap.error(str(exc) + hint)
 
 
-def machine_actor(controller: str, policy: str = "", config: str = "", policies_root=None) -> tuple[str, str, str]:
-    """(policy_dir, config, note) the real-machine stack runs for `controller`: for rld / rlc without a
-    policy, the machine's actor (actor_file.MACHINE_ACTORS, the ones that pass `lhd eval --stress machine`:
-    placed by hand, from rest, on a rough pile), not the main job's; without a config, an actor that ships
-    its own parameter file runs with it, every node reading the same file (the nodes refuse an actor under
-    another file's observation scaling). Other controllers: ("", config, ""). `policies_root`: where the
-    shipped actors are (default: actor_file.default_policy_dir's). Used by `lhd up real`, `lhd up twin` and
-    real_machine.launch.py."""
-    from lhd_loading_ros.policy.actor_file import MACHINE_ACTORS, default_policy_dir, own_config
+class MachineActor(NamedTuple):
+    policy: str                          # "" for the controllers without an actor
+    config: str                          # "" for the nodes' own default
+    slope_limits: tuple[float, float] | None    # the supervisor's slope_limits_deg, None for none
+    note: str                            # what the console says of the choice ("" when nothing was chosen)
+
+
+def machine_actor(controller: str, policy: str = "", config: str = "", policies_root=None) -> MachineActor:
+    """What the real-machine stack runs for `controller`: for rld / rlc without a policy, the machine's
+    actor (actor_file.MACHINE_ACTORS, the ones that pass `lhd eval --stress machine`: placed by hand, from
+    rest, on a rough pile), not the main job's, armed only on the slopes where it keeps 0.9 of that case
+    (MACHINE_SLOPE_LIMITS_DEG, the supervisor's slope_limits_deg); without a config, an actor that ships its
+    own parameter file runs with it (the nodes refuse an actor under another file's observation scaling).
+    A config named by --config or $LHD_CONFIG is kept. Other controllers: nothing chosen. `policies_root`:
+    where the shipped actors are (default: actor_file.default_policy_dir's). Used by `lhd up real`,
+    `lhd up twin`, `lhd bench twin` and real_machine.launch.py."""
+    from lhd_loading_ros.policy.actor_file import (MACHINE_ACTORS, MACHINE_SLOPE_LIMITS_DEG, default_policy_dir,
+                                                   own_config)
 
     if controller not in ("rld", "rlc"):
-        return "", config, ""
-    note = ""
+        return MachineActor("", config, None, "")
+    note, limits = "", None
     if not policy:
         name = MACHINE_ACTORS[controller]
         policy = str(Path(policies_root) / name if policies_root else default_policy_dir(name))
+        limits = MACHINE_SLOPE_LIMITS_DEG[controller]
         note = (f"--controller {controller}: {policy}, the machine's default actor (placed by hand, from rest, on a "
-                f"rough pile: docs/real_machine.md); --policy DIR runs another")
+                f"rough pile: docs/real_machine.md), armed on {limits[0]:g}-{limits[1]:g} deg piles; --policy DIR "
+                f"runs another")
     own = own_config(policy)
-    if not config and own is not None:
+    env = os.environ.get("LHD_CONFIG", "")
+    if not config and env:
+        note += ("; " if note else "") + f"parameter file {env} ($LHD_CONFIG)"
+    elif not config and own is not None:
         config = str(own.resolve())
         note += ("; " if note else "") + f"parameter file {config} (the actor's own)"
-    return policy, config, note
+    return MachineActor(policy, config, limits, note)
 
 
 def resolve_actor(args) -> None:
-    """machine_actor on the parsed options: sets args.policy, args.config and args.actor_note (what the
-    console prints)."""
-    policy, config, args.actor_note = machine_actor(args.controller, args.policy or "", args.config or "")
-    args.policy = policy or args.policy
-    args.config = config or args.config
+    """machine_actor on the parsed options: sets args.policy, args.config, args.slope_limits and
+    args.actor_note (what the console prints)."""
+    chosen = machine_actor(args.controller, args.policy or "", args.config or "")
+    args.policy = chosen.policy or args.policy
+    args.config = chosen.config or args.config
+    args.slope_limits, args.actor_note = chosen.slope_limits, chosen.note
+    args.default_actor = chosen.slope_limits is not None
 
 
 def main(argv=None) -> int:

@@ -785,7 +785,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="lhd up twin", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--controller", choices=("rld", "rlc", "tampier", "teacher"), default="rld")
-    ap.add_argument("--policy", help="exported actor for rld/rlc (default: the shipped policies/<controller>)")
+    ap.add_argument("--policy", help="exported actor for rld/rlc (default: the machine's, policies/rld_gains or rlc_gains, as lhd up real)")
     ap.add_argument("--slopes", type=float, nargs="+", default=list(DEFAULT_SLOPES),
                     help="pile slopes, degrees, cycled (default 15 20 25 30)")
     ap.add_argument("--episodes", type=int, default=3, help="attempts PER SLOPE (default 3: 12 attempts on the "
@@ -817,7 +817,7 @@ def main(argv=None) -> int:
     ap.add_argument("--arm-timeout", type=float, default=60.0, help="s of preflight refusals before giving up")
     ap.add_argument("--params-file", help="ROS parameter file of the nodes and the twin's poses "
                                           "(default config/real_machine.yaml)")
-    ap.add_argument("--config", help="lhd_params.yaml (default: the package's)")
+    ap.add_argument("--config", help="lhd_params.yaml for every node and the twin (default: as lhd up real: $LHD_CONFIG, else the actor's own, else the package's)")
     ap.add_argument("--no-record", dest="record", action="store_false", help="no rosbag2 per attempt")
     ap.add_argument("--run-dir", help="attempts.csv, bags and logs (default runs/twin/<UTC time>)")
     ap.add_argument("--log-dir", type=Path, help="node logs (default <run-dir>/logs)")
@@ -864,6 +864,13 @@ def main(argv=None) -> int:
         ap.error(str(exc))
     if bad:
         ap.error(bad)
+    lim = getattr(real_args, "slope_limits", None)
+    if lim and any(not lim[0] <= s <= lim[1] for s in args.slopes):
+        # the supervisor would refuse to arm them (slope_limits_deg): said now, not after 60 s of refusals
+        out = [f"{s:g}" for s in args.slopes if not lim[0] <= s <= lim[1]]
+        ap.error(f"--slopes {' '.join(out)}: outside the {lim[0]:g}-{lim[1]:g} deg the machine's default actor "
+                 f"{real_args.policy} is armed on (docs/real_machine.md \"Which actor on the machine\"); name it with "
+                 f"--policy to use its card's whole range")
     return run_twin(args, real_args, list(args.slopes))
 
 

@@ -116,6 +116,19 @@ def untrained_slope_range_deg(cfg: dict) -> tuple[float, float, str]:
                     f"{m:g} deg for the estimate's error (no trained range)")
 
 
+def limited_slope_range_deg(lo: float, hi: float, source: str, limits) -> tuple[float, float, str]:
+    """The controller's range [lo, hi] (from `source`) within the slope_limits_deg parameter: narrowed,
+    never widened; ValueError when they do not overlap."""
+    lim_lo, lim_hi = (float(v) for v in limits)
+    if lim_lo <= lo and lim_hi >= hi:
+        return lo, hi, source
+    nlo, nhi = max(lo, lim_lo), min(hi, lim_hi)
+    if not nlo < nhi:
+        raise ValueError(f"parameter 'slope_limits_deg' = [{lim_lo:g}, {lim_hi:g}] leaves no slope of the "
+                         f"controller's range [{lo:g}, {hi:g}] deg ({source}); expected limits that overlap it")
+    return nlo, nhi, f"{source}, within slope_limits_deg [{lim_lo:g}, {lim_hi:g}]"
+
+
 class SupervisorNode(Node):
     def __init__(self, **node_kwargs):
         super().__init__("lhd_supervisor", **node_kwargs)
@@ -129,6 +142,11 @@ class SupervisorNode(Node):
             Param("policy_dir", "", "exported actor whose card gives the slope range "
                   "(trained_ranges.slope_deg); empty (the heuristic, the teacher, teleoperation): the config's "
                   "alpha_min_deg up to the larger of alpha_max_deg and task.bucket_repose_deg, each widened by 1 deg"),
+            Param("slope_limits_deg", [0.0, 90.0], "deg [lo, hi]: arm only on piles inside both the controller's "
+                  "range (policy_dir's card, or the untrained range) and these limits: a site's, or the range the "
+                  "machine's default actor was validated on (`lhd up real` sets [15, 35] for policies/rld_gains and "
+                  "rlc_gains: docs/real_machine.md); the default [0, 90] limits nothing. Narrows, never widens",
+                  lo=0.0, hi=90.0, length=2, check=lambda v: None if v[0] < v[1] else "expected lo < hi"),
             Param("material", "homogeneous", "pile material written to the record; a change applies from the next "
                   "arming", choices=MATERIALS, on_change=lambda v: setattr(self.core, "material", v)),
             Param("attempt_timeout", 10.0, "s from running to timeout (paper: a timeout of 10 s); a change applies "
@@ -186,6 +204,7 @@ class SupervisorNode(Node):
             source = f"{gp('policy_dir')}: {source}"
         else:
             lo, hi, source = untrained_slope_range_deg(cfg)
+        lo, hi, source = limited_slope_range_deg(lo, hi, source, gp("slope_limits_deg"))
         settings = Settings(slope_range_deg=(lo, hi), slope_source=source, phi_thresh=p.phi_thresh_pitch,
                             control_dt=p.control_dt, attempt_timeout=gp("attempt_timeout"),
                             arm_delay=gp("arm_delay"), input_timeout=gp("input_timeout"),
