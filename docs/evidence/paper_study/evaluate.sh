@@ -20,7 +20,8 @@ for v in rld rlc; do
   cp /tmp/paper_study_ship/$v/README.md $E/${v}_median_card.md
   for c in nominal placement rest randomized; do
     case $c in nominal) flag="";; randomized) flag="--randomize";; *) flag="--stress $c";; esac
-    .venv/bin/lhd eval --policy policies/$v --episodes 120 $flag --json > $E/shipped_${v}_$c.json 2>/dev/null
+    filt=""; [ $v = rlc ] && filt=--deploy-filter
+    .venv/bin/lhd eval --policy policies/$v --episodes 120 $flag $filt --json > $E/shipped_${v}_$c.json 2>/dev/null
   done
 done
 rld=$(cat /tmp/paper_study_ship/rld/policy.json | python3 -c "import json,sys; print(json.load(sys.stdin).get('seed'))")
