@@ -100,17 +100,23 @@ def test_help_of_a_command_group_shows_its_subcommands_and_exits_0(group, needle
     assert r.returncode == 2 and needle in r.stderr
 
 
+def edited_config(path, *edits):
+    """The shipped parameter file with each (old, new) text replaced (each must occur), written to path."""
+    from pathlib import Path
+    text = (Path(__file__).resolve().parents[2] / "config" / "lhd_params.yaml").read_text()
+    for old, new in edits:
+        assert old in text, old
+        text = text.replace(old, new)
+    path.write_text(text)
+    return path
+
+
 def test_a_file_whose_piles_the_attack_cannot_enter_is_one_line(tmp_path):
     """A legal but extreme file (a 50 kPa cohesive pile: the attack drive cannot bury the lip 0.1 m)
     ends an in-process command with one line naming what failed, as the sim node does, not with the
     simulator's traceback (a review)."""
-    from pathlib import Path
-    src = (Path(__file__).resolve().parents[2] / "config" / "lhd_params.yaml").read_text()
-    text = src.replace("  cohesion_min: 0.0 ", "  cohesion_min: 50000.0 ").replace("  cohesion_max: 0.0\n",
-                                                                              "  cohesion_max: 50000.0\n")
-    assert text != src
-    f = tmp_path / "cohesive.yaml"
-    f.write_text(text)
+    f = edited_config(tmp_path / "cohesive.yaml", ("  cohesion_min: 0.0 ", "  cohesion_min: 50000.0 "),
+                      ("  cohesion_max: 0.0\n", "  cohesion_max: 50000.0\n"))
     r = subprocess.run(LHD + ["eval", "--controller", "tampier", "--config", str(f), "--episodes", "1", "--slopes",
                               "20"], capture_output=True, text=True, timeout=300)
     assert r.returncode == 1 and "Traceback" not in r.stderr, r.stderr
@@ -122,13 +128,8 @@ def test_a_file_whose_piles_the_attack_cannot_enter_is_one_line(tmp_path):
 def test_validate_physics_names_a_file_whose_piles_miss_its_cases(tmp_path):
     """`lhd validate physics` works its references at 15-30 deg piles: a file of 10-14 deg piles is
     refused in one line naming both ranges, exit 2 (a review: a traceback from the environment)."""
-    from pathlib import Path
-    src = (Path(__file__).resolve().parents[2] / "config" / "lhd_params.yaml").read_text()
-    text = src.replace("    alpha_min_deg: 15.0", "    alpha_min_deg: 10.0").replace("    alpha_max_deg: 30.0",
-                                                                                 "    alpha_max_deg: 14.0")
-    assert text != src
-    f = tmp_path / "shallow.yaml"
-    f.write_text(text)
+    f = edited_config(tmp_path / "shallow.yaml", ("    alpha_min_deg: 15.0", "    alpha_min_deg: 10.0"),
+                      ("    alpha_max_deg: 30.0", "    alpha_max_deg: 14.0"))
     r = subprocess.run(LHD + ["validate", "physics", "--quick", "--config", str(f)], capture_output=True, text=True,
                        timeout=120)
     assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
