@@ -25,7 +25,10 @@ KEYS = ("latency_p50_ms", "latency_p99_ms", "latency_max_ms", "camera_to_decisio
     (["--duration", "nan"], "--duration must be a positive number of seconds"),
     (["--duration", "inf"], "--duration must be a positive number of seconds"),
     (["--timeout", "-5"], "--timeout must be a positive number of seconds"),
-    (["--slopes", "100"], "--slopes 100: outside the pile range [15, 30] deg of config/lhd_params.yaml"),
+    # the machine's RLD and its own file, as lhd up real runs them (cli/up_real.machine_actor)
+    (["--slopes", "100"], "--slopes 100: outside the pile range [10, 35] deg of "
+                          + os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))),
+                                         "policies", "rld_gains", "lhd_params.yaml")),
     (["--slopes", "abc"], "--slopes 'abc': expected degrees, e.g. 20 or '15,30'"),
     (["--no-imu", "--imu", "100"], "not allowed with argument"),
 ])
