@@ -147,6 +147,8 @@ def test_arm_running_success_at_the_end_of_the_control_period(rig):
     rows = read_rows(rig.run_dir / "attempts.csv")
     assert [(r.attempt, r.outcome, r.mass_kg, r.success) for r in rows] == [(1, "success", None, None)]
     assert rows[0].bag == "bags/attempt_0001" and rows[0].slope_deg == pytest.approx(20.0)
+    from lhd_loading_ros.task.config import config_hash, load_config
+    assert rows[0].config_hash == config_hash(load_config(None))       # the file the attempt was judged with
 
 
 def test_mass_from_the_cli_updates_the_row(rig):

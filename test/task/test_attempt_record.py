@@ -25,7 +25,7 @@ def mk(attempt, controller="rld", slope=20.0, material="homogeneous", outcome="s
 def test_columns_are_the_contracts_and_the_rows_fields():
     assert COLUMNS == ("attempt", "started_utc", "controller", "slope_deg", "material", "outcome", "reason",
                        "mass_kg", "elapsed_s", "front_drift_pct", "rear_drift_pct", "phi_final_deg",
-                       "success_level", "success", "bag")
+                       "success_level", "success", "bag", "config_hash")
     assert tuple(f.name for f in dataclasses.fields(AttemptRow)) == COLUMNS
 
 
@@ -37,8 +37,8 @@ def test_round_trip_upsert_and_atomic_rewrite(tmp_path):
     text = p.read_text().splitlines()
     assert text[0] == ",".join(COLUMNS)
     assert text[1] == ("1,2025-03-01T10:00:00Z,rld,20.00,homogeneous,success,\"r, with a comma\",,4.000,10.00,50.00,"
-                       "45.00,,,bags/attempt_0001")
-    assert text[2].split(",")[-3:] == ["", "false", "bags/attempt_0002"]     # failure: known without weighing
+                       "45.00,,,bags/attempt_0001,")
+    assert text[2].split(",")[-4:] == ["", "false", "bags/attempt_0002", ""]     # failure: known without weighing
     rows = read_rows(p)
     assert [r.attempt for r in rows] == [1, 2] and rows[0] == mk(1)
     new = weigh_row(p, None, 23.4, PHI_T)               # the latest: attempt 2 (a failure stays a failure)
@@ -273,3 +273,25 @@ def test_a_row_holds_its_numbers_at_the_records_resolution():
         back = AttemptRow.from_csv(row.to_csv())
         assert back == row
         assert back.weighed(mass, PHI_T) == row.weighed(mass, PHI_T)
+
+
+def test_a_record_without_the_config_column_reads_and_several_files_are_named(tmp_path):
+    """Records written before 2026-11-29 have no config_hash column: their rows read with it empty and are
+    written back with it. A folder whose counted attempts were judged with more than one parameter file
+    (the actors' own 10-35 deg file and the package's: other observation and permitted zones) says so
+    above the table, naming each controller's; one file, or none recorded, says nothing."""
+    p = tmp_path / "attempts.csv"
+    old_cols = [c for c in COLUMNS if c != "config_hash"]
+    old_row = "1,2025-03-01T10:00:00Z,rld,20.00,homogeneous,failure,r,,4.000,10.00,50.00,45.00,,false,bags/attempt_0001"
+    p.write_text(",".join(old_cols) + "\n" + old_row + "\n")
+    rows = read_rows(p)
+    assert len(rows) == 1 and rows[0].config_hash == "" and rows[0].outcome == "failure"
+    weigh_row(p, 1, 23.4, PHI_T)
+    assert p.read_text().splitlines()[0] == ",".join(COLUMNS)
+    a = dataclasses.replace(mk(1, mass=25.0), config_hash="aaaa")
+    b = dataclasses.replace(mk(2, controller="tampier", mass=30.0), config_hash="bbbb")
+    c = dataclasses.replace(mk(3, mass=26.0), config_hash="aaaa")
+    table = format_table(summarize([a, b, c]))
+    assert "WARNING: the counted attempts were judged with 2 parameter files (config hash: RLD aaaa; Tampier bbbb)" \
+        in table
+    assert "WARNING" not in format_table(summarize([a, c])) and "WARNING" not in format_table(summarize([mk(1, mass=25.0)]))

@@ -54,7 +54,7 @@ from lhd_loading_ros.ros.run import run_node
 from lhd_loading_ros.task.attempt import (ATTEMPT_TIMEOUT_RANGE_S, ENDED, LIVE, STATUS_TIMEOUT_S, HwStatus, Settings,
                                          Supervisor)
 from lhd_loading_ros.task.attempt_record import MATERIALS, csv_path, read_rows, upsert_row
-from lhd_loading_ros.task.config import load_config
+from lhd_loading_ros.task.config import config_hash, load_config
 from lhd_loading_ros.task.kinematics import ArmKinematics
 from lhd_loading_ros.task.params import TaskParams
 from lhd_loading_ros.task.viz import AttemptTrail, zone_boxes
@@ -211,7 +211,8 @@ class SupervisorNode(Node):
                             hw_status_timeout=gp("hw_status_timeout"), mass_settle_s=gp("mass_settle_s"), prefix=ns,
                             end_check_period=p.control_dt if gp("end_check_period") < 0 else gp("end_check_period"),
                             max_tilt_deg=gp("max_tilt_deg"), arm_fresh_fraction=gp("arm_fresh_fraction"),
-                            slope_timeout=gp("slope_timeout"), zones_tolerance=gp("zones_tolerance"))
+                            slope_timeout=gp("slope_timeout"), zones_tolerance=gp("zones_tolerance"),
+                            config_hash=config_hash(cfg))
         self.run_dir = Path(gp("run_dir")).expanduser().resolve()
         self.csv = csv_path(self.run_dir)
         try:

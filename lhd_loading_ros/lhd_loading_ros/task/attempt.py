@@ -138,6 +138,7 @@ class Settings:
     # republish_threshold goes up to 0.05 (this tolerance may stay: every change then published is
     # larger than 5 cm)
     zones_tolerance: float = ZONES_CHANGED_M
+    config_hash: str = ""             # the parameter file's (task.config.config_hash), written to every row
 
     def __post_init__(self):
         lo, hi = self.slope_range_deg
@@ -231,6 +232,7 @@ class Attempt:
     rear: list = field(default_factory=list)
     end_checks: int = 0                   # end_check_period ends judged so far
     auto_seen: bool = False               # the command mux selected the autonomous controller while running
+    config_hash: str = ""                 # the supervisor's parameter file (Settings.config_hash)
     last_state: LhdState | None = None    # the latest tip while armed / running
     mass: float | None = None
     mass_source: str = ""
@@ -259,7 +261,7 @@ class Attempt:
                           reason=self.reason, mass_kg=self.mass, elapsed_s=self.elapsed_s,
                           front_drift_pct=drift_pct(self.front), rear_drift_pct=drift_pct(self.rear),
                           phi_final_deg=math.degrees(self.phi_final), success_level=self.success_level,
-                          success=self.success, bag=bag_name(self.number))
+                          success=self.success, bag=bag_name(self.number), config_hash=self.config_hash)
 
 
 class Supervisor:
@@ -467,7 +469,7 @@ class Supervisor:
         self.next_number += 1
         self.attempt = Attempt(number=n, started_utc=utc, controller=self.controller, material=self.material,
                                slope_rad=float(inp.values["slope"]), zones=inp.values["zones"], armed_at=now,
-                               timeout=self.s.attempt_timeout)
+                               timeout=self.s.attempt_timeout, config_hash=self.s.config_hash)
         self.attempt.last_state = self._compute_tip(now, discount=False)
         self._cell.clear()
         self._stopped_since = None

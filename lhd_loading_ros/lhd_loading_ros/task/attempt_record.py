@@ -40,7 +40,10 @@ from lhd_loading_ros.task.metrics import success_level
 
 CSV_NAME = "attempts.csv"
 COLUMNS = ("attempt", "started_utc", "controller", "slope_deg", "material", "outcome", "reason", "mass_kg",
-           "elapsed_s", "front_drift_pct", "rear_drift_pct", "phi_final_deg", "success_level", "success", "bag")
+           "elapsed_s", "front_drift_pct", "rear_drift_pct", "phi_final_deg", "success_level", "success", "bag",
+           "config_hash")
+# the last column came on 2026-11-29: a record written before has none, and its rows read with it empty
+OPTIONAL_COLUMNS = ("config_hash",)
 OUTCOMES = ("success", "failure", "timeout", "estop", "lost_input", "aborted")
 NEEDS_MASS = ("success", "timeout")          # success decided by the weighed mass and the final pitch
 NOT_COUNTED = ("aborted",)                   # the operator called the attempt off: not in the table
@@ -133,6 +136,9 @@ class AttemptRow:
     success_level: int | None
     success: bool | None
     bag: str
+    # the supervisor's parameter file (task.config.config_hash): the zones an attempt was judged on follow
+    # from it, so `lhd attempts` says when a folder's attempts come from several; "" where not recorded
+    config_hash: str = ""
 
     def __post_init__(self):
         # the numbers at the record's resolution: the row in memory is the row in the file
@@ -161,7 +167,8 @@ class AttemptRow:
                 "rear_drift_pct": num(self.rear_drift_pct, DIGITS["rear_drift_pct"]),
                 "phi_final_deg": num(self.phi_final_deg, DIGITS["phi_final_deg"]),
                 "success_level": "" if self.success_level is None else str(self.success_level),
-                "success": "" if self.success is None else ("true" if self.success else "false"), "bag": self.bag}
+                "success": "" if self.success is None else ("true" if self.success else "false"), "bag": self.bag,
+                "config_hash": self.config_hash}
 
     @classmethod
     def from_csv(cls, d: dict, where: str = "") -> "AttemptRow":
@@ -171,6 +178,8 @@ class AttemptRow:
         def get(col):
             v = d.get(col)
             if v is None:
+                if col in OPTIONAL_COLUMNS:
+                    return ""
                 raise ValueError(f"{at}column '{col}' missing")
             return v.strip()
 
@@ -210,7 +219,7 @@ class AttemptRow:
                    mass_kg=number("mass_kg", optional=True), elapsed_s=number("elapsed_s"),
                    front_drift_pct=number("front_drift_pct"), rear_drift_pct=number("rear_drift_pct"),
                    phi_final_deg=math.nan if phi is None else phi, success_level=sl,
-                   success=None if ok_raw == "" else ok_raw == "true", bag=get("bag"))
+                   success=None if ok_raw == "" else ok_raw == "true", bag=get("bag"), config_hash=get("config_hash"))
 
 
 def csv_path(run_dir) -> Path:
@@ -226,7 +235,7 @@ def read_rows(path) -> list[AttemptRow]:
         return []
     with open(path, newline="") as f:
         reader = csv.DictReader(f)
-        missing = [c for c in COLUMNS if c not in (reader.fieldnames or [])]
+        missing = [c for c in COLUMNS if c not in (reader.fieldnames or []) and c not in OPTIONAL_COLUMNS]
         if missing:
             raise ValueError(f"{path}: not an attempts record (columns {', '.join(missing)} missing)")
         return [AttemptRow.from_csv(d, f"{path} line {reader.line_num}") for d in reader]
@@ -358,8 +367,13 @@ def summarize(rows: list[AttemptRow]) -> dict:
             for key, _ in METRICS:
                 a[key] = _mean_std([c[key]["mean"] for c in mine if c[key]["mean"] is not None])
             across.append(a)
+    # the parameter files the counted attempts were judged with (their zones follow from it): per controller
+    files: dict[str, list[str]] = {}
+    for r in counted:
+        if r.config_hash and r.config_hash not in files.setdefault(r.controller, []):
+            files[r.controller].append(r.config_hash)
     return {"rows": len(rows), "counted": len(counted), "aborted": aborted, "unended": unended, "not_weighed": pending,
-            "cells": cells, "across_slopes": across}
+            "cells": cells, "across_slopes": across, "config_hashes": files}
 
 
 def format_table(summary: dict, title: str = "") -> str:
@@ -376,6 +390,12 @@ def format_table(summary: dict, title: str = "") -> str:
     if summary["not_weighed"]:
         lines.append(f"not yet weighed, not counted (lhd attempt mass KG --attempt N): attempt(s) "
                      f"{', '.join(map(str, summary['not_weighed']))}")
+    hashes = {h for hs in summary.get("config_hashes", {}).values() for h in hs}
+    if len(hashes) > 1:
+        per = "; ".join(f"{LABELS.get(c, c)} {', '.join(hs)}" for c, hs in summary["config_hashes"].items() if hs)
+        lines.append(f"WARNING: the counted attempts were judged with {len(hashes)} parameter files (config hash: {per}): "
+                     "their observation and permitted zones may differ; run every session of a comparison with the "
+                     "same --config (docs/real_machine.md \"Comparing controllers in one run folder\")")
     if not cells:
         lines.append("no counted attempts yet")
         return "\n".join(lines)
