@@ -123,10 +123,8 @@ def default_params_file() -> Path | None:
 
 
 def stack(args, run_dir: Path, link: str, params_file: Path | None) -> list[tuple[str, str, dict, list[str]]]:
-    from lhd_loading_ros.nodes.policy_node import default_policy_dir
-
     common = {"config": args.config} if args.config else {}
-    policy_dir = str(Path(args.policy).resolve()) if args.policy else str(default_policy_dir("rld"))   # main() sets it
+    policy_dir = str(Path(args.policy).resolve())      # main() resolves it: the machine's actor by default
     return [
         ("twin", "lhd_sim_node.twin_node",
          {**common, "link": link, "machine_params": str(params_file or ""), "slopes_deg": args.slopes,

@@ -62,13 +62,10 @@ def default_params_file() -> Path | None:
 
 def stack(args, run_dir: Path) -> list[tuple[str, str, dict, list[str]]]:
     """(name, module, parameters, extra ros args) of every node, in start order."""
-    from lhd_loading_ros.nodes.policy_node import default_policy_dir
-
+    if args.controller in ("rld", "rlc") and not args.policy:
+        resolve_actor(args)          # check_args does it; a caller that skipped it gets the same actor
     common = {"config": args.config} if args.config else {}
-    policy_dir = ""
-    if args.controller in ("rld", "rlc"):
-        policy_dir = str(Path(args.policy).resolve()) if args.policy else str(default_policy_dir(args.controller))
-        # (check_args has set args.policy: the machine's default actor, resolve_actor)
+    policy_dir = str(Path(args.policy).resolve()) if args.controller in ("rld", "rlc") else ""
     nodes = [
         ("bridge", "lhd_hw_bridge.bridge_node", {**common, "port": args.port}, []),
         ("aruco", "lhd_loading_ros.nodes.aruco_pose_node",

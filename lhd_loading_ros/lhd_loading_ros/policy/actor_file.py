@@ -129,10 +129,10 @@ class LoadedPolicy:
         from lhd_loading_ros.task.observation import normaliser_differences
         from lhd_loading_ros.task.params import TaskParams
 
-        own = self.path / "lhd_params.yaml"          # the file `lhd ship` copies next to such an actor
+        own = own_config(self.path)          # the file `lhd ship` copies next to such an actor
         hint = ("; run it with the parameter file it was trained with (config hash "
                 f"{str(self.meta.get('config_hash', '?'))[:12]}; "
-                + (f"shipped with it: --config {own}, or the nodes' `config` parameter)" if own.is_file() else
+                + (f"shipped with it: --config {own}, or the nodes' `config` parameter)" if own else
                    "e.g. --config, or the nodes' `config` parameter)"))
         rec = (self.meta.get("observation") or {}).get("normalisers")
         if isinstance(rec, dict) and rec:
@@ -196,13 +196,13 @@ class LoadedPolicy:
             diffs.append(("task.rld_threshold", float(thr), float(p.rld_threshold)))
         if not diffs:
             return None
-        own = self.path / "lhd_params.yaml"
+        own = own_config(self.path)
         return (f"policy {self.path} was trained with its actions mapped otherwise than this parameter file maps "
                 "them: " + ", ".join(f"{k} {a:.6g} in training, {b:.6g} here" for k, a, b in diffs)
                 + "; the same action would command the machine otherwise. Keep the trained mapping (a slower or "
                   "faster machine is the machine's own: randomization.drive_gain_* / hydraulic_gain_*, lhd eval "
                   "--stress slow_drive | slow_hydraulics)"
-                + (f"; its own parameter file: --config {own}" if own.is_file() else ""))
+                + (f"; its own parameter file: --config {own}" if own else ""))
 
     def check_config(self, cfg: dict) -> "LoadedPolicy":
         """Raise PolicyFileError when the actor would see another observation scaling under `cfg`
