@@ -201,11 +201,16 @@ def test_estop_ends_the_attempt_and_blocks_arming(rig):
     assert not res.success and "emergency stop engaged (/lhd/estop is true): release it first" in res.message
     rig.pub_estop.publish(Bool(data=False))
     # a load cell: once the machine stands still (joint velocities 0) for mass_settle_s (1 s),
-    # the median of its readings is the attempt's mass
-    rig.load_cell = 22.0
+    # the median of its readings is the attempt's mass. 22.004 kg: a row of 22.00 (the record's 10 g)
+    rig.load_cell = 22.004
     _, kv = rig.wait_state("estop", 4, since=n0, timeout=1.0)
     assert wait_for(lambda: rig.state().get("mass_source") == "load_cell", 5.0), rig.state()
+    time.sleep(1.0)
     rig.load_cell = None
+    # weighed once: one line, one write (a row compared with the unrounded mass was rewritten and
+    # logged at 50 Hz until the next arming: 2026-11-29)
+    log = (rig.run_dir.parent / "supervisor.log").read_text()
+    assert log.count("attempt 4: load cell 22.00 kg") == 1, log[-2000:]
     kv = rig.state()
     assert kv["loaded_mass"] == "22.00" and kv["success"] == "False" and kv["success_level"] == "0"   # pitch 0
     row = read_rows(rig.run_dir / "attempts.csv")[3]

@@ -458,7 +458,11 @@ class SupervisorNode(Node):
         self._write(row)
 
     def _write(self, row) -> None:
-        self._recorded = (row.attempt, row.mass_kg)     # a failed write is reported, not retried at 50 Hz
+        # what _check compares: the attempt's own mass, not the row's (rounded to the record's 10 g: a
+        # load cell's 22.004 kg is a row of 22.00, and comparing the two rewrote the row and logged it at
+        # 50 Hz until the next arming). A failed write is reported, not retried at 50 Hz
+        a = self.core.attempt
+        self._recorded = (a.number, a.mass) if a is not None and a.number == row.attempt else (row.attempt, row.mass_kg)
         try:
             upsert_row(self.csv, row)
             self.rows_written += 1
