@@ -471,6 +471,53 @@ def test_starts_from_rest_are_drawn_last_and_only_where_set(cfg):
         validate(bad)
 
 
+def test_a_surface_relief_is_drawn_last_and_only_where_set(cfg):
+    """`randomization.surface_sd_max` (2026-11-29): each training pile's relief sd U(0, max), with the
+    rough stress case's correlation length; drawn after every other value, so a file without it draws
+    what it drew before; at 0 out of the hash; in the environment the drawn pile is rough (its std
+    about the plane, measured here with numpy, near the drawn sd) and a plane where none is drawn."""
+    import copy
+    from dataclasses import replace
+
+    from lhd_loading_ros.task.config import ConfigError, config_hash, validate
+    from lhd_loading_ros.task.randomization import ROUGH_CORR, RandomizationRanges, draw
+
+    on = copy.deepcopy(cfg)
+    on["randomization"].update(enabled=1, surface_sd_max=0.03)
+    off = copy.deepcopy(cfg)
+    off["randomization"]["enabled"] = 1
+    rr_on, rr_off = RandomizationRanges.from_config(on), RandomizationRanges.from_config(off)
+    assert rr_off.surface_sd_max == 0.0 and rr_on.surface_sd_max == 0.03
+    ra, rb = np.random.default_rng(11), np.random.default_rng(11)
+    c_on, c_off = draw(ra, rr_on), draw(rb, rr_off)
+    assert 0.0 <= c_on.surface_sd <= 0.03 and c_on.surface_corr == ROUGH_CORR == 0.15
+    assert replace(c_on, surface_sd=0.0) == c_off
+    rb.uniform()
+    assert ra.bit_generator.state == rb.bit_generator.state          # exactly one more number drawn
+    sds = [draw(ra, rr_on).surface_sd for _ in range(4000)]
+    assert min(sds) >= 0.0 and max(sds) <= 0.03 and abs(np.mean(sds) - 0.015) < 0.001   # U(0, 0.03)
+    assert all(draw(rb, rr_off).surface_sd == 0.0 for _ in range(200))
+    assert config_hash(off) == config_hash({**off, "randomization": {k: v for k, v in off["randomization"].items()
+                                                                      if k != "surface_sd_max"}})
+    assert config_hash(on) != config_hash(off)
+    bad = copy.deepcopy(cfg)
+    bad["randomization"]["surface_sd_max"] = -0.01
+    with pytest.raises(ConfigError, match="surface_sd_max"):
+        validate(bad)
+    # in the environment: a drawn relief of 3 cm is rough about the plane, a drawn 0 a plane
+    env = LhdLoadingEnv("rld", cfg)
+    for sd in (0.03, 0.0):
+        env.reset(seed=5, options={"slope_deg": 20.0, "material": "homogeneous",
+                                   "conditions": replace(c_off, surface_sd=sd, surface_corr=ROUGH_CORR,
+                                                         slope_error_deg=0.0)})
+        p = env.sim.pile
+        plane = np.tile(np.clip(p.x_centers * math.tan(p.alpha), 0.0, p.h), (p.n_y, 1))
+        back = slice(p.n_x // 3, None)
+        inner = (plane[:, back] > 0.1) & (plane[:, back] < p.h - 0.1)
+        dev = float(np.std((p.top - plane)[:, back][inner]))
+        assert (0.015 < dev < 0.045) if sd else dev == pytest.approx(0.0, abs=1e-9), (sd, dev)
+
+
 def test_an_actor_randomised_before_starts_from_rest_runs_on_a_file_that_has_them(cfg):
     """An actor trained randomised before `rest_start_share` existed (the key absent: 0) matches a
     parameter file that sets a share, as it matches one with the share at 0; one trained with a share

@@ -131,6 +131,7 @@ SCHEMA: dict[str, Any] = {
         "drive_gain_min": _f(0.1, 2.0), "drive_gain_max": _f(0.1, 2.0),
         "hydraulic_gain_min": _f(0.1, 2.0), "hydraulic_gain_max": _f(0.1, 2.0),
         "zones_from_slope_estimate": _i(0, 1), "rest_start_share": _f(0.0, 1.0),
+        "surface_sd_max": _f(0.0, 0.2),
     },
     "training": {
         "total_steps": _i(1, 100_000_000), "noise_decay_steps": _i(0, 100_000_000), "noise_final_scale": _f(0.0, 1.0),
@@ -288,7 +289,9 @@ OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curric
                      # (before 2026-11-28; task/zones.zones_for_slope_estimate)
                      ("randomization", "zones_from_slope_estimate"): 0,
                      # 0: every episode starts at the attack speed (the paper's), none from rest (2026-11-29)
-                     ("randomization", "rest_start_share"): 0.0}
+                     ("randomization", "rest_start_share"): 0.0,
+                     # 0: every pile's surface a plane in training (before the key existed, 2026-11-29)
+                     ("randomization", "surface_sd_max"): 0.0}
 ACTUATOR_GAIN_KEYS = ("drive_gain_min", "drive_gain_max", "hydraulic_gain_min", "hydraulic_gain_max")
 
 
@@ -453,6 +456,8 @@ def config_hash(cfg: dict) -> str:
             drop.add("zones_from_slope_estimate")      # likewise: the slope error in the observed alpha only
         if float(cfg["randomization"].get("rest_start_share", 0.0)) == 0.0:
             drop.add("rest_start_share")               # likewise: no start from rest (before 2026-11-29)
+        if float(cfg["randomization"].get("surface_sd_max", 0.0)) == 0.0:
+            drop.add("surface_sd_max")                 # likewise: plane piles in training (before the key, 2026-11-29)
         if drop:
             cfg = {**cfg, "randomization": {k: v for k, v in cfg["randomization"].items() if k not in drop}}
     if "task" in cfg and float(cfg["task"].get("r_success_pitch_margin_deg", 0.0)) == 0.0:

@@ -82,6 +82,7 @@ class RandomizationRanges:
     hydraulic_gain: tuple[float, float] = (1.0, 1.0)
     zones_from_slope_estimate: bool = False   # a slope-estimate error also moves the zones (task/zones.py)
     rest_start_share: float = 0.0       # this share of the episodes starts from rest (Conditions.rest_start)
+    surface_sd_max: float = 0.0         # m, each pile's relief sd U(0, this) about its plane (Conditions.surface_sd)
 
     @classmethod
     def from_config(cls, cfg: dict) -> "RandomizationRanges":
@@ -105,6 +106,7 @@ class RandomizationRanges:
             hydraulic_gain=(r.get("hydraulic_gain_min", 1.0), r.get("hydraulic_gain_max", 1.0)),
             zones_from_slope_estimate=bool(r.get("zones_from_slope_estimate", 0)),
             rest_start_share=float(r.get("rest_start_share", 0.0)),
+            surface_sd_max=float(r.get("surface_sd_max", 0.0)),
         )
 
 
@@ -133,6 +135,9 @@ def draw(rng: np.random.Generator, rr: RandomizationRanges) -> Conditions:
         gains["hydraulic_gain"] = float(u(*rr.hydraulic_gain))
     if rr.rest_start_share > 0.0:       # likewise drawn last, only where set
         gains["rest_start"] = bool(rng.random() < rr.rest_start_share)
+    if rr.surface_sd_max > 0.0:         # likewise; the correlation length the stress case's (the largest rock)
+        gains["surface_sd"] = float(u(0.0, rr.surface_sd_max))
+        gains["surface_corr"] = ROUGH_CORR
     return replace(c, **gains) if gains else c
 
 
