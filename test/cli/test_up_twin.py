@@ -10,6 +10,9 @@ Checked from the JSON (its last stdout line) and the run folder:
   alpha within 1.5 deg, end zone x_max within 5 cm, v_x RMS within 0.02 m/s (the twin's machine has
   its IMU by default: 20 deg attempts 0.006-0.012 m/s in runs 33-35 of docs/twin.md);
 * the twin's truth slope is the asked 20 deg and the JSON's success_rate agrees with the CSV row.
+On fewer cores than the twin needs, an attempt that ends lost_input (a process stalled past the
+bridge's 0.3 s watchdog: the machine did stop) is run once more, with the node logs printed; any
+failure's message carries the last lines of the bridge's, mux's, controller's and supervisor's logs.
 """
 import csv
 import json
@@ -39,8 +42,17 @@ _CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (
 VX_BOUND = 0.02 if _CORES >= MIN_CORES else 0.05
 
 
-def test_one_twin_attempt_end_to_end(tmp_path):
-    run_dir = tmp_path / "run"
+def node_logs(run_dir, names=("bridge", "mux", "controller", "supervisor", "twin"), lines=15) -> str:
+    """The last lines of the stack's node logs (run/logs), for a failure's message."""
+    parts = []
+    for name in names:
+        f = run_dir / "logs" / f"{name}.log"
+        if f.is_file():
+            parts.append(f"--- {name}.log\n" + "\n".join(f.read_text(errors="replace").splitlines()[-lines:]))
+    return "\n".join(parts)
+
+
+def twin_attempt(run_dir):
     env = dict(os.environ, PYTHONUNBUFFERED="1", ROS_DOMAIN_ID=str(unique_domain_id()))
     t0 = time.monotonic()
     proc = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.up_twin", "--slopes", "20", "--episodes", "1",
@@ -48,8 +60,23 @@ def test_one_twin_attempt_end_to_end(tmp_path):
     wall = time.monotonic() - t0
     print(proc.stderr[-4000:])
     print(f"lhd up twin: {wall:.1f} s wall")
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert proc.returncode == 0, proc.stderr[-3000:] + "\n" + node_logs(run_dir)
+    return json.loads(proc.stdout.strip().splitlines()[-1]), wall
+
+
+def test_one_twin_attempt_end_to_end(tmp_path):
+    run_dir = tmp_path / "run"
+    out, wall = twin_attempt(run_dir)
+    if out["attempts"][0]["outcome"] == "lost_input" and _CORES < MIN_CORES:
+        # On fewer cores than the twin needs, a process of the eleven may not run for the bridge's
+        # 0.3 s cmd_timeout (one in 10-25 runs right after the suite, 2026-11-28/29). The stack ends
+        # that attempt as it must: a bridge that stalls past the firmware's 0.25 s watchdog has let the
+        # machine stop (reproduced by stopping the bridge process 0.36 s at arming: the same outcome and
+        # reason). The logs say which process it was; a second attempt must pass every check below.
+        print("first attempt lost_input on", _CORES, "cores:", out["attempts"][0].get("reason"))
+        print(node_logs(run_dir))
+        run_dir = tmp_path / "run_again"
+        out, wall = twin_attempt(run_dir)
     assert len(out["attempts"]) == 1
     # the machine it was: the twin's default has the IMU (50 Hz), no tilt limit asked for
     assert (out["imu"], out["imu_hz"], out["max_tilt_deg"]) == (True, 50.0, None), out
@@ -75,7 +102,7 @@ def test_one_twin_attempt_end_to_end(tmp_path):
     assert abs(rec["x_max_err_m"]) <= X_MAX_BOUND_M, rec
     # v_x: measured over the running phase, the truth interpolated at each estimate's stamp; the
     # camera and the IMU's accelerometer (the twin's default machine), the issue's bound
-    assert rec["outcome"] != "lost_input", rec
+    assert rec["outcome"] != "lost_input", (rec, node_logs(run_dir))
     assert rec["vx_n"] >= 10 and math.isfinite(rec["vx_rms"]), rec
     assert rec["vx_rms"] <= VX_BOUND, rec
     # how old the odometry was when it arrived (image stamp to here): measured, and within the
