@@ -104,7 +104,7 @@ def test_real_machine_launch_file_checks_its_parameters_before_any_node(tmp_path
         return {k: ctx.launch_configurations[k] for k in ("actor_dir", "actor_config", "slope_limits")}
 
     got = configs(run_check(default_params_file()))     # the machine's RLD, its own file, its validated slopes
-    assert got["actor_dir"].endswith("rld_gains") and got["actor_config"].endswith("rld_gains/lhd_params.yaml")
+    assert got["actor_dir"].endswith("rld_machine") and got["actor_config"].endswith("rld_machine/lhd_params.yaml")
     assert got["slope_limits"] == "[14.0, 35.0]"
     assert configs(run_check(slow, "teleop")) == {"actor_dir": "", "actor_config": "", "slope_limits": "[0.0, 90.0]"}
     with pytest.raises(RuntimeError, match="every attempt would end as lost_input"):

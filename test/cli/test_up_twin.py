@@ -122,7 +122,7 @@ def test_one_twin_attempt_end_to_end(tmp_path):
     # the machine's RLD and its own file (cli/up_real.machine_actor); with the package's file, its range
     (["--slopes", "100"], "--slopes 100: outside the pile range [10, 35] deg of "
                           + os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))),
-                                         "policies", "rld_gains", "lhd_params.yaml")),
+                                         "policies", "rld_machine", "lhd_params.yaml")),
     (["--slopes", "100", "--controller", "tampier"], "--slopes 100: outside the pile range [15, 30] deg of "
                                                       "config/lhd_params.yaml"),
     (["--slopes", "20", "nan"], "--slopes nan: not a finite number; expected slopes in degrees"),
@@ -163,3 +163,16 @@ def test_the_twins_slope_refusal_names_the_file_lhd_config_points_to(monkeypatch
     msg = slope_range_problem([9.5, 20.0], None)
     assert msg.startswith("--slopes 9.5: outside the pile range [10, 35] deg of ") and msg.count("($LHD_CONFIG)") == 1
     assert "rld_twin" in msg and slope_range_problem([10.0, 35.0], None) == ""
+
+
+def test_slopes_at_the_edge_of_the_armed_range_get_a_note():
+    """A twin pile at the end of the range the controller is armed on may be read just outside it by the
+    LiDAR (a 35 deg pile read 35.07 deg ended a run of the machine's RLD, armed on 14-35 deg): the console
+    says so before the run, with slopes that stay inside; slopes inside the margin get no note."""
+    from lhd_loading_ros.cli.up_twin import LIDAR_EDGE_DEG, edge_slopes_note
+
+    assert LIDAR_EDGE_DEG == 0.4
+    note = edge_slopes_note([14.0, 20.0, 35.0], 14.0, 35.0, "policies/rld_machine")
+    assert note.startswith("note: --slopes 14 35: within 0.4 deg of the 14-35 deg policies/rld_machine is armed on")
+    assert note.endswith("14.4 34.6 stay inside")
+    assert edge_slopes_note([14.4, 20.0, 34.6], 14.0, 35.0, "x") == ""

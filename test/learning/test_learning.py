@@ -513,3 +513,28 @@ def test_a_run_too_short_to_update_says_so(cfg, tmp_path):
     train("rld", 0, tmp_path / "run", steps=200, config=cfg, progress=False, log=lines.append)
     assert lines[0] == ("warning: 200 steps are not more than training.learning_starts = 256: no update will run, "
                         "and the actor written is the untrained one"), lines
+
+
+def test_the_cards_drawn_conditions_are_the_files_ranges():
+    """The card's "When the machine differs" names what `lhd eval --randomize` draws under the file it was
+    evaluated with (learning/ship.drawn_conditions), not a fixed list: a card of an actor trained with
+    actuator gains, starts from rest or rough piles says so, with the file's numbers."""
+    import copy
+
+    from lhd_loading_ros.learning.ship import drawn_conditions
+    from lhd_loading_ros.task.config import load_config
+
+    cfg = load_config()
+    text = drawn_conditions(cfg)
+    r = cfg["randomization"]
+    assert f"+-{r['slope_error_max_deg']:g} deg" in text and f"cohesion up to {r['cohesion_max']:,.0f} Pa" in text
+    assert "commanded" not in text and "from rest" not in text and "rough face" not in text   # all off
+    other = copy.deepcopy(cfg)
+    other["randomization"].update(slope_error_max_deg=7.0, cohesion_max=1500.0, drive_gain_min=0.75,
+                                  drive_gain_max=1.1, rest_start_share=0.3, surface_sd_max=0.03,
+                                  actuator_delay_max_s=0.06)
+    text = drawn_conditions(other)
+    for part in ("+-7 deg", "0-60 ms actuator dead time", "cohesion up to 1,500 Pa", "wheels at 0.75-1.1 of",
+                 "30 % of the attempts from rest", "relief sd up to 3 cm"):
+        assert part in text, (part, text)
+    assert "boom and bucket" not in text                 # its gains at 1: not drawn

@@ -5,7 +5,11 @@ zones built from it (the twin's LiDAR errs by 0.1-0.4 deg; 3 deg is a bad calibr
 (seed 2,000,000) each, RLC with the deployment filter. From the repository root:
 
     .venv/bin/python docs/evidence/machine_case/combined.py > docs/evidence/machine_case/combined.txt
+
+Other actors: `combined.py [--config FILE] DIR [DIR ...]` (a run's `seed_N/final`, with the parameter file it
+was trained on, which is also the evaluation's: conditions here are fixed per case, not drawn).
 """
+import argparse
 from dataclasses import replace
 from pathlib import Path
 
@@ -35,13 +39,18 @@ def extra(name, i, cfg):
 
 CASES = ("none", "dense", "light", "slow_drive", "slow_hydraulics", "cohesive", "slope_high_3", "slope_low_3")
 assert COHESIVE_PA and SLOW_DRIVE_GAIN and SLOW_HYDRAULIC_GAIN
+ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+ap.add_argument("actors", nargs="*", help="actor directories (default: the shipped ones above)")
+ap.add_argument("--config", help="parameter file for actors without their own (lhd_params.yaml beside them)")
+args = ap.parse_args()
+dirs = [Path(a) for a in args.actors] or [Path("policies") / a for a in ACTORS]
 print(f"machine case + one more departure, {EPISODES} held-out episodes (seed {SEED}); success (15/20/25/30 deg) AML")
 print("| actor | " + " | ".join(f"machine + {c}" if c != "none" else "machine" for c in CASES) + " |")
 print("|---" * (len(CASES) + 1) + "|")
-for a in ACTORS:
-    d = Path("policies") / a
+for d in dirs:
+    a = d.name if d.parent.name == "policies" else str(d)
     pol = load_policy(d)
-    cfg = load_config(own_config(d))
+    cfg = load_config(own_config(d) or args.config)
     pol.check_config(cfg)
     env = LhdLoadingEnv(pol.variant, cfg, deploy_filter=(pol.variant == "rlc"), randomize=False,
                         zones_from_estimate=True)

@@ -4,7 +4,11 @@
 with the deployment filter. From the repository root:
 
     .venv/bin/python docs/evidence/machine_case/slopes.py > docs/evidence/machine_case/slopes.txt
+
+`slopes.py rld_machine` runs only the named actors of policies/ (rows to add to the table).
 """
+import sys
+
 from lhd_sim_node.env import LhdLoadingEnv
 
 from lhd_loading_ros.learning.evaluate import run_policy_episode
@@ -16,7 +20,7 @@ SLOPES = (10.0, 12.0, 13.0, 14.0, 15.0, 17.5, 22.5, 27.5, 32.5, 35.0)
 print("machine case, 30 episodes a slope: successes (mean load of all attempts, kg)")
 print("| actor | " + " | ".join(f"{s:g} deg" for s in SLOPES) + " |")
 print("|---" * (len(SLOPES) + 1) + "|")
-for a in ("rld_gains", "rlc_gains"):
+for a in sys.argv[1:] or ("rld_gains", "rlc_gains"):
     d = f"policies/{a}"
     cfg = load_config(own_config(d))
     pol = load_policy(d).check_config(cfg)

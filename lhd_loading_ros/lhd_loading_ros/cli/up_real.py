@@ -404,7 +404,7 @@ def parser() -> argparse.ArgumentParser:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--port", required=True, help="serial device of the Due, e.g. /dev/ttyACM0")
     ap.add_argument("--controller", choices=CONTROLLERS, default="rld")
-    ap.add_argument("--policy", help="exported actor for rld/rlc (default: the machine's, policies/rld_gains or "
+    ap.add_argument("--policy", help="exported actor for rld/rlc (default: the machine's, policies/rld_machine or "
                     "rlc_gains, armed on the slopes it was validated on: docs/real_machine.md)")
     ap.add_argument("--camera-topic", default="/camera/image_raw")
     ap.add_argument("--camera-info-topic", default="/camera/camera_info")

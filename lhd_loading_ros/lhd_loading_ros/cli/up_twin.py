@@ -781,11 +781,29 @@ def slope_range_problem(slopes, config: str | None, flag: str = "--slopes") -> s
     return problem(slopes, load_config(config or None), flag, config_name(config))
 
 
+# How far the twin's LiDAR slope may lie from the pile's (0.1-0.4 deg in the twin runs: docs/twin.md)
+LIDAR_EDGE_DEG = 0.4
+
+
+def edge_slopes_note(slopes, lo: float, hi: float, who: str) -> str:
+    """A note for slopes within LIDAR_EDGE_DEG of the ends of the range the controller is armed on ("" for
+    none): the LiDAR's estimate of such a pile may fall outside, the supervisor then refuses to arm (it
+    refuses, it does not clip: issue 14), and the run ends at that attempt after --arm-timeout. A 35 deg
+    twin pile read 35.07 deg ended a run of `rld_machine` (armed on 14-35 deg) on 2026-11-29."""
+    edge = [s for s in slopes if s < lo + LIDAR_EDGE_DEG or s > hi - LIDAR_EDGE_DEG]
+    if not edge:
+        return ""
+    inside = [min(max(s, lo + LIDAR_EDGE_DEG), hi - LIDAR_EDGE_DEG) for s in edge]
+    return (f"note: --slopes {' '.join(f'{s:g}' for s in edge)}: within {LIDAR_EDGE_DEG:g} deg of the {lo:g}-{hi:g} deg "
+            f"{who} is armed on; the LiDAR's estimate (0.1-0.4 deg off in the twin) may fall outside, and the "
+            f"supervisor then refuses to arm and the run ends there; {' '.join(f'{s:g}' for s in inside)} stay inside")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="lhd up twin", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--controller", choices=("rld", "rlc", "tampier", "teacher"), default="rld")
-    ap.add_argument("--policy", help="exported actor for rld/rlc (default: the machine's, policies/rld_gains or rlc_gains, as lhd up real)")
+    ap.add_argument("--policy", help="exported actor for rld/rlc (default: the machine's, policies/rld_machine or rlc_gains, as lhd up real)")
     ap.add_argument("--slopes", type=float, nargs="+", default=list(DEFAULT_SLOPES),
                     help="pile slopes, degrees, cycled (default 15 20 25 30)")
     ap.add_argument("--episodes", type=int, default=3, help="attempts PER SLOPE (default 3: 12 attempts on the "
@@ -871,6 +889,16 @@ def main(argv=None) -> int:
         ap.error(f"--slopes {' '.join(out)}: outside the {lim[0]:g}-{lim[1]:g} deg the machine's default actor "
                  f"{real_args.policy} is armed on (docs/real_machine.md \"Which actor on the machine\"); name it with "
                  f"--policy to use its card's whole range")
+    if args.controller in ("rld", "rlc"):
+        from lhd_loading_ros.task.config import load_config
+
+        ep = load_config(real_args.config or None)["paper"]["episode"]     # the card's range: its training file's
+        lo, hi = float(ep["alpha_min_deg"]), float(ep["alpha_max_deg"])
+        if lim:
+            lo, hi = max(lo, lim[0]), min(hi, lim[1])
+        note = edge_slopes_note(args.slopes, lo, hi, real_args.policy or args.controller)
+        if note:
+            print(note, file=sys.stderr, flush=True)
     return run_twin(args, real_args, list(args.slopes))
 
 

@@ -177,6 +177,32 @@ def _recipe_note(tw: dict) -> str:
     return "".join(f", {p}" for p in parts)
 
 
+def drawn_conditions(cfg: dict) -> str:
+    """What `lhd eval --randomize` draws under this parameter file's `randomization` section, in words (the
+    card's "When the machine differs"): the ranges of the file, not of the file the card was first written for."""
+    r = cfg["randomization"]
+    zones = (" (the zones built from it move too)" if int(r.get("zones_from_slope_estimate", 0))
+             else " (in the observed slope only)")
+    parts = [f"slope-estimate error up to +-{r['slope_error_max_deg']:g} deg{zones}", "camera noise, dropouts and delay",
+             f"0-{1000.0 * r['actuator_delay_max_s']:.0f} ms actuator dead time",
+             f"gravel of {r['density_min']:,.0f}-{r['density_max']:,.0f} kg/m^3, friction angle "
+             f"{r['phi_min_deg']:g}-{r['phi_max_deg']:g} deg, cohesion up to {r['cohesion_max']:,.0f} Pa and up to "
+             f"{int(r['rocks_max'])} rocks",
+             f"tyre friction {r['tyre_friction_min']:g}-{r['tyre_friction_max']:g}",
+             f"start pose (heading +-{r['heading_max_deg']:g} deg, lip +-{100.0 * r['lateral_offset_max']:g} cm)"]
+    drive = (float(r.get("drive_gain_min", 1.0)), float(r.get("drive_gain_max", 1.0)))
+    hyd = (float(r.get("hydraulic_gain_min", 1.0)), float(r.get("hydraulic_gain_max", 1.0)))
+    if drive != (1.0, 1.0):
+        parts.append(f"wheels at {drive[0]:g}-{drive[1]:g} of their commanded speed")
+    if hyd != (1.0, 1.0):
+        parts.append(f"boom and bucket at {hyd[0]:g}-{hyd[1]:g} of their commanded rates")
+    if float(r.get("rest_start_share", 0.0)) > 0.0:
+        parts.append(f"{100.0 * float(r['rest_start_share']):g} % of the attempts from rest with the tip in the pile")
+    if float(r.get("surface_sd_max", 0.0)) > 0.0:
+        parts.append(f"a rough face (relief sd up to {100.0 * float(r['surface_sd_max']):g} cm)")
+    return ", ".join(parts)
+
+
 def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=print, select: str = "median",
          max_tilt_rate: float | None = None) -> dict:
     from lhd_sim_node.env import LhdLoadingEnv
@@ -279,10 +305,8 @@ def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=prin
     robust = f"""
 ## When the machine differs (`lhd eval --policy {shown}{run_cfg} --seed {eval_seed} --randomize{' --deploy-filter' if deploy else ''}`, and with `--stress placement` in place of `--randomize`)
 
-{dr_note} The same piles under drawn conditions (slope-estimate error up to +-15 deg, camera
-noise, dropouts and delay, 0-100 ms actuator dead time, gravel of 1,500-2,200 kg/m^3, tyre friction,
-start pose), and with the machine placed by hand (heading +-3 deg, lip +-5 cm, camera errors, 100 ms
-dead time):
+{dr_note} The same piles under drawn conditions ({drawn_conditions(cfg)}), and with the machine placed
+by hand (heading +-3 deg, lip +-5 cm, camera errors, 100 ms dead time):
 
 | condition | success | ASL | AML [kg] | elapsed [s] | restricted zone | timeout |
 |---|---|---|---|---|---|---|

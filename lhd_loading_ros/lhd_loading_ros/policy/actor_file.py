@@ -261,10 +261,12 @@ def _json_default(o):
 # (`lhd demo`, `lhd up sim`) keeps policies/rld and policies/rlc, the paper's protocol, which load every
 # pile of the paper's protocol but keep 0.61 / 0.70 of the machine case (docs/real_machine.md "Which actor on the machine",
 # docs/evidence/machine_case/). Both ship their own parameter file (the 10-35 deg piles' normalisers).
-MACHINE_ACTORS = {"rld": "rld_gains", "rlc": "rlc_gains"}
+# RLD: rld_machine since 2026-11-29 (eighth session; rld_gains before): as good in the machine case (1.000)
+# and far better with a wrong LiDAR slope (docs/training.md "The machine recipe").
+MACHINE_ACTORS = {"rld": "rld_machine", "rlc": "rlc_gains"}
 # The slopes each machine actor keeps >= 0.9 of the machine case on (30 episodes a slope,
-# docs/evidence/machine_case/slopes.txt): rld_gains 24/30 on 10 and 12 deg, 26/30 on 13, 28/30 on 14, 30/30
-# from 15 to 35; rlc_gains 30/30 on 10-14 deg, 27/30 on 32.5 and 35. The real stack passes them to the
+# docs/evidence/machine_case/slopes.txt): rld_machine 24/30 on 10 and 12 deg, 25/30 on 13, 28/30 on 14,
+# 29-30/30 from 15 to 35 (rld_gains alike); rlc_gains 30/30 on 10-14 deg, 27/30 on 32.5 and 35. The real stack passes them to the
 # supervisor (slope_limits_deg), which arms only inside both them and the card's 10-35 deg.
 MACHINE_SLOPE_LIMITS_DEG = {"rld": (14.0, 35.0), "rlc": (10.0, 35.0)}
 
