@@ -167,7 +167,7 @@ def test_the_twins_slope_refusal_names_the_file_lhd_config_points_to(monkeypatch
 
 def test_slopes_at_the_edge_of_the_armed_range_get_a_note():
     """A twin pile at the end of the range the controller is armed on may be read just outside it by the
-    LiDAR (a 35 deg pile read 35.07 deg ended a run of the machine's RLD, armed on 14-35 deg): the console
+    LiDAR (a 35 deg pile read 35.1 deg ended a run of the machine's RLD, armed on 14-35 deg): the console
     says so before the run, with slopes that stay inside; slopes inside the margin get no note."""
     from lhd_loading_ros.cli.up_twin import LIDAR_EDGE_DEG, edge_slopes_note
 

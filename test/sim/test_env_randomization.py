@@ -518,6 +518,28 @@ def test_a_surface_relief_is_drawn_last_and_only_where_set(cfg):
         assert (0.015 < dev < 0.045) if sd else dev == pytest.approx(0.0, abs=1e-9), (sd, dev)
 
 
+def test_an_actor_randomised_on_plane_piles_runs_on_a_file_with_a_relief_and_back(cfg):
+    """As for the starts from rest: an actor trained randomised before `surface_sd_max` existed (the key
+    absent: 0) matches a parameter file that sets a relief; one trained with a relief matches its own
+    file, and the file with the relief at 0 (the section's other ranges the same)."""
+    import copy
+
+    from lhd_loading_ros.task.config import config_hash, hash_matches
+
+    old = copy.deepcopy(cfg)
+    old["randomization"]["enabled"] = 1
+    del old["randomization"]["surface_sd_max"]
+    rough = copy.deepcopy(cfg)
+    rough["randomization"]["surface_sd_max"] = 0.03
+    assert hash_matches(config_hash(old), rough) and hash_matches(config_hash(old), cfg)
+    trained = copy.deepcopy(rough)
+    trained["randomization"]["enabled"] = 1
+    assert hash_matches(config_hash(trained), rough)
+    other = copy.deepcopy(trained)
+    other["randomization"]["surface_sd_max"] = 0.05     # another relief: another actor's file
+    assert not hash_matches(config_hash(other), rough)
+
+
 def test_an_actor_randomised_before_starts_from_rest_runs_on_a_file_that_has_them(cfg):
     """An actor trained randomised before `rest_start_share` existed (the key absent: 0) matches a
     parameter file that sets a share, as it matches one with the share at 0; one trained with a share

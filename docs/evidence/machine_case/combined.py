@@ -42,7 +42,13 @@ assert COHESIVE_PA and SLOW_DRIVE_GAIN and SLOW_HYDRAULIC_GAIN
 ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 ap.add_argument("actors", nargs="*", help="actor directories (default: the shipped ones above)")
 ap.add_argument("--config", help="parameter file for actors without their own (lhd_params.yaml beside them)")
+ap.add_argument("--seed", type=int, default=SEED, help=f"first episode seed (default the held-out {SEED:,})")
+ap.add_argument("--cases", default=",".join(CASES), help="comma-separated cases (default all)")
 args = ap.parse_args()
+SEED = args.seed
+CASES = tuple(c.strip() for c in args.cases.split(","))
+assert all(c in ("none", "dense", "light", "slow_drive", "slow_hydraulics", "cohesive", "slope_high_3", "slope_low_3")
+           for c in CASES), CASES
 dirs = [Path(a) for a in args.actors] or [Path("policies") / a for a in ACTORS]
 print(f"machine case + one more departure, {EPISODES} held-out episodes (seed {SEED}); success (15/20/25/30 deg) AML")
 print("| actor | " + " | ".join(f"machine + {c}" if c != "none" else "machine" for c in CASES) + " |")

@@ -27,3 +27,12 @@ for a in rld_gains rld_told_teacher rld_machine rlc_gains; do
   filt=(); case $a in rlc*) filt=(--deploy-filter);; esac
   .venv/bin/lhd eval --policy policies/$a --episodes 120 --randomize --config $CFG "${filt[@]}" --json > $E/randomized_$a.json
 done
+# 5. a seed no choice was made on (a review: the recipe was built against weaknesses seen on 2,000,000):
+#    3,000,000, the machine case and the weak cells, and every departure drawn at once
+F=$E/fresh_seed; mkdir -p $F
+.venv/bin/python docs/evidence/machine_case/combined.py --seed 3000000 --cases none,slope_low_3,slow_drive,cohesive \
+    policies/rld_machine policies/rld_gains policies/rld_told_teacher > $F/combined_seed3000000.txt
+for a in rld_machine rld_gains rld_told_teacher; do
+  .venv/bin/lhd eval --policy policies/$a --config $CFG --episodes 120 --seed 3000000 --stress machine --json > $F/${a}_machine_seed3000000.json
+  .venv/bin/lhd eval --policy policies/$a --config $CFG --episodes 120 --seed 3000000 --randomize --json > $F/${a}_randomized_seed3000000.json
+done

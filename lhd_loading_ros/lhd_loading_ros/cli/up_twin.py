@@ -789,7 +789,7 @@ def edge_slopes_note(slopes, lo: float, hi: float, who: str) -> str:
     """A note for slopes within LIDAR_EDGE_DEG of the ends of the range the controller is armed on ("" for
     none): the LiDAR's estimate of such a pile may fall outside, the supervisor then refuses to arm (it
     refuses, it does not clip: issue 14), and the run ends at that attempt after --arm-timeout. A 35 deg
-    twin pile read 35.07 deg ended a run of `rld_machine` (armed on 14-35 deg) on 2026-11-29."""
+    twin pile read 35.1 deg ended a run of `rld_machine` (armed on 14-35 deg) on 2026-11-29."""
     edge = [s for s in slopes if s < lo + LIDAR_EDGE_DEG or s > hi - LIDAR_EDGE_DEG]
     if not edge:
         return ""

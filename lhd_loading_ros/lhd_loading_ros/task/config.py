@@ -475,8 +475,9 @@ def training_variants(cfg: dict, trained_margin_deg: float | None = None,
     `trained_margin_deg` (the card's `trained_with`), the tilt penalty off, at this
     config's (r_tilt_per_deg, r_tilt_free_deg) or at `trained_tilt` (the card's), and, randomised,
     a slope-estimate error in the observed alpha only or also in the zones
-    (randomization.zones_from_slope_estimate 0 or this config's), and no start from rest or this
-    config's share of them (randomization.rest_start_share 0 or this config's). Every other range of
+    (randomization.zones_from_slope_estimate 0 or this config's), no start from rest or this
+    config's share of them (randomization.rest_start_share 0 or this config's), and plane piles or this
+    config's relief (randomization.surface_sd_max 0 or this config's). Every other range of
     the randomisation section is part of a randomised actor's identity: such an actor runs on its own
     parameter file (lhd ship copies it)."""
     rands = [0, 1] if "randomization" in cfg else [None]
@@ -489,14 +490,17 @@ def training_variants(cfg: dict, trained_margin_deg: float | None = None,
         tilts.add((float(trained_tilt[0]), float(trained_tilt[1])))
     zfe = {0, int(cfg.get("randomization", {}).get("zones_from_slope_estimate", 0))}
     rest = {0.0, float(cfg.get("randomization", {}).get("rest_start_share", 0.0))}
+    relief = {0.0, float(cfg.get("randomization", {}).get("surface_sd_max", 0.0))}
     out = []
     cs = []
     for rand in rands:
         c = cfg if rand is None else _with(cfg, "randomization", "enabled", rand)
         # where a slope-estimate error went while it trained (randomised only: alpha alone before 2026-11-28),
-        # and whether some episodes started from rest (none before 2026-11-29)
-        cs += [c] if rand != 1 else [_with(_with(c, "randomization", "zones_from_slope_estimate", z), "randomization",
-                                           "rest_start_share", r) for z in sorted(zfe) for r in sorted(rest)]
+        # whether some episodes started from rest and whether piles were rough (neither before 2026-11-29)
+        cs += [c] if rand != 1 else [
+            _with(_with(_with(c, "randomization", "zones_from_slope_estimate", z), "randomization", "rest_start_share", r),
+                  "randomization", "surface_sd_max", sd)
+            for z in sorted(zfe) for r in sorted(rest) for sd in sorted(relief)]
     for c in cs:
         for m in sorted(margins):
             cm = _with(c, "task", "r_success_pitch_margin_deg", m)
