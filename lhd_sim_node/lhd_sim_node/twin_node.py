@@ -358,7 +358,9 @@ class TwinNode(Node):
         self.pub_zones.publish(Float64MultiArray(data=[float(v) for v in zones]))
 
     def reset(self, why: str) -> str:
-        self._reset_at = None
+        # a new pile ends the wait for the last attempt's weighing too: a ~/reset while it waited (an attempt
+        # that never ran is never weighed) would otherwise be followed by weigh_timeout's reset, mid-attempt
+        self._reset_at = self._ended_at = None
         self._new_pile(why)
         self.resets += 1
         self._publish_pile()

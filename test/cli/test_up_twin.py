@@ -176,3 +176,28 @@ def test_slopes_at_the_edge_of_the_armed_range_get_a_note():
     assert note.startswith("note: --slopes 14 35: within 0.4 deg of the 14-35 deg policies/rld_machine is armed on")
     assert note.endswith("14.4 34.6 stay inside")
     assert edge_slopes_note([14.4, 20.0, 34.6], 14.0, 35.0, "x") == ""
+
+
+def test_a_pile_refused_for_its_slope_is_skipped_and_other_refusals_end_the_run():
+    """A refused /lhd/arm: a pile whose slope the LiDAR reads outside the armed range will not change, so
+    after SLOPE_REFUSED_S of refusals the twin makes the next pile (the run goes on); any other refusal (a
+    missing input: the stack is broken) is retried until --arm-timeout and then ends the run."""
+    from lhd_loading_ros.cli.up_twin import SLOPE_REFUSED_S, arm_refusal
+    from lhd_loading_ros.task.attempt import Settings, Supervisor
+    from lhd_loading_ros.task.config import load_config
+    from lhd_loading_ros.task.kinematics import ArmKinematics
+
+    # the supervisor's own words for a slope read outside the armed range (task/attempt.py)
+    sv = Supervisor(Settings(slope_range_deg=(14.0, 35.0), slope_source="policies/rld_machine", phi_thresh=0.7,
+                             control_dt=0.1, attempt_timeout=10.0, arm_delay=1.0, input_timeout=0.5,
+                             hw_status_timeout=0.5, mass_settle_s=1.0),
+                    ArmKinematics.from_config(load_config()), "rld", "homogeneous")
+    slope = "not armed: " + sv.slope_problem(math.radians(35.1))
+    assert sv.slope_problem(math.radians(35.0)) == ""
+    other = "not armed: no odometry received (/lhd/odom, the ArUco node)"
+    assert SLOPE_REFUSED_S == 5.0
+    assert arm_refusal(slope, 1.0, 60.0) == "retry"            # the LiDAR's reading may still settle
+    assert arm_refusal(slope, 5.0, 60.0) == "skip"
+    assert arm_refusal(slope, 2.0, 2.0) == "skip"              # a shorter --arm-timeout bounds the wait
+    assert arm_refusal(other, 30.0, 60.0) == "retry"
+    assert arm_refusal(other, 60.5, 60.0) == "fail"

@@ -316,6 +316,18 @@ def test_ended_attempt_and_reset_service_make_new_piles(rig):
     rig.pub_episode.publish(_status("aborted", 2))
     assert spin_until(rig.node, lambda: len(g["slope"]) > n_slope, timeout=6.0), rig.twin.log()
     assert g["slope"][-1][0] - t_end >= 2.4
+    # an attempt that ends unweighed, then ~/reset at once (`lhd up twin` after an attempt that never ran):
+    # one new pile, and none weigh_timeout later (the reset ends the wait for the weighing)
+    rig.pub_episode.publish(_status("aborted", 3))
+    rig.spin(0.3)
+    n_slope = len(g["slope"])
+    fut = rig.reset_client.call_async(Trigger.Request())
+    assert spin_until(rig.node, fut.done, timeout=10.0) and fut.result().success
+    assert spin_until(rig.node, lambda: len(g["slope"]) > n_slope, timeout=3.0)
+    for _ in range(14):                                  # 3.5 s > weigh_timeout 2.5 s, the status republished
+        rig.pub_episode.publish(_status("aborted", 3))
+        rig.spin(0.25)
+    assert len(g["slope"]) == n_slope + 1, rig.twin.log()
 
 
 def test_estop_button_holds_the_machine_and_release_needs_a_fresh_command(rig):

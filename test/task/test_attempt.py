@@ -963,6 +963,21 @@ def test_an_attempt_that_ended_while_armed_takes_no_mass(kin):
     assert r.sv.set_mass(23.4).mass_kg == 23.4 and r.sv.status_values(r.t)["ran"] == "true"
 
 
+def test_the_load_cell_does_not_weigh_an_attempt_that_never_ran(kin):
+    """An attempt that ended while armed (aborted: the zones moved, the operator, the e-stop) takes no
+    load-cell mass, and the load cell's readings of the standing machine raise nothing: they once ended
+    the supervisor node (set_mass's refusal reached its timer; a twin run, 2026-11-29). The next attempt
+    that runs is weighed as usual."""
+    r = Rig(kin, mass_settle_s=1.0).ready()
+    r.arm()
+    assert r.sv.abort(r.t)[0] and r.sv.attempt.running_at is None
+    r.vel = 0.0
+    for _ in range(100):                           # 2 s of readings, the machine still
+        assert r.sv.load_cell(31.0, r.t) == ""
+        r.step(0.02)                               # Rig.step calls update: no ValueError
+    assert r.sv.attempt.mass is None and r.sv.status_values(r.t)["ran"] == "false"
+
+
 def test_load_cell_median_after_the_machine_stopped(kin):
     r = Rig(kin, arm_delay=0.0, mass_settle_s=1.0).ready()
     r.arm()

@@ -66,6 +66,21 @@ from lhd_loading_ros.task.zones import Zones
 
 DEFAULT_SLOPES = (15.0, 20.0, 25.0, 30.0)
 ARM_RETRY_S = 1.0          # s between /lhd/arm calls while the preflight refuses
+SLOPE_REFUSED_S = 5.0      # s of refusals for the pile's slope (the LiDAR reads it outside the armed range) before
+                           # the twin makes the next pile: the LiDAR averages scans, so the reading settles in seconds
+SLOPE_REFUSAL = "is outside the controller's range"     # task/attempt.py's words for it
+
+
+def arm_refusal(message: str, waited_s: float, arm_timeout_s: float) -> str:
+    """What to do with a refused /lhd/arm: "skip" this pile when the supervisor refuses its slope (read outside
+    the range the controller is armed on: the pile will not change, and a pile built at the range's edge may read
+    just outside it) for SLOPE_REFUSED_S, "fail" the run on any other refusal after arm_timeout_s (a missing
+    input, a stale sensor: the stack is broken), else "retry"."""
+    if SLOPE_REFUSAL in message and waited_s >= min(SLOPE_REFUSED_S, arm_timeout_s):
+        return "skip"
+    if waited_s > arm_timeout_s:
+        return "fail"
+    return "retry"
 # before arming: odometry steady (the supervisor's input timeout is 0.5 s: a chain still starting
 # up, or starved, would end the attempt as lost_input at once)
 STEADY_S, STEADY_N, STEADY_GAP_S = 1.0, 5, 0.25
@@ -541,6 +556,7 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
     quiet = not args.verbose
     stop = threading.Event()
     records: list[dict] = []
+    refused: list[dict] = []        # piles never armed: their slope read outside the armed range
     children: list[Child] = []
     rc = 0
     t_start = time.monotonic()
@@ -550,11 +566,21 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
         node = rclpy.create_node("lhd_up_twin")
         w = Watch(node)
         arm = node.create_client(Trigger, "/lhd/arm")
+        twin_reset = node.create_client(Trigger, "/lhd_twin/reset")
 
         def now():
             return node.get_clock().now().nanoseconds * 1e-9
 
         crashed = {"what": "", "at": None}  # the node that died and when it was found, for the record (note_crash)
+
+        def next_pile(k: int, pile: int) -> None:
+            """The twin's next pile now (/lhd_twin/reset), for a pile on which no attempt ran."""
+            spin(30.0, lambda: twin_reset.service_is_ready(), "the twin's /lhd_twin/reset service")
+            fut_reset = twin_reset.call_async(Trigger.Request())
+            done = spin(30.0, lambda: fut_reset.done() and fut_reset.result(), "the answer of /lhd_twin/reset")
+            if not done.success:
+                raise RuntimeError(f"attempt {k + 1}: the twin could not make the next pile: {done.message}")
+            spin(30.0, lambda: w.piles > pile, "the twin's new pile")
 
         def spin(timeout_s: float, until, what: str):
             """Spin until `until()` is truthy; RuntimeError naming `what` after timeout_s or when a
@@ -635,12 +661,25 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                     last["msg"] = res.message
                     if armed:
                         break
-                    if time.monotonic() - t_arm > args.arm_timeout:
+                    decision = arm_refusal(res.message, time.monotonic() - t_arm, args.arm_timeout)
+                    if decision == "skip":
+                        break
+                    if decision == "fail":
                         pf = format_preflight(w.preflight) if w.preflight is not None else ""
                         raise RuntimeError(f"attempt {k + 1}: the supervisor refused to arm for {args.arm_timeout:g} s; "
                                            f"last answer: {last['msg']}\n{pf}")
                     t_retry = time.monotonic() + ARM_RETRY_S
                     spin(ARM_RETRY_S + 1, lambda: time.monotonic() >= t_retry, "the next arming try")
+                if not armed:
+                    # the pile's slope is read outside the armed range: not an attempt (nothing ran, nothing is
+                    # recorded); the twin makes the next pile and the run goes on
+                    refused.append({"pile": pile, "slope_truth_deg": math.degrees(w.truth_slope)
+                                    if w.truth_slope is not None else None,
+                                    "alpha_est_deg": math.degrees(w.slope) if w.slope is not None else None,
+                                    "reason": last["msg"]})
+                    say(f"attempt {k + 1}/{total}: not armed, next pile: {last['msg']}")
+                    next_pile(k, pile)
+                    continue
                 slope_est, zones_est = w.slope, list(w.zones)
                 slope_truth, zones_truth = w.truth_slope, list(w.truth_zones) if w.truth_zones else None
                 slice_truth = w.truth_slice_slope
@@ -652,6 +691,17 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                               "the armed attempt's status")[1].get("episode")
                 run = spin(10.0, lambda: w.first_status(t_call, lambda kv: kv.get("episode") == number and
                                                         kv.get("state") in ("running", *ENDED)), "the attempt to run")
+                if run[1].get("state") in ENDED:
+                    # ended while armed (the supervisor aborted it before it ran: the zones moved, a stale input):
+                    # recorded, not counted, never weighed (nothing was loaded); the twin makes the next pile
+                    w.recording = False
+                    refused.append({"pile": pile, "attempt": int(number), "slope_truth_deg": math.degrees(w.truth_slope)
+                                    if w.truth_slope is not None else None,
+                                    "alpha_est_deg": math.degrees(w.slope) if w.slope is not None else None,
+                                    "reason": f"{run[1].get('state')}: {run[1].get('reason', '')}"})
+                    say(f"attempt {number} {run[1].get('state')} before it ran, next pile: {run[1].get('reason', '')}")
+                    next_pile(k, pile)
+                    continue
                 t_run = run[0]
                 end = spin(real_args.attempt_timeout + 30.0,
                            lambda: w.first_status(t_call, lambda kv: kv.get("episode") == number and
@@ -758,12 +808,17 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                                        f"{wall:.0f} s)"), file=out)
     print(file=out)
     print(format_errors(records, err), file=out)
-    print(f"success rate {_fmt(success_rate, '.2f')} over {counted} counted attempt(s); run folder {run_dir}",
+    for r in refused:
+        what = f"attempt {r['attempt']} never ran" if "attempt" in r else "never armed"
+        print(f"pile {r['pile']} ({_fmt(r['slope_truth_deg'], '.1f')} deg, read {_fmt(r['alpha_est_deg'], '.2f')} deg) "
+              f"{what}: {r['reason']}", file=out)
+    print(f"success rate {_fmt(success_rate, '.2f')} over {counted} counted attempt(s)"
+          f"{f', {len(refused)} pile(s) without an attempt that ran' if refused else ''}; run folder {run_dir}",
           file=out, flush=True)
     if args.json:
         mp = machine_pitch_success(records)
         print(json_out.dumps({"success_rate": success_rate,
-                          "success_rate_machine_pitch": mp[0] / mp[1] if mp else None, "attempts": records, "errors": err, "table": summary,
+                          "success_rate_machine_pitch": mp[0] / mp[1] if mp else None, "attempts": records, "refused_piles": refused, "errors": err, "table": summary,
                           "run_dir": str(run_dir), "controller": real_args.controller, "slopes": slopes,
                           "episodes_per_slope": args.episodes, "imu": args.imu is not None,
                           "imu_hz": float(twin_params.get("imu_hz", 0.0)), "max_tilt_deg": args.imu or None,
@@ -788,15 +843,16 @@ LIDAR_EDGE_DEG = 0.4
 def edge_slopes_note(slopes, lo: float, hi: float, who: str) -> str:
     """A note for slopes within LIDAR_EDGE_DEG of the ends of the range the controller is armed on ("" for
     none): the LiDAR's estimate of such a pile may fall outside, the supervisor then refuses to arm (it
-    refuses, it does not clip: issue 14), and the run ends at that attempt after --arm-timeout. A 35 deg
-    twin pile read 35.1 deg ended a run of `rld_machine` (armed on 14-35 deg) on 2026-11-29."""
+    refuses, it does not clip: issue 14), and the pile is skipped (arm_refusal). A 35 deg twin pile read
+    35.1 deg ended a run of `rld_machine` (armed on 14-35 deg) after 60 s of refusals on 2026-11-29."""
     edge = [s for s in slopes if s < lo + LIDAR_EDGE_DEG or s > hi - LIDAR_EDGE_DEG]
     if not edge:
         return ""
     inside = [min(max(s, lo + LIDAR_EDGE_DEG), hi - LIDAR_EDGE_DEG) for s in edge]
     return (f"note: --slopes {' '.join(f'{s:g}' for s in edge)}: within {LIDAR_EDGE_DEG:g} deg of the {lo:g}-{hi:g} deg "
-            f"{who} is armed on; the LiDAR's estimate (0.1-0.4 deg off in the twin) may fall outside, and the "
-            f"supervisor then refuses to arm and the run ends there; {' '.join(f'{s:g}' for s in inside)} stay inside")
+            f"{who} is armed on; the LiDAR's estimate (0.1-0.4 deg off in the twin) may fall outside, the "
+            f"supervisor then refuses to arm, and after {SLOPE_REFUSED_S:g} s the twin makes the next pile (not an "
+            f"attempt); {' '.join(f'{s:g}' for s in inside)} stay inside")
 
 
 def main(argv=None) -> int:

@@ -698,6 +698,10 @@ class Supervisor:
         a = self.attempt
         if a is None or a.mass is not None or not self._cell:
             return
+        if a.running_at is None:
+            # ended while armed: nothing was loaded, and the bucket holds an earlier attempt's load (set_mass
+            # refuses it: until 2026-11-29 the load cell's refusal here ended the supervisor node, exit 2)
+            return
         if not self.machine_stopped(now):
             self._stopped_since = None
             return
