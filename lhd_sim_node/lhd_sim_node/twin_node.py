@@ -358,10 +358,12 @@ class TwinNode(Node):
         self.pub_zones.publish(Float64MultiArray(data=[float(v) for v in zones]))
 
     def reset(self, why: str) -> str:
-        # a new pile ends the wait for the last attempt's weighing too: a ~/reset while it waited (an attempt
-        # that never ran is never weighed) would otherwise be followed by weigh_timeout's reset, mid-attempt
-        self._reset_at = self._ended_at = None
+        self._reset_at = None
         self._new_pile(why)
+        # a new pile ends the wait for the last attempt's weighing too (after the pile is made: a reset that
+        # fails keeps weigh_timeout's): a ~/reset while it waited (an attempt that never ran is never weighed)
+        # would otherwise be followed by weigh_timeout's reset, mid-attempt
+        self._ended_at = None
         self.resets += 1
         self._publish_pile()
         text = (f"pile {self.piles - 1}: {self.pile_slope_deg:.1f} deg, {self.sim.material}, machine in the "

@@ -47,7 +47,7 @@ def test_table_of_a_record(run_dir):
     assert rc == 0
     lines = out.splitlines()
     assert "6 attempt(s) recorded, 4 counted" in out
-    assert "aborted (by the operator, or not started by the supervisor), not counted: attempt(s) 6" in out
+    assert "aborted (by the operator, or not started by the supervisor) or ended before they ran, not counted: attempt(s) 6" in out
     assert "not yet weighed, not counted (lhd attempt mass KG --attempt N): attempt(s) 5" in out
     labels = next(l for l in lines if l.lstrip().startswith("slope"))
     assert labels.split() == ["slope", "RLD", "Teleop"]

@@ -67,6 +67,8 @@ def twin_attempt(run_dir):
 def test_one_twin_attempt_end_to_end(tmp_path):
     run_dir = tmp_path / "run"
     out, wall = twin_attempt(run_dir)
+    # one attempt ran (piles on which none ran, refused_piles, are not attempts: the twin makes the next)
+    assert len(out["attempts"]) == 1, (out.get("refused_piles"), node_logs(run_dir))
     if out["attempts"][0]["outcome"] == "lost_input" and _CORES < MIN_CORES:
         # On fewer cores than the twin needs, a process of the eleven may not run for the bridge's
         # 0.3 s cmd_timeout (one in 10-25 runs right after the suite, 2026-11-28/29). The stack ends
@@ -201,3 +203,6 @@ def test_a_pile_refused_for_its_slope_is_skipped_and_other_refusals_end_the_run(
     assert arm_refusal(slope, 2.0, 2.0) == "skip"              # a shorter --arm-timeout bounds the wait
     assert arm_refusal(other, 30.0, 60.0) == "retry"
     assert arm_refusal(other, 60.5, 60.0) == "fail"
+    # a refusal that names a missing input too is the stack's, not the pile's
+    both = slope + "; " + other.removeprefix("not armed: ")
+    assert arm_refusal(both, 30.0, 60.0) == "retry" and arm_refusal(both, 61.0, 60.0) == "fail"

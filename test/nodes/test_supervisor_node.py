@@ -255,7 +255,7 @@ def test_lhd_attempts_on_the_record_the_node_wrote(rig):
     # counted: 1 (success, 23.4 kg), 3 (lost input), 4 (e-stop); 2 waits for its mass; 5 aborted
     assert "5 attempt(s) recorded, 3 counted" in out
     assert "not yet weighed, not counted (lhd attempt mass KG --attempt N): attempt(s) 2" in out
-    assert "aborted (by the operator, or not started by the supervisor), not counted: attempt(s) 5" in out
+    assert "aborted (by the operator, or not started by the supervisor) or ended before they ran, not counted: attempt(s) 5" in out
     lines = out.splitlines()
     assert lines[0] == f"Attempts in {rig.run_dir / 'attempts.csv'}"
     assert next(l for l in lines[1:] if l.startswith("Attempts")).split() == ["Attempts", "20", "3"]

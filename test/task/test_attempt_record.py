@@ -163,6 +163,19 @@ def rows_for_table():
     ]
 
 
+def test_attempts_that_ended_before_they_ran_are_not_counted_whatever_their_outcome():
+    """An e-stop or a lost input while armed (elapsed 0: the attempt never ran, nothing was loaded) is
+    left out of the table as an aborted one is, and listed with it; the same outcomes after the attempt
+    ran are counted failures."""
+    rows = [mk(1, mass=25.0), mk(2, outcome="lost_input", elapsed=0.0), mk(3, outcome="estop", elapsed=0.0),
+            mk(4, outcome="lost_input", elapsed=1.3), mk(5, outcome="estop", elapsed=2.0)]
+    s = summarize(rows)
+    assert s["counted"] == 3 and s["aborted"] == [2, 3] and s["not_weighed"] == []
+    (cell,) = s["cells"]
+    assert (cell["attempts"], cell["successes"]) == (3, 1) and cell["attempt_numbers"] == [1, 4, 5]
+    assert "or ended before they ran, not counted: attempt(s) 2, 3" in format_table(s)
+
+
 def test_summary_hand_computed():
     s = summarize(rows_for_table())
     assert s["rows"] == 10 and s["counted"] == 8 and s["aborted"] == [8] and s["not_weighed"] == [9]
@@ -203,7 +216,7 @@ def test_table_layout():
     lines = out.splitlines()
     assert lines[0] == "Attempts in x"
     assert "10 attempt(s) recorded, 8 counted" in out
-    assert "aborted (by the operator, or not started by the supervisor), not counted: attempt(s) 8" in out
+    assert "aborted (by the operator, or not started by the supervisor) or ended before they ran, not counted: attempt(s) 8" in out
     assert "not yet weighed, not counted (lhd attempt mass KG --attempt N): attempt(s) 9" in out
     head = next(l for l in lines if "Homogeneous material" in l)
     assert head.index("Homogeneous material") < head.index("Nonhomogeneous material")

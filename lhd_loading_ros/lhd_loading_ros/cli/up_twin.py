@@ -26,7 +26,11 @@ Logged per attempt, the simulator's ground truth beside what the stack estimated
   mass        attempts.csv (the supervisor's load-cell median) vs the simulator's loaded mass
 Ends with the attempts table (task/attempt_record's, as `lhd attempts`) and the estimation-error
 table; with --json the LAST line is one JSON object: success_rate, attempts (per-attempt records
-with their errors), errors (the summary), table (the attempts summary), run_dir.
+with their errors), refused_piles (piles on which no attempt ran: the slope read outside the armed
+range, or the attempt ended while armed; the twin made the next pile), errors (the summary), table
+(the attempts summary), run_dir. The twin makes piles until --episodes x len(--slopes) attempts ran;
+piles cycle through --slopes, so a slope whose piles are refused gets fewer attempts (the table says
+how many); after more refused piles than attempts asked, the run ends (exit 1).
 
 Ctrl-C or SIGTERM stop everything (controller first, bridge then twin last); children die with
 the launcher (PR_SET_PDEATHSIG). A node that exits is reported with its log's tail.
@@ -74,9 +78,11 @@ SLOPE_REFUSAL = "is outside the controller's range"     # task/attempt.py's word
 def arm_refusal(message: str, waited_s: float, arm_timeout_s: float) -> str:
     """What to do with a refused /lhd/arm: "skip" this pile when the supervisor refuses its slope (read outside
     the range the controller is armed on: the pile will not change, and a pile built at the range's edge may read
-    just outside it) for SLOPE_REFUSED_S, "fail" the run on any other refusal after arm_timeout_s (a missing
-    input, a stale sensor: the stack is broken), else "retry"."""
-    if SLOPE_REFUSAL in message and waited_s >= min(SLOPE_REFUSED_S, arm_timeout_s):
+    just outside it) for SLOPE_REFUSED_S, and only then (a refusal that also names a missing input is not a
+    pile's), "fail" the run on any other refusal after arm_timeout_s (a missing input, a stale sensor: the
+    stack is broken), else "retry"."""
+    problems = message.removeprefix("not armed: ").split("; ")
+    if all(SLOPE_REFUSAL in p for p in problems) and waited_s >= min(SLOPE_REFUSED_S, arm_timeout_s):
         return "skip"
     if waited_s > arm_timeout_s:
         return "fail"
@@ -629,7 +635,11 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                 f"{total} attempt(s) on slopes {', '.join(f'{s:g}' for s in slopes)} deg; run folder "
                 f"{run_dir}; logs in {log_dir}")
 
-            for k in range(total):
+            k = 0
+            while k < total:
+                if len(refused) > total:
+                    raise RuntimeError(f"{len(refused)} piles without an attempt that ran, for {total} attempt(s) asked: "
+                                       f"the last: {refused[-1]['reason']}")
                 pile = w.piles
                 # the LiDAR has scanned the current pile (a scan stamped after the pile was made)
                 # and zones of this pile: arming on the last attempt's (the end-zone node re-estimates
@@ -679,7 +689,7 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                                     "reason": last["msg"]})
                     say(f"attempt {k + 1}/{total}: not armed, next pile: {last['msg']}")
                     next_pile(k, pile)
-                    continue
+                    continue            # the same attempt on the next pile
                 slope_est, zones_est = w.slope, list(w.zones)
                 slope_truth, zones_truth = w.truth_slope, list(w.truth_zones) if w.truth_zones else None
                 slice_truth = w.truth_slice_slope
@@ -691,7 +701,7 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                               "the armed attempt's status")[1].get("episode")
                 run = spin(10.0, lambda: w.first_status(t_call, lambda kv: kv.get("episode") == number and
                                                         kv.get("state") in ("running", *ENDED)), "the attempt to run")
-                if run[1].get("state") in ENDED:
+                if run[1].get("state") in ENDED and run[1].get("ran") == "false":
                     # ended while armed (the supervisor aborted it before it ran: the zones moved, a stale input):
                     # recorded, not counted, never weighed (nothing was loaded); the twin makes the next pile
                     w.recording = False
@@ -701,7 +711,7 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                                     "reason": f"{run[1].get('state')}: {run[1].get('reason', '')}"})
                     say(f"attempt {number} {run[1].get('state')} before it ran, next pile: {run[1].get('reason', '')}")
                     next_pile(k, pile)
-                    continue
+                    continue            # the same attempt on the next pile
                 t_run = run[0]
                 end = spin(real_args.attempt_timeout + 30.0,
                            lambda: w.first_status(t_call, lambda kv: kv.get("episode") == number and
@@ -769,6 +779,7 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                 records.append(rec)
                 # the twin's new pile (also the recorder's post-roll: the bag is closed by then)
                 spin(args.reset_delay + 30.0, lambda: w.piles > pile, "the twin's new pile")
+                k += 1
         except Interrupted:
             say("\nlhd up twin: interrupted, stopping the nodes")
             rc = 130

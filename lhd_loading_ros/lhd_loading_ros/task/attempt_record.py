@@ -23,7 +23,9 @@ of each metric: the mean across the slopes of the per-slope means, with the stan
 deviation of those means (the paper's footnote a; its RLC homogeneous "material loaded"
 column 22.40, 24.18, 26.08, 27.24 -> 24.98 +- 1.84 is the population standard deviation,
 ddof = 0, which is used throughout). Aborted attempts (the operator, or the supervisor not
-starting an attempt whose set-up changed while armed) are not counted;
+starting an attempt whose set-up changed while armed) are not counted, nor are attempts that ended
+while armed whatever their outcome (an e-stop, a lost input: they never ran, `never_ran`; counted as
+failures until 2026-11-29);
 attempts whose success still waits for the weighed mass are listed apart, not counted.
 """
 from __future__ import annotations
@@ -339,10 +341,11 @@ def controller_order(names) -> list[str]:
 def summarize(rows: list[AttemptRow]) -> dict:
     """The paper's table as data: `cells` (controller x material x slope), `across_slopes`
     (the x-bar rows), and the attempts left out (aborted; no end recorded; not yet weighed)."""
-    aborted = [r.attempt for r in rows if r.outcome in NOT_COUNTED and not is_unended(r)]
+    left_out = lambda r: r.outcome in NOT_COUNTED or never_ran(r)     # noqa: E731
+    aborted = [r.attempt for r in rows if left_out(r) and not is_unended(r)]
     unended = [r.attempt for r in rows if is_unended(r)]
-    pending = [r.attempt for r in rows if r.outcome not in NOT_COUNTED and r.success is None]
-    counted = [r for r in rows if r.outcome not in NOT_COUNTED and r.success is not None]
+    pending = [r.attempt for r in rows if not left_out(r) and r.success is None]
+    counted = [r for r in rows if not left_out(r) and r.success is not None]
     groups: dict[tuple, list[AttemptRow]] = {}
     for r in counted:
         groups.setdefault((r.controller, r.material, r.slope_bin), []).append(r)
@@ -383,7 +386,8 @@ def format_table(summary: dict, title: str = "") -> str:
     lines = [title] if title else []
     lines.append(f"{summary['rows']} attempt(s) recorded, {summary['counted']} counted")
     if summary["aborted"]:
-        lines.append(f"aborted (by the operator, or not started by the supervisor), not counted: attempt(s) {', '.join(map(str, summary['aborted']))}")
+        lines.append(f"aborted (by the operator, or not started by the supervisor) or ended before they ran, not counted: "
+                     f"attempt(s) {', '.join(map(str, summary['aborted']))}")
     if summary.get("unended"):
         lines.append("no end recorded (running now, or its supervisor was killed during it), not counted: attempt(s) "
                      f"{', '.join(map(str, summary['unended']))}")
