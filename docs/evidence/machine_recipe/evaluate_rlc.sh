@@ -10,10 +10,12 @@ E=docs/evidence/machine_recipe
 CFG=$E/lhd_params_machine.yaml
 NOM=$E/lhd_params_machine_nominal_eval.yaml
 RUNS=${RUNS:-runs/machine_rlc}
-.venv/bin/lhd report $RUNS --held-out nominal,randomized,placement,machine --config $CFG --jobs 2 --json \
+SEEDS=${SEEDS:-0 1 2 3 4}         # SEEDS="0 1 2": the seeds that have finished (2026-11-29: three)
+DIRS=(); FINALS=(); for s in $SEEDS; do DIRS+=($RUNS/seed_$s); FINALS+=($RUNS/seed_$s/final); done
+.venv/bin/lhd report "${DIRS[@]}" --held-out nominal,randomized,placement,machine --config $CFG --jobs 2 --json \
     > $E/machine_rlc_report.json 2> $E/machine_rlc_report.log
-.venv/bin/python docs/evidence/machine_case/combined.py --config $NOM $RUNS/seed_{0,1,2,3,4}/final > $E/combined_rlc.txt
-for s in 0 1 2 3 4; do
+.venv/bin/python docs/evidence/machine_case/combined.py --config $NOM "${FINALS[@]}" > $E/combined_rlc.txt
+for s in $SEEDS; do
   .venv/bin/lhd experiment paper --controllers rlc --rlc $RUNS/seed_$s/final --config $NOM --slopes 15 \
       --materials homogeneous --errors=-15,-10,-5,0,5,10,15 --episodes 20 --jobs 2 --out /tmp/machine_rlc_seed$s > /dev/null 2>&1
   mkdir -p $E/machine_rlc_seed$s
