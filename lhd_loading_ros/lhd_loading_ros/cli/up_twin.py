@@ -87,6 +87,8 @@ def arm_refusal(message: str, waited_s: float, arm_timeout_s: float) -> str:
     if waited_s > arm_timeout_s:
         return "fail"
     return "retry"
+
+
 # before arming: odometry steady (the supervisor's input timeout is 0.5 s: a chain still starting
 # up, or starved, would end the attempt as lost_input at once)
 STEADY_S, STEADY_N, STEADY_GAP_S = 1.0, 5, 0.25
@@ -562,7 +564,7 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
     quiet = not args.verbose
     stop = threading.Event()
     records: list[dict] = []
-    refused: list[dict] = []        # piles never armed: their slope read outside the armed range
+    refused: list[dict] = []        # piles on which no attempt ran (never armed, or ended while armed)
     children: list[Child] = []
     rc = 0
     t_start = time.monotonic()
@@ -579,8 +581,14 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
 
         crashed = {"what": "", "at": None}  # the node that died and when it was found, for the record (note_crash)
 
-        def next_pile(k: int, pile: int) -> None:
-            """The twin's next pile now (/lhd_twin/reset), for a pile on which no attempt ran."""
+        def skip_pile(k: int, pile: int, reason: str, attempt: int | None = None) -> None:
+            """A pile on which no attempt ran: listed (refused_piles), said, and the twin's next pile now
+            (/lhd_twin/reset); the caller tries the same attempt again on it."""
+            r = {"pile": pile, "slope_truth_deg": math.degrees(w.truth_slope) if w.truth_slope is not None else None,
+                 "alpha_est_deg": math.degrees(w.slope) if w.slope is not None else None, "reason": reason}
+            refused.append(r if attempt is None else {**r, "attempt": attempt})
+            say(f"attempt {k + 1}/{total}: " + (f"attempt {attempt} ended before it ran" if attempt is not None
+                                                else "not armed") + f", next pile: {reason}")
             spin(30.0, lambda: twin_reset.service_is_ready(), "the twin's /lhd_twin/reset service")
             fut_reset = twin_reset.call_async(Trigger.Request())
             done = spin(30.0, lambda: fut_reset.done() and fut_reset.result(), "the answer of /lhd_twin/reset")
@@ -683,12 +691,7 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                 if not armed:
                     # the pile's slope is read outside the armed range: not an attempt (nothing ran, nothing is
                     # recorded); the twin makes the next pile and the run goes on
-                    refused.append({"pile": pile, "slope_truth_deg": math.degrees(w.truth_slope)
-                                    if w.truth_slope is not None else None,
-                                    "alpha_est_deg": math.degrees(w.slope) if w.slope is not None else None,
-                                    "reason": last["msg"]})
-                    say(f"attempt {k + 1}/{total}: not armed, next pile: {last['msg']}")
-                    next_pile(k, pile)
+                    skip_pile(k, pile, last["msg"])
                     continue            # the same attempt on the next pile
                 slope_est, zones_est = w.slope, list(w.zones)
                 slope_truth, zones_truth = w.truth_slope, list(w.truth_zones) if w.truth_zones else None
@@ -705,12 +708,7 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
                     # ended while armed (the supervisor aborted it before it ran: the zones moved, a stale input):
                     # recorded, not counted, never weighed (nothing was loaded); the twin makes the next pile
                     w.recording = False
-                    refused.append({"pile": pile, "attempt": int(number), "slope_truth_deg": math.degrees(w.truth_slope)
-                                    if w.truth_slope is not None else None,
-                                    "alpha_est_deg": math.degrees(w.slope) if w.slope is not None else None,
-                                    "reason": f"{run[1].get('state')}: {run[1].get('reason', '')}"})
-                    say(f"attempt {number} {run[1].get('state')} before it ran, next pile: {run[1].get('reason', '')}")
-                    next_pile(k, pile)
+                    skip_pile(k, pile, f"{run[1].get('state')}: {run[1].get('reason', '')}", int(number))
                     continue            # the same attempt on the next pile
                 t_run = run[0]
                 end = spin(real_args.attempt_timeout + 30.0,
