@@ -31,7 +31,8 @@ from lhd_loading_ros.task.metrics import EpisodeResult, drift_pct, success_level
 from lhd_loading_ros.task.observation import OBS_HIGH, OBS_LOW, build_observation
 from lhd_loading_ros.task.randomization import NOMINAL, Conditions, ObservationCorruptor, RandomizationRanges, draw
 from lhd_loading_ros.task.reward import RewardTracker
-from lhd_loading_ros.task.zones import classify, zones_for_slope_estimate
+from lhd_loading_ros.task.end_zone import nominal_density
+from lhd_loading_ros.task.zones import classify, zones_at_nominal_density, zones_for_slope_estimate
 
 from .simulator import MATERIALS, AttackError, LhdSimulator, SimulationError
 
@@ -44,7 +45,7 @@ class LhdLoadingEnv(gym.Env):
 
     def __init__(self, variant: str = "rld", config: dict | str | None = None, slope_deg: float | None = None,
                  material: str | None = None, deploy_filter: bool = False, randomize: bool | None = None,
-                 zones_from_estimate: bool | None = None):
+                 zones_from_estimate: bool | None = None, zones_nominal_density: bool | None = None):
         if variant not in VARIANTS:
             raise ValueError(f"variant must be one of {VARIANTS}, got {variant!r}")
         if material is not None and material not in MATERIALS:
@@ -61,6 +62,11 @@ class LhdLoadingEnv(gym.Env):
         self.randomize = self.ranges.enabled if randomize is None else bool(randomize)
         self.zones_from_estimate = (self.ranges.zones_from_slope_estimate if zones_from_estimate is None
                                     else bool(zones_from_estimate))
+        # the zones as the end-zone node builds them: a wedge at the nominal bulk density, blind to the
+        # pile's own density and rocks (task/zones.zones_at_nominal_density)
+        self.zones_nominal_density = (self.ranges.zones_at_nominal_density if zones_nominal_density is None
+                                      else bool(zones_nominal_density))
+        self.rho_nominal = nominal_density(self.cfg)
         self.zones = None
         self.zones_from = "pile"
         self.conditions = NOMINAL
@@ -167,11 +173,20 @@ class LhdLoadingEnv(gym.Env):
         """The zones the episode is observed and ended with, and where they come from: the pile's
         own, or (zones_from_estimate, a slope-estimate error) those the end-zone node builds from
         the estimate. An estimate outside the LiDAR's physical range gets none on the machine (the
-        attempt would not start); here the pile's own zones stand in ("pile, estimate out of range")."""
+        attempt would not start); here the pile's own zones stand in ("pile, estimate out of range").
+        With zones_nominal_density the end-zone node's wedge at the config's nominal density is built
+        from the estimate (or, without zones_from_estimate, from the true slope), whatever the pile's
+        density and rocks ("wedge at nominal density")."""
         zones = self.sim.zones
+        alpha = self.sim.pile.alpha
+        if self.zones_nominal_density:
+            est = alpha + (math.radians(c_obs.slope_error_deg) if self.zones_from_estimate else 0.0)
+            try:
+                return zones_at_nominal_density(est, self.rho_nominal, self.p), "wedge at nominal density"
+            except ValueError:
+                return zones, "pile, estimate out of range"
         if not self.zones_from_estimate or c_obs.slope_error_deg == 0.0:
             return zones, "pile"
-        alpha = self.sim.pile.alpha
         try:
             return zones_for_slope_estimate(zones, alpha, alpha + math.radians(c_obs.slope_error_deg), self.p), \
                 "estimate"

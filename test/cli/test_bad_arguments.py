@@ -34,6 +34,8 @@ LHD = [sys.executable, "-m", "lhd_loading_ros.cli.main"]
      "--material, --time-limit apply to --controller tampier only"),
     (["eval", "--policy", "policies/rld", "--stress", "dense", "--randomize"],
      "--randomize and --stress are alternatives"),
+    (["eval", "--policy", "policies/rld", "--zones", "lidar"],
+     "argument --zones: invalid choice: 'lidar' (choose from 'pile', 'end-zone-node')"),
     # a misspelled twin parameter: ROS would drop an undeclared -p override silently (a plane pile
     # where a rough one was asked for, found by a reviewer on 2026-11-28)
     (["up", "sim", "--slope", "nan"], "--slope nan: not a finite number; expected slopes in degrees, e.g. 20"),

@@ -207,3 +207,21 @@ def test_a_stress_case_reaches_every_controller_on_the_same_piles(cfg):
     assert rows[0]["stress"] == "light" and nominal["stress"] is None        # the CSV says which
     with pytest.raises(ValueError, match="unknown stress case 'wet'"):
         ex.grid(("rld",), stress="wet")
+
+
+def test_the_end_zone_nodes_zones_reach_every_controller(cfg, params):
+    """`lhd experiment paper --zones end-zone-node`: every attempt is judged, and the heuristic steered,
+    by the end-zone node's wedge at the nominal density (1,880 kg/m^3), not the light pile's own end
+    zone: on a 20 deg pile x_max = sqrt(2 x 170 / (1880 x 0.4 x tan 20)) = 1.1148 m by hand, while
+    the light pile's own 170 kg lie about sqrt(1880 / 1550) = 1.10 times farther."""
+    jobs = ex.grid(("tampier", "teacher"), (20.0,), ("homogeneous",), (), episodes=1, seed=3_000_000, stress="light")
+    ex._setup(None, {}, "end-zone-node")
+    node = [ex.run_job(j) for j in jobs]
+    ex._setup(None, {}, "pile")
+    own = [ex.run_job(j) for j in jobs]
+    for n, o in zip(node, own):
+        assert n["zones_from"] == "wedge at nominal density" and o["zones_from"] == "pile"
+        assert n["x_max"] == pytest.approx(1.1148, abs=5e-4)
+        assert o["x_max"] == pytest.approx(1.1148 * math.sqrt(1880.0 / o["pile_density"]), abs=0.02)
+    with pytest.raises(ValueError, match="zones 'lidar': expected one of pile, end-zone-node"):
+        ex.run(jobs, 1, zones="lidar")

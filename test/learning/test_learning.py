@@ -538,3 +538,26 @@ def test_the_cards_drawn_conditions_are_the_files_ranges():
                  "30 % of the attempts from rest", "relief sd up to 3 cm"):
         assert part in text, (part, text)
     assert "boom and bucket" not in text                 # its gains at 1: not drawn
+
+
+def test_lhd_eval_zones_of_the_end_zone_node(cfg):
+    """`lhd eval --zones end-zone-node`: the figures of the environment whose zones are the end-zone node's
+    wedge at the nominal density, computed in this process; on light gravel that end zone lies nearer than
+    the pile's own 170 kg, so the shipped actor stops with less than with the pile's zones."""
+    import subprocess
+    import sys
+
+    from lhd_loading_ros.learning.evaluate import evaluate
+    from lhd_loading_ros.policy.actor_file import load_policy
+    from lhd_sim_node.env import LhdLoadingEnv
+
+    cmd = [sys.executable, "-m", "lhd_loading_ros.cli.main", "eval", "--policy", "policies/rld", "--stress", "light",
+           "--episodes", "8", "--json"]
+    res = {z: json.loads(subprocess.run(cmd + ["--zones", z], capture_output=True, text=True, timeout=300,
+                                        check=True).stdout) for z in ("pile", "end-zone-node")}
+    assert res["end-zone-node"]["zones"] == "end-zone-node" and res["pile"]["zones"] == "pile"
+    pol = load_policy("policies/rld")
+    env = LhdLoadingEnv("rld", cfg, zones_from_estimate=True, zones_nominal_density=True)
+    mine = evaluate(env, pol.actor, 8, 2_000_000, cfg["task"]["bucket_capacity"], stress="light")
+    assert res["end-zone-node"]["aml"] == pytest.approx(mine["aml"], rel=1e-9)
+    assert res["end-zone-node"]["aml"] < res["pile"]["aml"] - 1.0

@@ -67,3 +67,28 @@ def test_an_estimate_the_end_zone_node_refuses_is_refused(params, est_deg):
     with pytest.raises(ValueError, match="outside the LiDAR's physical range"):
         zones_for_slope_estimate(true, r(15), r(est_deg), params)
     assert ESTIMATE_SLOPE_RANGE_DEG == (5.0, 50.0)
+
+
+def test_the_end_zone_nodes_zones_at_the_nominal_density_by_hand(params):
+    """zones_at_nominal_density: what the end-zone node publishes for an estimate, whatever the pile.
+    By hand at 20 deg and 1,880 kg/m^3: x_max = sqrt(2 x 170 / (1880 x 0.4 x tan 20)) = 1.1148 m,
+    x_min = sqrt(2 x 65 / (1880 x 0.4 x tan 20)) = 0.6893 m, the cut at 0.68 / tan 20 - 0.1 = 1.7683 m;
+    at 1,550 kg/m^3 (a light pile's density, which the node does not know) x_max would be
+    1.1148 x sqrt(1880 / 1550) = 1.2277 m."""
+    from lhd_loading_ros.task.zones import zones_at_nominal_density
+
+    z = zones_at_nominal_density(r(20), RHO, params)
+    assert z.x_max == pytest.approx(1.1148, abs=5e-4) and z.x_min == pytest.approx(0.6893, abs=5e-4)
+    assert z.x_cutoff == pytest.approx(1.7683, abs=5e-4)
+    assert z == Zones.for_measured_pile(r(20), 0.0, RHO, params)
+    light = zones_at_nominal_density(r(20), 1550.0, params)
+    assert light.x_max == pytest.approx(1.2277, abs=5e-4)
+    assert light.x_max / z.x_max == pytest.approx(math.sqrt(RHO / 1550.0), rel=1e-12)
+
+
+@pytest.mark.parametrize("est_deg", [4.9, 50.1, float("nan")])
+def test_the_nominal_density_zones_refuse_what_the_lidar_node_refuses(params, est_deg):
+    from lhd_loading_ros.task.zones import zones_at_nominal_density
+
+    with pytest.raises(ValueError, match="outside the LiDAR's physical range"):
+        zones_at_nominal_density(r(est_deg), RHO, params)

@@ -217,10 +217,10 @@ def _eval(args) -> int:
         return 1
     deploy = args.deploy_filter
     env = LhdLoadingEnv(pol.variant, cfg, deploy_filter=deploy, randomize=args.randomize or None,
-                        zones_from_estimate=True)
+                        zones_from_estimate=True, zones_nominal_density=args.zones == "end-zone-node")
     res = evaluate(env, pol.actor, args.episodes, args.seed, cfg["task"]["bucket_capacity"], stress=args.stress)
     res.update({"policy": str(args.policy), "variant": pol.variant, "seed": args.seed, "deploy_filter": deploy,
-                "randomize": env.randomize, "stress": args.stress})
+                "randomize": env.randomize, "stress": args.stress, "zones": args.zones})
     if args.json:
         print(json_out.dumps(res))
     else:
@@ -236,7 +236,8 @@ def format_eval(res: dict) -> str:
         return (f"{name:>16} {r['episodes']:>8} {r['success_rate']:>8.2f} {r['asl']:>5.2f} {r['aml']:>7.1f} "
                 f"{r['aff']:>5.2f} {r['ar']:>8.1f} {r['elapsed_s']:>6.2f} {r['front_drift_pct']:>7.1f} {r['rear_drift_pct']:>6.1f} "
                 f"{r.get('max_tilt_deg', float('nan')):>8.2f} {r.get('tilt_over_5deg_rate', float('nan')):>6.2f}")
-    dr = (", domain randomisation" if res.get("randomize") else "") + (f", stress {res['stress']}" if res.get("stress") else "")
+    dr = ((", domain randomisation" if res.get("randomize") else "") + (f", stress {res['stress']}" if res.get("stress") else "")
+          + (f", the {res['zones']}'s zones" if res.get("zones", "pile") != "pile" else ""))
     lines = [f"policy {res['policy']} ({res['variant'].upper()}), evaluation seed {res['seed']}{dr}", head, row("all", res)]
     lines += [row(f"{k} deg", v) for k, v in res.get("by_slope", {}).items()]
     lines += [row(k, v) for k, v in res.get("by_material", {}).items()]
@@ -268,7 +269,7 @@ def _experiment(args) -> int:
     policy_dirs = {k: v for k, v in (("rld", args.rld), ("rlc", args.rlc)) if v}
     try:
         res = ex.paper(args.out, args.episodes, ctls, _floats(args.slopes, "slopes"), mats, _floats(args.errors, "errors"),
-                       args.jobs, args.seed, args.config, policy_dirs, stress=args.stress)
+                       args.jobs, args.seed, args.config, policy_dirs, stress=args.stress, zones=args.zones)
     except ValueError as exc:
         print(f"lhd experiment paper: {exc}", file=sys.stderr)
         return 2
@@ -320,7 +321,7 @@ def _report(args) -> int:
             for k, v in groups.items():
                 summaries[k]["held_out"] = held_out(v, conds, args.episodes, args.config,
                                                     log=None if args.json else print,
-                                                    jobs=args.jobs or usable_cores())
+                                                    jobs=args.jobs or usable_cores(), zones=args.zones)
     except (FileNotFoundError, ValueError) as exc:
         print(f"lhd report: {exc}", file=sys.stderr)
         return 1
@@ -411,7 +412,14 @@ def main(argv=None) -> int:
 
 def _main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    from lhd_loading_ros.task.randomization import STRESS_CASES   # names only (numpy, no simulator)
+    from lhd_loading_ros.learning.evaluate import ZONES as EVAL_ZONES   # names only (numpy, no simulator)
+    from lhd_loading_ros.task.randomization import STRESS_CASES
+
+    ZONES_HELP = ("where the zones (d_end, the end zone and the restricted zone that end an attempt) come from: pile "
+                  "(default): the simulated pile's own, with its density and rocks, moved by a slope-estimate error, as "
+                  "the sim node publishes them; end-zone-node: the end-zone node's wedge at the told slope and the "
+                  "config's nominal bulk density, blind to the pile's own density and rocks, as on the machine and in "
+                  "the twin (docs/end_zone.md)")
 
     ap = argparse.ArgumentParser(prog="lhd", description="LHD loading: simulator, training and ROS tools")
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -507,6 +515,7 @@ def _main(argv=None) -> int:
     p_eval.add_argument("--randomize", action="store_true",
                         help="actor: every episode under drawn conditions (config section randomization): how the "
                              "actor fares when the machine differs from the simulator")
+    p_eval.add_argument("--zones", choices=list(EVAL_ZONES), default="pile", help=ZONES_HELP)
     p_eval.add_argument("--config", default=None)
     p_eval.add_argument("--json", action="store_true")
     p_exp = sub.add_parser("experiment", help="the paper's experiments in simulation")
@@ -527,6 +536,7 @@ def _main(argv=None) -> int:
                          help="every attempt of every controller under a named stress case of lhd eval --stress "
                               "(light: dry, loose gravel, the density the bucket's 30 kg rating implies); the "
                               "controllers meet the same piles and conditions; sensor noise reaches the RL actors only")
+    p_paper.add_argument("--zones", choices=list(EVAL_ZONES), default="pile", help=ZONES_HELP)
     p_paper.add_argument("--config", default=None)
     p_paper.add_argument("--json", action="store_true")
     p_report = sub.add_parser("report", help="aggregate training runs across seeds")
@@ -537,6 +547,7 @@ def _main(argv=None) -> int:
                           help="also evaluate each run's final actor on the held-out piles (seed 2,000,000) under these "
                                "comma-separated conditions: nominal, randomized, " + ", ".join(STRESS_CASES))
     p_report.add_argument("--episodes", type=int, default=120, help="--held-out: episodes per actor and condition")
+    p_report.add_argument("--zones", choices=list(EVAL_ZONES), default="pile", help="--held-out: " + ZONES_HELP)
     p_report.add_argument("--config", default=None, help="--held-out: parameter file (default config/lhd_params.yaml)")
     p_report.add_argument("--jobs", type=int, default=0,
                           help="--held-out: processes (default 0: one per core); the figures do not depend on it")

@@ -64,14 +64,27 @@ def evaluate(env, policy: Callable[[np.ndarray], np.ndarray], episodes: int, see
 
 
 CONDITIONS = ("nominal", "randomized")   # and the stress cases of task.randomization
+# Where an evaluated attempt's zones come from (`--zones` of lhd eval, lhd report --held-out, lhd experiment
+# paper). "pile": the simulated pile's own (its density and rocks in them), moved by a slope-estimate error, as
+# the sim node publishes them and as every figure before 2026-11-29 (tenth session) was measured; "end-zone-node":
+# the end-zone node's wedge at the told slope and the config's nominal bulk density, blind to the pile's own
+# density and rocks, as on the machine and in the twin (task/zones.zones_at_nominal_density).
+ZONES = ("pile", "end-zone-node")
+
+
+def zones_nominal_density(zones: str) -> bool:
+    """The environment's zones_nominal_density for a name of ZONES; ValueError naming the choices."""
+    if zones not in ZONES:
+        raise ValueError(f"zones {zones!r}: expected one of {', '.join(ZONES)}")
+    return zones == "end-zone-node"
 
 
 def evaluate_under(condition: str, variant: str, actor, cfg: dict, episodes: int, seed: int,
-                   breakdown: bool = False) -> dict:
+                   breakdown: bool = False, zones: str = "pile") -> dict:
     """`evaluate` of an actor under a named condition, as the policy node runs it (RLC with the
     deployment filter): "nominal", "randomized" (the config's domain randomisation drawn per
-    episode) or a stress case of task.randomization.stress_conditions. Used by `lhd report
-    --held-out` and `lhd ship`."""
+    episode) or a stress case of task.randomization.stress_conditions, with the zones of `zones`
+    (ZONES). Used by `lhd report --held-out` and `lhd ship`."""
     from lhd_sim_node.env import LhdLoadingEnv   # the simulator only where it runs
 
     from lhd_loading_ros.task.randomization import STRESS_CASES
@@ -80,6 +93,6 @@ def evaluate_under(condition: str, variant: str, actor, cfg: dict, episodes: int
         raise ValueError(f"unknown condition {condition!r}; expected nominal, randomized or one of "
                          f"{', '.join(STRESS_CASES)}")
     env = LhdLoadingEnv(variant, cfg, deploy_filter=(variant == "rlc"), randomize=(condition == "randomized"),
-                        zones_from_estimate=True)
+                        zones_from_estimate=True, zones_nominal_density=zones_nominal_density(zones))
     return evaluate(env, actor, episodes, seed, cfg["task"]["bucket_capacity"], breakdown=breakdown,
                     stress=None if condition in CONDITIONS else condition)

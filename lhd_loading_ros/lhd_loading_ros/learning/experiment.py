@@ -52,6 +52,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lhd_loading_ros.learning.evaluate import zones_nominal_density
 from lhd_loading_ros.task import json_out
 from lhd_loading_ros.task.cores import usable_cores
 
@@ -114,9 +115,9 @@ def grid(controllers=CONTROLLERS, slopes=SLOPES, materials=MATERIALS, errors=ERR
 _WORKER: dict = {}
 
 
-def _setup(config, policy_dirs: dict) -> None:
+def _setup(config, policy_dirs: dict, zones: str = "pile") -> None:
     _WORKER.clear()
-    _WORKER.update(config=config, policy_dirs=dict(policy_dirs))
+    _WORKER.update(config=config, policy_dirs=dict(policy_dirs), zones=zones)
 
 
 def _env(variant: str, deploy_filter: bool = False):
@@ -127,7 +128,8 @@ def _env(variant: str, deploy_filter: bool = False):
     if key not in _WORKER:
         cfg = _WORKER.get("config")
         cfg = cfg if isinstance(cfg, dict) else load_config(cfg)
-        _WORKER[key] = LhdLoadingEnv(variant, cfg, deploy_filter=deploy_filter, zones_from_estimate=True)
+        _WORKER[key] = LhdLoadingEnv(variant, cfg, deploy_filter=deploy_filter, zones_from_estimate=True,
+                                     zones_nominal_density=zones_nominal_density(_WORKER.get("zones", "pile")))
     return _WORKER[key]
 
 
@@ -214,7 +216,8 @@ def run_job(job: Job) -> dict:
            "reached_end_zone": bool(r.reached_end_zone), "failed": bool(r.failed), "timeout": bool(r.truncated),
            "loaded_kg": float(r.loaded), "elapsed_s": float(r.elapsed_s), "front_drift_pct": float(r.front_drift_pct),
            "rear_drift_pct": float(r.rear_drift_pct), "phi_final_deg": math.degrees(r.phi_final),
-           "pile_density": float(np.median(env.sim.pile.density))}   # the gravel's (rocks are a few voxels)
+           "pile_density": float(np.median(env.sim.pile.density)),   # the gravel's (rocks are a few voxels)
+           "x_max": float(env.zones.x_max), "zones_from": env.zones_from}   # the end zone the attempt was judged by
     row.pop("trace")
     if job.trace:
         row["path"] = path
@@ -223,10 +226,13 @@ def run_job(job: Job) -> dict:
 
 
 # ------------------------------------------------------------------------------ the study
-def run(jobs: list[Job], jobs_n: int = 0, config=None, policy_dirs: dict | None = None, progress=sys.stderr) -> list[dict]:
-    """Run every attempt on a pool of `jobs_n` processes (0: the machine's cores); rows in job order."""
+def run(jobs: list[Job], jobs_n: int = 0, config=None, policy_dirs: dict | None = None, progress=sys.stderr,
+        zones: str = "pile") -> list[dict]:
+    """Run every attempt on a pool of `jobs_n` processes (0: the machine's cores); rows in job order.
+    zones: "pile" or "end-zone-node" (ZONES)."""
     import multiprocessing as mp
 
+    zones_nominal_density(zones)       # a wrong name before the pool
     from lhd_loading_ros.policy.actor_file import default_policy_dir
     dirs = {v: str(default_policy_dir(v)) for v in ("rld", "rlc")}
     dirs.update(policy_dirs or {})
@@ -259,12 +265,12 @@ def run(jobs: list[Job], jobs_n: int = 0, config=None, policy_dirs: dict | None 
             progress.flush()
 
     if n == 1:
-        _setup(config, dirs)
+        _setup(config, dirs, zones)
         for i, j in enumerate(jobs):
             rows[i] = run_job(j)
             tick(i + 1)
     else:
-        with mp.get_context("spawn").Pool(n, initializer=_setup, initargs=(config, dirs)) as pool:
+        with mp.get_context("spawn").Pool(n, initializer=_setup, initargs=(config, dirs, zones)) as pool:
             for done, (i, row) in enumerate(pool.imap_unordered(_indexed, list(enumerate(jobs)), chunksize=1), 1):
                 rows[i] = row
                 tick(done)
@@ -542,14 +548,14 @@ def figures(rows: list[dict], err_summary: list[dict], out: Path) -> list[str]:
 
 def paper(out: str | os.PathLike, episodes: int = 10, controllers=CONTROLLERS, slopes=SLOPES, materials=MATERIALS,
           errors=ERRORS, jobs_n: int = 0, seed: int = 3_000_000, config=None, policy_dirs: dict | None = None,
-          progress=sys.stderr, stress: str | None = None) -> dict:
+          progress=sys.stderr, stress: str | None = None, zones: str = "pile") -> dict:
     out = Path(out)
     created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)      # first: a folder that cannot be made is said before the run
     t0 = time.monotonic()
     try:
         jobs = grid(controllers, slopes, materials, errors, ERROR_PILES, episodes, seed, stress)
-        rows = run(jobs, jobs_n, config, policy_dirs, progress)
+        rows = run(jobs, jobs_n, config, policy_dirs, progress, zones)
     except BaseException:
         if created and not any(out.iterdir()):
             out.rmdir()          # a refused or interrupted run leaves no empty folder behind
@@ -574,12 +580,16 @@ def paper(out: str | os.PathLike, episodes: int = 10, controllers=CONTROLLERS, s
     figs = figures(rows, err, out)
     summary = {"attempts": len(rows), "episodes_per_cell": episodes, "controllers": list(controllers),
                "slopes_deg": list(slopes), "materials": list(materials), "errors_deg": list(errors),
-               "time_limit_s": TIME_LIMIT_S, "seed": seed, "stress": stress, "wall_s": time.monotonic() - t0,
+               "time_limit_s": TIME_LIMIT_S, "seed": seed, "stress": stress, "zones": zones,
+               "wall_s": time.monotonic() - t0,
                "jobs": jobs_n or usable_cores(), "figures": figs, "controllers_table": ctl, "slope_error_table": err,
                "paired_table": paired}
     (out / "summary.json").write_text(json_out.dumps(summary, indent=1))
     head = "" if stress is None else (f"Every attempt under the stress case `{stress}` (physical conditions on every "
                                       f"controller, sensor noise on the RL actors only).\n\n")
+    if zones != "pile":
+        head += ("The zones are the end-zone node's: a wedge at the told slope and the nominal bulk density, blind to "
+                 "each pile's own density and rocks, as on the machine.\n\n")
     summary["markdown"] = (head + md_c + ("\n### RLD against the other controllers on the same piles\n\n" + md_p if md_p else "")
                            + ("\n### Slope error (homogeneous piles, all attempts)\n\n" + md_e if md_e else ""))
     return summary

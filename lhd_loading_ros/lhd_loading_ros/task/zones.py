@@ -147,6 +147,21 @@ def zones_for_slope_estimate(zones: Zones, alpha_true: float, alpha_est: float, 
                  y_half=zones.y_half, z_top=zones.z_top)
 
 
+def zones_at_nominal_density(alpha_est: float, density: float, p) -> Zones:
+    """The zones the end-zone node publishes for a LiDAR estimate alpha_est of a pile whose toe is
+    at the pile frame's origin, with the nominal bulk density `density` (task/end_zone.nominal_density:
+    the node knows no other): `Zones.for_measured_pile(alpha_est, 0, density, p)`. Unlike
+    zones_for_slope_estimate, nothing of the pile in front of the machine reaches them: not its
+    density, not its rocks, not its voxels, as on the machine. An estimate outside
+    ESTIMATE_SLOPE_RANGE_DEG: ValueError (the end-zone node publishes no zones for it)."""
+    lo, hi = (math.radians(a) for a in ESTIMATE_SLOPE_RANGE_DEG)
+    if not (math.isfinite(alpha_est) and lo <= alpha_est <= hi):
+        raise ValueError(f"slope estimate {math.degrees(alpha_est) if math.isfinite(alpha_est) else alpha_est!r} deg "
+                         f"outside the LiDAR's physical range [{ESTIMATE_SLOPE_RANGE_DEG[0]:g}, "
+                         f"{ESTIMATE_SLOPE_RANGE_DEG[1]:g}] deg: the end-zone node publishes no zones for it")
+    return Zones.for_measured_pile(alpha_est, 0.0, density, p)
+
+
 def derived_normalisers(cfg: dict) -> tuple[float, float]:
     """(d_end_max, x_obs) derived from the pile family instead of the paper's table (config
     task.normalisers_from_pile; docs/modeling.md "Normalisers from the pile geometry").
