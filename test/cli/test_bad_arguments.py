@@ -34,6 +34,8 @@ LHD = [sys.executable, "-m", "lhd_loading_ros.cli.main"]
      "--material, --time-limit apply to --controller tampier only"),
     (["eval", "--policy", "policies/rld", "--stress", "dense", "--randomize"],
      "--randomize and --stress are alternatives"),
+    (["eval", "--controller", "tampier", "--zones", "end-zone-node"],
+     "--randomize, --stress, --deploy-filter and --zones apply to --controller actor only"),
     (["eval", "--policy", "policies/rld", "--zones", "lidar"],
      "argument --zones: invalid choice: 'lidar' (choose from 'pile', 'end-zone-node')"),
     # a misspelled twin parameter: ROS would drop an undeclared -p override silently (a plane pile

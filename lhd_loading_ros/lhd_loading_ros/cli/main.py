@@ -182,9 +182,10 @@ def _eval(args) -> int:
     if args.controller == "tampier":
         from lhd_loading_ros.learning.baselines import run_cli
 
-        if args.randomize or args.stress or args.deploy_filter:
-            print("lhd eval: --randomize, --stress and --deploy-filter apply to --controller actor only",
-                  file=sys.stderr)
+        if args.randomize or args.stress or args.deploy_filter or args.zones != "pile":
+            print("lhd eval: --randomize, --stress, --deploy-filter and --zones apply to --controller actor only "
+                  "(lhd experiment paper --controllers tampier --zones end-zone-node runs the heuristic with the "
+                  "end-zone node's zones)", file=sys.stderr)
             return 2
         return run_cli(args.episodes, args.seed, args.slopes or "15,20,25,30", args.material or "both",
                        10.0 if args.time_limit is None else args.time_limit, args.config, args.tampier_config,
