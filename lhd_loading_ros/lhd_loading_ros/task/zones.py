@@ -120,6 +120,15 @@ def wedge_x_at_mass(m: float, alpha: float, density: float, w: float, h: float) 
 ESTIMATE_SLOPE_RANGE_DEG = (5.0, 50.0)
 
 
+def _check_estimate(alpha_est: float) -> None:
+    """ValueError for a slope estimate outside ESTIMATE_SLOPE_RANGE_DEG (the end-zone node publishes no zones)."""
+    lo, hi = (math.radians(a) for a in ESTIMATE_SLOPE_RANGE_DEG)
+    if not (math.isfinite(alpha_est) and lo <= alpha_est <= hi):
+        raise ValueError(f"slope estimate {math.degrees(alpha_est) if math.isfinite(alpha_est) else alpha_est!r} deg "
+                         f"outside the LiDAR's physical range [{ESTIMATE_SLOPE_RANGE_DEG[0]:g}, "
+                         f"{ESTIMATE_SLOPE_RANGE_DEG[1]:g}] deg: the end-zone node publishes no zones for it")
+
+
 def zones_for_slope_estimate(zones: Zones, alpha_true: float, alpha_est: float, p) -> Zones:
     """The zones the machine works with when the LiDAR estimates the face at alpha_est while it
     rises at alpha_true: the end-zone node builds them from the estimate with the wedge of
@@ -131,11 +140,7 @@ def zones_for_slope_estimate(zones: Zones, alpha_true: float, alpha_est: float, 
     L_est - d_cutoff, as the end-zone node puts it. The observation zone, y_half, z_min and z_top
     do not depend on the slope. An estimate outside ESTIMATE_SLOPE_RANGE_DEG: ValueError (the end-zone
     node publishes nothing for it)."""
-    lo, hi = (math.radians(a) for a in ESTIMATE_SLOPE_RANGE_DEG)
-    if not (math.isfinite(alpha_est) and lo <= alpha_est <= hi):
-        raise ValueError(f"slope estimate {math.degrees(alpha_est) if math.isfinite(alpha_est) else alpha_est!r} deg "
-                         f"outside the LiDAR's physical range [{ESTIMATE_SLOPE_RANGE_DEG[0]:g}, "
-                         f"{ESTIMATE_SLOPE_RANGE_DEG[1]:g}] deg: the end-zone node publishes no zones for it")
+    _check_estimate(alpha_est)
     if not (math.isfinite(alpha_true) and 0.0 < alpha_true < math.pi / 2):
         raise ValueError(f"pile slope {alpha_true!r} rad: expected a finite angle in (0, pi/2)")
     if alpha_est == alpha_true:
@@ -154,11 +159,7 @@ def zones_at_nominal_density(alpha_est: float, density: float, p) -> Zones:
     zones_for_slope_estimate, nothing of the pile in front of the machine reaches them: not its
     density, not its rocks, not its voxels, as on the machine. An estimate outside
     ESTIMATE_SLOPE_RANGE_DEG: ValueError (the end-zone node publishes no zones for it)."""
-    lo, hi = (math.radians(a) for a in ESTIMATE_SLOPE_RANGE_DEG)
-    if not (math.isfinite(alpha_est) and lo <= alpha_est <= hi):
-        raise ValueError(f"slope estimate {math.degrees(alpha_est) if math.isfinite(alpha_est) else alpha_est!r} deg "
-                         f"outside the LiDAR's physical range [{ESTIMATE_SLOPE_RANGE_DEG[0]:g}, "
-                         f"{ESTIMATE_SLOPE_RANGE_DEG[1]:g}] deg: the end-zone node publishes no zones for it")
+    _check_estimate(alpha_est)
     return Zones.for_measured_pile(alpha_est, 0.0, density, p)
 
 
