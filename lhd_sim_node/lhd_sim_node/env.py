@@ -31,8 +31,8 @@ from lhd_loading_ros.task.metrics import EpisodeResult, drift_pct, success_level
 from lhd_loading_ros.task.observation import OBS_HIGH, OBS_LOW, build_observation
 from lhd_loading_ros.task.randomization import NOMINAL, Conditions, ObservationCorruptor, RandomizationRanges, draw
 from lhd_loading_ros.task.reward import RewardTracker
-from lhd_loading_ros.task.end_zone import nominal_density
-from lhd_loading_ros.task.zones import classify, zones_at_nominal_density, zones_for_slope_estimate
+from lhd_loading_ros.task.end_zone import nominal_density, zones_at_nominal_density
+from lhd_loading_ros.task.zones import classify, zones_for_slope_estimate
 
 from .simulator import MATERIALS, AttackError, LhdSimulator, SimulationError
 
@@ -63,9 +63,12 @@ class LhdLoadingEnv(gym.Env):
         self.zones_from_estimate = (self.ranges.zones_from_slope_estimate if zones_from_estimate is None
                                     else bool(zones_from_estimate))
         # the zones as the end-zone node builds them: a wedge at the nominal bulk density, blind to the
-        # pile's own density and rocks (task/zones.zones_at_nominal_density)
-        self.zones_nominal_density = (self.ranges.zones_at_nominal_density if zones_nominal_density is None
-                                      else bool(zones_nominal_density))
+        # pile's own density and rocks (task/end_zone.zones_at_nominal_density). From the config like every
+        # key of the randomisation section: only where the section is on (the config hash has the key then
+        # only), so that a parameter file shipped with the section off (and the sim node, which publishes
+        # the pile's own zones) judges by the pile's zones whatever the key says
+        self.zones_nominal_density = ((self.ranges.enabled and self.ranges.zones_at_nominal_density)
+                                      if zones_nominal_density is None else bool(zones_nominal_density))
         self.rho_nominal = nominal_density(self.cfg)
         self.zones = None
         self.zones_from = "pile"

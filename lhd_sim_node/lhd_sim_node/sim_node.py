@@ -140,7 +140,9 @@ class SimNode(Node):
         self.config_hash = config_hash(cfg)
         ns = topic_prefix(self, gp("namespace_prefix"))
 
-        self.env = LhdLoadingEnv("rld", cfg)   # stepped with actuator commands: the variant is not used
+        # stepped with actuator commands (the variant is not used); judged by the pile's own zones, the ones it
+        # publishes (the truth, as the topic contract says), whatever randomization.zones_at_nominal_density says
+        self.env = LhdLoadingEnv("rld", cfg, zones_nominal_density=False)
         self.sim = self.env.sim
         self.dt = self.env.p.control_dt
         self.dt_ns = int(round(self.dt * 1e9))

@@ -36,6 +36,7 @@ LHD = [sys.executable, "-m", "lhd_loading_ros.cli.main"]
      "--randomize and --stress are alternatives"),
     (["eval", "--controller", "tampier", "--zones", "end-zone-node"],
      "--randomize, --stress, --deploy-filter and --zones apply to --controller actor only"),
+    (["report", "policies", "--zones", "end-zone-node"], "--zones end-zone-node applies to --held-out only"),
     (["eval", "--policy", "policies/rld", "--zones", "lidar"],
      "argument --zones: invalid choice: 'lidar' (choose from 'pile', 'end-zone-node')"),
     # a misspelled twin parameter: ROS would drop an undeclared -p override silently (a plane pile

@@ -388,6 +388,14 @@ def test_ship_picks_a_seed_and_writes_the_model_card(cfg, tmp_path):
         assert np.mean([v["values"][i] for v in sb.values()]) == pytest.approx(overall)
     with pytest.raises(ValueError, match="unknown condition 'windy'"):
         held_out(runs, ("windy",), 4, str(cfg_path))
+    # --zones end-zone-node reaches the worker processes: the figures of the environment with the node's zones
+    h3 = held_out(runs, ("light",), 4, str(cfg_path), jobs=2, zones="end-zone-node")
+    by_hand3 = evaluate(LhdLoadingEnv("rlc", cfg, deploy_filter=True, zones_from_estimate=True, zones_nominal_density=True),
+                        load_policy(runs[1] / "final").actor, 4, 2_000_000, cfg["task"]["bucket_capacity"],
+                        breakdown=False, stress="light")
+    assert h3["zones"] == "end-zone-node" and h3["conditions"]["light"]["aml"]["values"][1] == pytest.approx(by_hand3["aml"])
+    with pytest.raises(ValueError, match="zones 'lidar'"):
+        held_out(runs, ("light",), 4, str(cfg_path), zones="lidar")
     # best-final: the best seed's FINAL actor; the card's tables on piles the choice never saw,
     # the same figures as an evaluation of that actor by hand on the confirmation seed
     res2 = ship("rlc", tmp_path / "runs", tmp_path / "policies" / "best", episodes=4, config=str(cfg_path),

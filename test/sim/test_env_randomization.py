@@ -590,10 +590,10 @@ def test_the_machine_stress_case_is_placement_from_rest_on_a_rough_pile(cfg):
 def test_the_end_zone_nodes_zones_do_not_know_the_piles_density(cfg):
     """zones_nominal_density: the zones are the end-zone node's wedge at the config's nominal density
     (1,880 kg/m^3), as on the machine, so a light pile (1,500 kg/m^3) and a dense one (2,200) get the
-    same end zone: on a 20 deg pile x_max = sqrt(2 x 170 / (1880 x 0.4 x tan 20)) = 1.1148 m by hand.
+    same end zone: on a 20 deg pile x_max = sqrt(2 x 170 / (1880 x 0.4 x tan 20)) = 1.114545 m by hand.
     The pile's own end zone follows its density (x ~ 1 / sqrt(rho)): farther on the light pile,
     nearer on the dense one. A slope error moves the node's zones to the estimate's wedge (15 deg
-    pile told 30 deg: x_max 0.8849 m by hand), and d_end is measured to them."""
+    pile told 30 deg: x_max 0.884934 m by hand), and d_end is measured to them."""
     from dataclasses import replace as _replace
 
     from lhd_loading_ros.task.randomization import SoilRanges
@@ -609,26 +609,34 @@ def test_the_end_zone_nodes_zones_do_not_know_the_piles_density(cfg):
         _, i_own = own.reset(seed=5, options=opts)
         assert float(np.median(node.sim.pile.density[node.sim.pile.density > 0])) == pytest.approx(rho, rel=0.01)
         assert i_node["zones_from"] == "wedge at nominal density" and i_own["zones_from"] == "pile"
-        assert i_node["x_max"] == pytest.approx(1.1148, abs=5e-4)
+        assert i_node["x_max"] == pytest.approx(1.114545, abs=2e-6)
         xs[rho] = i_own["x_max"]
     # the pile's own: where its own 170 kg lie (a voxel's grain, 2 cm, about the wedge's figure)
-    assert xs[1500.0] == pytest.approx(1.1148 * math.sqrt(1880 / 1500), abs=0.02)
-    assert xs[2200.0] == pytest.approx(1.1148 * math.sqrt(1880 / 2200), abs=0.02)
+    assert xs[1500.0] == pytest.approx(1.114545 * math.sqrt(1880 / 1500), abs=0.02)
+    assert xs[2200.0] == pytest.approx(1.114545 * math.sqrt(1880 / 2200), abs=0.02)
     told = Conditions(slope_error_deg=15.0)
     obs, info = node.reset(seed=5, options=dict(slope_deg=15.0, material="homogeneous", conditions=told))
-    assert info["x_max"] == pytest.approx(0.8849, abs=5e-4) and node.zones.x_cutoff == pytest.approx(
+    assert info["x_max"] == pytest.approx(0.884934, abs=2e-6) and node.zones.x_cutoff == pytest.approx(
         0.68 / math.tan(math.radians(30)) - 0.1)
-    assert obs[10] == pytest.approx(abs(node.state.x_shovel - 0.8849) / node.p.d_end_max, abs=1e-3)
+    assert obs[10] == pytest.approx(abs(node.state.x_shovel - 0.884934) / node.p.d_end_max, abs=1e-6)
 
 
 def test_the_nominal_density_zones_come_from_the_config_key(cfg):
-    """randomization.zones_at_nominal_density (0 / 1) sets the training environment's zones; 0 leaves
-    the config hash as it was, so actors trained before the key still load; 2 is refused."""
+    """randomization.zones_at_nominal_density (0 / 1) sets the training environment's zones where the
+    section is on, as the config hash has the key only then: with the section off (a shipped parameter
+    file, the sim node) the pile's own zones judge, whatever the key says. 0 leaves the config hash as it
+    was, so actors trained before the key still load; 2 is refused."""
     from lhd_loading_ros.task.config import ConfigError, config_hash, validate
 
-    on = {**cfg, "randomization": {**cfg["randomization"], "zones_at_nominal_density": 1}}
+    on = {**cfg, "randomization": {**cfg["randomization"], "zones_at_nominal_density": 1, "enabled": 1}}
     assert LhdLoadingEnv("rld", on).zones_nominal_density is True
     assert LhdLoadingEnv("rld", cfg).zones_nominal_density is False
+    off = {**cfg, "randomization": {**cfg["randomization"], "zones_at_nominal_density": 1, "enabled": 0}}
+    env = LhdLoadingEnv("rld", off)
+    assert env.zones_nominal_density is False and config_hash(off) == config_hash(cfg)
+    _, info = env.reset(seed=5, options=dict(slope_deg=20.0, material="homogeneous"))
+    assert info["zones_from"] == "pile" and info["x_max"] == env.sim.zones.x_max
+    assert LhdLoadingEnv("rld", off, zones_nominal_density=True).zones_nominal_density is True   # asked for
     rand = {**cfg, "randomization": {**cfg["randomization"], "enabled": 1}}
     rand0 = {**rand, "randomization": {**rand["randomization"], "zones_at_nominal_density": 0}}
     rand1 = {**rand, "randomization": {**rand["randomization"], "zones_at_nominal_density": 1}}

@@ -71,24 +71,32 @@ def test_an_estimate_the_end_zone_node_refuses_is_refused(params, est_deg):
 
 def test_the_end_zone_nodes_zones_at_the_nominal_density_by_hand(params):
     """zones_at_nominal_density: what the end-zone node publishes for an estimate, whatever the pile.
-    By hand at 20 deg and 1,880 kg/m^3: x_max = sqrt(2 x 170 / (1880 x 0.4 x tan 20)) = 1.1148 m,
-    x_min = sqrt(2 x 65 / (1880 x 0.4 x tan 20)) = 0.6893 m, the cut at 0.68 / tan 20 - 0.1 = 1.7683 m;
-    at 1,550 kg/m^3 (a light pile's density, which the node does not know) x_max would be
-    1.1148 x sqrt(1880 / 1550) = 1.2277 m."""
-    from lhd_loading_ros.task.zones import zones_at_nominal_density
+    By hand at 20 deg and 1,880 kg/m^3 (tan 20 deg = 0.363970): x_max = sqrt(2 x 170 / (1880 x 0.4 x
+    0.363970)) = sqrt(340 / 273.7056) = 1.114545 m, x_min = sqrt(130 / 273.7056) = 0.689175 m, the cut at
+    0.68 / 0.363970 - 0.1 = 1.768285 m; at 1,550 kg/m^3 (a light pile's density, which the node does not know) x_max would be 1.114545 x sqrt(1880 / 1550) = 1.227469 m.
+    The node's own function (end_zone.zones_of_pile, toe 0) gives the same zones."""
+    from lhd_loading_ros.task.end_zone import zones_at_nominal_density, zones_of_pile
 
     z = zones_at_nominal_density(r(20), RHO, params)
-    assert z.x_max == pytest.approx(1.1148, abs=5e-4) and z.x_min == pytest.approx(0.6893, abs=5e-4)
-    assert z.x_cutoff == pytest.approx(1.7683, abs=5e-4)
-    assert z == Zones.for_measured_pile(r(20), 0.0, RHO, params)
+    assert z.x_max == pytest.approx(1.114545, abs=2e-6) and z.x_min == pytest.approx(0.689175, abs=2e-6)
+    assert z.x_cutoff == pytest.approx(1.768285, abs=2e-6)
+    assert z == zones_of_pile(r(20), 0.0, RHO, params)
     light = zones_at_nominal_density(r(20), 1550.0, params)
-    assert light.x_max == pytest.approx(1.2277, abs=5e-4)
-    assert light.x_max / z.x_max == pytest.approx(math.sqrt(RHO / 1550.0), rel=1e-12)
+    assert light.x_max == pytest.approx(1.227469, abs=2e-6)
 
 
-@pytest.mark.parametrize("est_deg", [4.9, 50.1, float("nan")])
-def test_the_nominal_density_zones_refuse_what_the_lidar_node_refuses(params, est_deg):
-    from lhd_loading_ros.task.zones import zones_at_nominal_density
+@pytest.mark.parametrize("est_deg, needle", [(4.9, "outside the LiDAR's physical range"),
+                                             (50.1, "outside the LiDAR's physical range"),
+                                             (float("nan"), "outside the LiDAR's physical range"),
+                                             (46.0, "less than m_max")])
+def test_the_nominal_density_zones_refuse_what_the_end_zone_node_refuses(params, est_deg, needle):
+    """Where the node publishes nothing, neither does its counterpart: an estimate outside the LiDAR's
+    5-50 deg, and a wedge too steep to hold m_max at the nominal density: 1880 x 0.4 x 0.68^2 / (2 tan a)
+    >= 170 kg holds up to tan a = 1.02322, a = 45.64 deg by hand (the old capped zones put x_max behind the
+    cut there)."""
+    from lhd_loading_ros.task.end_zone import zones_at_nominal_density
 
-    with pytest.raises(ValueError, match="outside the LiDAR's physical range"):
+    with pytest.raises(ValueError, match=needle):
         zones_at_nominal_density(r(est_deg), RHO, params)
+    if est_deg == 46.0:
+        zones_at_nominal_density(r(45.6), RHO, params)      # just below the limit: published

@@ -2,7 +2,7 @@
 # The zones as the end-zone node builds them (a wedge at the told slope and the config's nominal density,
 # 1,880 kg/m^3) against the pile's own (its density and rocks in them), for the shipped actors under the
 # material stress cases (docs/training.md "The end zone the machine knows"). Run from the repository root:
-#   bash docs/evidence/nominal_density_zones/evaluate.sh      (about 6 min on 2 cores)
+#   bash docs/evidence/nominal_density_zones/evaluate.sh      (about 3 min on 2 cores)
 # 1. lhd eval, 120 held-out episodes (seed 2,000,000), each actor on its own parameter file, RLC with the
 #    deployment filter, --zones pile and --zones end-zone-node: <actor>.<condition>.<zones>.json, table.md;
 # 2. the slope-error sweep of the machine's RLD on light and dense gravel with the node's zones (lhd experiment

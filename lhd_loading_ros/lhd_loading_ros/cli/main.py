@@ -305,6 +305,10 @@ def _report(args) -> int:
     if args.jobs < 0:
         print(f"lhd report: --jobs must be >= 0 (0: one per core), got {args.jobs}", file=sys.stderr)
         return 2
+    if args.zones != "pile" and not args.held_out:
+        print(f"lhd report: --zones {args.zones} applies to --held-out only: the training curves were measured "
+              "by the training itself", file=sys.stderr)
+        return 2
     groups: dict[str, list] = {}
     for r in args.runs:
         p = Path(r)

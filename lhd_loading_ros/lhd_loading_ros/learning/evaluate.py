@@ -68,7 +68,7 @@ CONDITIONS = ("nominal", "randomized")   # and the stress cases of task.randomiz
 # paper). "pile": the simulated pile's own (its density and rocks in them), moved by a slope-estimate error, as
 # the sim node publishes them and as every figure before 2026-11-29 (ninth session) was measured; "end-zone-node":
 # the end-zone node's wedge at the told slope and the config's nominal bulk density, blind to the pile's own
-# density and rocks, as on the machine and in the twin (task/zones.zones_at_nominal_density).
+# density and rocks, as on the machine and in the twin (task/end_zone.zones_at_nominal_density).
 ZONES = ("pile", "end-zone-node")
 
 

@@ -215,10 +215,12 @@ def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=prin
     runs = sorted(d for d in Path(runs_dir).glob("seed_*") if (d / sub / "policy.json").is_file())
     if not runs:
         raise FileNotFoundError(f"{runs_dir} holds no finished seed (seed_*/{sub}/policy.json)")
-    env = LhdLoadingEnv(variant, cfg, zones_from_estimate=True)
+    # the pile's own zones, as evaluate_under's default and the card's `lhd eval` command (--zones pile)
+    env = LhdLoadingEnv(variant, cfg, zones_from_estimate=True, zones_nominal_density=False)
     # RLC is ranked as the policy node runs it, with the deployment filter (as `lhd report` evaluates
     # it): the raw actor and the filtered one can rank the seeds differently
-    env_deploy = LhdLoadingEnv(variant, cfg, deploy_filter=True, zones_from_estimate=True) if variant == "rlc" else None
+    env_deploy = (LhdLoadingEnv(variant, cfg, deploy_filter=True, zones_from_estimate=True, zones_nominal_density=False)
+                  if variant == "rlc" else None)
     cands = []
     for d in runs:
         pol = load_policy(d / sub).check_config(cfg)

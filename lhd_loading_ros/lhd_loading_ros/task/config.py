@@ -293,7 +293,7 @@ OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curric
                      # 0: every pile's surface a plane in training (before the key existed, 2026-11-29)
                      ("randomization", "surface_sd_max"): 0.0,
                      # 0: the zones of the pile in front of the machine (its own density and rocks); 1: the
-                     # end-zone node's wedge at the nominal density (task/zones.zones_at_nominal_density; 2026-11-29)
+                     # end-zone node's wedge at the nominal density (task/end_zone.zones_at_nominal_density; 2026-11-29)
                      ("randomization", "zones_at_nominal_density"): 0}
 ACTUATOR_GAIN_KEYS = ("drive_gain_min", "drive_gain_max", "hydraulic_gain_min", "hydraulic_gain_max")
 

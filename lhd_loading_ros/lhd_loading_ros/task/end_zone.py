@@ -21,7 +21,7 @@ from pathlib import Path
 import yaml
 
 from .pile import wedge_mass_until
-from .zones import Zones
+from .zones import Zones, check_slope_estimate
 
 TRACKED = ("x_min", "x_max", "x_cutoff")       # the limits the republish threshold watches
 DENSITY_RANGE = (500.0, 6000.0)                 # kg/m^3: broken ore (config pile.density_*) up to solid rock lumps
@@ -78,6 +78,18 @@ def zones_of_pile(alpha: float, toe_x: float, density: float, p) -> Zones:
                          f"at {density:g} kg/m^3 holds {held:.0f} kg, less than m_max = {p.m_max:g} kg: "
                          f"no end zone inside the pile (check the bulk density)")
     return Zones.for_measured_pile(alpha, toe_x, density, p)
+
+
+def zones_at_nominal_density(alpha_est: float, density: float, p) -> Zones:
+    """The zones the end-zone node publishes for a LiDAR estimate alpha_est (rad) of a pile whose toe is at
+    the pile frame's origin, with the nominal bulk density `density` (nominal_density: the node knows no
+    other): zones_of_pile(alpha_est, 0, density, p). Nothing of the pile in front of the machine reaches
+    them: not its density, not its rocks, not its voxels. ValueError where the node publishes nothing: an
+    estimate outside zones.ESTIMATE_SLOPE_RANGE_DEG, or a wedge at the estimate lighter than m_max (at
+    1,880 kg/m^3 steeper than about 45.6 deg). The simulator's counterpart of what the node does with a
+    slope (LhdLoadingEnv's zones_nominal_density)."""
+    check_slope_estimate(alpha_est)
+    return zones_of_pile(alpha_est, 0.0, density, p)
 
 
 def largest_change(a: Zones, b: Zones) -> float:

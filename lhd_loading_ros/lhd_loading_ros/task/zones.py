@@ -120,8 +120,11 @@ def wedge_x_at_mass(m: float, alpha: float, density: float, w: float, h: float) 
 ESTIMATE_SLOPE_RANGE_DEG = (5.0, 50.0)
 
 
-def _check_estimate(alpha_est: float) -> None:
-    """ValueError for a slope estimate outside ESTIMATE_SLOPE_RANGE_DEG (the end-zone node publishes no zones)."""
+def check_slope_estimate(alpha_est: float) -> None:
+    """ValueError for a slope estimate (rad) outside ESTIMATE_SLOPE_RANGE_DEG, where the end-zone node publishes
+    no zones. Compared in radians as it always was: a 15 deg pile told 5 deg (radians(15) + radians(-10), 1e-17
+    below radians(5)) counts as outside, so the starred told-5 deg cells of the slope-error tables keep the
+    pile's own zones, as in every committed table (the policy node refuses such a slope in any case)."""
     lo, hi = (math.radians(a) for a in ESTIMATE_SLOPE_RANGE_DEG)
     if not (math.isfinite(alpha_est) and lo <= alpha_est <= hi):
         raise ValueError(f"slope estimate {math.degrees(alpha_est) if math.isfinite(alpha_est) else alpha_est!r} deg "
@@ -140,7 +143,7 @@ def zones_for_slope_estimate(zones: Zones, alpha_true: float, alpha_est: float, 
     L_est - d_cutoff, as the end-zone node puts it. The observation zone, y_half, z_min and z_top
     do not depend on the slope. An estimate outside ESTIMATE_SLOPE_RANGE_DEG: ValueError (the end-zone
     node publishes nothing for it)."""
-    _check_estimate(alpha_est)
+    check_slope_estimate(alpha_est)
     if not (math.isfinite(alpha_true) and 0.0 < alpha_true < math.pi / 2):
         raise ValueError(f"pile slope {alpha_true!r} rad: expected a finite angle in (0, pi/2)")
     if alpha_est == alpha_true:
@@ -150,17 +153,6 @@ def zones_for_slope_estimate(zones: Zones, alpha_true: float, alpha_est: float, 
     return Zones(x_min=min(zones.x_min * k, L_est), x_max=min(zones.x_max * k, L_est), z_min=zones.z_min,
                  x_cutoff=L_est - p.d_cutoff, x_obs_start=zones.x_obs_start, x_obs_end=zones.x_obs_end,
                  y_half=zones.y_half, z_top=zones.z_top)
-
-
-def zones_at_nominal_density(alpha_est: float, density: float, p) -> Zones:
-    """The zones the end-zone node publishes for a LiDAR estimate alpha_est of a pile whose toe is
-    at the pile frame's origin, with the nominal bulk density `density` (task/end_zone.nominal_density:
-    the node knows no other): `Zones.for_measured_pile(alpha_est, 0, density, p)`. Unlike
-    zones_for_slope_estimate, nothing of the pile in front of the machine reaches them: not its
-    density, not its rocks, not its voxels, as on the machine. An estimate outside
-    ESTIMATE_SLOPE_RANGE_DEG: ValueError (the end-zone node publishes no zones for it)."""
-    _check_estimate(alpha_est)
-    return Zones.for_measured_pile(alpha_est, 0.0, density, p)
 
 
 def derived_normalisers(cfg: dict) -> tuple[float, float]:
