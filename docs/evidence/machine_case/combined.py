@@ -44,13 +44,16 @@ ap.add_argument("actors", nargs="*", help="actor directories (default: the shipp
 ap.add_argument("--config", help="parameter file for actors without their own (lhd_params.yaml beside them)")
 ap.add_argument("--seed", type=int, default=SEED, help=f"first episode seed (default the held-out {SEED:,})")
 ap.add_argument("--cases", default=",".join(CASES), help="comma-separated cases (default all)")
+ap.add_argument("--zones", choices=("pile", "end-zone-node"), default="pile",
+                help="the pile's own zones (default), or the end-zone node's at the nominal density, as on the machine")
 args = ap.parse_args()
 SEED = args.seed
 CASES = tuple(c.strip() for c in args.cases.split(","))
 assert all(c in ("none", "dense", "light", "slow_drive", "slow_hydraulics", "cohesive", "slope_high_3", "slope_low_3")
            for c in CASES), CASES
 dirs = [Path(a) for a in args.actors] or [Path("policies") / a for a in ACTORS]
-print(f"machine case + one more departure, {EPISODES} held-out episodes (seed {SEED}); success (15/20/25/30 deg) AML")
+print(f"machine case + one more departure, {EPISODES} held-out episodes (seed {SEED})"
+      + (", the end-zone node's zones" if args.zones != "pile" else "") + "; success (15/20/25/30 deg) AML")
 print("| actor | " + " | ".join(f"machine + {c}" if c != "none" else "machine" for c in CASES) + " |")
 print("|---" * (len(CASES) + 1) + "|")
 for d in dirs:
@@ -59,7 +62,7 @@ for d in dirs:
     cfg = load_config(own_config(d) or args.config)
     pol.check_config(cfg)
     env = LhdLoadingEnv(pol.variant, cfg, deploy_filter=(pol.variant == "rlc"), randomize=False,
-                        zones_from_estimate=True)
+                        zones_from_estimate=True, zones_nominal_density=args.zones == "end-zone-node")
     cells = []
     for c in CASES:
         rs = []
