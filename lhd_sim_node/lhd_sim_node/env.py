@@ -13,6 +13,9 @@ and a rough face's scanned slice) also moves the zones when zones_from_estimate 
 config's randomization.zones_from_slope_estimate): on the machine the end-zone node builds them from
 the LiDAR's slope, so the observed d_end, the end zone and the restricted zone that end the episode
 (the supervisor's) are the estimate's (task/zones.zones_for_slope_estimate); the pile is the true one.
+zones_nominal_density (default: the config's randomization.zones_at_nominal_density, where the section is
+on) builds them as the end-zone node does, at the config's nominal bulk density, blind to the pile's own
+density and rocks (task/end_zone.zones_at_nominal_density).
 An episode ends with success (bucket tip in the end zone), failure (restricted zone), or
 truncation after max_steps (200) control steps, which is not a terminal state.
 """
@@ -63,10 +66,9 @@ class LhdLoadingEnv(gym.Env):
         self.zones_from_estimate = (self.ranges.zones_from_slope_estimate if zones_from_estimate is None
                                     else bool(zones_from_estimate))
         # the zones as the end-zone node builds them: a wedge at the nominal bulk density, blind to the
-        # pile's own density and rocks (task/end_zone.zones_at_nominal_density). From the config like every
-        # key of the randomisation section: only where the section is on (the config hash has the key then
-        # only), so that a parameter file shipped with the section off (and the sim node, which publishes
-        # the pile's own zones) judges by the pile's zones whatever the key says
+        # pile's own density and rocks (task/end_zone.zones_at_nominal_density). From the config only where
+        # the randomisation section is on (the config hash carries the key then only), so that a parameter
+        # file shipped with the section off judges by the pile's zones whatever the key says
         self.zones_nominal_density = ((self.ranges.enabled and self.ranges.zones_at_nominal_density)
                                       if zones_nominal_density is None else bool(zones_nominal_density))
         self.rho_nominal = nominal_density(self.cfg)
@@ -186,8 +188,8 @@ class LhdLoadingEnv(gym.Env):
             est = alpha + (math.radians(c_obs.slope_error_deg) if self.zones_from_estimate else 0.0)
             try:
                 return zones_at_nominal_density(est, self.rho_nominal, self.p), "wedge at nominal density"
-            except ValueError:
-                return zones, "pile, estimate out of range"
+            except ValueError:       # outside the LiDAR's range, or a wedge too steep to hold m_max
+                return zones, "pile, the end-zone node publishes none for the estimate"
         if not self.zones_from_estimate or c_obs.slope_error_deg == 0.0:
             return zones, "pile"
         try:

@@ -140,8 +140,9 @@ class SimNode(Node):
         self.config_hash = config_hash(cfg)
         ns = topic_prefix(self, gp("namespace_prefix"))
 
-        # stepped with actuator commands (the variant is not used); judged by the pile's own zones, the ones it
-        # publishes (the truth, as the topic contract says), whatever randomization.zones_at_nominal_density says
+        # stepped with actuator commands (the variant is not used). It publishes the pile's own zones (the truth, as
+        # the topic contract says), so the end-zone node's nominal-density zones are never its episodes' judge,
+        # whatever randomization.zones_at_nominal_density says (`lhd train --env ros` refuses the key)
         self.env = LhdLoadingEnv("rld", cfg, zones_nominal_density=False)
         self.sim = self.env.sim
         self.dt = self.env.p.control_dt

@@ -646,3 +646,18 @@ def test_the_nominal_density_zones_come_from_the_config_key(cfg):
     bad = {**cfg, "randomization": {**cfg["randomization"], "zones_at_nominal_density": 2}}
     with pytest.raises(ConfigError, match="zones_at_nominal_density"):
         validate(bad)
+
+
+def test_training_through_the_sim_nodes_refuses_the_end_zone_nodes_zones(cfg, tmp_path):
+    """The sim nodes judge and publish the pile's own zones: `lhd train --env ros` with
+    randomization.zones_at_nominal_density = 1 (and the section on) is refused before anything starts,
+    naming the key."""
+    import copy
+
+    from lhd_loading_ros.learning.train import train
+
+    c = copy.deepcopy(cfg)
+    c["randomization"].update(enabled=1, zones_at_nominal_density=1)
+    with pytest.raises(ValueError, match="zones_at_nominal_density = 1 .* needs the in-process environment"):
+        train("rld", 0, tmp_path, steps=10, config=c, resume=False, progress=False, env_kind="ros",
+              namespaces=["/sim0"])

@@ -15,7 +15,8 @@ from pathlib import Path
 
 from lhd_sim_node.env import LhdLoadingEnv
 
-from lhd_loading_ros.learning.evaluate import EVAL_SLOPES, episode_conditions, run_policy_episode
+from lhd_loading_ros.learning.evaluate import (EVAL_SLOPES, ZONES, episode_conditions, run_policy_episode,
+                                               zones_nominal_density)
 from lhd_loading_ros.policy.actor_file import load_policy, own_config
 from lhd_loading_ros.task.config import load_config
 from lhd_loading_ros.task.metrics import aggregate
@@ -44,7 +45,7 @@ ap.add_argument("actors", nargs="*", help="actor directories (default: the shipp
 ap.add_argument("--config", help="parameter file for actors without their own (lhd_params.yaml beside them)")
 ap.add_argument("--seed", type=int, default=SEED, help=f"first episode seed (default the held-out {SEED:,})")
 ap.add_argument("--cases", default=",".join(CASES), help="comma-separated cases (default all)")
-ap.add_argument("--zones", choices=("pile", "end-zone-node"), default="pile",
+ap.add_argument("--zones", choices=ZONES, default="pile",
                 help="the pile's own zones (default), or the end-zone node's at the nominal density, as on the machine")
 args = ap.parse_args()
 SEED = args.seed
@@ -62,7 +63,7 @@ for d in dirs:
     cfg = load_config(own_config(d) or args.config)
     pol.check_config(cfg)
     env = LhdLoadingEnv(pol.variant, cfg, deploy_filter=(pol.variant == "rlc"), randomize=False,
-                        zones_from_estimate=True, zones_nominal_density=args.zones == "end-zone-node")
+                        zones_from_estimate=True, zones_nominal_density=zones_nominal_density(args.zones))
     cells = []
     for c in CASES:
         rs = []

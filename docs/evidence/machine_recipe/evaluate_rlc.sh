@@ -10,9 +10,9 @@ E=docs/evidence/machine_recipe
 CFG=$E/lhd_params_machine.yaml
 NOM=$E/lhd_params_machine_nominal_eval.yaml
 RUNS=${RUNS:-runs/machine_rlc}
-SEEDS=${SEEDS:-0 1 2 3 4}         # SEEDS="0 1 2": the seeds that had finished on 2026-11-29 (eighth session)
+SEEDS=${SEEDS:-0 1 2 3 4}         # the seeds of combined.py and the sweeps (all five finished in the ninth session)
 FINALS=(); for s in $SEEDS; do FINALS+=($RUNS/seed_$s/final); done
-# the parent folder: one group, the five seeds' mean +- sd (a list of seed folders would make a group of each)
+# lhd report takes the parent folder, every seed in it: one group, the seeds' mean +- sd
 .venv/bin/lhd report $RUNS --held-out nominal,randomized,placement,machine --config $CFG --jobs 2 --json \
     > $E/machine_rlc_report.json 2> $E/machine_rlc_report.log
 .venv/bin/python docs/evidence/machine_case/combined.py --config $NOM "${FINALS[@]}" > $E/combined_rlc.txt

@@ -4,7 +4,7 @@
 # (--zones end-zone-node), as on the machine (docs/training.md "The end zone the machine knows"). After
 #   lhd train --variant rld --seeds 0-4 --jobs 5 --randomize \
 #       --config docs/evidence/nominal_density_zones/lhd_params_machine_nd.yaml --out runs/machine_nd_rld
-# and the machine recipe's runs/machine_rld, from the repository root (about 15 min on 2 cores):
+# and the machine recipe's runs/machine_rld, from the repository root (about 7 min on 2 cores):
 #   bash docs/evidence/nominal_density_zones/evaluate_training.sh
 set -euo pipefail
 E=docs/evidence/nominal_density_zones

@@ -173,7 +173,7 @@ def _eval(args) -> int:
     from lhd_sim_node.env import LhdLoadingEnv
 
     from lhd_loading_ros.task.config import ConfigError, load_config
-    from lhd_loading_ros.learning.evaluate import evaluate
+    from lhd_loading_ros.learning.evaluate import evaluate, zones_nominal_density
     from lhd_loading_ros.policy.actor_file import PolicyFileError, load_policy
 
     if args.seed < 0:
@@ -218,7 +218,7 @@ def _eval(args) -> int:
         return 1
     deploy = args.deploy_filter
     env = LhdLoadingEnv(pol.variant, cfg, deploy_filter=deploy, randomize=args.randomize or None,
-                        zones_from_estimate=True, zones_nominal_density=args.zones == "end-zone-node")
+                        zones_from_estimate=True, zones_nominal_density=zones_nominal_density(args.zones))
     res = evaluate(env, pol.actor, args.episodes, args.seed, cfg["task"]["bucket_capacity"], stress=args.stress)
     res.update({"policy": str(args.policy), "variant": pol.variant, "seed": args.seed, "deploy_filter": deploy,
                 "randomize": env.randomize, "stress": args.stress, "zones": args.zones})
@@ -238,7 +238,7 @@ def format_eval(res: dict) -> str:
                 f"{r['aff']:>5.2f} {r['ar']:>8.1f} {r['elapsed_s']:>6.2f} {r['front_drift_pct']:>7.1f} {r['rear_drift_pct']:>6.1f} "
                 f"{r.get('max_tilt_deg', float('nan')):>8.2f} {r.get('tilt_over_5deg_rate', float('nan')):>6.2f}")
     dr = ((", domain randomisation" if res.get("randomize") else "") + (f", stress {res['stress']}" if res.get("stress") else "")
-          + (f", the {res['zones']}'s zones" if res.get("zones", "pile") != "pile" else ""))
+          + (", the end-zone node's zones" if res.get("zones", "pile") != "pile" else ""))
     lines = [f"policy {res['policy']} ({res['variant'].upper()}), evaluation seed {res['seed']}{dr}", head, row("all", res)]
     lines += [row(f"{k} deg", v) for k, v in res.get("by_slope", {}).items()]
     lines += [row(k, v) for k, v in res.get("by_material", {}).items()]
@@ -421,8 +421,9 @@ def _main(argv=None) -> int:
     from lhd_loading_ros.task.randomization import STRESS_CASES
 
     ZONES_HELP = ("where the zones (d_end, the end zone and the restricted zone that end an attempt) come from: pile "
-                  "(default): the simulated pile's own, with its density and rocks, moved by a slope-estimate error, as "
-                  "the sim node publishes them; end-zone-node: the end-zone node's wedge at the told slope and the "
+                  "(default): the simulated pile's own, with its density and rocks (what the sim node publishes), "
+                  "moved by a slope-estimate error as the end-zone node would move them; end-zone-node: the end-zone "
+                  "node's wedge at the told slope and the "
                   "config's nominal bulk density, blind to the pile's own density and rocks, as on the machine and in "
                   "the twin (docs/end_zone.md)")
 
@@ -520,7 +521,7 @@ def _main(argv=None) -> int:
     p_eval.add_argument("--randomize", action="store_true",
                         help="actor: every episode under drawn conditions (config section randomization): how the "
                              "actor fares when the machine differs from the simulator")
-    p_eval.add_argument("--zones", choices=list(EVAL_ZONES), default="pile", help=ZONES_HELP)
+    p_eval.add_argument("--zones", choices=list(EVAL_ZONES), default="pile", help="actor: " + ZONES_HELP)
     p_eval.add_argument("--config", default=None)
     p_eval.add_argument("--json", action="store_true")
     p_exp = sub.add_parser("experiment", help="the paper's experiments in simulation")

@@ -138,7 +138,7 @@ def held_out(run_dirs: list, conditions=("nominal",), episodes: int = 120, confi
 
 
 def format_held_out(label: str, h: dict) -> str:
-    zones = "" if h.get("zones", "pile") == "pile" else f", the {h['zones']}'s zones"
+    zones = "" if h.get("zones", "pile") == "pile" else ", the end-zone node's zones"
     lines = [f"{label}: {len(h['runs'])} final actors, held-out seed {h['seed']:,}, {h['episodes']} episodes each{zones}"]
     for c, ms in h["conditions"].items():
         lines.append(f"  {c}:")

@@ -212,6 +212,11 @@ def train(variant: str, seed: int, out, steps: int | None = None, config=None, r
         raise ValueError("task.r_tilt_ramp_after_success > 0 (the tilt penalty ramped in) needs the in-process "
                          "environment: the sim nodes' transitions do not give the reward's terms apart; set it "
                          "to 0 or train with --env local")
+    if (env_kind != "local" and int(cfg["randomization"].get("enabled", 0))
+            and int(cfg["randomization"].get("zones_at_nominal_density", 0))):
+        raise ValueError("randomization.zones_at_nominal_density = 1 (the end-zone node's zones in training) needs the "
+                         "in-process environment: the sim nodes judge and publish the pile's own zones; set it to 0 "
+                         "or train with --env local")
     cur_cfg = CurriculumConfig.from_training(cfg["training"])
     if cur_cfg is not None and env_kind != "local":
         raise ValueError("training.slope_curriculum = 1 draws each training pile's slope in the learner: it needs the "

@@ -83,7 +83,7 @@ class RandomizationRanges:
     zones_from_slope_estimate: bool = False   # a slope-estimate error also moves the zones (task/zones.py)
     rest_start_share: float = 0.0       # this share of the episodes starts from rest (Conditions.rest_start)
     surface_sd_max: float = 0.0         # m, each pile's relief sd U(0, this) about its plane (Conditions.surface_sd)
-    zones_at_nominal_density: bool = False   # the zones the end-zone node's wedge at the nominal density (task/zones.py)
+    zones_at_nominal_density: bool = False   # the zones built as the end-zone node does (task/end_zone.py)
 
     @classmethod
     def from_config(cls, cfg: dict) -> "RandomizationRanges":
