@@ -48,7 +48,8 @@ class LhdLoadingEnv(gym.Env):
 
     def __init__(self, variant: str = "rld", config: dict | str | None = None, slope_deg: float | None = None,
                  material: str | None = None, deploy_filter: bool = False, randomize: bool | None = None,
-                 zones_from_estimate: bool | None = None, zones_nominal_density: bool | None = None):
+                 zones_from_estimate: bool | None = None, zones_nominal_density: bool | None = None,
+                 zones_density: float | None = None):
         if variant not in VARIANTS:
             raise ValueError(f"variant must be one of {VARIANTS}, got {variant!r}")
         if material is not None and material not in MATERIALS:
@@ -71,7 +72,14 @@ class LhdLoadingEnv(gym.Env):
         # file shipped with the section off judges by the pile's zones whatever the key says
         self.zones_nominal_density = ((self.ranges.enabled and self.ranges.zones_at_nominal_density)
                                       if zones_nominal_density is None else bool(zones_nominal_density))
-        self.rho_nominal = nominal_density(self.cfg)
+        # the end-zone node's `density` parameter: None (its default 0) takes the config's nominal density
+        if zones_density is not None:
+            from lhd_loading_ros.task.end_zone import density_problem
+
+            bad = density_problem(zones_density)
+            if bad:
+                raise ValueError(f"zones_density: {bad}")
+        self.rho_nominal = nominal_density(self.cfg) if zones_density is None else float(zones_density)
         self.zones = None
         self.zones_from = "pile"
         self.conditions = NOMINAL

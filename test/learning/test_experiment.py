@@ -225,3 +225,11 @@ def test_the_end_zone_nodes_zones_reach_every_controller(cfg, params):
         assert o["x_max"] == pytest.approx(1.1148 * math.sqrt(1880.0 / o["pile_density"]), abs=0.02)
     with pytest.raises(ValueError, match="zones 'lidar': expected one of pile, end-zone-node"):
         ex.run(jobs, 1, zones="lidar")
+    # the node's density set by hand (--zones-density): only with the node's zones, and a density it takes
+    with pytest.raises(ValueError, match="--zones-density is the end-zone node's density: it needs --zones end-zone-node"):
+        ex.run(jobs, 1, zones="pile", zones_density=1550.0)
+    with pytest.raises(ValueError, match="--zones-density: bulk density 40 kg/m\\^3 outside"):
+        ex.run(jobs, 1, zones="end-zone-node", zones_density=40.0)
+    ex._setup(None, {}, "end-zone-node", 1550.0)
+    set_ = ex.run_job(jobs[0])
+    assert set_["x_max"] == pytest.approx(1.114545 * math.sqrt(1880.0 / 1550.0), abs=2e-6)

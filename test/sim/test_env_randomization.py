@@ -614,6 +614,13 @@ def test_the_end_zone_nodes_zones_do_not_know_the_piles_density(cfg):
     # the pile's own: where its own 170 kg lie (a voxel's grain, 2 cm, about the wedge's figure)
     assert xs[1500.0] == pytest.approx(1.114545 * math.sqrt(1880 / 1500), abs=0.02)
     assert xs[2200.0] == pytest.approx(1.114545 * math.sqrt(1880 / 2200), abs=0.02)
+    # the node's `density` set to a light material's (zones_density): x_max = 1.114545 x sqrt(1880 / 1550)
+    # = 1.227469 m by hand, on any pile
+    light = LhdLoadingEnv("rld", cfg, zones_from_estimate=True, zones_nominal_density=True, zones_density=1550.0)
+    _, i_light = light.reset(seed=5, options=dict(slope_deg=20.0, material="homogeneous"))
+    assert i_light["x_max"] == pytest.approx(1.227469, abs=2e-6)
+    with pytest.raises(ValueError, match="zones_density: bulk density 3.2 kg/m\\^3 outside"):
+        LhdLoadingEnv("rld", cfg, zones_nominal_density=True, zones_density=3.2)
     told = Conditions(slope_error_deg=15.0)
     obs, info = node.reset(seed=5, options=dict(slope_deg=15.0, material="homogeneous", conditions=told))
     assert info["x_max"] == pytest.approx(0.884934, abs=2e-6) and node.zones.x_cutoff == pytest.approx(

@@ -6,7 +6,8 @@
 # 1. lhd eval, 120 held-out episodes (seed 2,000,000), each actor on its own parameter file, RLC with the
 #    deployment filter, --zones pile and --zones end-zone-node: <actor>.<condition>.<zones>.json, table.md;
 # 2. the slope-error sweep of the machine's RLD on light and dense gravel with the node's zones (lhd experiment
-#    paper, 20 attempts a cell): slope_error_<stress>_<zones>/.
+#    paper, 20 attempts a cell): slope_error_<stress>_<zones>/, and (3.) with the node's density set to the
+#    material's: slope_error_<stress>_end-zone-node_<density>/.
 set -euo pipefail
 E=docs/evidence/nominal_density_zones
 one() {   # actor condition zones
@@ -32,4 +33,14 @@ for s in light dense; do
     mkdir -p $E/slope_error_${s}_$z
     cp /tmp/nd_slope_error_${s}_$z/table_slope_error.md /tmp/nd_slope_error_${s}_$z/table_slope_error.csv $E/slope_error_${s}_$z/
   done
+done
+# 3. the same with the end-zone node's `density` set to the material's (--zones-density: the middle of the stress
+#    case's band), as docs/real_machine.md asks an operator to do
+for pair in light:1550 dense:2150; do
+  s=${pair%%:*}; d=${pair##*:}
+  .venv/bin/lhd experiment paper --controllers rld --rld policies/rld_machine --config policies/rld_machine/lhd_params.yaml \
+      --slopes 15,30 --materials homogeneous --errors=-15,-10,-5,0,5,10,15 --episodes 20 --jobs 2 --stress $s \
+      --zones end-zone-node --zones-density $d --out /tmp/nd_slope_error_${s}_end-zone-node_$d > /dev/null 2>&1
+  mkdir -p $E/slope_error_${s}_end-zone-node_$d
+  cp /tmp/nd_slope_error_${s}_end-zone-node_$d/table_slope_error.{md,csv} $E/slope_error_${s}_end-zone-node_$d/
 done

@@ -270,7 +270,8 @@ def _experiment(args) -> int:
     policy_dirs = {k: v for k, v in (("rld", args.rld), ("rlc", args.rlc)) if v}
     try:
         res = ex.paper(args.out, args.episodes, ctls, _floats(args.slopes, "slopes"), mats, _floats(args.errors, "errors"),
-                       args.jobs, args.seed, args.config, policy_dirs, stress=args.stress, zones=args.zones)
+                       args.jobs, args.seed, args.config, policy_dirs, stress=args.stress, zones=args.zones,
+                       zones_density=args.zones_density)
     except ValueError as exc:
         print(f"lhd experiment paper: {exc}", file=sys.stderr)
         return 2
@@ -543,6 +544,9 @@ def _main(argv=None) -> int:
                               "(light: dry, loose gravel, the density the bucket's 30 kg rating implies); the "
                               "controllers meet the same piles and conditions; sensor noise reaches the RL actors only")
     p_paper.add_argument("--zones", choices=list(EVAL_ZONES), default="pile", help=ZONES_HELP)
+    p_paper.add_argument("--zones-density", type=float, default=None, metavar="KG_M3",
+                         help="with --zones end-zone-node: the end-zone node's `density` parameter (kg/m^3; default the "
+                              "config's nominal, 1,880 for gravel), as set on the machine for the material")
     p_paper.add_argument("--config", default=None)
     p_paper.add_argument("--json", action="store_true")
     p_report = sub.add_parser("report", help="aggregate training runs across seeds")

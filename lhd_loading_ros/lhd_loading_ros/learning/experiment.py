@@ -115,9 +115,9 @@ def grid(controllers=CONTROLLERS, slopes=SLOPES, materials=MATERIALS, errors=ERR
 _WORKER: dict = {}
 
 
-def _setup(config, policy_dirs: dict, zones: str = "pile") -> None:
+def _setup(config, policy_dirs: dict, zones: str = "pile", zones_density: float | None = None) -> None:
     _WORKER.clear()
-    _WORKER.update(config=config, policy_dirs=dict(policy_dirs), zones=zones)
+    _WORKER.update(config=config, policy_dirs=dict(policy_dirs), zones=zones, zones_density=zones_density)
 
 
 def _env(variant: str, deploy_filter: bool = False):
@@ -129,7 +129,8 @@ def _env(variant: str, deploy_filter: bool = False):
         cfg = _WORKER.get("config")
         cfg = cfg if isinstance(cfg, dict) else load_config(cfg)
         _WORKER[key] = LhdLoadingEnv(variant, cfg, deploy_filter=deploy_filter, zones_from_estimate=True,
-                                     zones_nominal_density=zones_nominal_density(_WORKER.get("zones", "pile")))
+                                     zones_nominal_density=zones_nominal_density(_WORKER.get("zones", "pile")),
+                                     zones_density=_WORKER.get("zones_density"))
     return _WORKER[key]
 
 
@@ -227,12 +228,17 @@ def run_job(job: Job) -> dict:
 
 # ------------------------------------------------------------------------------ the study
 def run(jobs: list[Job], jobs_n: int = 0, config=None, policy_dirs: dict | None = None, progress=sys.stderr,
-        zones: str = "pile") -> list[dict]:
+        zones: str = "pile", zones_density: float | None = None) -> list[dict]:
     """Run every attempt on a pool of `jobs_n` processes (0: the machine's cores); rows in job order.
-    zones: "pile" or "end-zone-node" (ZONES)."""
+    zones: "pile" or "end-zone-node" (ZONES); zones_density: the end-zone node's `density` (kg/m^3; None: the
+    config's nominal), with "end-zone-node" only."""
     import multiprocessing as mp
 
-    zones_nominal_density(zones)       # a wrong name before the pool
+    from lhd_loading_ros.task.end_zone import density_problem
+    if not zones_nominal_density(zones) and zones_density is not None:       # before the pool
+        raise ValueError("--zones-density is the end-zone node's density: it needs --zones end-zone-node")
+    if zones_density is not None and density_problem(zones_density):
+        raise ValueError(f"--zones-density: {density_problem(zones_density)}")
     from lhd_loading_ros.policy.actor_file import default_policy_dir
     dirs = {v: str(default_policy_dir(v)) for v in ("rld", "rlc")}
     dirs.update(policy_dirs or {})
@@ -265,12 +271,12 @@ def run(jobs: list[Job], jobs_n: int = 0, config=None, policy_dirs: dict | None 
             progress.flush()
 
     if n == 1:
-        _setup(config, dirs, zones)
+        _setup(config, dirs, zones, zones_density)
         for i, j in enumerate(jobs):
             rows[i] = run_job(j)
             tick(i + 1)
     else:
-        with mp.get_context("spawn").Pool(n, initializer=_setup, initargs=(config, dirs, zones)) as pool:
+        with mp.get_context("spawn").Pool(n, initializer=_setup, initargs=(config, dirs, zones, zones_density)) as pool:
             for done, (i, row) in enumerate(pool.imap_unordered(_indexed, list(enumerate(jobs)), chunksize=1), 1):
                 rows[i] = row
                 tick(done)
@@ -548,14 +554,14 @@ def figures(rows: list[dict], err_summary: list[dict], out: Path) -> list[str]:
 
 def paper(out: str | os.PathLike, episodes: int = 10, controllers=CONTROLLERS, slopes=SLOPES, materials=MATERIALS,
           errors=ERRORS, jobs_n: int = 0, seed: int = 3_000_000, config=None, policy_dirs: dict | None = None,
-          progress=sys.stderr, stress: str | None = None, zones: str = "pile") -> dict:
+          progress=sys.stderr, stress: str | None = None, zones: str = "pile", zones_density: float | None = None) -> dict:
     out = Path(out)
     created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)      # first: a folder that cannot be made is said before the run
     t0 = time.monotonic()
     try:
         jobs = grid(controllers, slopes, materials, errors, ERROR_PILES, episodes, seed, stress)
-        rows = run(jobs, jobs_n, config, policy_dirs, progress, zones)
+        rows = run(jobs, jobs_n, config, policy_dirs, progress, zones, zones_density)
     except BaseException:
         if created and not any(out.iterdir()):
             out.rmdir()          # a refused or interrupted run leaves no empty folder behind
@@ -580,7 +586,7 @@ def paper(out: str | os.PathLike, episodes: int = 10, controllers=CONTROLLERS, s
     figs = figures(rows, err, out)
     summary = {"attempts": len(rows), "episodes_per_cell": episodes, "controllers": list(controllers),
                "slopes_deg": list(slopes), "materials": list(materials), "errors_deg": list(errors),
-               "time_limit_s": TIME_LIMIT_S, "seed": seed, "stress": stress, "zones": zones,
+               "time_limit_s": TIME_LIMIT_S, "seed": seed, "stress": stress, "zones": zones, "zones_density": zones_density,
                "wall_s": time.monotonic() - t0,
                "jobs": jobs_n or usable_cores(), "figures": figs, "controllers_table": ctl, "slope_error_table": err,
                "paired_table": paired}
@@ -588,7 +594,8 @@ def paper(out: str | os.PathLike, episodes: int = 10, controllers=CONTROLLERS, s
     head = "" if stress is None else (f"Every attempt under the stress case `{stress}` (physical conditions on every "
                                       f"controller, sensor noise on the RL actors only).\n\n")
     if zones != "pile":
-        head += ("The zones are the end-zone node's: a wedge at the told slope and the nominal bulk density, blind to "
+        rho = "the nominal bulk density" if zones_density is None else f"a bulk density of {zones_density:g} kg/m^3"
+        head += (f"The zones are the end-zone node's: a wedge at the told slope and {rho}, blind to "
                  "each pile's own density and rocks, as on the machine.\n\n")
     summary["markdown"] = (head + md_c + ("\n### RLD against the other controllers on the same piles\n\n" + md_p if md_p else "")
                            + ("\n### Slope error (homogeneous piles, all attempts)\n\n" + md_e if md_e else ""))
