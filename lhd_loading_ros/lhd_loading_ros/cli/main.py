@@ -182,7 +182,7 @@ def _eval(args) -> int:
     if args.controller == "tampier":
         from lhd_loading_ros.learning.baselines import run_cli
 
-        if args.randomize or args.stress or args.deploy_filter or args.zones != "pile":
+        if args.randomize or args.stress or args.deploy_filter or args.zones != "pile" or args.zones_density is not None:
             print("lhd eval: --randomize, --stress, --deploy-filter and --zones apply to --controller actor only "
                   "(lhd experiment paper --controllers tampier --zones end-zone-node runs the heuristic with the "
                   "end-zone node's zones)", file=sys.stderr)
@@ -206,6 +206,14 @@ def _eval(args) -> int:
     if args.episodes < 1:
         print(f"lhd eval: --episodes must be >= 1, got {args.episodes}", file=sys.stderr)
         return 2
+    if args.zones_density is not None:
+        from lhd_loading_ros.task.end_zone import density_problem
+
+        bad = ("it needs --zones end-zone-node (the end-zone node's density)" if args.zones != "end-zone-node"
+               else density_problem(args.zones_density))
+        if bad:
+            print(f"lhd eval: --zones-density {args.zones_density:g}: {bad}", file=sys.stderr)
+            return 2
     if not args.policy:
         print("lhd eval: --policy DIR is required for --controller actor", file=sys.stderr)
         return 2
@@ -218,10 +226,12 @@ def _eval(args) -> int:
         return 1
     deploy = args.deploy_filter
     env = LhdLoadingEnv(pol.variant, cfg, deploy_filter=deploy, randomize=args.randomize or None,
-                        zones_from_estimate=True, zones_nominal_density=zones_nominal_density(args.zones))
+                        zones_from_estimate=True, zones_nominal_density=zones_nominal_density(args.zones),
+                        zones_density=args.zones_density)
     res = evaluate(env, pol.actor, args.episodes, args.seed, cfg["task"]["bucket_capacity"], stress=args.stress)
     res.update({"policy": str(args.policy), "variant": pol.variant, "seed": args.seed, "deploy_filter": deploy,
-                "randomize": env.randomize, "stress": args.stress, "zones": args.zones})
+                "randomize": env.randomize, "stress": args.stress, "zones": args.zones,
+                "zones_density": env.rho_nominal if args.zones != "pile" else None})
     if args.json:
         print(json_out.dumps(res))
     else:
@@ -238,7 +248,8 @@ def format_eval(res: dict) -> str:
                 f"{r['aff']:>5.2f} {r['ar']:>8.1f} {r['elapsed_s']:>6.2f} {r['front_drift_pct']:>7.1f} {r['rear_drift_pct']:>6.1f} "
                 f"{r.get('max_tilt_deg', float('nan')):>8.2f} {r.get('tilt_over_5deg_rate', float('nan')):>6.2f}")
     dr = ((", domain randomisation" if res.get("randomize") else "") + (f", stress {res['stress']}" if res.get("stress") else "")
-          + (", the end-zone node's zones" if res.get("zones", "pile") != "pile" else ""))
+          + (f", the end-zone node's zones at {res['zones_density']:g} kg/m^3" if res.get("zones", "pile") != "pile"
+             else ""))
     lines = [f"policy {res['policy']} ({res['variant'].upper()}), evaluation seed {res['seed']}{dr}", head, row("all", res)]
     lines += [row(f"{k} deg", v) for k, v in res.get("by_slope", {}).items()]
     lines += [row(k, v) for k, v in res.get("by_material", {}).items()]
@@ -427,6 +438,8 @@ def _main(argv=None) -> int:
                   "node's wedge at the told slope and the "
                   "config's nominal bulk density, blind to the pile's own density and rocks, as on the machine and in "
                   "the twin (docs/end_zone.md)")
+    ZONES_DENSITY_HELP = ("with --zones end-zone-node: the end-zone node's `density` parameter (kg/m^3, 500-6,000; "
+                          "default the config's nominal, 1,880 for gravel), as set on the machine for the material")
 
     ap = argparse.ArgumentParser(prog="lhd", description="LHD loading: simulator, training and ROS tools")
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -523,6 +536,7 @@ def _main(argv=None) -> int:
                         help="actor: every episode under drawn conditions (config section randomization): how the "
                              "actor fares when the machine differs from the simulator")
     p_eval.add_argument("--zones", choices=list(EVAL_ZONES), default="pile", help="actor: " + ZONES_HELP)
+    p_eval.add_argument("--zones-density", type=float, default=None, metavar="KG_M3", help=ZONES_DENSITY_HELP)
     p_eval.add_argument("--config", default=None)
     p_eval.add_argument("--json", action="store_true")
     p_exp = sub.add_parser("experiment", help="the paper's experiments in simulation")
@@ -544,9 +558,7 @@ def _main(argv=None) -> int:
                               "(light: dry, loose gravel, the density the bucket's 30 kg rating implies); the "
                               "controllers meet the same piles and conditions; sensor noise reaches the RL actors only")
     p_paper.add_argument("--zones", choices=list(EVAL_ZONES), default="pile", help=ZONES_HELP)
-    p_paper.add_argument("--zones-density", type=float, default=None, metavar="KG_M3",
-                         help="with --zones end-zone-node: the end-zone node's `density` parameter (kg/m^3; default the "
-                              "config's nominal, 1,880 for gravel), as set on the machine for the material")
+    p_paper.add_argument("--zones-density", type=float, default=None, metavar="KG_M3", help=ZONES_DENSITY_HELP)
     p_paper.add_argument("--config", default=None)
     p_paper.add_argument("--json", action="store_true")
     p_report = sub.add_parser("report", help="aggregate training runs across seeds")
