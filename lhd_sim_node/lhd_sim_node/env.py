@@ -30,11 +30,11 @@ import numpy as np
 
 from lhd_loading_ros.task.actions import apply_variant_filter, to_actuator, validate_action
 from lhd_loading_ros.task.config import load_config
+from lhd_loading_ros.task.end_zone import density_problem, nominal_density, zones_at_nominal_density
 from lhd_loading_ros.task.metrics import EpisodeResult, drift_pct, success_level
 from lhd_loading_ros.task.observation import OBS_HIGH, OBS_LOW, build_observation
 from lhd_loading_ros.task.randomization import NOMINAL, Conditions, ObservationCorruptor, RandomizationRanges, draw
 from lhd_loading_ros.task.reward import RewardTracker
-from lhd_loading_ros.task.end_zone import nominal_density, zones_at_nominal_density
 from lhd_loading_ros.task.zones import classify, zones_for_slope_estimate
 
 from .simulator import MATERIALS, AttackError, LhdSimulator, SimulationError
@@ -73,12 +73,8 @@ class LhdLoadingEnv(gym.Env):
         self.zones_nominal_density = ((self.ranges.enabled and self.ranges.zones_at_nominal_density)
                                       if zones_nominal_density is None else bool(zones_nominal_density))
         # the end-zone node's `density` parameter: None (its default 0) takes the config's nominal density
-        if zones_density is not None:
-            from lhd_loading_ros.task.end_zone import density_problem
-
-            bad = density_problem(zones_density)
-            if bad:
-                raise ValueError(f"zones_density: {bad}")
+        if zones_density is not None and density_problem(zones_density):
+            raise ValueError(f"zones_density: {density_problem(zones_density)}")
         self.rho_nominal = nominal_density(self.cfg) if zones_density is None else float(zones_density)
         self.zones = None
         self.zones_from = "pile"
