@@ -36,7 +36,7 @@ LHD = [sys.executable, "-m", "lhd_loading_ros.cli.main"]
      "--randomize and --stress are alternatives"),
     (["eval", "--controller", "tampier", "--zones", "end-zone-node"],
      "--randomize, --stress, --deploy-filter and --zones apply to --controller actor only"),
-    (["report", "policies", "--zones", "end-zone-node"], "--zones end-zone-node applies to --held-out only"),
+    (["report", "policies", "--zones", "end-zone-node"], "--zones and --zones-density apply to --held-out only"),
     (["eval", "--policy", "policies/rld", "--zones-density", "1550"],
      "--zones-density 1550: it needs --zones end-zone-node"),
     (["eval", "--policy", "policies/rld", "--zones", "end-zone-node", "--zones-density", "1.6"],

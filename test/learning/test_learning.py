@@ -396,6 +396,15 @@ def test_ship_picks_a_seed_and_writes_the_model_card(cfg, tmp_path):
     assert h3["zones"] == "end-zone-node" and h3["conditions"]["light"]["aml"]["values"][1] == pytest.approx(by_hand3["aml"])
     with pytest.raises(ValueError, match="zones 'lidar'"):
         held_out(runs, ("light",), 4, str(cfg_path), zones="lidar")
+    # the node's density set as on the machine (--zones-density): the same figures as that environment by hand
+    h4 = held_out(runs[1:], ("light",), 4, str(cfg_path), zones="end-zone-node", zones_density=1550.0)
+    by_hand4 = evaluate(LhdLoadingEnv("rlc", cfg, deploy_filter=True, zones_from_estimate=True, zones_nominal_density=True,
+                                      zones_density=1550.0),
+                        load_policy(runs[1] / "final").actor, 4, 2_000_000, cfg["task"]["bucket_capacity"],
+                        breakdown=False, stress="light")
+    assert h4["zones_density"] == 1550.0 and h4["conditions"]["light"]["aml"]["values"][0] == pytest.approx(by_hand4["aml"])
+    with pytest.raises(ValueError, match="--zones-density is the end-zone node's density"):
+        held_out(runs, ("light",), 4, str(cfg_path), zones_density=1550.0)
     # best-final: the best seed's FINAL actor; the card's tables on piles the choice never saw,
     # the same figures as an evaluation of that actor by hand on the confirmation seed
     res2 = ship("rlc", tmp_path / "runs", tmp_path / "policies" / "best", episodes=4, config=str(cfg_path),

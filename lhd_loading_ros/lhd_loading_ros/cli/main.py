@@ -317,8 +317,8 @@ def _report(args) -> int:
     if args.jobs < 0:
         print(f"lhd report: --jobs must be >= 0 (0: one per core), got {args.jobs}", file=sys.stderr)
         return 2
-    if args.zones != "pile" and not args.held_out:
-        print(f"lhd report: --zones {args.zones} applies to --held-out only: the training curves were measured "
+    if (args.zones != "pile" or args.zones_density is not None) and not args.held_out:
+        print("lhd report: --zones and --zones-density apply to --held-out only: the training curves were measured "
               "by the training itself", file=sys.stderr)
         return 2
     groups: dict[str, list] = {}
@@ -338,7 +338,8 @@ def _report(args) -> int:
             for k, v in groups.items():
                 summaries[k]["held_out"] = held_out(v, conds, args.episodes, args.config,
                                                     log=None if args.json else print,
-                                                    jobs=args.jobs or usable_cores(), zones=args.zones)
+                                                    jobs=args.jobs or usable_cores(), zones=args.zones,
+                                                    zones_density=args.zones_density)
     except (FileNotFoundError, ValueError) as exc:
         print(f"lhd report: {exc}", file=sys.stderr)
         return 1
@@ -570,6 +571,8 @@ def _main(argv=None) -> int:
                                "comma-separated conditions: nominal, randomized, " + ", ".join(STRESS_CASES))
     p_report.add_argument("--episodes", type=int, default=120, help="--held-out: episodes per actor and condition")
     p_report.add_argument("--zones", choices=list(EVAL_ZONES), default="pile", help="--held-out: " + ZONES_HELP)
+    p_report.add_argument("--zones-density", type=float, default=None, metavar="KG_M3",
+                          help="--held-out: " + ZONES_DENSITY_HELP)
     p_report.add_argument("--config", default=None, help="--held-out: parameter file (default config/lhd_params.yaml)")
     p_report.add_argument("--jobs", type=int, default=0,
                           help="--held-out: processes (default 0: one per core); the figures do not depend on it")

@@ -80,11 +80,12 @@ def zones_nominal_density(zones: str) -> bool:
 
 
 def evaluate_under(condition: str, variant: str, actor, cfg: dict, episodes: int, seed: int,
-                   breakdown: bool = False, zones: str = "pile") -> dict:
+                   breakdown: bool = False, zones: str = "pile", zones_density: float | None = None) -> dict:
     """`evaluate` of an actor under a named condition, as the policy node runs it (RLC with the
     deployment filter): "nominal", "randomized" (the config's domain randomisation drawn per
     episode) or a stress case of task.randomization.stress_conditions, with the zones of `zones`
-    (ZONES). Used by `lhd report --held-out` and `lhd ship`."""
+    (ZONES; zones_density: the end-zone node's `density`, None its default). Used by `lhd report --held-out`
+    and `lhd ship`."""
     from lhd_sim_node.env import LhdLoadingEnv   # the simulator only where it runs
 
     from lhd_loading_ros.task.randomization import STRESS_CASES
@@ -93,6 +94,7 @@ def evaluate_under(condition: str, variant: str, actor, cfg: dict, episodes: int
         raise ValueError(f"unknown condition {condition!r}; expected nominal, randomized or one of "
                          f"{', '.join(STRESS_CASES)}")
     env = LhdLoadingEnv(variant, cfg, deploy_filter=(variant == "rlc"), randomize=(condition == "randomized"),
-                        zones_from_estimate=True, zones_nominal_density=zones_nominal_density(zones))
+                        zones_from_estimate=True, zones_nominal_density=zones_nominal_density(zones),
+                        zones_density=zones_density)
     return evaluate(env, actor, episodes, seed, cfg["task"]["bucket_capacity"], breakdown=breakdown,
                     stress=None if condition in CONDITIONS else condition)

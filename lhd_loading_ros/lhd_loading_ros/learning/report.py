@@ -77,25 +77,28 @@ def _held_out_one(job: tuple) -> dict:
     from lhd_loading_ros.policy.actor_file import load_policy
     from lhd_loading_ros.task.config import load_config
 
-    run_dir, condition, episodes, seed, config, zones = job
+    run_dir, condition, episodes, seed, config, zones, zones_density = job
     cfg = load_config(config)
     pol = load_policy(Path(run_dir) / "final").check_config(cfg)      # --config: the scaling it was trained with
-    ev = evaluate_under(condition, pol.variant, pol.actor, cfg, episodes, seed, breakdown=True, zones=zones)
+    ev = evaluate_under(condition, pol.variant, pol.actor, cfg, episodes, seed, breakdown=True, zones=zones,
+                        zones_density=zones_density)
     out = {m: ev[m] for m in HELD_OUT_METRICS}
     out["by_slope"] = {k: v["success_rate"] for k, v in ev["by_slope"].items()}
     return out
 
 
 def held_out(run_dirs: list, conditions=("nominal",), episodes: int = 120, config=None, seed: int = 2_000_000,
-             log=None, jobs: int = 1, zones: str = "pile") -> dict:
+             log=None, jobs: int = 1, zones: str = "pile", zones_density: float | None = None) -> dict:
     """Each run's final actor (`final/`, the end of training: no checkpoint or seed picking) on the
     held-out evaluation piles (`seed`, stratified as `lhd eval`), under each condition: "nominal",
     "randomized" (the config's domain randomisation drawn per episode) or a stress case of
     task.randomization.stress_conditions. RLC runs with the deployment filter, as on the machine; the
-    zones are `zones`' (learning/evaluate.ZONES: the pile's own, or the end-zone node's).
+    zones are `zones`' (learning/evaluate.ZONES: the pile's own, or the end-zone node's, at its default
+    density or `zones_density`).
     Returns {condition: {metric: mean, sd, iqm, iqm_ci95, values}}, the success per pile slope
     ("success_by_slope": {condition: {slope: the same statistics}}) and the runs."""
     from lhd_loading_ros.learning.evaluate import CONDITIONS, zones_nominal_density
+    from lhd_loading_ros.task.end_zone import density_problem
     from lhd_loading_ros.task.config import load_config
     from lhd_loading_ros.task.randomization import STRESS_CASES
 
@@ -103,7 +106,10 @@ def held_out(run_dirs: list, conditions=("nominal",), episodes: int = 120, confi
         if c not in CONDITIONS + STRESS_CASES:
             raise ValueError(f"unknown condition {c!r}; expected nominal, randomized or one of {', '.join(STRESS_CASES)}")
     load_config(config)            # a bad parameter file fails here, before any worker starts
-    zones_nominal_density(zones)   # likewise a wrong zones name
+    if not zones_nominal_density(zones) and zones_density is not None:     # likewise a wrong zones name
+        raise ValueError("--zones-density is the end-zone node's density: it needs --zones end-zone-node")
+    if zones_density is not None and density_problem(zones_density):
+        raise ValueError(f"--zones-density: {density_problem(zones_density)}")
     runs = [Path(d) for d in run_dirs]
     missing = [str(d) for d in runs if not (d / "final" / "policy.json").is_file()]
     if missing:
@@ -112,7 +118,7 @@ def held_out(run_dirs: list, conditions=("nominal",), episodes: int = 120, confi
     by_slope: dict = {c: {} for c in conditions}      # success per pile slope: where the seeds fail
     if jobs < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
-    work = [(str(d), c, episodes, seed, config, zones) for d in runs for c in conditions]
+    work = [(str(d), c, episodes, seed, config, zones, zones_density) for d in runs for c in conditions]
     if jobs == 1:
         results = map(_held_out_one, work)
     else:                          # every evaluation is seeded: the same figures as in one process
@@ -132,13 +138,15 @@ def held_out(run_dirs: list, conditions=("nominal",), episodes: int = 120, confi
         if jobs > 1:
             pool.terminate()
     return {"runs": [str(d) for d in runs], "episodes": episodes, "seed": seed, "zones": zones,
+            "zones_density": zones_density,
             "conditions": {c: {m: _stats(v) for m, v in per[c].items()} for c in conditions},
             "success_by_slope": {c: {k: _stats(v) for k, v in sorted(by_slope[c].items(), key=lambda kv: float(kv[0]))}
                                  for c in conditions}}
 
 
 def format_held_out(label: str, h: dict) -> str:
-    zones = "" if h.get("zones", "pile") == "pile" else ", the end-zone node's zones"
+    zones = "" if h.get("zones", "pile") == "pile" else (
+        ", the end-zone node's zones" + (f" at {h['zones_density']:g} kg/m^3" if h.get("zones_density") else ""))
     lines = [f"{label}: {len(h['runs'])} final actors, held-out seed {h['seed']:,}, {h['episodes']} episodes each{zones}"]
     for c, ms in h["conditions"].items():
         lines.append(f"  {c}:")
