@@ -364,7 +364,11 @@ def test_a_node_that_dies_mid_attempt_is_recorded_as_the_cause(ros, tmp_path):
         t_kill = time.monotonic()
         assert spin_until(node, lambda: state() in ENDED, 10.0), out()
         t_end = statuses[-1][1]
-        assert t_end - t_kill < 2.0, (t_end - t_kill, out())
+        # ended by the death, not by the attempt's 20 s timeout: the launcher finds the dead process within
+        # a loop of 0.05 s and stops the supervisor, whose end goes out on its 5 Hz status. 3 s, as the
+        # row's elapsed_s below: a fresh-clone CI on this 2-core machine measured 2.05 s once (2026-11-29,
+        # nine nodes and the test on two cores), past the 2 s this bound was first set at
+        assert t_end - t_kill < 3.0, (t_end - t_kill, out())
     finally:
         rc = stop()
     assert rc == 1, out()
