@@ -38,11 +38,11 @@ LHD = [sys.executable, "-m", "lhd_loading_ros.cli.main"]
      "--randomize, --stress, --deploy-filter and --zones apply to --controller actor only"),
     (["report", "policies", "--zones", "end-zone-node"], "--zones and --zones-density apply to --held-out only"),
     (["eval", "--policy", "policies/rld", "--zones-density", "1550"],
-     "--zones-density 1550: it needs --zones end-zone-node"),
+     "--zones-density 1550 is the end-zone node's density: it needs --zones end-zone-node"),
     (["eval", "--policy", "policies/rld", "--zones", "end-zone-node", "--zones-density", "1.6"],
      "--zones-density 1.6: bulk density 1.6 kg/m^3 outside [500, 6000] kg/m^3"),
     (["experiment", "paper", "--episodes", "1", "--zones-density", "1550"],
-     "--zones-density is the end-zone node's density: it needs --zones end-zone-node"),
+     "--zones-density 1550 is the end-zone node's density: it needs --zones end-zone-node"),
     (["eval", "--policy", "policies/rld", "--zones", "lidar"],
      "argument --zones: invalid choice: 'lidar' (choose from 'pile', 'end-zone-node')"),
     # a misspelled twin parameter: ROS would drop an undeclared -p override silently (a plane pile

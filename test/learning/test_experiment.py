@@ -226,9 +226,9 @@ def test_the_end_zone_nodes_zones_reach_every_controller(cfg, params):
     with pytest.raises(ValueError, match="zones 'lidar': expected one of pile, end-zone-node"):
         ex.run(jobs, 1, zones="lidar")
     # the node's density set by hand (--zones-density): only with the node's zones, and a density it takes
-    with pytest.raises(ValueError, match="--zones-density is the end-zone node's density: it needs --zones end-zone-node"):
+    with pytest.raises(ValueError, match="--zones-density 1550 is the end-zone node's density: it needs --zones end-zone-node"):
         ex.run(jobs, 1, zones="pile", zones_density=1550.0)
-    with pytest.raises(ValueError, match="--zones-density: bulk density 40 kg/m\\^3 outside"):
+    with pytest.raises(ValueError, match="--zones-density 40: bulk density 40 kg/m\\^3 outside"):
         ex.run(jobs, 1, zones="end-zone-node", zones_density=40.0)
     ex._setup(None, {}, "end-zone-node", 1550.0)
     set_ = ex.run_job(jobs[0])

@@ -404,7 +404,7 @@ def test_ship_picks_a_seed_and_writes_the_model_card(cfg, tmp_path):
                         load_policy(runs[1] / "final").actor, 4, 2_000_000, cfg["task"]["bucket_capacity"],
                         breakdown=False, stress="light")
     assert h4["zones_density"] == 1550.0 and h4["conditions"]["light"]["aml"]["values"][0] == pytest.approx(by_hand4["aml"])
-    with pytest.raises(ValueError, match="--zones-density is the end-zone node's density"):
+    with pytest.raises(ValueError, match="--zones-density 1550 is the end-zone node's density"):
         held_out(runs, ("light",), 4, str(cfg_path), zones_density=1550.0)
     # best-final: the best seed's FINAL actor; the card's tables on piles the choice never saw,
     # the same figures as an evaluation of that actor by hand on the confirmation seed

@@ -206,14 +206,11 @@ def _eval(args) -> int:
     if args.episodes < 1:
         print(f"lhd eval: --episodes must be >= 1, got {args.episodes}", file=sys.stderr)
         return 2
-    if args.zones_density is not None:
-        from lhd_loading_ros.task.end_zone import density_problem
-
-        bad = ("it needs --zones end-zone-node (the end-zone node's density)" if args.zones != "end-zone-node"
-               else density_problem(args.zones_density))
-        if bad:
-            print(f"lhd eval: --zones-density {args.zones_density:g}: {bad}", file=sys.stderr)
-            return 2
+    try:
+        nominal = zones_nominal_density(args.zones, args.zones_density)
+    except ValueError as exc:
+        print(f"lhd eval: {exc}", file=sys.stderr)
+        return 2
     if not args.policy:
         print("lhd eval: --policy DIR is required for --controller actor", file=sys.stderr)
         return 2
@@ -226,8 +223,7 @@ def _eval(args) -> int:
         return 1
     deploy = args.deploy_filter
     env = LhdLoadingEnv(pol.variant, cfg, deploy_filter=deploy, randomize=args.randomize or None,
-                        zones_from_estimate=True, zones_nominal_density=zones_nominal_density(args.zones),
-                        zones_density=args.zones_density)
+                        zones_from_estimate=True, zones_nominal_density=nominal, zones_density=args.zones_density)
     res = evaluate(env, pol.actor, args.episodes, args.seed, cfg["task"]["bucket_capacity"], stress=args.stress)
     res.update({"policy": str(args.policy), "variant": pol.variant, "seed": args.seed, "deploy_filter": deploy,
                 "randomize": env.randomize, "stress": args.stress, "zones": args.zones,

@@ -72,10 +72,19 @@ CONDITIONS = ("nominal", "randomized")   # and the stress cases of task.randomiz
 ZONES = ("pile", "end-zone-node")
 
 
-def zones_nominal_density(zones: str) -> bool:
-    """The environment's zones_nominal_density for a name of ZONES; ValueError naming the choices."""
+def zones_nominal_density(zones: str, zones_density: float | None = None) -> bool:
+    """The environment's zones_nominal_density for a name of ZONES, checked with the end-zone node's density
+    set by hand (`--zones-density`, only with "end-zone-node", in the node's range); ValueError saying which."""
     if zones not in ZONES:
         raise ValueError(f"zones {zones!r}: expected one of {', '.join(ZONES)}")
+    if zones_density is not None:
+        from lhd_loading_ros.task.end_zone import density_problem
+
+        if zones != "end-zone-node":
+            raise ValueError(f"--zones-density {zones_density:g} is the end-zone node's density: it needs --zones "
+                             "end-zone-node")
+        if density_problem(zones_density):
+            raise ValueError(f"--zones-density {zones_density:g}: {density_problem(zones_density)}")
     return zones == "end-zone-node"
 
 

@@ -234,11 +234,7 @@ def run(jobs: list[Job], jobs_n: int = 0, config=None, policy_dirs: dict | None 
     config's nominal), with "end-zone-node" only."""
     import multiprocessing as mp
 
-    from lhd_loading_ros.task.end_zone import density_problem
-    if not zones_nominal_density(zones) and zones_density is not None:       # before the pool
-        raise ValueError("--zones-density is the end-zone node's density: it needs --zones end-zone-node")
-    if zones_density is not None and density_problem(zones_density):
-        raise ValueError(f"--zones-density: {density_problem(zones_density)}")
+    zones_nominal_density(zones, zones_density)       # wrong zones before the pool
     from lhd_loading_ros.policy.actor_file import default_policy_dir
     dirs = {v: str(default_policy_dir(v)) for v in ("rld", "rlc")}
     dirs.update(policy_dirs or {})
