@@ -578,3 +578,29 @@ def test_lhd_eval_zones_of_the_end_zone_node(cfg):
                            2_000_000, cfg["task"]["bucket_capacity"], stress="light") for nd in (True, False))
     assert res["aml"] == pytest.approx(mine["aml"], rel=1e-9)
     assert res["aml"] < pile["aml"] - 1.0
+
+
+def test_lhd_eval_warns_when_the_end_zone_node_would_publish_no_zones(cfg, capsys):
+    """At 500 kg/m^3 the end-zone node's wedge holds m_max = 170 kg only on piles below about 15 deg
+    (rho w tan(alpha) L^2 / 2 with L = h / tan(alpha): 500 x 0.4 x 0.68^2 / (2 tan alpha) >= 170 kg needs
+    tan(alpha) <= 0.272): it publishes no zones for the 20-30 deg piles, those attempts would not start on
+    the machine, and the evaluation, which judges them with the pile's own zones, says so on stderr. At the
+    node's default density every pile gets its zones and nothing is said."""
+    from lhd_loading_ros.cli.main import main
+    from lhd_loading_ros.learning.evaluate import zones_fallback_warning
+
+    tan_limit = 500 * 0.4 * 0.68 ** 2 / (2 * 170)
+    assert math.tan(math.radians(15.0)) <= tan_limit < math.tan(math.radians(20.0))     # by hand, as above
+    assert main(["eval", "--policy", "policies/rld", "--episodes", "4", "--json", "--zones", "end-zone-node",
+                 "--zones-density", "500"]) == 0
+    out, err = capsys.readouterr()
+    res = json.loads(out)
+    # episodes 0-3 are the 15, 20, 25, 30 deg piles: three have no zones from the node
+    assert res["zones_from"] == {"wedge at nominal density": 1, "pile, the end-zone node publishes none for the "
+                                 "estimate": 3}, res["zones_from"]
+    assert "warning: 3 of 4 episodes were judged with the pile's own zones" in err and "500 kg/m^3" in err, err
+    assert main(["eval", "--policy", "policies/rld", "--episodes", "4", "--json", "--zones", "end-zone-node"]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["zones_from"] == {"wedge at nominal density": 4} and "warning" not in err, err
+    assert zones_fallback_warning({"zones_from": {"pile": 2}}) is None
+    assert "1 of 3 episodes" in zones_fallback_warning({"zones_from": {"pile": 2, "pile, estimate out of range": 1}})

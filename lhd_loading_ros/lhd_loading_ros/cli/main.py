@@ -173,7 +173,7 @@ def _eval(args) -> int:
     from lhd_sim_node.env import LhdLoadingEnv
 
     from lhd_loading_ros.task.config import ConfigError, load_config
-    from lhd_loading_ros.learning.evaluate import evaluate, zones_nominal_density
+    from lhd_loading_ros.learning.evaluate import evaluate, zones_fallback_warning, zones_nominal_density
     from lhd_loading_ros.policy.actor_file import PolicyFileError, load_policy
 
     if args.seed < 0:
@@ -232,6 +232,8 @@ def _eval(args) -> int:
         print(json_out.dumps(res))
     else:
         print(format_eval(res))
+    if (warning := zones_fallback_warning(res)) is not None:
+        print(f"lhd eval: {warning}", file=sys.stderr)
     return 0
 
 

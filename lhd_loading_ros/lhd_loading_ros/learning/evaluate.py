@@ -15,6 +15,7 @@ import numpy as np
 
 from lhd_loading_ros.task.metrics import EpisodeResult, aggregate
 from lhd_loading_ros.task.randomization import STRESS_MATERIAL, stress_conditions
+from lhd_loading_ros.task.zones import ESTIMATE_SLOPE_RANGE_DEG
 
 EVAL_SLOPES = (15.0, 20.0, 25.0, 30.0)
 EVAL_MATERIALS = ("homogeneous", "nonhomogeneous")
@@ -42,13 +43,18 @@ def evaluate(env, policy: Callable[[np.ndarray], np.ndarray], episodes: int, see
         raise ValueError(f"episodes must be >= 1, got {episodes}")
     t0 = time.perf_counter()
     results = []
+    zones_from: dict[str, int] = {}
     for i in range(episodes):
         s, opts = episode_conditions(i, seed)
         if stress is not None:
             opts["conditions"] = stress_conditions(stress, i, env.cfg)
             opts["material"] = STRESS_MATERIAL.get(stress, opts["material"])
         results.append(run_policy_episode(env, policy, s, opts))
+        where = getattr(env, "zones_from", None)       # set at reset: where this episode's zones came from
+        if where is not None:
+            zones_from[where] = zones_from.get(where, 0) + 1
     out = aggregate(results, bucket_capacity)
+    out["zones_from"] = zones_from
     if breakdown:
         out["by_slope"] = {f"{a:g}": aggregate(rs, bucket_capacity)
                            for a in EVAL_SLOPES if (rs := [r for r in results if round(r.alpha_deg) == a])}
@@ -70,6 +76,22 @@ CONDITIONS = ("nominal", "randomized")   # and the stress cases of task.randomiz
 # the end-zone node's wedge at the told slope and the config's nominal bulk density, blind to the pile's own
 # density and rocks, as on the machine and in the twin (task/end_zone.zones_at_nominal_density).
 ZONES = ("pile", "end-zone-node")
+
+
+def zones_fallback_warning(res: dict) -> str | None:
+    """A line for the console when some episodes were judged with the pile's own zones because the end-zone
+    node would have published none for them (an estimate outside the LiDAR's range, or a wedge at the told
+    slope and the node's density too light to hold m_max): on the machine those attempts would not start,
+    so their figures are not the machine's. None when every episode had the zones asked for."""
+    fell = sum(n for k, n in res.get("zones_from", {}).items() if k.startswith("pile, "))
+    if not fell:
+        return None
+    total = sum(res["zones_from"].values())
+    density = res.get("zones_density")
+    light = f", or a wedge at the told slope lighter than m_max at {density:g} kg/m^3" if density is not None else ""
+    return (f"warning: {fell} of {total} episodes were judged with the pile's own zones: the end-zone node publishes "
+            f"none for their told slope (outside the LiDAR's {ESTIMATE_SLOPE_RANGE_DEG[0]:g}-"
+            f"{ESTIMATE_SLOPE_RANGE_DEG[1]:g} deg{light}); on the machine those attempts would not start")
 
 
 def zones_nominal_density(zones: str, zones_density: float | None = None) -> bool:

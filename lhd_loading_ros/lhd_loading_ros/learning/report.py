@@ -84,6 +84,7 @@ def _held_out_one(job: tuple) -> dict:
                         zones_density=zones_density)
     out = {m: ev[m] for m in HELD_OUT_METRICS}
     out["by_slope"] = {k: v["success_rate"] for k, v in ev["by_slope"].items()}
+    out["zones_from"] = ev["zones_from"]
     return out
 
 
@@ -97,7 +98,7 @@ def held_out(run_dirs: list, conditions=("nominal",), episodes: int = 120, confi
     density or `zones_density`).
     Returns {condition: {metric: mean, sd, iqm, iqm_ci95, values}}, the success per pile slope
     ("success_by_slope": {condition: {slope: the same statistics}}) and the runs."""
-    from lhd_loading_ros.learning.evaluate import CONDITIONS, zones_nominal_density
+    from lhd_loading_ros.learning.evaluate import CONDITIONS, zones_fallback_warning, zones_nominal_density
     from lhd_loading_ros.task.config import load_config
     from lhd_loading_ros.task.randomization import STRESS_CASES
 
@@ -130,6 +131,9 @@ def held_out(run_dirs: list, conditions=("nominal",), episodes: int = 120, confi
                 by_slope[c].setdefault(k, []).append(v)
             if log:
                 log(f"{d}: {c}: success {ev['success_rate']:.3f}, ASL {ev['asl']:.2f}, AML {ev['aml']:.1f} kg")
+                warning = zones_fallback_warning({"zones_from": ev["zones_from"], "zones_density": zones_density})
+                if warning is not None:
+                    log(f"{d}: {c}: {warning}")
     finally:
         if jobs > 1:
             pool.terminate()
