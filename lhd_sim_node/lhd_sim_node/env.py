@@ -31,6 +31,7 @@ import numpy as np
 from lhd_loading_ros.task.actions import apply_variant_filter, to_actuator, validate_action
 from lhd_loading_ros.task.config import load_config
 from lhd_loading_ros.task.end_zone import density_problem, nominal_density, zones_at_nominal_density
+from lhd_loading_ros.task.kinematics import ArmKinematics, quat_to_mat
 from lhd_loading_ros.task.metrics import EpisodeResult, drift_pct, success_level
 from lhd_loading_ros.task.observation import OBS_HIGH, OBS_LOW, build_observation
 from lhd_loading_ros.task.randomization import NOMINAL, Conditions, ObservationCorruptor, RandomizationRanges, draw
@@ -57,6 +58,7 @@ class LhdLoadingEnv(gym.Env):
         self.cfg = config if isinstance(config, dict) else load_config(config)
         self.sim = LhdSimulator(self.cfg)
         self.p = self.sim.p
+        self._kin = ArmKinematics.from_config(self.cfg)
         self._check_slope(slope_deg, "slope_deg")
         self.variant = variant
         self.slope_deg = slope_deg
@@ -155,7 +157,8 @@ class LhdLoadingEnv(gym.Env):
         self.sim.step(u)
         s = self.sim.state()
         self.steps += 1
-        zone = classify(s.x_shovel, s.y_shovel, s.z_shovel, self.zones)
+        m = self._measured(s)           # the supervisor ends the attempt on the tip its sensors give
+        zone = classify(m.x_shovel, m.y_shovel, m.z_shovel, self.zones)
         outcome = {"end": "success", "restricted": "failure"}.get(zone, "running")
         pile = self.sim.pile
         inside = 0.0 <= s.x_shovel < pile.L and s.z_shovel < pile.surface_height(s.x_shovel)
@@ -202,7 +205,27 @@ class LhdLoadingEnv(gym.Env):
         except ValueError:
             return zones, "pile, estimate out of range"
 
+    def _measured(self, s):
+        """The state as the machine's sensors give it: with the arm's angle sensors zeroed off the attack pose
+        (conditions.boom_offset_deg, bucket_offset_deg), the measured angles, and the tip and its pitch the arm's
+        kinematics (task/kinematics.py, as the policy node and the supervisor compute them) puts there, moved
+        from the true ones by the difference the offsets make at the machine's true pose. Without offsets, s."""
+        c = self.conditions
+        if c.boom_offset_deg == 0.0 and c.bucket_offset_deg == 0.0:
+            return s
+        q = self.sim.data.qpos
+        R = quat_to_mat(*q[3:7])
+        db, dk = math.radians(c.boom_offset_deg), math.radians(c.bucket_offset_deg)
+        tip0, pitch0, bottom0 = self._kin.tip_and_bottom(q[0:3], R, s.phi_boom, s.phi_bucket)
+        tip1, pitch1, bottom1 = self._kin.tip_and_bottom(q[0:3], R, s.phi_boom + db, s.phi_bucket + dk)
+        d, e = tip1 - tip0, bottom1 - bottom0
+        return replace(s, x_shovel=s.x_shovel + float(d[0]), y_shovel=s.y_shovel + float(d[1]),
+                       z_shovel=s.z_shovel + float(d[2]), phi_shovel=s.phi_shovel + math.remainder(pitch1 - pitch0, math.tau),
+                       phi_boom=s.phi_boom + db, phi_bucket=s.phi_bucket + dk,
+                       x_bottom=s.x_bottom + float(e[0]), z_bottom=s.z_bottom + float(e[2]))
+
     def _obs(self, s):
+        s = self._measured(s)
         alpha = self.sim.pile.alpha
         if self._sensors is not None:        # what the camera and the LiDAR tell the policy
             v_x, alpha = self._sensors.observe(s.v_x, alpha)
@@ -235,7 +258,14 @@ class LhdLoadingEnv(gym.Env):
 
     @property
     def state(self):
+        """The machine's true state (the simulator's)."""
         return self._state
+
+    @property
+    def measured_state(self):
+        """The state as the machine's sensors give it (the arm's angle-sensor offsets of the episode's
+        conditions applied: _measured); what a controller on the machine computes from the topics."""
+        return self._measured(self._state)
 
 
 ATTACK_REDRAWS = 5

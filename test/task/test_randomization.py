@@ -24,11 +24,12 @@ GAIN_KEYS = ("drive_gain_min", "drive_gain_max", "hydraulic_gain_min", "hydrauli
 
 def without_unit_gains(c):
     """The actuator gains (2026-11-28) at 1, their default, are left out of the hash; so is the share of
-    starts from rest, the surface relief and the end-zone node's zones (2026-11-29) at 0."""
+    starts from rest, the surface relief, the end-zone node's zones and the arm's angle-sensor offsets (2026-11-29)
+    at 0."""
     r = c.get("randomization")
     if r is not None and all(r.get(k, 1.0) == 1.0 for k in GAIN_KEYS):
         c = {**c, "randomization": {k: v for k, v in r.items() if k not in GAIN_KEYS}}
-    for key in ("rest_start_share", "surface_sd_max", "zones_at_nominal_density"):
+    for key in ("rest_start_share", "surface_sd_max", "zones_at_nominal_density", "arm_offset_max_deg"):
         r = c.get("randomization")
         if r is not None and r.get(key, 0.0) == 0.0:
             c = {**c, "randomization": {k: v for k, v in r.items() if k != key}}
@@ -66,17 +67,27 @@ def test_the_shipped_section_is_off_and_a_disabled_section_leaves_the_hash_alone
     # existed (computed here without them); set, part of the identity
     keys = ("drive_gain_min", "drive_gain_max", "hydraulic_gain_min", "hydraulic_gain_max")
     before = copy.deepcopy(on)
-    # likewise the share of starts from rest, the surface relief and the end-zone node's zones (2026-11-29) at 0
+    # likewise the share of starts from rest, the surface relief, the end-zone node's zones and the arm's
+    # angle-sensor offsets (2026-11-29) at 0
     before["randomization"] = {k: v for k, v in on["randomization"].items()
-                               if k not in keys + ("rest_start_share", "surface_sd_max", "zones_at_nominal_density")}
+                               if k not in keys + ("rest_start_share", "surface_sd_max", "zones_at_nominal_density",
+                                                   "arm_offset_max_deg")}
     assert all(on["randomization"][k] == 1.0 for k in keys) and on["randomization"]["rest_start_share"] == 0.0
     assert on["randomization"]["surface_sd_max"] == 0.0 and on["randomization"]["zones_at_nominal_density"] == 0
+    assert on["randomization"]["arm_offset_max_deg"] == 0.0
     assert config_hash(on) == hashlib.sha256(json.dumps(
         {**{k: v for k, v in before.items() if k not in ("training",)},
          "task": without["task"], "training": without["training"]}, sort_keys=True).encode()).hexdigest()[:16]
     gains = copy.deepcopy(on)
     gains["randomization"].update(drive_gain_min=0.8, hydraulic_gain_min=0.75)
     assert config_hash(gains) != config_hash(on) and hash_matches(config_hash(gains), gains)
+    arm = copy.deepcopy(on)
+    arm["randomization"]["arm_offset_max_deg"] = 2.5          # set: part of a randomised actor's identity
+    assert config_hash(arm) != config_hash(on)
+    # an actor trained without the offsets runs on a file that has them (a training-only range), as with the
+    # other keys; one trained with them runs on its own file, or on it with the section off (lhd ship's)
+    assert hash_matches(config_hash(on), arm) and hash_matches(config_hash(arm), arm)
+    assert hash_matches(config_hash(arm), {**arm, "randomization": {**arm["randomization"], "enabled": 0}})
 
 
 @pytest.mark.parametrize("key,value,needle", [

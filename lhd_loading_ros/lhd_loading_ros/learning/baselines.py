@@ -51,7 +51,7 @@ def run_tampier_episode(env, ctl: TampierController, seed: int, options: dict,
     trace = {"stage": [], "command": [], "x": [s0.x_shovel], "z": [s0.z_shovel], "phi": [s0.phi_shovel],
              "loaded": [env.sim.loaded_mass], "end_zone": end_zone}
     while True:
-        u = ctl.step(env.state, end_zone)
+        u = ctl.step(env.measured_state, end_zone)     # what the heuristic's sensors give it
         _, _, term, trunc, info = env.step_actuator(np.asarray(u))
         s = env.state
         trace["stage"].append(ctl.stage)

@@ -201,11 +201,11 @@ def run_job(job: Job) -> dict:
             a = np.clip(np.asarray(_actor(c)(told_observation(obs, told, env.p)), dtype=np.float64), -1.0, 1.0)
             obs, _, term, trunc, info = env.step(a)
         elif c == "scripted":
-            obs, _, term, trunc, info = env.step(scripted_action(env.state, env.p.x_midgoal, lift_on_drift=True))
+            obs, _, term, trunc, info = env.step(scripted_action(env.measured_state, env.p.x_midgoal, lift_on_drift=True))
         elif c == "teacher":
             obs, _, term, trunc, info = env.step(demo_action(env, *teacher))
         else:
-            obs, _, term, trunc, info = env.step_actuator(np.asarray(ctl.step(env.state, end_zone)))
+            obs, _, term, trunc, info = env.step_actuator(np.asarray(ctl.step(env.measured_state, end_zone)))
         path.append((env.state.x_shovel, env.state.z_shovel))
         if term or trunc:
             r = info["episode_result"]

@@ -200,6 +200,8 @@ def drawn_conditions(cfg: dict) -> str:
         parts.append(f"{100.0 * float(r['rest_start_share']):g} % of the attempts from rest with the tip in the pile")
     if float(r.get("surface_sd_max", 0.0)) > 0.0:
         parts.append(f"a rough face (relief sd up to {100.0 * float(r['surface_sd_max']):g} cm)")
+    if float(r.get("arm_offset_max_deg", 0.0)) > 0.0:
+        parts.append(f"boom and bucket angle sensors up to +-{float(r['arm_offset_max_deg']):g} deg off their zero")
     return ", ".join(parts)
 
 

@@ -49,6 +49,9 @@ class Conditions:
     hydraulic_gain: float = 1.0         # the boom and bucket move at this times the commanded rate (pump flow)
     rest_start: bool = False            # after the drive in, the machine stops: the episode starts from rest with
                                         # the tip in the pile, as an attempt on the machine does (LhdSimulator.come_to_rest)
+    boom_offset_deg: float = 0.0        # the measured boom angle minus the true one: the sensor's zero taken off the
+    bucket_offset_deg: float = 0.0      # attack pose (likewise the bucket's); the tip and its pitch are computed from
+                                        # the measured angles, for the policy and for the zones that end the attempt
 
     def summary(self) -> dict:
         """A flat dict of the drawn values (for info and CSVs)."""
@@ -84,6 +87,7 @@ class RandomizationRanges:
     rest_start_share: float = 0.0       # this share of the episodes starts from rest (Conditions.rest_start)
     surface_sd_max: float = 0.0         # m, each pile's relief sd U(0, this) about its plane (Conditions.surface_sd)
     zones_at_nominal_density: bool = False   # the zones built as the end-zone node does (task/end_zone.py)
+    arm_offset_max_deg: float = 0.0     # each episode's boom and bucket angle-sensor offsets U(-this, this), apart
 
     @classmethod
     def from_config(cls, cfg: dict) -> "RandomizationRanges":
@@ -109,6 +113,7 @@ class RandomizationRanges:
             rest_start_share=float(r.get("rest_start_share", 0.0)),
             surface_sd_max=float(r.get("surface_sd_max", 0.0)),
             zones_at_nominal_density=bool(r.get("zones_at_nominal_density", 0)),
+            arm_offset_max_deg=float(r.get("arm_offset_max_deg", 0.0)),
         )
 
 
@@ -140,6 +145,9 @@ def draw(rng: np.random.Generator, rr: RandomizationRanges) -> Conditions:
     if rr.surface_sd_max > 0.0:         # likewise; the correlation length the stress case's (the largest rock)
         gains["surface_sd"] = float(u(0.0, rr.surface_sd_max))
         gains["surface_corr"] = ROUGH_CORR
+    if rr.arm_offset_max_deg > 0.0:     # likewise: the arm's angle sensors zeroed off the attack pose
+        gains["boom_offset_deg"] = float(u(-rr.arm_offset_max_deg, rr.arm_offset_max_deg))
+        gains["bucket_offset_deg"] = float(u(-rr.arm_offset_max_deg, rr.arm_offset_max_deg))
     return replace(c, **gains) if gains else c
 
 
@@ -224,6 +232,13 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
                errors and the 100 ms dead time), from rest with the tip in the pile (as `rest`), on a pile
                whose surface is no plane (as `rough`, the observed slope the scanned slice's). Each passes
                alone; an attempt on the machine has them all at once (2026-11-29)
+    calibration  the arm's angle sensors zeroed off the attack pose: the boom's reads CALIBRATION_OFFSET_DEG (2 deg)
+               more or less than the true angle, and the bucket's likewise (signs alternate over the episodes:
+               (i // 8) % 2 for the boom, (i // 16) % 2 for the bucket, so each sign pair meets every slope and
+               material). On the machine the Due reports the angles as 0 in the attack pose (docs/serial_protocol.md)
+               and the tip, its pitch, the policy's observation and the end test of the supervisor all follow
+               from them through the arm's kinematics; the machine itself, its load and its true final pitch
+               (the success test) do not change
     rough      the pile's surface not a plane: a random relief of sd ROUGH_SD (3 cm) and correlation
                length ROUGH_CORR (15 cm) about it (VoxelPile.roughen). A pile dumped by a feeder or by
                hand has bumps of about the size of its largest pieces (the paper's 8-15 cm rocks in 2-5
@@ -258,6 +273,9 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
         return Conditions(soil=replace(SoilRanges.from_config(cfg), rocks=(n, n)))
     if name == "rough":
         return Conditions(surface_sd=ROUGH_SD, surface_corr=ROUGH_CORR)
+    if name == "calibration":
+        return Conditions(boom_offset_deg=CALIBRATION_OFFSET_DEG * (1.0 if (i // 8) % 2 == 0 else -1.0),
+                          bucket_offset_deg=CALIBRATION_OFFSET_DEG * (1.0 if (i // 16) % 2 == 0 else -1.0))
     if name == "rest":
         return Conditions(rest_start=True)
     if name == "slow_drive":
@@ -270,7 +288,7 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
 
 
 STRESS_CASES = ("placement", "sensors", "delay", "light", "dense", "rocky", "rough", "slow_drive", "slow_hydraulics",
-                "cohesive", "dense_placement", "rest", "machine")
+                "cohesive", "dense_placement", "rest", "machine", "calibration")
 SLOW_DRIVE_GAIN = 0.8       # the wheels at 80 % of the commanded speed: a battery near its cut-off (a DC motor's
                             # speed follows its voltage; about -20 % from full charge) or a speed loop 20 % off
 SLOW_HYDRAULIC_GAIN = 0.75  # boom and bucket at 75 % of the commanded rate: less pump flow (a sagging battery
@@ -278,6 +296,8 @@ SLOW_HYDRAULIC_GAIN = 0.75  # boom and bucket at 75 % of the commanded rate: les
 COHESIVE_PA = 1500.0        # Pa: apparent (capillary) cohesion of moist gravel with fines, the upper end of what a
                             # draw point's wet muck shows (Tampier et al. 2021 name humidity raising cohesion among
                             # what makes loading hard); clean dry gravel 0 (pile.cohesion_*)
+CALIBRATION_OFFSET_DEG = 2.0   # deg: an angle sensor zeroed by eye on a pose ("bucket plate flat on the floor, boom
+                               # down"); a digital inclinometer on the plate gets within about 0.1-0.5 deg
 ROUGH_SD = 0.03        # m: half the largest rock (8-15 cm) of the paper's pile, three 2-5 cm grains
 ROUGH_CORR = 0.15      # m: the largest rock's size
 # the material a stress case puts every episode on (the others keep the evaluation's alternation)
