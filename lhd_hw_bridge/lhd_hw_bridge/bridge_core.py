@@ -416,12 +416,27 @@ class WheelAngles:
         return list(self.angles)
 
 
-def joint_state_arrays(f: SensorFrame, wheels: WheelAngles | None = None) -> tuple[list, list]:
-    """(position, velocity) in JOINT_NAMES order. Wheel positions: integrated by `wheels` (0.0
-    without it); both rear wheels report the rear motor's speed (one motor through a
-    differential)."""
+ARM_ZERO_MAX = 0.35      # rad (20 deg): a larger zero is not a calibration but a sensor mounted wrong
+
+
+def arm_zero_problem(v) -> str | None:
+    """Why a boom_zero / bucket_zero value is refused (None: accepted)."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        return f"{v!r}: expected the angle in rad the device reports in the attack pose"
+    if abs(v) > ARM_ZERO_MAX:
+        return (f"{v:g} rad: expected |zero| <= {ARM_ZERO_MAX:g} rad ({math.degrees(ARM_ZERO_MAX):.0f} deg; in rad, not "
+                "deg); a larger one means the sensor is mounted or wired wrong: fix it, not the zero")
+    return None
+
+
+def joint_state_arrays(f: SensorFrame, wheels: WheelAngles | None = None,
+                       zeros: tuple[float, float] = (0.0, 0.0)) -> tuple[list, list]:
+    """(position, velocity) in JOINT_NAMES order. Boom and bucket: the device's angles minus `zeros`, the
+    angles it reports in the attack pose (the bridge's boom_zero, bucket_zero: docs/real_machine.md
+    "Calibration"). Wheel positions: integrated by `wheels` (0.0 without it); both rear wheels report the rear
+    motor's speed (one motor through a differential)."""
     wheel_pos = wheels.update(f) if wheels is not None else [0.0] * 4
-    pos = [f.boom_angle, f.bucket_angle, *wheel_pos]
+    pos = [f.boom_angle - zeros[0], f.bucket_angle - zeros[1], *wheel_pos]
     vel = [f.boom_rate, f.bucket_rate, f.wheel_fl, f.wheel_fr, f.wheel_rear, f.wheel_rear]
     return pos, vel
 

@@ -203,6 +203,18 @@ def test_joint_state_contents():
     pos, vel = joint_state_arrays(f)
     assert pos == [-0.2, 0.3, 0.0, 0.0, 0.0, 0.0]
     assert vel == [-0.19, 0.2, 1.0, 1.1, 1.2, 1.2]
+    # the arm's zeros (the angles the device reports in the attack pose) come off the positions, not the rates
+    pos, vel = joint_state_arrays(f, zeros=(0.035, -0.02))
+    assert pos[:2] == pytest.approx([-0.235, 0.32]) and vel[:2] == [-0.19, 0.2]
+
+
+def test_arm_zero_limits():
+    from lhd_hw_bridge.bridge_core import arm_zero_problem
+
+    assert arm_zero_problem(0.0) is None and arm_zero_problem(-0.35) is None and arm_zero_problem(0.1) is None
+    assert "in rad, not deg" in arm_zero_problem(2.0)          # 2 deg typed as rad
+    assert "expected the angle in rad" in arm_zero_problem(float("nan"))
+    assert "expected the angle in rad" in arm_zero_problem(True)
 
 
 def test_wheel_angles_are_the_reported_speeds_integrated_on_the_device_clock():

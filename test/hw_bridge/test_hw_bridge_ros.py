@@ -322,6 +322,15 @@ def status_values(msg) -> dict:
     return {kv.key: kv.value for kv in msg.values}
 
 
+def device_status(got) -> dict:
+    """The newest 'device' status on /diagnostics: level, message and values."""
+    for d in reversed(got["diag"]):
+        for s in d.status:
+            if s.name.endswith("device"):
+                return {"level": s.level, "message": s.message, **status_values(s)}
+    return {}
+
+
 def link_status(got) -> dict:
     """The newest 'serial link' status on /diagnostics: level, message and values."""
     for d in reversed(got["diag"]):
@@ -386,10 +395,24 @@ def test_runtime_parameter_changes_take_effect_or_are_refused_with_the_reason(ri
     refused = {"valve_deadband": (0.0, "a zero command would open the valves"),
                "command_rate_hz": (5.0, "expected >= 16 Hz"),
                "cmd_timeout": (5.0, "out of range"),
-               "port": ("/dev/ttyS0", "read-only")}
+               "port": ("/dev/ttyS0", "read-only"),
+               "boom_zero": (2.0, "in rad, not deg"),               # 2 deg typed as rad: 115 deg
+               "bucket_zero": (float("nan"), "expected a number")}
     for name, (value, why) in refused.items():
         r, = set_params(node, [Parameter(name, value=value)])
         assert not r.successful and why in r.reason, (name, r.reason)
+    # the arm's zeros (the angles the device reports in the attack pose) are taken off every joint state from now
+    # on; the device's own angles and the zeros are in its status, for the calibration
+    r = set_params(node, [Parameter("boom_zero", value=0.05), Parameter("bucket_zero", value=-0.03)])
+    assert all(x.successful for x in r), [x.reason for x in r]
+    n0 = len(got["js"])
+    assert spin_until(node, lambda: len(got["js"]) > n0 + 10, timeout=5.0)
+    js = got["js"][-1]
+    assert js.position[0] == pytest.approx(dev.plant.boom - 0.05, abs=0.006), (js.position[0], dev.plant.boom)
+    assert js.position[1] == pytest.approx(dev.plant.bucket + 0.03, abs=0.006), (js.position[1], dev.plant.bucket)
+    assert spin_until(node, lambda: device_status(got).get("boom_zero_rad") == "0.05", timeout=5.0)
+    assert device_status(got)["bucket_zero_rad"] == "-0.03"
+    assert float(device_status(got)["boom_angle_device_rad"]) == pytest.approx(dev.plant.boom, abs=0.006)
     # a longer command timeout, given as an int for a float, is applied: the stop now comes ~600 ms after
     r, = set_params(node, [Parameter("cmd_timeout", value=0.6)])
     assert r.successful, r.reason

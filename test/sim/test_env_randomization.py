@@ -668,3 +668,109 @@ def test_training_through_the_sim_nodes_refuses_the_end_zone_nodes_zones(cfg, tm
     with pytest.raises(ValueError, match="zones_at_nominal_density = 1 .* needs the in-process environment"):
         train("rld", 0, tmp_path, steps=10, config=c, resume=False, progress=False, env_kind="ros",
               namespaces=["/sim0"])
+
+
+def _mujoco_tip_at(env, boom_offset_deg: float, bucket_offset_deg: float):
+    """(x, z, pitch) of the tip site by MuJoCo's own forward kinematics, at the machine's true pose with the
+    boom and bucket joints turned by the offsets: an independent route to where the measured angles put it."""
+    import mujoco
+
+    sim = env.sim
+    d = mujoco.MjData(sim.model)
+    d.qpos[:] = sim.data.qpos
+    d.qpos[sim.boom_q] += math.radians(boom_offset_deg)
+    d.qpos[sim.bucket_q] += math.radians(bucket_offset_deg)
+    mujoco.mj_kinematics(sim.model, d)
+    xm = d.site_xmat[sim.sid_tip]
+    return float(d.site_xpos[sim.sid_tip][0]), float(d.site_xpos[sim.sid_tip][2]), math.atan2(xm[6], xm[0])
+
+
+def test_arm_angle_sensor_offsets_move_the_measured_tip_as_mujoco_puts_it(cfg):
+    """Conditions.boom_offset_deg / bucket_offset_deg (2026-11-29): the boom and bucket angles read off their
+    true values; the measured tip and pitch (observation, heuristic, end test) are where MuJoCo's forward
+    kinematics puts the tip with the joints at the measured angles, from the machine's true pose; the pitch
+    moves by exactly bucket - boom (the bucket curls the tip frame back, the boom lowers it). The true state,
+    the physics and the load do not change. Without offsets the measured state is the true one."""
+    env = LhdLoadingEnv("rld", cfg)
+    opts = {"slope_deg": 25.0, "material": "homogeneous", "d_attack": 0.15, "attack_speed": 2.7}
+    env.reset(seed=3, options={**opts, "conditions": NOMINAL})
+    assert env.measured_state is env.state
+    plain = [env.step(np.array([0.6, -0.4, 0.5]))[0] for _ in range(8)]
+    true_plain = env.state
+    for db, dk in ((2.0, 0.0), (0.0, -2.0), (-1.5, 2.5)):
+        env.reset(seed=3, options={**opts, "conditions": Conditions(boom_offset_deg=db, bucket_offset_deg=dk)})
+        obs = [env.step(np.array([0.6, -0.4, 0.5]))[0] for _ in range(8)]
+        s, m = env.state, env.measured_state
+        assert (s.x_shovel, s.z_shovel, s.phi_shovel) == (true_plain.x_shovel, true_plain.z_shovel,
+                                                          true_plain.phi_shovel)    # the machine moved as before
+        x, z, pitch = _mujoco_tip_at(env, db, dk)
+        assert m.x_shovel == pytest.approx(x, abs=1e-6) and m.z_shovel == pytest.approx(z, abs=1e-6), (db, dk)
+        assert m.phi_shovel == pytest.approx(pitch, abs=1e-9)
+        assert m.phi_shovel - s.phi_shovel == pytest.approx(math.radians(dk - db), abs=1e-12)
+        assert m.phi_boom - s.phi_boom == pytest.approx(math.radians(db)) and m.dphi_boom == s.dphi_boom
+        # a boom turned by db moves the tip on a circle about the boom's axis: by 2 r sin(db / 2), r the tip's
+        # distance from that axis (MuJoCo's joint anchor and axis)
+        if dk == 0.0:
+            jb = env.sim.model.joint("boom").id
+            rel = env.sim.data.site_xpos[env.sim.sid_tip] - env.sim.data.xanchor[jb]
+            axis = env.sim.data.xaxis[jb]
+            r = float(np.linalg.norm(rel - rel.dot(axis) * axis))
+            moved = math.hypot(m.x_shovel - s.x_shovel, m.z_shovel - s.z_shovel)
+            assert 0.5 < r < 1.5 and moved == pytest.approx(2 * r * math.sin(math.radians(db) / 2), rel=1e-3), (r, moved)
+        assert not np.allclose(obs[-1], plain[-1])                      # the policy sees the measured tip
+
+
+def test_the_end_test_reads_the_measured_tip(cfg):
+    """The supervisor ends an attempt when the tip its sensors give reaches the end zone: with the boom's sensor
+    reading 3 deg low (lowered), the same commands (the physics are the offsets' none) end the episode later, with
+    the true tip higher above z_min than without; in both, the measured tip is in the end zone at the end."""
+    from lhd_loading_ros.task.zones import classify
+
+    env = LhdLoadingEnv("rld", cfg)
+    opts = {"slope_deg": 20.0, "material": "homogeneous", "d_attack": 0.15, "attack_speed": 2.7}
+    ends = {}
+    for db in (0.0, 3.0):
+        env.reset(seed=8, options={**opts, "conditions": Conditions(boom_offset_deg=db)})
+        for k in range(200):
+            a = np.array([1.0, 1.0, -1.0]) if k < 14 else np.array([0.0, -1.0, 1.0])   # push, then stop, lift, curl
+            _, _, term, trunc, info = env.step(a)
+            if term or trunc:
+                break
+        assert info["outcome"] == "success", (db, info["outcome"], k)
+        m = env.measured_state
+        assert classify(m.x_shovel, m.y_shovel, m.z_shovel, env.zones) == "end"
+        ends[db] = (k, env.state.z_shovel)
+    assert ends[3.0][0] > ends[0.0][0] and ends[3.0][1] > ends[0.0][1] + 0.02, ends
+
+
+def test_the_calibration_stress_case_and_the_drawn_offsets(cfg):
+    """`lhd eval --stress calibration`: +-2 deg on the boom and on the bucket, every sign pair in 8 of every 32
+    episodes, each pair on every slope and material of the stratified set; `randomization.arm_offset_max_deg`
+    draws each offset U(-max, max) after every other value, so a file without it draws what it drew before."""
+    import copy
+    from dataclasses import replace
+
+    from lhd_loading_ros.learning.evaluate import episode_conditions
+    from lhd_loading_ros.task.randomization import CALIBRATION_OFFSET_DEG, RandomizationRanges, draw, stress_conditions
+
+    assert CALIBRATION_OFFSET_DEG == 2.0
+    cells: dict = {}
+    for i in range(32):
+        c = stress_conditions("calibration", i, cfg)
+        assert replace(c, boom_offset_deg=0.0, bucket_offset_deg=0.0) == NOMINAL
+        _, o = episode_conditions(i, 0)
+        cells.setdefault((c.boom_offset_deg, c.bucket_offset_deg), set()).add((o["slope_deg"], o["material"]))
+    assert set(cells) == {(2.0, 2.0), (-2.0, 2.0), (2.0, -2.0), (-2.0, -2.0)}
+    assert all(len(v) == 8 for v in cells.values())                    # 4 slopes x 2 materials each
+    on, off = copy.deepcopy(cfg), copy.deepcopy(cfg)
+    on["randomization"].update(enabled=1, arm_offset_max_deg=2.5)
+    off["randomization"]["enabled"] = 1
+    ra, rb = np.random.default_rng(5), np.random.default_rng(5)
+    c_on, c_off = draw(ra, RandomizationRanges.from_config(on)), draw(rb, RandomizationRanges.from_config(off))
+    assert replace(c_on, boom_offset_deg=0.0, bucket_offset_deg=0.0) == c_off
+    rb.uniform(), rb.uniform()
+    assert ra.bit_generator.state == rb.bit_generator.state          # exactly two more numbers drawn
+    offs = np.array([(c.boom_offset_deg, c.bucket_offset_deg)
+                     for c in (draw(ra, RandomizationRanges.from_config(on)) for _ in range(3000))])
+    assert np.abs(offs).max() <= 2.5 and np.abs(offs.mean(axis=0)).max() < 0.1
+    assert abs(np.corrcoef(offs.T)[0, 1]) < 0.06                       # two draws, not one
