@@ -81,6 +81,10 @@ def open_problem(port: str, exc: Exception) -> str:
     return f"cannot open {port}: {exc}"
 
 
+ARM_ZERO_WARNING = ("the measured tip and its pitch move with it (1 deg of boom: about 1.5 cm at the tip): set it "
+                    "with the machine standing in the attack pose, never during an attempt")
+
+
 class BridgeNode(Node):
     def __init__(self, cfg: dict | None = None, **node_kwargs):
         super().__init__("lhd_hw_bridge", **node_kwargs)
@@ -113,9 +117,11 @@ class BridgeNode(Node):
                   lo=0.01, hi=10.0, on_change=lambda v: self._apply(odom_timeout=v)),
             Param("boom_zero", 0.0, "rad, the boom angle the device reports in the attack pose; subtracted from every "
                   "reading (docs/real_machine.md Calibration, step 7: both 2 deg off cost the machine's RLD 28 % of "
-                  "its attempts)", check=arm_zero_problem, on_change=lambda v: self._set_zero(0, v)),
+                  "its attempts); |zero| <= 0.35 rad", check=arm_zero_problem, on_change=lambda v: self._set_zero(0, v),
+                  warn_change=ARM_ZERO_WARNING),
             Param("bucket_zero", 0.0, "rad, the bucket angle the device reports in the attack pose; subtracted from "
-                  "every reading", check=arm_zero_problem, on_change=lambda v: self._set_zero(1, v)),
+                  "every reading; |zero| <= 0.35 rad", check=arm_zero_problem, on_change=lambda v: self._set_zero(1, v),
+                  warn_change=ARM_ZERO_WARNING),
         ])
         pv = self.params
         self.p = dataclasses.replace(base, cmd_timeout=pv["cmd_timeout"], command_rate_hz=pv["command_rate_hz"],

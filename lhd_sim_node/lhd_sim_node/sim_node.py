@@ -524,7 +524,8 @@ class SimNode(Node):
         js.name = list(JOINTS)
         art_q = 0.0 if self._art_q is None else float(q[self._art_q])
         art_v = 0.0 if self._art_v is None else float(d.qvel[self._art_v])
-        js.position = [float(s.phi_boom), float(s.phi_bucket), art_q] + [float(q[i]) for i in self._wheel_q]
+        m = self.env.measured_state      # the arm's angles as its sensors read them (an episode's drawn offsets)
+        js.position = [float(m.phi_boom), float(m.phi_bucket), art_q] + [float(q[i]) for i in self._wheel_q]
         js.velocity = ([float(s.dphi_boom), float(s.dphi_bucket), art_v]
                        + [float(d.qvel[i]) for i in self._wheel_v])
         self.pub_js.publish(js)

@@ -81,14 +81,16 @@ class DemoConfig:
 
 
 def demo_action(env, crowd: float, pre_curl: float, told_zones: bool = False,
-                end_zone_stop: float = 0.0) -> np.ndarray:
+                end_zone_stop: float = 0.0, measured: bool = False) -> np.ndarray:
     """The scripted maneuver's normalised action for env's current state: arm still and wheels
     full until the tip passes x_min (the pile's own, or with told_zones the told one) or a wheel
     drifts, then curl to pre_curl and lift and curl at full rate with the wheels at `crowd` of full
     speed; with end_zone_stop > 0 the wheels stop while the tip is below z_min within that distance
-    of x_max (of the same zones)."""
+    of x_max (of the same zones). measured: from the state the machine's sensors give (env.measured_state,
+    the arm's angle-sensor offsets in it), as the teacher runs on the machine (lhd experiment paper); the
+    training's demonstrations read the true state (the simulator's teacher, an oracle like the pile's zones)."""
     from lhd_loading_ros.policy.teacher import TeacherSetting, teacher_action
 
     z = env.zones if told_zones else env.sim.zones
-    return teacher_action(env.state, (z.x_min, z.x_max, z.z_min),
+    return teacher_action(env.measured_state if measured else env.state, (z.x_min, z.x_max, z.z_min),
                           TeacherSetting(crowd, pre_curl, told_zones, end_zone_stop))

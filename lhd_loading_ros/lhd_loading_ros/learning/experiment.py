@@ -203,7 +203,7 @@ def run_job(job: Job) -> dict:
         elif c == "scripted":
             obs, _, term, trunc, info = env.step(scripted_action(env.measured_state, env.p.x_midgoal, lift_on_drift=True))
         elif c == "teacher":
-            obs, _, term, trunc, info = env.step(demo_action(env, *teacher))
+            obs, _, term, trunc, info = env.step(demo_action(env, *teacher, measured=True))
         else:
             obs, _, term, trunc, info = env.step_actuator(np.asarray(ctl.step(env.measured_state, end_zone)))
         path.append((env.state.x_shovel, env.state.z_shovel))

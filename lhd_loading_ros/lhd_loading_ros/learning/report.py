@@ -105,8 +105,14 @@ def held_out(run_dirs: list, conditions=("nominal",), episodes: int = 120, confi
     for c in conditions:
         if c not in CONDITIONS + STRESS_CASES:
             raise ValueError(f"unknown condition {c!r}; expected nominal, randomized or one of {', '.join(STRESS_CASES)}")
-    load_config(config)            # a bad parameter file fails here, before any worker starts
+    cfg = load_config(config)      # a bad parameter file fails here, before any worker starts
     zones_nominal_density(zones, zones_density)       # likewise wrong zones
+    if zones == "end-zone-node":   # the end-zone node's density in use, for the warnings: set, or the config's
+        from lhd_loading_ros.task.end_zone import nominal_density
+
+        used_density = nominal_density(cfg) if zones_density is None else zones_density
+    else:
+        used_density = None
     runs = [Path(d) for d in run_dirs]
     missing = [str(d) for d in runs if not (d / "final" / "policy.json").is_file()]
     if missing:
@@ -131,7 +137,7 @@ def held_out(run_dirs: list, conditions=("nominal",), episodes: int = 120, confi
                 by_slope[c].setdefault(k, []).append(v)
             if log:
                 log(f"{d}: {c}: success {ev['success_rate']:.3f}, ASL {ev['asl']:.2f}, AML {ev['aml']:.1f} kg")
-                warning = zones_fallback_warning({"zones_from": ev["zones_from"], "zones_density": zones_density})
+                warning = zones_fallback_warning({"zones_from": ev["zones_from"], "zones_density": used_density})
                 if warning is not None:
                     log(f"{d}: {c}: {warning}")
     finally:
