@@ -56,7 +56,7 @@ import select
 import threading
 import time
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -235,6 +235,10 @@ class SimDue:
     rate: float = 1.0 / SENSOR_PERIOD
     load_cell: bool = True
     on_chunk: object = None
+    # rad: the device's boom and bucket angles read this far off the true ones (a sensor zeroed off the attack
+    # pose, docs/real_machine.md "Calibration" step 7); its frames and its own joint limits see them, as on the
+    # machine, and the bridge's boom_zero / bucket_zero take them off again
+    arm_zero_error: tuple = (0.0, 0.0)
     firmware: Firmware = field(init=False)
 
     def __post_init__(self):
@@ -359,7 +363,8 @@ class SimDue:
                 return False
             s = self.sim
             start = self._base_state()
-            boom, bucket = float(s.data.qpos[s.boom_q]), float(s.data.qpos[s.bucket_q])
+            boom = float(s.data.qpos[s.boom_q]) + self.arm_zero_error[0]       # what the device's sensors read
+            bucket = float(s.data.qpos[s.bucket_q]) + self.arm_zero_error[1]
             self.firmware.check_watchdog(now)
             self.applied = self.firmware.outputs(boom, bucket)
             self.u = actuator_command(self.applied, self.boom_speed, self.bucket_speed)
@@ -382,6 +387,9 @@ class SimDue:
         with self.lock:
             r = read_simulator(self.sim)
             out = self.applied
+        e = self.arm_zero_error
+        if e != (0.0, 0.0):
+            r = replace(r, boom=r.boom + e[0], bucket=r.bucket + e[1])
         return sensor_frame(r, out, self.device_us(now))
 
     def lag(self, now: float) -> float:

@@ -158,6 +158,10 @@ class TwinNode(Node):
             Param("estop", False, "the simulated machine's emergency-stop button pressed",
                   on_change=self._set_estop),
             Param("load_cell", True, "the device has the bucket's load cell (load-cell frames at 10 Hz)"),
+            Param("arm_zero_error_deg", [0.0, 0.0], "deg, the device's boom and bucket angles read this far off the "
+                  "true ones (a sensor zeroed off the attack pose; the bridge's boom_zero / bucket_zero correct it: "
+                  "docs/real_machine.md Calibration step 7)", length=2,
+                  check=lambda v: None if all(abs(float(x)) <= 20.0 for x in v) else "expected each within +-20 deg"),
             Param("truth_hz", 50.0, "Hz, ground-truth topics", lo=1.0, hi=100.0),
             Param("imu_hz", 0.0, "Hz, <prefix>/imu: the rear frame's orientation as an IMU on it would give it "
                   "(0: none; the paper's machine has none: `lhd up twin --imu`)", lo=0.0, hi=200.0),
@@ -245,6 +249,7 @@ class TwinNode(Node):
         self.first_reset_s = time.perf_counter() - t
         self.due = SimDue(self.sim, link=gp("link"), load_cell=gp("load_cell"), on_chunk=self._on_chunk)
         self.due.estop = gp("estop")
+        self.due.arm_zero_error = tuple(math.radians(float(x)) for x in gp("arm_zero_error_deg"))
 
         self.pub_odom = self.create_publisher(Odometry, f"{ns}/twin/truth/odom", MEASUREMENT_QOS)
         self.pub_drift = self.create_publisher(Float64MultiArray, f"{ns}/twin/truth/drift", MEASUREMENT_QOS)

@@ -170,6 +170,27 @@ def test_sensors_sample_the_machine_between_chunks(sim):
     assert p == pytest.approx(p1) and v == pytest.approx(v1) and t_state == 100.21
 
 
+def test_a_device_whose_arm_sensors_are_zeroed_off_the_attack_pose(sim):
+    """SimDue.arm_zero_error (the twin's arm_zero_error_deg): the device's frames carry the true angles plus
+    the error (at the protocol's 1e-4 rad), its rates untouched, and its own joint limits act on what its
+    sensors read, as the firmware's do on the machine: a bucket whose sensor reads past BUCKET_MAX gets its
+    curl valve closed while the true angle is well inside the range."""
+    due = SimDue(sim)
+    due.firmware.receive(CommandFrame(0.0, 0, 1, True), 0.0)              # curl back
+    due.step_chunk(0.0, 100.0)
+    assert due.applied.valve_bucket == 1                                   # inside the limits: it curls
+    true = sim.state()
+    f0 = due.sensor_frame_now(100.02)
+    due.arm_zero_error = (0.02, sim_due.BUCKET_MAX - true.phi_bucket + 0.01)
+    f1 = due.sensor_frame_now(100.02)
+    assert f1.boom_angle - f0.boom_angle == pytest.approx(0.02, abs=1.1e-4)
+    assert f1.bucket_angle == pytest.approx(sim_due.BUCKET_MAX + 0.01, abs=1.1e-4)
+    assert (f1.boom_rate, f1.bucket_rate) == (f0.boom_rate, f0.bucket_rate)
+    due.firmware.receive(CommandFrame(0.0, 0, 1, True), 0.02)
+    due.step_chunk(0.02, 100.02)
+    assert due.applied.valve_bucket == 0 and sim.state().phi_bucket < sim_due.BUCKET_MAX - 0.5   # the device's limit
+
+
 def _host(link):
     fd = os.open(link, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
     tty.setraw(fd)
