@@ -322,22 +322,21 @@ def status_values(msg) -> dict:
     return {kv.key: kv.value for kv in msg.values}
 
 
-def device_status(got) -> dict:
-    """The newest 'device' status on /diagnostics: level, message and values."""
+def named_status(got, name: str) -> dict:
+    """The newest status on /diagnostics whose name ends with `name`: level, message and values."""
     for d in reversed(got["diag"]):
         for s in d.status:
-            if s.name.endswith("device"):
+            if s.name.endswith(name):
                 return {"level": s.level, "message": s.message, **status_values(s)}
     return {}
+
+
+def device_status(got) -> dict:
+    return named_status(got, "device")
 
 
 def link_status(got) -> dict:
-    """The newest 'serial link' status on /diagnostics: level, message and values."""
-    for d in reversed(got["diag"]):
-        for s in d.status:
-            if s.name.endswith("serial link"):
-                return {"level": s.level, "message": s.message, **status_values(s)}
-    return {}
+    return named_status(got, "serial link")
 
 
 @pytest.mark.parametrize("name, value, needle", [
