@@ -87,7 +87,7 @@ class RandomizationRanges:
     rest_start_share: float = 0.0       # this share of the episodes starts from rest (Conditions.rest_start)
     surface_sd_max: float = 0.0         # m, each pile's relief sd U(0, this) about its plane (Conditions.surface_sd)
     zones_at_nominal_density: bool = False   # the zones built as the end-zone node does (task/end_zone.py)
-    arm_offset_max_deg: float = 0.0     # each episode's boom and bucket angle-sensor offsets U(-this, this), apart
+    arm_offset_max_deg: float = 0.0     # each episode's boom and bucket angle-sensor offsets, each U(-this, this)
 
     @classmethod
     def from_config(cls, cfg: dict) -> "RandomizationRanges":
