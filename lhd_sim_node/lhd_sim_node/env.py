@@ -136,7 +136,7 @@ class LhdLoadingEnv(gym.Env):
         self._max_tilt = abs(self.sim.machine_pitch())
         self._done = False
         self._state = s
-        return self._obs(s), self._info(s, "running", {})
+        return self._obs(self._measured(s)), self._info(s, "running", {})
 
     def step(self, action):
         if self._done:
@@ -178,7 +178,7 @@ class LhdLoadingEnv(gym.Env):
         info["success_margin_cut"] = self.tracker.margin_cut   # in terms["success"]; apart for a ramped margin
         if self._done:
             info["episode_result"] = self.result(outcome, truncated)
-        return self._obs(s), r, terminated, truncated, info
+        return self._obs(m), r, terminated, truncated, info
 
     # ------------------------------------------------------------------ helpers
     def _task_zones(self, c_obs: Conditions):
@@ -225,7 +225,7 @@ class LhdLoadingEnv(gym.Env):
                        x_bottom=s.x_bottom + float(e[0]), z_bottom=s.z_bottom + float(e[2]))
 
     def _obs(self, s):
-        s = self._measured(s)
+        """The observation of the measured state s (_measured: computed once a step, for this and the end test)."""
         alpha = self.sim.pile.alpha
         if self._sensors is not None:        # what the camera and the LiDAR tell the policy
             v_x, alpha = self._sensors.observe(s.v_x, alpha)
