@@ -9,7 +9,8 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
-        ("share/" + package_name + "/firmware/lhd_due", ["lhd_hw_bridge/firmware/lhd_due/lhd_due.ino"]),
+        ("share/" + package_name + "/firmware/lhd_due", ["lhd_hw_bridge/firmware/lhd_due/lhd_due.ino",
+                                                   "lhd_hw_bridge/firmware/lhd_due/arm_rate.h"]),
     ],
     install_requires=["setuptools", "pyserial"],
     zip_safe=True,

@@ -3,7 +3,8 @@
 It speaks the device side of docs/serial_protocol.md: receives command and heartbeat
 frames, runs a small plant (the arm joints integrate their ternary valve commands at full
 speed within their limits, the wheels follow the set-point with a first-order lag, motor
-currents follow the load), sends sensor frames at `rate` Hz, and stops by itself (the
+currents follow the load), sends sensor frames at `rate` Hz (the arm's rates, as the firmware's, the
+differences of the angles it sends over the last 0.1 s: task/arm_sensors.py), and stops by itself (the
 firmware's watchdog) when command frames stop for `watchdog` seconds. Like the firmware, it
 clamps the wheel set-point to [0, 2.7] rad/s, never lowers the boom or tilts the bucket forward,
 closes a valve at its joint limit, holds everything while the emergency stop is pressed, and
@@ -33,6 +34,8 @@ import sys
 import threading
 import time
 from dataclasses import dataclass, field
+
+from lhd_loading_ros.task.arm_sensors import RATE_WINDOW_S, RateWindow
 
 from .pty_link import close_pty, open_pty
 from .protocol import (FLAG_ENABLED, FLAG_ESTOP, FLAG_WATCHDOG, LC_CALIBRATED, LC_SATURATED, LC_STALE, LC_TARED,
@@ -117,6 +120,8 @@ class FakeDue:
         self._lc_time_us = 0
         self._tx = TxSequence()
         self._command: CommandFrame | None = None
+        self._rate_windows = (RateWindow(RATE_WINDOW_S), RateWindow(RATE_WINDOW_S))
+        self._rate_t, self._rates_now = None, (0.0, 0.0)
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._master = self._slave = None
@@ -227,9 +232,13 @@ class FakeDue:
         cur = lambda w, drift: 1.5 + 0.8 * abs(w) + (10.0 if drift else 0.0)  # noqa: E731
         currents = self.currents or (cur(p.wheel_fl, self.drift_front), cur(p.wheel_fr, False),
                                      cur(p.wheel_rear, self.drift_rear) + 2.0)
+        boom, bucket = p.boom + n() * 1e-3, p.bucket + n() * 1e-3
+        if self._rate_t is None or t > self._rate_t:    # the rates as the firmware's arm_rate.h: over the last 0.1 s
+            self._rate_t = t
+            self._rates_now = (self._rate_windows[0].push(t, boom), self._rate_windows[1].push(t, bucket))
         frame = SensorFrame(
-            device_time_us=int(t * 1e6), boom_angle=p.boom + n() * 1e-3, bucket_angle=p.bucket + n() * 1e-3,
-            boom_rate=p.boom_rate, bucket_rate=p.bucket_rate, wheel_fl=p.wheel_fl + n() * 1e-2,
+            device_time_us=int(t * 1e6), boom_angle=boom, bucket_angle=bucket,
+            boom_rate=self._rates_now[0], bucket_rate=self._rates_now[1], wheel_fl=p.wheel_fl + n() * 1e-2,
             wheel_fr=p.wheel_fr + n() * 1e-2, wheel_rear=p.wheel_rear + n() * 1e-2,
             current_fl=currents[0], current_fr=currents[1], current_rear=currents[2], valve_boom=p.valve_boom,
             valve_bucket=p.valve_bucket,

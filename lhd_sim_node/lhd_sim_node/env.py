@@ -29,6 +29,7 @@ import gymnasium as gym
 import numpy as np
 
 from lhd_loading_ros.task.actions import apply_variant_filter, to_actuator, validate_action
+from lhd_loading_ros.task.arm_sensors import RATE_WINDOW_S, RateWindow, quantize
 from lhd_loading_ros.task.config import load_config
 from lhd_loading_ros.task.end_zone import density_problem, nominal_density, zones_at_nominal_density
 from lhd_loading_ros.task.kinematics import ArmKinematics, quat_to_mat
@@ -136,7 +137,9 @@ class LhdLoadingEnv(gym.Env):
         self._max_tilt = abs(self.sim.machine_pitch())
         self._done = False
         self._state = s
-        return self._obs(self._measured(s)), self._info(s, "running", {})
+        self._arm_rates = self._arm_rate_windows(c)
+        self._m = self._measured(s)
+        return self._obs(self._m), self._info(s, "running", {})
 
     def step(self, action):
         if self._done:
@@ -157,7 +160,7 @@ class LhdLoadingEnv(gym.Env):
         self.sim.step(u)
         s = self.sim.state()
         self.steps += 1
-        m = self._measured(s)           # the supervisor ends the attempt on the tip its sensors give
+        m = self._m = self._measured(s)   # the supervisor ends the attempt on the tip its sensors give
         zone = classify(m.x_shovel, m.y_shovel, m.z_shovel, self.zones)
         outcome = {"end": "success", "restricted": "failure"}.get(zone, "running")
         pile = self.sim.pile
@@ -207,21 +210,49 @@ class LhdLoadingEnv(gym.Env):
 
     def _measured(self, s):
         """The state as the machine's sensors give it: with the arm's angle sensors zeroed off the attack pose
-        (conditions.boom_offset_deg, bucket_offset_deg), the measured angles, and the tip and its pitch the arm's
-        kinematics (task/kinematics.py, as the policy node and the supervisor compute them) puts there, moved
-        from the true ones by the difference the offsets make at the machine's true pose. Without offsets, s."""
+        (conditions.boom_offset_deg, bucket_offset_deg) and, where the episode samples them (conditions.arm_angle_noise_deg,
+        arm_encoder_counts: _arm_rates), read with noise and in counts, the rates then the firmware's differences of the
+        samples over its rate window (task/arm_sensors.py; the window is the control period, so the sample one step back);
+        the tip and its pitch where the arm's kinematics (task/kinematics.py, as the policy node and the supervisor compute
+        them) puts them at the measured angles. Without any of these, s. Called once a step (it draws the noise and keeps
+        the samples): env.measured_state is the step's."""
         c = self.conditions
-        if c.boom_offset_deg == 0.0 and c.bucket_offset_deg == 0.0:
-            return s
+        db, dk = math.radians(c.boom_offset_deg), math.radians(c.bucket_offset_deg)
+        if self._arm_rates is None:
+            return s if db == 0.0 and dk == 0.0 else self._at_arm_angles(s, s.phi_boom + db, s.phi_bucket + dk)
+        sd = math.radians(c.arm_angle_noise_deg)
+        t = self.steps * self.p.control_dt
+        angles, rates = [], []
+        for true, off, window in ((s.phi_boom, db, self._arm_rates[0]), (s.phi_bucket, dk, self._arm_rates[1])):
+            a = quantize(true + off + (float(self.np_random.normal(0.0, sd)) if sd > 0.0 else 0.0), c.arm_encoder_counts)
+            angles.append(a)
+            rates.append(window.push(t, a))
+        return replace(self._at_arm_angles(s, *angles), dphi_boom=rates[0], dphi_bucket=rates[1])
+
+    def _arm_rate_windows(self, c: Conditions):
+        """The boom's and bucket's RateWindow where the conditions sample the arm's angles, else None."""
+        noise, counts = c.arm_angle_noise_deg, c.arm_encoder_counts
+        if noise == 0.0 and counts == 0:
+            return None
+        if not (math.isfinite(noise) and 0.0 <= noise <= 5.0) or not (isinstance(counts, int) and counts >= 0):
+            raise ValueError(f"conditions: arm_angle_noise_deg {noise!r} must be a sd in [0, 5] deg and arm_encoder_counts "
+                             f"{counts!r} a whole number of counts per turn >= 0 (0: exact)")
+        if abs(RATE_WINDOW_S - self.p.control_dt) > 1e-9:
+            raise ValueError(f"the firmware's rate window {RATE_WINDOW_S:g} s is not the control period "
+                             f"{self.p.control_dt:g} s: the environment samples the arm once a period and cannot model it")
+        return RateWindow(RATE_WINDOW_S), RateWindow(RATE_WINDOW_S)
+
+    def _at_arm_angles(self, s, boom: float, bucket: float):
+        """s with the arm read at these angles: the tip, its pitch and the bucket's bottom moved by the difference the
+        angles make from the true ones at the machine's true pose."""
         q = self.sim.data.qpos
         R = quat_to_mat(*q[3:7])
-        db, dk = math.radians(c.boom_offset_deg), math.radians(c.bucket_offset_deg)
         tip0, pitch0, bottom0 = self._kin.tip_and_bottom(q[0:3], R, s.phi_boom, s.phi_bucket)
-        tip1, pitch1, bottom1 = self._kin.tip_and_bottom(q[0:3], R, s.phi_boom + db, s.phi_bucket + dk)
+        tip1, pitch1, bottom1 = self._kin.tip_and_bottom(q[0:3], R, boom, bucket)
         d, e = tip1 - tip0, bottom1 - bottom0
         return replace(s, x_shovel=s.x_shovel + float(d[0]), y_shovel=s.y_shovel + float(d[1]),
                        z_shovel=s.z_shovel + float(d[2]), phi_shovel=s.phi_shovel + math.remainder(pitch1 - pitch0, math.tau),
-                       phi_boom=s.phi_boom + db, phi_bucket=s.phi_bucket + dk,
+                       phi_boom=boom, phi_bucket=bucket,
                        x_bottom=s.x_bottom + float(e[0]), z_bottom=s.z_bottom + float(e[2]))
 
     def _obs(self, s):
@@ -264,8 +295,8 @@ class LhdLoadingEnv(gym.Env):
     @property
     def measured_state(self):
         """The state as the machine's sensors give it (the arm's angle-sensor offsets of the episode's
-        conditions applied: _measured); what a controller on the machine computes from the topics."""
-        return self._measured(self._state)
+        conditions applied: _measured, once a step); what a controller on the machine computes from the topics."""
+        return self._m
 
 
 ATTACK_REDRAWS = 5

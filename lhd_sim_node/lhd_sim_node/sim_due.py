@@ -27,8 +27,9 @@ chunk, so a command frame reaches the machine within 20 ms of arrival.
 Sensor frames are built from the simulator's state (`sensor_frame`). The conventions of
 docs/serial_protocol.md and of the simulator's joints agree (mjcf.py: the boom hinge about +y,
 negative lifts; the bucket hinge about -y, positive curls back; both 0 in the attack pose), so
-boom_angle = phi_boom, bucket_angle = phi_bucket, their rates the joint velocities (the encoders'
-derivative, which the firmware computes by differencing), unchanged in sign.
+boom_angle = phi_boom, bucket_angle = phi_bucket, unchanged in sign; their rates as the firmware computes
+them (arm_rate.h): the difference of the angles the frames carry over the last 0.1 s
+(task/arm_sensors.RateWindow), not the joints' velocities, so they lag a valve's opening by up to 0.1 s.
 * wheel_fl / wheel_fr: the front wheels' joint speeds (rad/s, positive forward);
   wheel_rear: the mean of the two rear wheels: one motor drives them through a differential, whose
   carrier (the motor's shaft after the gearbox) turns at the mean of its two output shafts;
@@ -60,6 +61,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from lhd_loading_ros.task.arm_sensors import RATE_WINDOW_S, RateWindow
 from lhd_hw_bridge.fake_due import LOAD_CELL_OFFSET, LOAD_CELL_SCALE
 from lhd_hw_bridge.pty_link import close_pty, open_pty
 from lhd_hw_bridge.protocol import (ANGLE_SCALE, CURRENT_SCALE, FLAG_ENABLED, FLAG_ESTOP, FLAG_WATCHDOG,
@@ -262,6 +264,9 @@ class SimDue:
         self.command_log: deque = deque(maxlen=COMMAND_LOG)
         self.t0 = time.monotonic()      # the device clock's zero (micros() since power-up)
         self._span = None               # (t0, t1, state at t0, state at t1) of the last chunk
+        # the firmware's rates: differences of the angles its frames carry over RATE_WINDOW_S (arm_rate.h)
+        self._rates = (RateWindow(RATE_WINDOW_S), RateWindow(RATE_WINDOW_S))
+        self._rate_at = None            # (monotonic s, (boom rate, bucket rate)) of the last frame
 
     # ------------------------------------------------------------------ pty
     def plug(self) -> str:
@@ -308,6 +313,9 @@ class SimDue:
         goes on from now."""
         self._skip = True
         self._span = None
+        for w in self._rates:           # the arm is put back in the attack pose: no rate across the jump
+            w.reset()
+        self._rate_at = None
 
     def _base_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """base_link's position, orientation (w, x, y, z) and linear velocity, world frame (the
@@ -390,6 +398,11 @@ class SimDue:
         e = self.arm_zero_error
         if e != (0.0, 0.0):
             r = replace(r, boom=r.boom + e[0], bucket=r.bucket + e[1])
+        # the rates as the firmware computes them: over its window, from the angles it reads (a second frame
+        # asked for the same instant carries the same rates)
+        if self._rate_at is None or now > self._rate_at[0]:
+            self._rate_at = (now, (self._rates[0].push(now, r.boom), self._rates[1].push(now, r.bucket)))
+        r = replace(r, boom_rate=self._rate_at[1][0], bucket_rate=self._rate_at[1][1])
         return sensor_frame(r, out, self.device_us(now))
 
     def lag(self, now: float) -> float:

@@ -774,3 +774,81 @@ def test_the_calibration_stress_case_and_the_drawn_offsets(cfg):
                      for c in (draw(ra, RandomizationRanges.from_config(on)) for _ in range(3000))])
     assert np.abs(offs).max() <= 2.5 and np.abs(offs.mean(axis=0)).max() < 0.1
     assert abs(np.corrcoef(offs.T)[0, 1]) < 0.06                       # two draws, not one
+
+
+def test_arm_angles_read_in_counts_give_the_firmwares_rates(cfg):
+    """Conditions.arm_encoder_counts (2026-11-29): each step the boom and bucket angles are read in whole counts of
+    the true angles, and the rates the policy sees are the firmware's: the difference of those readings over its
+    0.1 s window (task/arm_sensors.py), here the reading one control period back, computed in the test from the true
+    angles; the tip follows the read angles (the offsets' kinematics). The machine moves as without the sensors."""
+    from lhd_loading_ros.task.arm_sensors import RATE_WINDOW_S
+
+    assert RATE_WINDOW_S == cfg["paper"]["episode"].get("control_dt", 0.1) == 0.1
+    counts = 1024                                       # coarse: 6.1 mrad a count, so the reading visibly differs
+    q = 2 * math.pi / counts
+    env = LhdLoadingEnv("rld", cfg)
+    opts = {"slope_deg": 20.0, "material": "homogeneous", "d_attack": 0.15, "attack_speed": 2.7}
+    actions = [np.array([0.8, -0.6, 0.7])] * 6 + [np.array([0.2, -1.0, 1.0])] * 6
+    env.reset(seed=4, options={**opts, "conditions": NOMINAL})
+    truth = [env.state]
+    for a in actions:
+        env.step(a)
+        truth.append(env.state)
+    env.reset(seed=4, options={**opts, "conditions": Conditions(arm_encoder_counts=counts)})
+    read = [env.measured_state]
+    for a in actions:
+        env.step(a)
+        read.append(env.measured_state)
+    boom_speed = max(abs(env.p.boom_min), abs(env.p.boom_max))
+    moved = 0
+    for k, (s, m) in enumerate(zip(truth, read)):
+        assert env.state is not m
+        for name in ("boom", "bucket"):
+            true = getattr(s, "phi_" + name)
+            count = round(true / q)
+            assert getattr(m, "phi_" + name) == pytest.approx(count * q, abs=1e-12) and abs(count * q - true) <= q / 2
+            if k > 0:
+                back = round(getattr(truth[k - 1], "phi_" + name) / q) * q
+                want = (count * q - back) / 0.1
+                assert getattr(m, "dphi_" + name) == pytest.approx(want, abs=1e-9), (k, name)
+                moved += want != 0.0
+    assert moved >= 12                                     # the arm moved: the rates are not all zero
+    assert read[-1].z_shovel != truth[-1].z_shovel and read[-1].x_shovel == pytest.approx(truth[-1].x_shovel, abs=0.01)
+    obs = env._obs(read[-1])
+    assert obs[7] == pytest.approx(np.clip(read[-1].dphi_boom / boom_speed, -1, 1), abs=1e-6)
+
+
+def test_noise_on_the_arm_angles_reaches_the_rates_as_sqrt2_sd_over_the_window(cfg):
+    """Conditions.arm_angle_noise_deg: a machine standing in the pile with its arm still reads its angles with the
+    noise's sd and its rates with sqrt(2) sd / 0.1 s (the firmware's window); 1 deg of noise, 200 steps."""
+    env = LhdLoadingEnv("rld", cfg)
+    opts = {"slope_deg": 30.0, "material": "homogeneous", "d_attack": 0.15, "attack_speed": 2.7}
+    env.reset(seed=2, options={**opts, "conditions": Conditions(arm_angle_noise_deg=1.0)})
+    errs, rates, true_rates = [], [], []
+    for _ in range(200):
+        _, _, term, trunc, _ = env.step_actuator(np.zeros(3))          # stopped, the arm held
+        errs.append(env.measured_state.phi_boom - env.state.phi_boom)
+        rates.append(env.measured_state.dphi_bucket)
+        true_rates.append(env.state.dphi_bucket)
+        if term or trunc:
+            break
+    rates, true_rates = rates[10:], true_rates[10:]      # after the bucket has settled
+    assert len(errs) == 200 and max(map(abs, true_rates)) < 1e-3
+    sd = math.radians(1.0)
+    assert np.std(errs) == pytest.approx(sd, rel=0.2) and abs(np.mean(errs)) < 0.3 * sd
+    assert np.std(rates) == pytest.approx(math.sqrt(2) * sd / 0.1, rel=0.2)
+
+
+def test_the_arm_noise_stress_case_and_bad_sensor_conditions(cfg):
+    from dataclasses import replace
+
+    from lhd_loading_ros.task.randomization import ARM_ENCODER_COUNTS, ARM_NOISE_DEG, STRESS_CASES, stress_conditions
+
+    assert "arm_noise" in STRESS_CASES and (ARM_NOISE_DEG, ARM_ENCODER_COUNTS) == (0.1, 4096)
+    c = stress_conditions("arm_noise", 5, cfg)
+    assert replace(c, arm_angle_noise_deg=0.0, arm_encoder_counts=0) == NOMINAL and c.arm_encoder_counts == 4096
+    env = LhdLoadingEnv("rld", cfg)
+    for bad in (Conditions(arm_angle_noise_deg=float("nan")), Conditions(arm_angle_noise_deg=-0.1),
+                Conditions(arm_encoder_counts=-4), Conditions(arm_encoder_counts=40.5)):
+        with pytest.raises(ValueError, match="arm_angle_noise_deg .* arm_encoder_counts"):
+            env.reset(seed=0, options={"conditions": bad})

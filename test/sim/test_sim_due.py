@@ -191,6 +191,33 @@ def test_a_device_whose_arm_sensors_are_zeroed_off_the_attack_pose(sim):
     assert due.applied.valve_bucket == 0 and sim.state().phi_bucket < sim_due.BUCKET_MAX - 0.5   # the device's limit
 
 
+def test_the_devices_rates_are_the_firmwares_differences_over_its_window(sim):
+    """The frames' boom and bucket rates are what the firmware computes (arm_rate.h): the difference of the
+    angles the frames carry over the last 0.1 s, so after the valves open they ramp up over 0.1 s and then read
+    the joints' speeds; a new pile (skip_backlog) starts the window afresh."""
+    due = SimDue(sim)
+    frames, t = [], 100.0
+    for k in range(20):
+        due.firmware.receive(CommandFrame(0.0, 1, 1, True), 0.02 * k)      # lift and curl at full speed
+        due.step_chunk(0.02 * k, t)
+        frames.append((t + 0.01, due.sensor_frame_now(t + 0.01)))          # two frames a chunk, at 100 Hz
+        frames.append((t + 0.02, due.sensor_frame_now(t + 0.02)))
+        t += 0.02
+    for i, (ti, f) in enumerate(frames):
+        back = [(tj, g) for tj, g in frames[:i] if ti - tj >= 0.1 - 1e-9]
+        tj, g = back[-1] if back else frames[0]
+        want = 0.0 if tj == ti else (f.boom_angle - g.boom_angle) / (ti - tj)
+        # the firmware differentiates its own angles; the frames carry them in 1e-4 rad steps
+        tol = 1e-4 + (0.0 if tj == ti else 1e-4 / (ti - tj))
+        assert f.boom_rate == pytest.approx(want, abs=tol), i
+    s = sim.state()
+    assert s.dphi_boom < -0.15 and frames[-1][1].boom_rate == pytest.approx(s.dphi_boom, abs=3e-3)
+    assert s.dphi_bucket > 0.15 and frames[-1][1].bucket_rate == pytest.approx(s.dphi_bucket, abs=3e-3)
+    assert abs(frames[1][1].boom_rate) < 0.5 * abs(frames[-1][1].boom_rate)   # 20 ms after the valve: ramping
+    due.skip_backlog()
+    assert due.sensor_frame_now(t + 1.0).boom_rate == 0.0                       # one sample: no rate yet
+
+
 def _host(link):
     fd = os.open(link, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
     tty.setraw(fd)
@@ -265,9 +292,11 @@ def ros():
 def test_bridge_joint_states_and_load_cell_are_the_simulators(ros, sim, tmp_path):
     """The bridge node (a separate process) on the device's pty. Through /lhd/cmd the arm lifts
     and curls; every /lhd/joint_states it publishes is one of the simulator's states at the
-    protocol's resolution (angles and rates 1e-4, wheels 1e-3; both rear wheels the
-    differential's mean), with the protocol's signs: the boom angle falls (lifted), the bucket
-    angle rises (curled). /lhd/load_cell/mass is the simulator's loaded mass to the gram."""
+    protocol's resolution (angles 1e-4, wheels 1e-3; both rear wheels the differential's mean), with the
+    protocol's signs: the boom angle falls (lifted), the bucket angle rises (curled); its rates are the
+    firmware's, differences over 0.1 s (task/arm_sensors.py): at the steady lift the simulator's joint
+    speeds, 0 once the arm has held for longer than the window. /lhd/load_cell/mass is the simulator's
+    loaded mass to the gram."""
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64, Float64MultiArray
 
@@ -304,12 +333,14 @@ def test_bridge_joint_states_and_load_cell_are_the_simulators(ros, sim, tmp_path
         with due.lock:
             hist = list(truth[-400:])
         for m in js:
-            b, k, db, dk, fl, fr, rl, rr = (*m.position[:2], *m.velocity)
+            b, k, _, _, fl, fr, rl, rr = (*m.position[:2], *m.velocity)
             match = [r for r in hist if abs(r.boom - b) <= 0.6e-4 and abs(r.bucket - k) <= 0.6e-4
-                     and abs(r.boom_rate - db) <= 0.6e-4 and abs(r.bucket_rate - dk) <= 0.6e-4
                      and abs(r.wheels[0] - fl) <= 0.6e-3 and abs(r.wheels[1] - fr) <= 0.6e-3
                      and abs(0.5 * (r.wheels[2] + r.wheels[3]) - rl) <= 0.6e-3 and rl == rr]
             assert match, f"joint state {list(m.position[:2])} {list(m.velocity)} is none of the simulator's"
+        steady = [r.boom_rate for r in hist if r.boom_rate < -0.1]
+        assert np.median([m.velocity[0] for m in moving[10:-10]]) == pytest.approx(np.median(steady), abs=5e-3)
+        assert abs(js[-1].velocity[0]) < 5e-3 and abs(js[-1].velocity[1]) < 5e-3     # held 0.6 s: no rate
         with due.lock:
             s = sim.state()
         # the arm stopped: the last joint state is where the simulator holds it, within the frame's

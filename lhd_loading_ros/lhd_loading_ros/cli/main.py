@@ -532,7 +532,8 @@ def _main(argv=None) -> int:
                              "as on the machine; machine: placement, rest and rough at once, how an attempt on the "
                              "machine goes; calibration: the boom and bucket angle sensors +-2 deg off their zero, the "
                              "tip, its pitch and the end test from the measured angles; its four sign pairs take 32 "
-                             "episodes, 32/32/32/24 of 120)")
+                             "episodes, 32/32/32/24 of 120; arm_noise: the boom and bucket angles read with 0.1 deg of "
+                             "noise in 4,096 counts a turn, the rates the Due's differences of them over 0.1 s)")
     p_eval.add_argument("--randomize", action="store_true",
                         help="actor: every episode under drawn conditions (config section randomization): how the "
                              "actor fares when the machine differs from the simulator")

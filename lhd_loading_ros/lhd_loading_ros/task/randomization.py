@@ -52,6 +52,10 @@ class Conditions:
     boom_offset_deg: float = 0.0        # the measured boom angle minus the true one: the sensor's zero taken off the
     bucket_offset_deg: float = 0.0      # attack pose (likewise the bucket's); the tip and its pitch are computed from
                                         # the measured angles, for the policy and for the zones that end the attempt
+    arm_angle_noise_deg: float = 0.0    # sd of the noise on each sample of the boom and bucket angles (a potentiometer's
+    arm_encoder_counts: int = 0         # ADC), and the counts per turn they are read in (an encoder's; 0: exact). Either
+                                        # set: the rates are the Due's, differences of the samples over its rate window
+                                        # (task/arm_sensors.py), not the joints' velocities
 
     def summary(self) -> dict:
         """A flat dict of the drawn values (for info and CSVs)."""
@@ -239,6 +243,10 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
                and the tip, its pitch, the policy's observation and the end test of the supervisor all follow
                from them through the arm's kinematics; the machine itself, its load and its true final pitch
                (the success test) do not change
+    arm_noise  the arm's angle sensors as the Due reads them: each sample of the boom and bucket angles with
+               ARM_NOISE_DEG (0.1 deg) of noise, in ARM_ENCODER_COUNTS (4,096) counts per turn, and the rates the
+               firmware's differences of those samples over its rate window (task/arm_sensors.py, 0.1 s), not the
+               joints' velocities. The tip and its pitch follow the measured angles, as in `calibration`
     rough      the pile's surface not a plane: a random relief of sd ROUGH_SD (3 cm) and correlation
                length ROUGH_CORR (15 cm) about it (VoxelPile.roughen). A pile dumped by a feeder or by
                hand has bumps of about the size of its largest pieces (the paper's 8-15 cm rocks in 2-5
@@ -276,6 +284,8 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
     if name == "calibration":
         return Conditions(boom_offset_deg=CALIBRATION_OFFSET_DEG * (1.0 if (i // 8) % 2 == 0 else -1.0),
                           bucket_offset_deg=CALIBRATION_OFFSET_DEG * (1.0 if (i // 16) % 2 == 0 else -1.0))
+    if name == "arm_noise":
+        return Conditions(arm_angle_noise_deg=ARM_NOISE_DEG, arm_encoder_counts=ARM_ENCODER_COUNTS)
     if name == "rest":
         return Conditions(rest_start=True)
     if name == "slow_drive":
@@ -288,7 +298,7 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
 
 
 STRESS_CASES = ("placement", "sensors", "delay", "light", "dense", "rocky", "rough", "slow_drive", "slow_hydraulics",
-                "cohesive", "dense_placement", "rest", "machine", "calibration")
+                "cohesive", "dense_placement", "rest", "machine", "calibration", "arm_noise")
 SLOW_DRIVE_GAIN = 0.8       # the wheels at 80 % of the commanded speed: a battery near its cut-off (a DC motor's
                             # speed follows its voltage; about -20 % from full charge) or a speed loop 20 % off
 SLOW_HYDRAULIC_GAIN = 0.75  # boom and bucket at 75 % of the commanded rate: less pump flow (a sagging battery
@@ -302,3 +312,6 @@ ROUGH_SD = 0.03        # m: half the largest rock (8-15 cm) of the paper's pile,
 ROUGH_CORR = 0.15      # m: the largest rock's size
 # the material a stress case puts every episode on (the others keep the evaluation's alternation)
 STRESS_MATERIAL = {"rocky": "nonhomogeneous"}
+ARM_NOISE_DEG = 0.1         # deg, sd per sample: a potentiometer on the Due's 12-bit ADC over about 300 deg reads
+                            # 0.073 deg a count; 0.1 deg is 1.4 counts of supply and motor noise
+ARM_ENCODER_COUNTS = 4096   # counts per turn: a 12-bit absolute encoder (0.088 deg a count)

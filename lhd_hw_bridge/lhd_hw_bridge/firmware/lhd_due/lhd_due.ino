@@ -14,6 +14,7 @@
 
 #include <Arduino.h>
 #include <string.h>
+#include "arm_rate.h"          // the boom and bucket rates over the last 0.1 s, not one frame
 
 // ---------------------------------------------------------------- protocol constants
 static const uint8_t PROTO_VERSION = 1;
@@ -285,7 +286,7 @@ static void load_cell_send(uint32_t now_ms) {
 
 // ---------------------------------------------------------------- main loop
 static uint32_t last_sensor_us = 0;
-static float prev_boom = 0.0f, prev_bucket = 0.0f;
+static RateWindow boom_rate_window, bucket_rate_window;   // arm_rate.h: the rates over the last 0.1 s
 
 void setup() {
   SerialUSB.begin(115200);
@@ -306,15 +307,13 @@ void loop() {
   Outputs out = apply_outputs(boom, bucket);
   uint32_t now_us = micros();
   if ((uint32_t)(now_us - last_sensor_us) >= SENSOR_PERIOD_US) {
-    float dt = (now_us - last_sensor_us) * 1e-6f;
     last_sensor_us = now_us;
     uint8_t p[27];
     put_u32(p, now_us);
     put_u16(p + 4, (uint16_t)sat16(boom / 1e-4f));
     put_u16(p + 6, (uint16_t)sat16(bucket / 1e-4f));
-    put_u16(p + 8, (uint16_t)sat16((boom - prev_boom) / dt / 1e-4f));
-    put_u16(p + 10, (uint16_t)sat16((bucket - prev_bucket) / dt / 1e-4f));
-    prev_boom = boom; prev_bucket = bucket;
+    put_u16(p + 8, (uint16_t)sat16(rate_window_push(&boom_rate_window, now_us, boom) / 1e-4f));
+    put_u16(p + 10, (uint16_t)sat16(rate_window_push(&bucket_rate_window, now_us, bucket) / 1e-4f));
     for (int k = 0; k < 3; k++) put_u16(p + 12 + 2 * k, (uint16_t)sat16(read_wheel(k) / 1e-3f));
     for (int k = 0; k < 3; k++) put_u16(p + 18 + 2 * k, satu16(read_current(k) / 1e-3f));
     p[24] = (uint8_t)out.boom;      // what the valves do (closed at a limit, on e-stop, ...)
