@@ -22,6 +22,7 @@ truncation after max_steps (200) control steps, which is not a terminal state.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import replace
 from typing import Any
 
@@ -116,6 +117,7 @@ class LhdLoadingEnv(gym.Env):
             c = draw(self.np_random, self.ranges) if self.randomize else NOMINAL
         elif not isinstance(c, Conditions):
             raise ValueError(f"options['conditions'] must be a task.randomization.Conditions, got {type(c).__name__}")
+        arm_rates = self._arm_rate_windows(c)      # refused before anything of the episode is set
         self.conditions = c
         self.sim.reset(self.np_random, alpha=alpha, material=options.get("material", self.material),
                        d_attack=options.get("d_attack"), attack_speed=options.get("attack_speed"), conditions=c)
@@ -137,7 +139,7 @@ class LhdLoadingEnv(gym.Env):
         self._max_tilt = abs(self.sim.machine_pitch())
         self._done = False
         self._state = s
-        self._arm_rates = self._arm_rate_windows(c)
+        self._arm_rates = arm_rates
         self._m = self._measured(s)
         return self._obs(self._m), self._info(s, "running", {})
 
@@ -234,7 +236,8 @@ class LhdLoadingEnv(gym.Env):
         noise, counts = c.arm_angle_noise_deg, c.arm_encoder_counts
         if noise == 0.0 and counts == 0:
             return None
-        if not (math.isfinite(noise) and 0.0 <= noise <= 5.0) or not (isinstance(counts, int) and counts >= 0):
+        whole = isinstance(counts, numbers.Integral) and not isinstance(counts, bool)
+        if not (math.isfinite(noise) and 0.0 <= noise <= 5.0) or not (whole and counts >= 0):
             raise ValueError(f"conditions: arm_angle_noise_deg {noise!r} must be a sd in [0, 5] deg and arm_encoder_counts "
                              f"{counts!r} a whole number of counts per turn >= 0 (0: exact)")
         if abs(RATE_WINDOW_S - self.p.control_dt) > 1e-9:

@@ -241,6 +241,12 @@ class SimDue:
     # pose, docs/real_machine.md "Calibration" step 7); its frames and its own joint limits see them, as on the
     # machine, and the bridge's boom_zero / bucket_zero take them off again
     arm_zero_error: tuple = (0.0, 0.0)
+    # rad: sd of the noise on each sample of the boom and bucket angles its frames carry (a potentiometer's
+    # ADC; docs/real_machine.md Calibration step 8), and s, the firmware's rate window (arm_rate.h; 0.01, one
+    # 10 ms frame, is the firmware before 2026-11-29). The noise is drawn from `noise_seed`
+    arm_angle_noise: float = 0.0
+    rate_window: float = RATE_WINDOW_S
+    noise_seed: int = 0
     firmware: Firmware = field(init=False)
 
     def __post_init__(self):
@@ -265,8 +271,11 @@ class SimDue:
         self.t0 = time.monotonic()      # the device clock's zero (micros() since power-up)
         self._span = None               # (t0, t1, state at t0, state at t1) of the last chunk
         # the firmware's rates: differences of the angles its frames carry over RATE_WINDOW_S (arm_rate.h)
-        self._rates = (RateWindow(RATE_WINDOW_S), RateWindow(RATE_WINDOW_S))
-        self._rate_at = None            # (monotonic s, (boom rate, bucket rate)) of the last frame
+        self._rates = (RateWindow(self.rate_window), RateWindow(self.rate_window))
+        if not (np.isfinite(self.arm_angle_noise) and self.arm_angle_noise >= 0.0):
+            raise ValueError(f"arm_angle_noise {self.arm_angle_noise!r} rad: expected a standard deviation >= 0")
+        self._noise = np.random.default_rng([self.noise_seed, 146])   # its own stream of the twin's seed
+        self._rate_at = None            # (monotonic s, (boom, bucket rate), (boom, bucket noise)) of the last frame
 
     # ------------------------------------------------------------------ pty
     def plug(self) -> str:
@@ -310,7 +319,8 @@ class SimDue:
     def skip_backlog(self) -> None:
         """The simulator was replaced under the loop (a new pile: the caller held `lock` for
         it): the chunks due meanwhile are not simulated, and not counted as overruns; the loop
-        goes on from now."""
+        goes on from now. The firmware's rate windows start afresh (the caller holds `lock`, which
+        sensor_frame_now takes for them)."""
         self._skip = True
         self._span = None
         for w in self._rates:           # the arm is put back in the attack pose: no rate across the jump
@@ -392,17 +402,21 @@ class SimDue:
 
     def sensor_frame_now(self, now: float) -> SensorFrame:
         """The frame of the state now, with the outputs the running chunk applies."""
-        with self.lock:
+        with self.lock:                 # skip_backlog resets the windows under it, from the twin node's thread
             r = read_simulator(self.sim)
             out = self.applied
-        e = self.arm_zero_error
-        if e != (0.0, 0.0):
-            r = replace(r, boom=r.boom + e[0], bucket=r.bucket + e[1])
-        # the rates as the firmware computes them: over its window, from the angles it reads (a second frame
-        # asked for the same instant carries the same rates)
-        if self._rate_at is None or now > self._rate_at[0]:
-            self._rate_at = (now, (self._rates[0].push(now, r.boom), self._rates[1].push(now, r.bucket)))
-        r = replace(r, boom_rate=self._rate_at[1][0], bucket_rate=self._rate_at[1][1])
+            e = self.arm_zero_error
+            if e != (0.0, 0.0):
+                r = replace(r, boom=r.boom + e[0], bucket=r.bucket + e[1])
+            # the rates as the firmware computes them: over its window, from the angles it reads (a second frame
+            # asked for the same instant carries the same rates)
+            if self._rate_at is None or now > self._rate_at[0]:
+                nb, nk = (float(v) for v in self._noise.normal(0.0, self.arm_angle_noise, 2)) \
+                    if self.arm_angle_noise > 0.0 else (0.0, 0.0)     # this frame's samples of the angles
+                self._rate_at = (now, (self._rates[0].push(now, r.boom + nb), self._rates[1].push(now, r.bucket + nk)),
+                                 (nb, nk))
+            _, (rb, rk), (nb, nk) = self._rate_at
+            r = replace(r, boom=r.boom + nb, bucket=r.bucket + nk, boom_rate=rb, bucket_rate=rk)
         return sensor_frame(r, out, self.device_us(now))
 
     def lag(self, now: float) -> float:

@@ -524,9 +524,9 @@ class SimNode(Node):
         js.name = list(JOINTS)
         art_q = 0.0 if self._art_q is None else float(q[self._art_q])
         art_v = 0.0 if self._art_v is None else float(d.qvel[self._art_v])
-        m = self.env.measured_state      # the arm's angles as its sensors read them (an episode's drawn offsets)
+        m = self.env.measured_state      # the arm as its sensors read it (an episode's drawn offsets, sampled rates)
         js.position = [float(m.phi_boom), float(m.phi_bucket), art_q] + [float(q[i]) for i in self._wheel_q]
-        js.velocity = ([float(s.dphi_boom), float(s.dphi_bucket), art_v]
+        js.velocity = ([float(m.dphi_boom), float(m.dphi_bucket), art_v]
                        + [float(d.qvel[i]) for i in self._wheel_v])
         self.pub_js.publish(js)
         if self.pub_transition is not None:

@@ -162,6 +162,11 @@ class TwinNode(Node):
                   "true ones (a sensor zeroed off the attack pose; the bridge's boom_zero / bucket_zero correct it: "
                   "docs/real_machine.md Calibration step 7)", length=2,
                   check=lambda v: None if all(abs(float(x)) <= 20.0 for x in v) else "expected each within +-20 deg"),
+            Param("arm_angle_noise_deg", 0.0, "deg, noise (standard deviation) on each sample of the device's boom and "
+                  "bucket angles: a potentiometer's ADC (docs/real_machine.md Calibration step 8)", lo=0.0, hi=5.0),
+            Param("arm_rate_window", 0.1, "s, the device firmware's rate window: its boom and bucket rates are the "
+                  "differences of its angles over it (arm_rate.h; 0.01, one frame, is the firmware before 2026-11-29)",
+                  lo=0.005, hi=0.5),
             Param("truth_hz", 50.0, "Hz, ground-truth topics", lo=1.0, hi=100.0),
             Param("imu_hz", 0.0, "Hz, <prefix>/imu: the rear frame's orientation as an IMU on it would give it "
                   "(0: none; the paper's machine has none: `lhd up twin --imu`)", lo=0.0, hi=200.0),
@@ -247,7 +252,9 @@ class TwinNode(Node):
         # loop's first chunk is not late
         self.sim.advance(np.zeros(3))
         self.first_reset_s = time.perf_counter() - t
-        self.due = SimDue(self.sim, link=gp("link"), load_cell=gp("load_cell"), on_chunk=self._on_chunk)
+        self.due = SimDue(self.sim, link=gp("link"), load_cell=gp("load_cell"), on_chunk=self._on_chunk,
+                          arm_angle_noise=math.radians(gp("arm_angle_noise_deg")), rate_window=gp("arm_rate_window"),
+                          noise_seed=int(gp("seed")))
         self.due.estop = gp("estop")
         self.due.arm_zero_error = tuple(math.radians(float(x)) for x in gp("arm_zero_error_deg"))
 

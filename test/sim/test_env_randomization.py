@@ -783,7 +783,7 @@ def test_arm_angles_read_in_counts_give_the_firmwares_rates(cfg):
     angles; the tip follows the read angles (the offsets' kinematics). The machine moves as without the sensors."""
     from lhd_loading_ros.task.arm_sensors import RATE_WINDOW_S
 
-    assert RATE_WINDOW_S == cfg["paper"]["episode"].get("control_dt", 0.1) == 0.1
+    assert RATE_WINDOW_S == LhdLoadingEnv("rld", cfg).p.control_dt == 0.1
     counts = 1024                                       # coarse: 6.1 mrad a count, so the reading visibly differs
     q = 2 * math.pi / counts
     env = LhdLoadingEnv("rld", cfg)
@@ -816,6 +816,13 @@ def test_arm_angles_read_in_counts_give_the_firmwares_rates(cfg):
     assert read[-1].z_shovel != truth[-1].z_shovel and read[-1].x_shovel == pytest.approx(truth[-1].x_shovel, abs=0.01)
     obs = env._obs(read[-1])
     assert obs[7] == pytest.approx(np.clip(read[-1].dphi_boom / boom_speed, -1, 1), abs=1e-6)
+    # with a calibration offset the sensor reads the true angle plus the offset, in counts
+    env.reset(seed=4, options={**opts, "conditions": Conditions(boom_offset_deg=2.0, arm_encoder_counts=counts)})
+    for a in actions[:3]:
+        env.step(a)
+    m, s = env.measured_state, env.state
+    assert m.phi_boom == pytest.approx(round((s.phi_boom + math.radians(2.0)) / q) * q, abs=1e-12)
+    assert m.phi_bucket == pytest.approx(round(s.phi_bucket / q) * q, abs=1e-12)
 
 
 def test_noise_on_the_arm_angles_reaches_the_rates_as_sqrt2_sd_over_the_window(cfg):
@@ -852,3 +859,4 @@ def test_the_arm_noise_stress_case_and_bad_sensor_conditions(cfg):
                 Conditions(arm_encoder_counts=-4), Conditions(arm_encoder_counts=40.5)):
         with pytest.raises(ValueError, match="arm_angle_noise_deg .* arm_encoder_counts"):
             env.reset(seed=0, options={"conditions": bad})
+    env.reset(seed=0, options={"conditions": Conditions(arm_encoder_counts=np.int64(4096))})   # any whole number

@@ -214,8 +214,15 @@ def test_the_devices_rates_are_the_firmwares_differences_over_its_window(sim):
     assert s.dphi_boom < -0.15 and frames[-1][1].boom_rate == pytest.approx(s.dphi_boom, abs=3e-3)
     assert s.dphi_bucket > 0.15 and frames[-1][1].bucket_rate == pytest.approx(s.dphi_bucket, abs=3e-3)
     assert abs(frames[1][1].boom_rate) < 0.5 * abs(frames[-1][1].boom_rate)   # 20 ms after the valve: ramping
-    due.skip_backlog()
-    assert due.sensor_frame_now(t + 1.0).boom_rate == 0.0                       # one sample: no rate yet
+    # a new pile puts the arm back in the attack pose: without the reset the window would read the jump
+    boom_q = sim.boom_q
+    with due.lock:
+        sim.data.qpos[boom_q] += 0.3
+    assert due.sensor_frame_now(t + 0.03).boom_rate > 2.0                       # 0.3 rad in 0.11 s, no reset
+    with due.lock:
+        sim.data.qpos[boom_q] -= 0.6
+        due.skip_backlog()
+    assert due.sensor_frame_now(t + 0.04).boom_rate == 0.0                      # one sample: no rate yet
 
 
 def _host(link):
@@ -357,3 +364,20 @@ def test_bridge_joint_states_and_load_cell_are_the_simulators(ros, sim, tmp_path
         rc = bridge.stop()
         due.stop()
     assert rc == 0, bridge.log()
+
+
+def test_noise_on_the_devices_angles_and_what_its_window_makes_of_it(sim):
+    """SimDue.arm_angle_noise (the twin's arm_angle_noise_deg): each frame's angles carry fresh noise of that sd, and
+    the rates the firmware's differences of the noisy angles: sqrt(2) sd / window, over the 0.1 s window and over
+    one 10 ms frame (rate_window 0.01, the firmware before), 1,000 frames of a machine at rest."""
+    sd = math.radians(0.3)
+    for window in (0.1, 0.01):
+        due = SimDue(sim, arm_angle_noise=sd, rate_window=window, noise_seed=3)
+        true = sim.state()
+        frames = [due.sensor_frame_now(200.0 + 0.01 * k) for k in range(1000)]
+        angles = np.array([f.boom_angle for f in frames]) - true.phi_boom
+        rates = np.array([f.bucket_rate for f in frames[20:]])
+        assert np.std(angles) == pytest.approx(sd, rel=0.1) and abs(np.mean(angles)) < 0.15 * sd
+        assert np.std(rates) == pytest.approx(math.sqrt(2) * sd / window, rel=0.1), window
+    with pytest.raises(ValueError, match="arm_angle_noise"):
+        SimDue(sim, arm_angle_noise=-1.0)

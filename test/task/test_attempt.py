@@ -3,6 +3,8 @@ fake clock: each preflight problem, each end condition, drift %, the final pitch
 weighing, the load-cell window."""
 import math
 
+import numpy as np
+
 import pytest
 
 from lhd_loading_ros.task import attempt as attempt_module
@@ -991,9 +993,15 @@ def test_load_cell_median_after_the_machine_stopped(kin):
     assert r.sv.attempt.mass is None
     r.vel = 0.0
     readings = [24.1, 23.8, 99.0, 24.0, 23.9]      # a spike: the median ignores it
-    for k in range(60):                            # 1.2 s still
+    weighed_at = None
+    for k in range(90):                            # 1.8 s still
         assert r.sv.load_cell(readings[k % 5], r.t) == ""
         r.step(0.02)
+        if weighed_at is None and r.sv.attempt.mass is not None:
+            weighed_at = 0.02 * (k + 1)
+    # stopped once the mean speed over STOP_WINDOW_S (0.5 s) is under 0.05 rad/s (0.2 rad/s in under a quarter
+    # of it: 0.36-0.38 s), then mass_settle_s (1.0 s) still
+    assert weighed_at == pytest.approx(1.38, abs=0.05)
     # median of the readings of the last 1.0 s window: 10 x each of 24.1, 23.8, 99, 24.0, 23.9 -> 24.0
     assert r.sv.attempt.mass == pytest.approx(24.0) and r.sv.attempt.mass_source == "load_cell"
     assert r.sv.attempt.success_level == 3 and r.sv.attempt.success is True
@@ -1002,6 +1010,36 @@ def test_load_cell_median_after_the_machine_stopped(kin):
     r.sv.set_mass(25.0, "operator")
     with pytest.raises(ValueError, match="weighed by the operator"):
         r.sv.set_mass(24.0, "load_cell")
+
+
+def test_a_still_machine_is_weighed_through_noisy_rates_and_a_creeping_one_is_not(kin):
+    """The arm's rates are differences of sampled angles (the Due's): a still machine's joint states carry rate noise
+    that crosses STOP_SPEED (0.05 rad/s) in single messages: with 0.2 deg of noise on the angles, 0.05 rad/s sd over
+    the firmware's 0.1 s window; with 0.1 deg, 0.12 rad/s over one 20 ms message. Judged on the mean over
+    STOP_WINDOW_S (the differences telescope: the angle's change over the window), the machine is weighed in both
+    (judged on each message, it needed 1 s of messages all under 0.05: at 0.1 deg in the twin it was never weighed,
+    2026-11-29). An arm creeping at 0.07 rad/s under the same noise is not stopped."""
+    from lhd_loading_ros.task.attempt import STOP_SPEED, STOP_WINDOW_S
+
+    assert (STOP_SPEED, STOP_WINDOW_S) == (0.05, 0.5)
+    rng = np.random.default_rng(0)
+    dt = 0.02                                          # the rig's joint states, 50 Hz
+    for noise_deg, n, creep, weighed in ((0.2, 5, 0.0, True), (0.1, 1, 0.0, True), (0.2, 5, 0.07, False)):
+        r = Rig(kin, arm_delay=0.0, mass_settle_s=1.0).ready()
+        r.arm()
+        r.base_x, (r.boom, r.bucket) = END_X, LIFT
+        r.step(0.1)
+        assert r.sv.state == "success"
+        angles = list(rng.normal(0.0, math.radians(noise_deg), n))
+        crossed = 0
+        for k in range(150):                           # 3 s: rates the differences of noisy angles over n messages
+            angles.append(creep * dt * k + float(rng.normal(0.0, math.radians(noise_deg))))
+            r.vel = (angles[-1] - angles[-1 - n]) / (n * dt)
+            crossed += abs(r.vel) >= STOP_SPEED
+            r.sv.load_cell(24.0, r.t)
+            r.step(dt)
+        assert crossed > 30, noise_deg                # single messages said "moving" again and again
+        assert (r.sv.attempt.mass is not None) == weighed, (noise_deg, n, creep)
 
 
 def test_status_before_any_attempt(kin):

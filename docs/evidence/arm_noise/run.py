@@ -54,8 +54,8 @@ def run(actor: str, env_cls, noise_deg: float) -> dict:
 
 def main() -> int:
     print("| actor | nominal | 0.1 deg, window 0.1 s | 0.1 deg, one 10 ms frame | 0.3 deg, window 0.1 s | "
-          "0.3 deg, one 10 ms frame |")
-    print("|---|---|---|---|---|---|")
+          "0.3 deg, one 10 ms frame | no noise, one 10 ms frame |")
+    print("|---|---|---|---|---|---|---|")
     for actor in ACTORS:
         cells = []
         d = ROOT / "policies" / actor
@@ -68,8 +68,10 @@ def main() -> int:
             for cls in (LhdLoadingEnv, OneFrameEnv):
                 r = run(actor, cls, noise)
                 cells.append(f"{r['success_rate']:.3f} / {r['aml']:.1f} kg")
+        r = run(actor, OneFrameEnv, 0.0)          # the encoder's counts alone
+        cells.append(f"{r['success_rate']:.3f} / {r['aml']:.1f} kg")
         print(f"| `{actor}` | " + " | ".join(cells) + " |", flush=True)
-    print("\nsuccess / AML (mean loaded mass), 120 episodes each; every case with 4,096 counts per turn")
+    print("\nsuccess / AML (mean loaded mass), 120 episodes each; every case but nominal with 4,096 counts per turn")
     return 0
 
 

@@ -61,6 +61,11 @@ LIVE = frozenset(("armed", "running"))
 OK, WARN, ERROR, STALE = 0, 1, 2, 3
 LEVEL_NAMES = {OK: "OK", WARN: "WARN", ERROR: "ERROR", STALE: "STALE"}
 STOP_SPEED = 0.05          # rad/s: every joint slower than this = the machine stopped (load-cell window)
+STOP_WINDOW_S = 0.5        # s: ... on the mean of its joint-state velocities over this window, not on one message.
+                           # The arm's rates are differences of sampled angles (the Due's, over 0.1 s): their noise
+                           # (0.025 rad/s sd at 0.1 deg on the angles, 0.25 over one 10 ms frame) crosses 0.05 in
+                           # some message of every second, and a still machine was never weighed (twin, 2026-11-29);
+                           # the mean of differences over 0.5 s is the angle's change over it, sqrt(2) sd / 0.5 s
 LOAD_CELL_MIN_SAMPLES = 3
 LOAD_CELL_RANGE = (-5.0, 200.0)   # kg: a reading outside is a broken amplifier, not a load (tare noise is < 0)
 RANGE_TOL_DEG = 1e-6       # a slope published in rad at exactly a range end is inside (policy core's rule)
@@ -173,6 +178,7 @@ class Inputs:
     zones_error: str = ""             # the latest zones message was invalid: why
     estop: bool = False               # <prefix>/estop (latched); never received = released
 
+    joint_speeds: deque = field(default_factory=deque)   # (arrival, {joint: velocity}) over the last STOP_WINDOW_S
     pauses: deque = field(default_factory=deque)   # (start, excess over STALL_S) of the caller's pauses
     last_active: float | None = None  # the caller's latest input taken or update (it was running)
 
@@ -191,6 +197,10 @@ class Inputs:
         self.arrival[name] = now
         if name == "zones":
             self.zones_error = ""
+        elif name == "joints":
+            self.joint_speeds.append((now, {n: v for n, (_, v) in value.items()}))
+            while self.joint_speeds and self.joint_speeds[0][0] < now - STOP_WINDOW_S:
+                self.joint_speeds.popleft()
 
     def note_pause(self, start: float, excess: float, now: float) -> None:
         """The caller did not run from `start` for STALL_S + excess (seconds)."""
@@ -686,11 +696,18 @@ class Supervisor:
         return ""
 
     def machine_stopped(self, now: float) -> bool:
-        """Every joint of fresh joint states slower than STOP_SPEED."""
+        """Joint states fresh, and every joint of the latest slower than STOP_SPEED on the mean of its velocities
+        over the last STOP_WINDOW_S of joint states (all finite): robust to the noise of rates differentiated from
+        sampled angles, which crosses STOP_SPEED in single messages of a still machine."""
         j = self.inputs.values.get("joints")
         if j is None or self.inputs.age("joints", now) > self.s.input_timeout:
             return False
-        return all(_finite(v) and abs(v) < STOP_SPEED for _, v in j.values())
+        window = [v for t, v in self.inputs.joint_speeds if t >= now - STOP_WINDOW_S]
+        for name in j:
+            speeds = [v[name] for v in window if name in v]
+            if not speeds or not _finite(*speeds) or abs(sum(speeds) / len(speeds)) >= STOP_SPEED:
+                return False
+        return True
 
     def _update_load_cell(self, now: float) -> None:
         """After the end: once the machine has stood still for mass_settle_s, the median of the

@@ -26,6 +26,8 @@ static const uint16_t MAX_PACKET = 4 + MAX_PAYLOAD + 2;              // 70 bytes
 static const uint16_t MAX_ENCODED = MAX_PACKET + 1 + MAX_PACKET / 255; // 71: largest COBS frame, without its 0x00
 
 static const uint32_t SENSOR_PERIOD_US = 10000;   // 100 Hz
+static_assert(RATE_WINDOW_US / SENSOR_PERIOD_US + 2 <= RATE_RING,
+              "arm_rate.h keeps too few samples for RATE_WINDOW_US at this sensor period: raise RATE_RING");
 static const uint32_t WATCHDOG_MS = 250;          // stop when command frames stop
 static const float WHEEL_MAX = 2.7f;              // rad/s
 static const float BOOM_MIN = -1.0f, BOOM_MAX = 0.05f;      // rad, joint limits
