@@ -66,6 +66,7 @@ class Rig:
         self.front = self.rear = False
         self.hw = HwStatus(OK, False, "drive enabled")
         self.vel = 0.0
+        self.base_y, self.yaw = 0.0, 0.0  # placement: base_link off the pile's axis (m), heading (rad)
         self.imu = None                   # (w, x, y, z) of an IMU on the rear frame, when fed
 
     def feed(self, t=None, joints=True, odom=True, drift=True, hw=True):
@@ -76,7 +77,8 @@ class Rig:
             i.put("joints", {"boom": (self.boom, self.vel), "bucket": (self.bucket, self.vel),
                              "wheel_fl": (0.0, self.vel)}, self.t)
         if odom:
-            i.put("odom", ((self.base_x, 0.0, R_WHEEL), (1.0, 0.0, 0.0, 0.0), self.v_x), self.t)
+            i.put("odom", ((self.base_x, self.base_y, R_WHEEL),
+                           (math.cos(self.yaw / 2), 0.0, 0.0, math.sin(self.yaw / 2)), self.v_x), self.t)
         if drift:
             i.put("drift_front", self.front, self.t)
             i.put("drift_rear", self.rear, self.t)
@@ -1040,6 +1042,58 @@ def test_a_still_machine_is_weighed_through_noisy_rates_and_a_creeping_one_is_no
             r.step(dt)
         assert crossed > 30, noise_deg                # single messages said "moving" again and again
         assert (r.sv.attempt.mass is not None) == weighed, (noise_deg, n, creep)
+
+
+def test_placement_beyond_the_trained_range_is_refused_at_arming(kin, cfg):
+    """max_heading_deg / max_lateral_offset (the supervisor's -1: the parameter file's randomization.heading_max_deg
+    and lateral_offset_max, the range the machine's actors were trained to start from): a machine turned or a
+    bucket moved beyond them is not armed, each with its sentence; within them it is; 0 checks nothing. The tip's
+    offset is where the kinematics put it: a machine turned 3.5 deg about a base_link on the axis has its lip
+    TIP_AHEAD x sin(3.5 deg) = 0.104 m off, beyond 0.06, and is refused until moved back."""
+    from lhd_loading_ros.task.attempt import placement_limits
+    from lhd_loading_ros.task.kinematics import state_from_measurements
+
+    lim = placement_limits(cfg, -1.0, -1.0)
+    r = cfg["randomization"]
+    assert lim == {"max_heading_deg": r["heading_max_deg"], "max_lateral_offset": r["lateral_offset_max"]}
+    assert lim == {"max_heading_deg": 4.0, "max_lateral_offset": 0.06}
+    assert placement_limits(cfg, 0.0, 0.1) == {"max_heading_deg": 0.0, "max_lateral_offset": 0.1}
+    rig = Rig(kin, arm_delay=0.0, **lim).ready()
+    assert rig.sv.preflight(rig.t) == []
+
+    def tip_y():
+        pos, quat, v_x = rig.sv.inputs.values["odom"]
+        return state_from_measurements(kin, pos, quat, v_x, rig.sv.inputs.values["joints"], False, False).y_shovel
+
+    rig.yaw = DEG(6.0)
+    rig.base_y = 0.0
+    rig.feed()
+    rig.base_y = -tip_y()                       # the lip back on the axis: the heading alone is refused
+    rig.feed()
+    assert abs(tip_y()) < 1e-9
+    probs = rig.sv.preflight(rig.t)
+    assert probs == ["machine heading +6.0 deg off the pile's axis (max_heading_deg 4, the range the actors were "
+                     "trained to start from): turn it straight in front of the pile"], probs
+    ok, msg = rig.sv.arm(rig.t, "2025-01-01T00:00:00Z")
+    assert not ok and "heading +6.0 deg" in msg
+    rig.yaw, rig.base_y = DEG(-3.5), 0.0        # within 4 deg, but turned about base_link: the lip 0.104 m off
+    rig.feed()
+    assert tip_y() == pytest.approx(TIP_AHEAD * math.sin(DEG(-3.5)), abs=0.01)
+    probs = rig.sv.preflight(rig.t)
+    assert len(probs) == 1 and probs[0].startswith("bucket tip -0.10") and "max_lateral_offset 0.06 m" in probs[0]
+    rig.base_y = -tip_y() + 0.05                # moved back to 5 cm off: armed
+    rig.feed()
+    assert rig.sv.preflight(rig.t) == []
+    rig.arm()
+    rig = Rig(kin, arm_delay=0.0).ready()       # the defaults: no check (the paper's protocol)
+    rig.yaw = DEG(10.0)
+    rig.feed()
+    rig.base_y = -tip_y() + 0.1
+    rig.feed()
+    assert rig.sv.preflight(rig.t) == []
+    for bad in (dict(max_heading_deg=-1.0), dict(max_heading_deg=math.nan), dict(max_lateral_offset=0.6)):
+        with pytest.raises(ValueError, match="max_heading_deg|max_lateral_offset"):
+            settings(**bad)
 
 
 def test_status_before_any_attempt(kin):

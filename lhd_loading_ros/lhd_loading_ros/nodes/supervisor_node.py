@@ -52,7 +52,7 @@ from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
 from lhd_loading_ros.ros.qos import LATCHED_QOS, MEASUREMENT_QOS, STATUS_QOS
 from lhd_loading_ros.ros.run import run_node
 from lhd_loading_ros.task.attempt import (ATTEMPT_TIMEOUT_RANGE_S, ENDED, LIVE, STATUS_TIMEOUT_S, HwStatus, Settings,
-                                         Supervisor)
+                                         Supervisor, placement_limits)
 from lhd_loading_ros.task.attempt_record import MATERIALS, csv_path, read_rows, upsert_row
 from lhd_loading_ros.task.config import config_hash, load_config
 from lhd_loading_ros.task.kinematics import ArmKinematics
@@ -181,6 +181,11 @@ class SupervisorNode(Node):
             Param("max_tilt_deg", 0.0, "deg: a machine tilted beyond this (|pitch| from <prefix>/imu, an IMU on the "
                   "rear frame) ends the attempt as a failure, and the IMU becomes a required input; 0: no limit "
                   "(a fresh IMU is still used for the final pitch)", lo=0.0, hi=45.0),
+            Param("max_heading_deg", -1.0, "deg: to arm, the machine's heading (odometry yaw in the pile frame) within "
+                  "+-this of the pile's axis; -1: the parameter file's randomization.heading_max_deg (the range the "
+                  "machine's actors were trained to start from); 0: no check", lo=-1.0, hi=45.0),
+            Param("max_lateral_offset", -1.0, "m: to arm, the bucket tip within +-this of the pile's axis; -1: the "
+                  "parameter file's randomization.lateral_offset_max; 0: no check", lo=-1.0, hi=0.5),
             Param("mass_settle_s", 1.0, "s: after the machine stopped, the median of load_cell/mass over this "
                   "window is the attempt's mass", lo=0.1, hi=60.0),
             Param("namespace_prefix", "/lhd", "topic prefix in the root namespace (under a namespace, the "
@@ -212,7 +217,8 @@ class SupervisorNode(Node):
                             end_check_period=p.control_dt if gp("end_check_period") < 0 else gp("end_check_period"),
                             max_tilt_deg=gp("max_tilt_deg"), arm_fresh_fraction=gp("arm_fresh_fraction"),
                             slope_timeout=gp("slope_timeout"), zones_tolerance=gp("zones_tolerance"),
-                            config_hash=config_hash(cfg))
+                            config_hash=config_hash(cfg), **placement_limits(cfg, gp("max_heading_deg"),
+                                                                             gp("max_lateral_offset")))
         self.run_dir = Path(gp("run_dir")).expanduser().resolve()
         self.csv = csv_path(self.run_dir)
         try:
