@@ -146,6 +146,11 @@ class TwinNode(Node):
             Param("start_pose", "attack", "attack: the tip driven d_init into the pile (the simulator's reset); "
                   "approach: at rest, the tip d_attack before the toe", choices=START_POSES,
                   on_change=lambda v: setattr(self, "start_pose", v)),
+            Param("start_heading_deg", 0.0, "deg, the machine's heading where it is put (positive: nose to +y): a "
+                  "machine placed by hand; the supervisor refuses to arm beyond its max_heading_deg",
+                  lo=-20.0, hi=20.0, on_change=lambda v: setattr(self, "start_heading", math.radians(v))),
+            Param("start_lateral_offset", 0.0, "m, the bucket lip's centre off the pile's axis where the machine is put",
+                  lo=-0.3, hi=0.3, on_change=lambda v: setattr(self, "start_lateral", v)),
             Param("d_attack", -1.0, "m, the tip's distance before the toe where the machine is put (negative: drawn "
                   "from the config's range)", lo=-1.0, hi=5.0, on_change=lambda v: setattr(self, "d_attack", v)),
             Param("auto_reset", True, "a new pile reset_delay s after the attempt ended",
@@ -211,6 +216,7 @@ class TwinNode(Node):
         self._set_material(gp("material"))
         self.seed, self.start_pose, self.d_attack = gp("seed"), gp("start_pose"), gp("d_attack")
         self.relief_sd, self.relief_corr = gp("pile_relief_sd"), gp("pile_relief_corr")
+        self.start_heading, self.start_lateral = math.radians(gp("start_heading_deg")), gp("start_lateral_offset")
         self.auto_reset, self.reset_delay, self.weigh_timeout = gp("auto_reset"), gp("reset_delay"), gp("weigh_timeout")
         self.frame_id, self.base_frame_id = gp("frame_id"), gp("base_frame_id")
         aruco, lidar = machine_sections(gp("machine_params"))
@@ -346,10 +352,13 @@ class TwinNode(Node):
         try:
             if self.start_pose == "attack":
                 self.sim.reset(rng, alpha=alpha, material=self.material, d_attack=d_attack,
-                               conditions=Conditions(surface_sd=self.relief_sd, surface_corr=self.relief_corr))
+                               conditions=Conditions(surface_sd=self.relief_sd, surface_corr=self.relief_corr,
+                                                     heading_deg=math.degrees(self.start_heading),
+                                                     lateral_offset=self.start_lateral))
             else:
                 self.sim.new_pile(rng, alpha, self.material, surface_sd=self.relief_sd, surface_corr=self.relief_corr)
-                self.sim.place_machine(d_attack if d_attack is not None else rng.uniform(*self.d_attack_range))
+                self.sim.place_machine(d_attack if d_attack is not None else rng.uniform(*self.d_attack_range),
+                                       self.start_heading, self.start_lateral)
             self.trail.clear()
             self.pile_slope_deg = math.degrees(self.sim.pile.alpha)
             if lock is not None:

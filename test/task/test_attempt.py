@@ -1042,6 +1042,27 @@ def test_a_still_machine_is_weighed_through_noisy_rates_and_a_creeping_one_is_no
             r.step(dt)
         assert crossed > 30, noise_deg                # single messages said "moving" again and again
         assert (r.sv.attempt.mass is not None) == weighed, (noise_deg, n, creep)
+    # a boom swinging +-2 deg at 2 Hz: its mean speed over 0.5 s is 0, its positions span 4 deg: never stopped
+    from lhd_loading_ros.task.attempt import STOP_SPREAD
+
+    assert STOP_SPREAD == 0.045
+    r = Rig(kin, arm_delay=0.0, mass_settle_s=1.0).ready()
+    r.arm()
+    r.base_x, (r.boom, r.bucket) = END_X, LIFT
+    r.step(0.1)
+    boom0 = r.boom
+    for k in range(150):
+        t = k * dt
+        r.boom = boom0 + DEG(2.0) * math.sin(2 * math.pi * 2.0 * t)
+        r.vel = 0.0                                    # (the rig gives every joint one velocity: the bucket's 0)
+        r.sv.load_cell(24.0, r.t)
+        r.step(dt)
+    assert r.sv.attempt.mass is None
+    r.boom = boom0 + DEG(0.5)                          # it settles: weighed once the window and mass_settle_s pass
+    for _ in range(80):
+        r.sv.load_cell(24.0, r.t)
+        r.step(dt)
+    assert r.sv.attempt.mass == pytest.approx(24.0)
 
 
 def test_placement_beyond_the_trained_range_is_refused_at_arming(kin, cfg):
@@ -1049,15 +1070,22 @@ def test_placement_beyond_the_trained_range_is_refused_at_arming(kin, cfg):
     and lateral_offset_max, the range the machine's actors were trained to start from): a machine turned or a
     bucket moved beyond them is not armed, each with its sentence; within them it is; 0 checks nothing. The tip's
     offset is where the kinematics put it: a machine turned 3.5 deg about a base_link on the axis has its lip
-    TIP_AHEAD x sin(3.5 deg) = 0.104 m off, beyond 0.06, and is refused until moved back."""
+    TIP_AHEAD x sin(3.5 deg) = 0.104 m off, beyond 0.095, and is refused until moved back."""
     from lhd_loading_ros.task.attempt import placement_limits
     from lhd_loading_ros.task.kinematics import state_from_measurements
 
     lim = placement_limits(cfg, -1.0, -1.0)
     r = cfg["randomization"]
-    assert lim == {"max_heading_deg": r["heading_max_deg"], "max_lateral_offset": r["lateral_offset_max"]}
-    assert lim == {"max_heading_deg": 4.0, "max_lateral_offset": 0.06}
+    # the lip where a training episode began: placed within 0.06 m, driven in 0.4 + 0.1 m at up to 4 deg
+    assert lim == pytest.approx({"max_heading_deg": r["heading_max_deg"], "max_lateral_offset": r["lateral_offset_max"]
+                                 + (r["d_attack_max"] + cfg["paper"]["episode"]["d_init"]) * math.sin(DEG(4.0))})
+    assert lim == pytest.approx({"max_heading_deg": 4.0, "max_lateral_offset": 0.06 + 0.5 * 0.0697565})
     assert placement_limits(cfg, 0.0, 0.1) == {"max_heading_deg": 0.0, "max_lateral_offset": 0.1}
+    for bad in ((-0.5, 0.1), (4.0, math.nan)):
+        with pytest.raises(ValueError, match="expected -1"):
+            placement_limits(cfg, *bad)
+    with pytest.raises(ValueError, match="has no 'heading_max_deg': set both explicitly"):
+        placement_limits({"paper": cfg["paper"]}, -1.0, 0.1)
     rig = Rig(kin, arm_delay=0.0, **lim).ready()
     assert rig.sv.preflight(rig.t) == []
 
@@ -1080,8 +1108,8 @@ def test_placement_beyond_the_trained_range_is_refused_at_arming(kin, cfg):
     rig.feed()
     assert tip_y() == pytest.approx(TIP_AHEAD * math.sin(DEG(-3.5)), abs=0.01)
     probs = rig.sv.preflight(rig.t)
-    assert len(probs) == 1 and probs[0].startswith("bucket tip -0.10") and "max_lateral_offset 0.06 m" in probs[0]
-    rig.base_y = -tip_y() + 0.05                # moved back to 5 cm off: armed
+    assert len(probs) == 1 and probs[0].startswith("bucket tip -0.10") and "max_lateral_offset 0.095 m" in probs[0]
+    rig.base_y = -tip_y() + 0.09                # moved back to 9 cm off: armed
     rig.feed()
     assert rig.sv.preflight(rig.t) == []
     rig.arm()
@@ -1091,7 +1119,7 @@ def test_placement_beyond_the_trained_range_is_refused_at_arming(kin, cfg):
     rig.base_y = -tip_y() + 0.1
     rig.feed()
     assert rig.sv.preflight(rig.t) == []
-    for bad in (dict(max_heading_deg=-1.0), dict(max_heading_deg=math.nan), dict(max_lateral_offset=0.6)):
+    for bad in (dict(max_heading_deg=-1.0), dict(max_heading_deg=math.nan), dict(max_lateral_offset=1.5)):
         with pytest.raises(ValueError, match="max_heading_deg|max_lateral_offset"):
             settings(**bad)
 

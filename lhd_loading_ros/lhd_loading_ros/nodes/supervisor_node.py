@@ -183,9 +183,11 @@ class SupervisorNode(Node):
                   "(a fresh IMU is still used for the final pitch)", lo=0.0, hi=45.0),
             Param("max_heading_deg", -1.0, "deg: to arm, the machine's heading (odometry yaw in the pile frame) within "
                   "+-this of the pile's axis; -1: the parameter file's randomization.heading_max_deg (the range the "
-                  "machine's actors were trained to start from); 0: no check", lo=-1.0, hi=45.0),
-            Param("max_lateral_offset", -1.0, "m: to arm, the bucket tip within +-this of the pile's axis; -1: the "
-                  "parameter file's randomization.lateral_offset_max; 0: no check", lo=-1.0, hi=0.5),
+                  "machine's actors were trained to start from; the main job's, trained straight, lose attempts within "
+                  "it too); 0: no check", lo=-1.0, hi=45.0),
+            Param("max_lateral_offset", -1.0, "m: to arm, the bucket tip within +-this of the pile's axis; -1: where the "
+                  "lip was when a training episode began (randomization.lateral_offset_max + (d_attack_max + d_init) "
+                  "sin(heading_max_deg): 0.095); 0: no check", lo=-1.0, hi=1.0),
             Param("mass_settle_s", 1.0, "s: after the machine stopped, the median of load_cell/mass over this "
                   "window is the attempt's mass", lo=0.1, hi=60.0),
             Param("namespace_prefix", "/lhd", "topic prefix in the root namespace (under a namespace, the "

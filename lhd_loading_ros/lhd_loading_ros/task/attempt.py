@@ -66,6 +66,10 @@ STOP_WINDOW_S = 0.5        # s: ... on the mean of its joint-state velocities ov
                            # (0.025 rad/s sd at 0.1 deg on the angles, 0.25 over one 10 ms frame) crosses 0.05 in
                            # some message of every second, and a still machine was never weighed (twin, 2026-11-29);
                            # the mean of differences over 0.5 s is the angle's change over it, sqrt(2) sd / 0.5 s
+STOP_SPREAD = 0.045        # rad: ... and its positions over the window within this of each other (STOP_SPEED x
+                           # STOP_WINDOW_S = 0.025 of travel, and 0.02 for the angles' noise: 25 samples of 0.1 deg
+                           # span about 0.007), so that a joint swinging back and forth, whose mean speed is
+                           # near 0, is not stopped: a bounce of more than +-1.3 deg keeps the machine "moving"
 LOAD_CELL_MIN_SAMPLES = 3
 LOAD_CELL_RANGE = (-5.0, 200.0)   # kg: a reading outside is a broken amplifier, not a load (tare noise is < 0)
 RANGE_TOL_DEG = 1e-6       # a slope published in rad at exactly a range end is inside (policy core's rule)
@@ -146,9 +150,9 @@ class Settings:
     config_hash: str = ""             # the parameter file's (task.config.config_hash), written to every row
     # to ARM, the machine placed as the actors were trained to start: its heading (the odometry's yaw in the pile
     # frame) within +-max_heading_deg of the pile's axis, and the bucket tip within +-max_lateral_offset m of it
-    # (randomization.heading_max_deg / lateral_offset_max: 4 deg, 0.06 m). Beyond, the machine's actors fail:
-    # at 10 deg 74-88 % of the attempts leave the permitted zone sideways, 6 deg with 0.10 m 47 % (docs/supervisor.md
-    # "Placement"). 0: no check (the paper's protocol: the machine placed straight by the operator)
+    # (placement_limits: from the randomization ranges, 4 deg and 0.095 m). Beyond, the machine's actors fail: at 10
+    # deg 74-88 % of the attempts (two thirds of rld_machine's leave the permitted zone sideways), 6 deg with 0.10 m
+    # about half (docs/supervisor.md "Placement"). 0: no check (the paper's protocol: placed straight by the operator)
     max_heading_deg: float = 0.0
     max_lateral_offset: float = 0.0
 
@@ -171,8 +175,8 @@ class Settings:
                              "timeouts in (0, 1]")
         if not (math.isfinite(self.max_heading_deg) and 0.0 <= self.max_heading_deg <= 45.0):
             raise ValueError(f"max_heading_deg = {self.max_heading_deg!r}: expected degrees in [0, 45] (0: no check)")
-        if not (math.isfinite(self.max_lateral_offset) and 0.0 <= self.max_lateral_offset <= 0.5):
-            raise ValueError(f"max_lateral_offset = {self.max_lateral_offset!r}: expected metres in [0, 0.5] (0: no check)")
+        if not (math.isfinite(self.max_lateral_offset) and 0.0 <= self.max_lateral_offset <= 1.0):
+            raise ValueError(f"max_lateral_offset = {self.max_lateral_offset!r}: expected metres in [0, 1] (0: no check)")
         if not (math.isfinite(self.slope_timeout) and self.slope_timeout >= 0):
             raise ValueError(f"slope_timeout = {self.slope_timeout!r}: expected seconds >= 0 (0: no limit)")
         if not (math.isfinite(self.end_check_period) and self.end_check_period >= 0):
@@ -180,13 +184,25 @@ class Settings:
 
 
 def placement_limits(cfg: dict, max_heading_deg: float, max_lateral_offset: float) -> dict:
-    """Settings' max_heading_deg / max_lateral_offset from the supervisor's parameters: -1 takes the parameter file's
-    randomization.heading_max_deg / lateral_offset_max (the range the machine's actors were trained to start
-    from), any other value stands (0: no check)."""
+    """Settings' max_heading_deg / max_lateral_offset from the supervisor's parameters: -1 takes the range the
+    parameter file's actors were trained to start from, any other value >= 0 stands (0: no check). Heading: its
+    randomization.heading_max_deg. Lateral: where the lip was when a training episode began, placed within
+    randomization.lateral_offset_max of the axis and driven in over at most d_attack_max + d_init at up to that
+    heading: lateral_offset_max + (d_attack_max + d_init) sin(heading_max) (0.06 + 0.5 sin 4 deg = 0.095 m); the
+    supervisor arms a machine standing with its tip in the pile, after that drive."""
+    for name, v in (("max_heading_deg", max_heading_deg), ("max_lateral_offset", max_lateral_offset)):
+        if not (v == -1.0 or (math.isfinite(v) and v >= 0.0)):
+            raise ValueError(f"{name} = {v!r}: expected -1 (the parameter file's training range), 0 (no check) or a limit")
     r = cfg.get("randomization", {})
-    return {"max_heading_deg": float(r["heading_max_deg"]) if max_heading_deg == -1.0 else float(max_heading_deg),
-            "max_lateral_offset": float(r["lateral_offset_max"]) if max_lateral_offset == -1.0
-            else float(max_lateral_offset)}
+    try:
+        h = float(r["heading_max_deg"])
+        lateral = float(r["lateral_offset_max"]) + (float(r["d_attack_max"]) + float(cfg["paper"]["episode"]["d_init"])) \
+            * math.sin(math.radians(h))
+    except KeyError as exc:
+        raise ValueError(f"max_heading_deg / max_lateral_offset -1 take the parameter file's randomization ranges, "
+                         f"and it has no {exc.args[0]!r}: set both explicitly") from None
+    return {"max_heading_deg": h if max_heading_deg == -1.0 else float(max_heading_deg),
+            "max_lateral_offset": lateral if max_lateral_offset == -1.0 else float(max_lateral_offset)}
 
 
 @dataclass
@@ -199,7 +215,7 @@ class Inputs:
     zones_error: str = ""             # the latest zones message was invalid: why
     estop: bool = False               # <prefix>/estop (latched); never received = released
 
-    joint_speeds: deque = field(default_factory=deque)   # (arrival, {joint: velocity}) over the last STOP_WINDOW_S
+    joint_speeds: deque = field(default_factory=deque)   # (arrival, {joint: (position, velocity)}) over STOP_WINDOW_S
     pauses: deque = field(default_factory=deque)   # (start, excess over STALL_S) of the caller's pauses
     last_active: float | None = None  # the caller's latest input taken or update (it was running)
 
@@ -219,7 +235,7 @@ class Inputs:
         if name == "zones":
             self.zones_error = ""
         elif name == "joints":
-            self.joint_speeds.append((now, {n: v for n, (_, v) in value.items()}))
+            self.joint_speeds.append((now, dict(value)))
             while self.joint_speeds and self.joint_speeds[0][0] < now - STOP_WINDOW_S:
                 self.joint_speeds.popleft()
 
@@ -495,8 +511,8 @@ class Supervisor:
         if odom is None or joints is None:
             return out                        # the missing input is a problem of its own
         if s.max_heading_deg > 0.0 and _finite(*odom[1]):
-            w, x, y, z = odom[1]
-            yaw = math.degrees(math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)))
+            w, x, y, z = odom[1]          # (any length: the quaternion's own scale cancels)
+            yaw = math.degrees(math.atan2(2.0 * (w * z + x * y), w * w + x * x - y * y - z * z))
             if abs(yaw) > s.max_heading_deg:
                 out.append(f"machine heading {yaw:+.1f} deg off the pile's axis (max_heading_deg {s.max_heading_deg:g}, "
                            "the range the actors were trained to start from): turn it straight in front of the pile")
@@ -507,7 +523,7 @@ class Supervisor:
                 return out
             if _finite(tip.y_shovel) and abs(tip.y_shovel) > s.max_lateral_offset:
                 out.append(f"bucket tip {tip.y_shovel:+.3f} m off the pile's axis (max_lateral_offset "
-                           f"{s.max_lateral_offset:g} m, the range the actors were trained to start from): move the "
+                           f"{s.max_lateral_offset:.3f} m, the range the actors were trained to start from): move the "
                            "machine sideways in front of the pile")
         return out
 
@@ -743,15 +759,19 @@ class Supervisor:
 
     def machine_stopped(self, now: float) -> bool:
         """Joint states fresh, and every joint of the latest slower than STOP_SPEED on the mean of its velocities
-        over the last STOP_WINDOW_S of joint states (all finite): robust to the noise of rates differentiated from
-        sampled angles, which crosses STOP_SPEED in single messages of a still machine."""
+        over the last STOP_WINDOW_S of joint states, its positions there within STOP_SPREAD (all finite): robust to the
+        noise of rates differentiated from sampled angles, which crosses STOP_SPEED in single messages of a still
+        machine, and not fooled by a joint swinging back and forth."""
         j = self.inputs.values.get("joints")
         if j is None or self.inputs.age("joints", now) > self.s.input_timeout:
             return False
         window = [v for t, v in self.inputs.joint_speeds if t >= now - STOP_WINDOW_S]
         for name in j:
-            speeds = [v[name] for v in window if name in v]
-            if not speeds or not _finite(*speeds) or abs(sum(speeds) / len(speeds)) >= STOP_SPEED:
+            samples = [v[name] for v in window if name in v]
+            if not samples or not _finite(*(x for pv in samples for x in pv)):
+                return False
+            positions, speeds = [p for p, _ in samples], [v for _, v in samples]
+            if abs(sum(speeds) / len(speeds)) >= STOP_SPEED or max(positions) - min(positions) > STOP_SPREAD:
                 return False
         return True
 
