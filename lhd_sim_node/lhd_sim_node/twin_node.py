@@ -73,6 +73,7 @@ from lhd_loading_ros.ros.qos import LATCHED_QOS, MEASUREMENT_QOS, STATUS_QOS
 from lhd_loading_ros.ros.run import run_node
 from lhd_loading_ros.task.attempt import ENDED
 from lhd_loading_ros.task.config import load_config
+from lhd_loading_ros.task.imu_mount import mount_matrix
 from lhd_loading_ros.task.randomization import Conditions
 
 from . import sim_sensors as ss
@@ -178,6 +179,10 @@ class TwinNode(Node):
             Param("imu_noise_deg", 0.1, "deg, roll and pitch noise of the IMU (standard deviation)", lo=0.0, hi=10.0),
             Param("imu_accel_noise", 0.05, "m/s^2, white noise of each accelerometer sample (standard deviation; "
                   "a MEMS IMU's 150-300 ug/sqrt(Hz) over its 25 Hz band is 0.007-0.015: a margin)", lo=0.0, hi=10.0),
+            Param("imu_mount_deg", [0.0, 0.0], "deg, [roll, pitch] of the IMU's mounting on the rear frame (its axes "
+                  "turned so, in base_link's: Rx(roll) Ry(pitch); positive pitch: nose down): both its orientation and "
+                  "its accelerometer see it, as a sensor bolted on askew", length=2,
+                  check=lambda v: None if all(abs(float(x)) <= 10.0 for x in v) else "expected each within +-10 deg"),
             Param("imu_accel_bias", 0.1, "m/s^2, the accelerometer's bias on each axis is drawn once from "
                   "U(-b, b) (a calibrated MEMS IMU's residual bias: tens of mg)", lo=0.0, hi=10.0),
             Param("markers_hz", 5.0, "Hz, the MarkerArray (0: none)", lo=0.0, hi=30.0),
@@ -293,6 +298,9 @@ class TwinNode(Node):
             self._imu_noise = math.radians(gp("imu_noise_deg"))
             self._accel_noise = gp("imu_accel_noise")
             self._accel_bias = self._imu_rng.uniform(-1.0, 1.0, 3) * gp("imu_accel_bias")
+            mr, mp = (math.radians(float(x)) for x in gp("imu_mount_deg"))
+            self._imu_mount = (mr, mp)
+            self._imu_mount_R = mount_matrix(mr, mp)   # the IMU's axes in base_link's (task/imu_mount.py)
             self._imu_prev = None           # (pile, instant, world velocity) of the previous sample
             steady_timer(self, 1.0 / gp("imu_hz"), self._publish_imu)
         steady_timer(self, RESET_TICK, self._check_reset)
@@ -465,14 +473,14 @@ class TwinNode(Node):
         m = Imu()
         m.header.stamp, m.header.frame_id = stamp, self.base_frame_id
         o = m.orientation
-        o.w, o.x, o.y, o.z = ss.imu_orientation(quat, roll, pitch)
+        o.w, o.x, o.y, o.z = ss.imu_orientation(ss.imu_orientation(quat, *self._imu_mount), roll, pitch)
         var = self._imu_noise ** 2
         m.orientation_covariance[0] = m.orientation_covariance[4] = m.orientation_covariance[8] = var
         m.angular_velocity_covariance[0] = -1.0        # REP 145: -1 = not provided
         prev, self._imu_prev = self._imu_prev, (pile, t_state, v3)
         if prev is not None and prev[0] == pile and t_state - prev[1] > 1e-4:
             a_world = (v3 - prev[2]) / (t_state - prev[1])
-            f = ss.imu_specific_force(quat, a_world) + self._accel_bias
+            f = self._imu_mount_R.T @ ss.imu_specific_force(quat, a_world) + self._accel_bias
             if self._accel_noise > 0:
                 f = f + self._imu_rng.normal(0.0, self._accel_noise, 3)
             la = m.linear_acceleration

@@ -1124,6 +1124,39 @@ def test_placement_beyond_the_trained_range_is_refused_at_arming(kin, cfg):
             settings(**bad)
 
 
+def test_an_imu_mounted_askew_is_refused_at_arming_and_its_zero_takes_it_off(kin):
+    """max_standing_tilt_deg / imu_zero (docs/real_machine.md Calibration step 9): an IMU mounted 2 deg nose down
+    reads a level machine as pitched 2 deg. Beyond 1.5 deg the machine is not armed, with a sentence saying what to
+    do; with imu_zero = its reading on the level floor it is, and the final pitch and the tilt limit see the machine's
+    own (level) orientation, not the mounting's."""
+    from lhd_sim_node import sim_sensors as ss
+
+    askew = ss.imu_orientation((1.0, 0.0, 0.0, 0.0), 0.0, DEG(2.0))
+    r = Rig(kin, arm_delay=0.0, max_standing_tilt_deg=1.5, max_tilt_deg=8.0)
+    r.imu = askew
+    r.ready()
+    probs = r.sv.preflight(r.t)
+    assert len(probs) == 1 and probs[0].startswith("the IMU reads the standing machine tilted 2.0 deg (pitch +2.0 deg")
+    assert "imu_zero_deg" in probs[0] and "Calibration step 9" in probs[0]
+    ok, _ = r.sv.arm(r.t, "2025-01-01T00:00:00Z")
+    assert not ok
+    r = Rig(kin, arm_delay=0.0, max_standing_tilt_deg=1.5, max_tilt_deg=8.0, imu_zero=(0.0, DEG(2.0)))
+    r.imu = askew
+    r.ready()
+    assert r.sv.preflight(r.t) == []
+    tilt, pitch = r.sv._tilt(r.t)
+    assert tilt == pytest.approx(0.0, abs=1e-9) and pitch == pytest.approx(0.0, abs=1e-9)
+    r.arm()
+    # the machine's rear lifts 9 deg: the IMU reads 11; with the zero the tilt limit (8) sees 9 and ends the attempt
+    r.imu = ss.imu_orientation(ss.imu_orientation((1.0, 0.0, 0.0, 0.0), 0.0, DEG(9.0)), 0.0, DEG(2.0))
+    assert r.step(0.1) == "failure"
+    assert "machine tilted 9.0 deg" in r.sv.status_values(r.t)["reason"]
+    with pytest.raises(ValueError, match="max_standing_tilt_deg"):
+        settings(max_standing_tilt_deg=-1.0)
+    with pytest.raises(ValueError, match="imu_zero"):
+        settings(imu_zero=(0.0, DEG(15.0)))
+
+
 def test_status_before_any_attempt(kin):
     r = Rig(kin).ready()
     r.sv.update(r.t)

@@ -52,6 +52,7 @@ from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
 from lhd_loading_ros.ros.qos import MEASUREMENT_QOS
 from lhd_loading_ros.ros.run import run_node
 from lhd_loading_ros.ros.stamps import KindThrottle, stamp_problem
+from lhd_loading_ros.task.imu_mount import level_force, level_orientation, zero_problem
 
 POSE_VAR = 0.005 ** 2     # m^2, position variance of a fresh detection (about 5 mm, see docs/perception.md)
 # (m/s)^2: the speed's error measured over simulated loading attempts (RMS against the simulator,
@@ -120,6 +121,10 @@ class ArucoPoseNode(Node):
                   "this long a window ending at its stamp (s; white noise of the IMU would otherwise reach v_x "
                   "through the 0.5 m/rad lever of the tilt on x); 0: interpolated at the stamp",
                   lo=0.0, hi=2.0, on_change=lambda v: setattr(self, "imu_window", v)),
+            Param("imu_zero_deg", [0.0, 0.0], "use_imu: [roll, pitch] deg the IMU reads with the machine standing on a "
+                  "level floor (its mounting on the rear frame); taken off its orientation and acceleration. An IMU 2 deg "
+                  "askew cost rld_machine every attempt in the twin (docs/real_machine.md Calibration step 9)", length=2,
+                  check=zero_problem),
             Param("imu_deadband_deg", 0.3, "use_imu: a roll or pitch this small (deg) is the IMU's noise and "
                   "mounting error, not the machine's (a machine on its wheels on a flat floor stands level); larger "
                   "ones count beyond it (soft threshold: no step at the edge)", lo=0.0, hi=10.0,
@@ -165,6 +170,7 @@ class ArucoPoseNode(Node):
         self.height_problem: str | None = None  # the marker seen far from marker_height
         self.frame_id, self.child_frame_id = p["frame_id"], p["child_frame_id"]
         self.use_imu, self.imu_timeout, self.wheelbase = p["use_imu"], p["imu_timeout"], p["wheelbase"]
+        self.imu_zero = tuple(math.radians(float(v)) for v in p["imu_zero_deg"])
         self.match_info_frame = p["match_info_frame"]
         self.imu_window = p["imu_window"]
         self.imu_accel_wait = p["imu_accel_wait"]
@@ -289,8 +295,10 @@ class ArucoPoseNode(Node):
             self.imu_problem = "IMU message has no orientation (orientation_covariance[0] = -1): tilt not used"
             return
         o = msg.orientation
+        zr, zp = self.imu_zero
         try:
-            roll, pitch = roll_pitch(o.x, o.y, o.z, o.w)
+            w, x, y, z = level_orientation((o.w, o.x, o.y, o.z), zr, zp)     # the IMU's mounting taken off
+            roll, pitch = roll_pitch(x, y, z, w)
         except ValueError as exc:
             self._imu_fault(f"IMU message rejected: {exc}")
             return
@@ -307,14 +315,14 @@ class ArucoPoseNode(Node):
         self.imu.append((t, roll, pitch))
         self.imu_problem = None
         if self.imu_accel and msg.linear_acceleration_covariance[0] != -1.0 and hasattr(self.vel, "add_accel"):
-            la = msg.linear_acceleration
+            la = level_force((msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z), zr, zp)
             try:
-                a_x = forward_acceleration((la.x, la.y, la.z), roll, pitch, self.yaw)
+                a_x = forward_acceleration(la, roll, pitch, self.yaw)
             except ValueError as exc:
                 self._imu_fault(f"IMU acceleration rejected: {exc}")
                 return
             # used only once a second of samples shows gravity in m/s^2 (an IMU in g passes the 4 g bound)
-            self.gravity.add(t, (la.x, la.y, la.z))
+            self.gravity.add(t, la)
             gravity_problem = self.gravity.problem()
             if gravity_problem is None:
                 if self.vel.add_accel(t, a_x):

@@ -55,6 +55,7 @@ from lhd_loading_ros.task.attempt import (ATTEMPT_TIMEOUT_RANGE_S, ENDED, LIVE, 
                                          Supervisor, placement_limits)
 from lhd_loading_ros.task.attempt_record import MATERIALS, csv_path, read_rows, upsert_row
 from lhd_loading_ros.task.config import config_hash, load_config
+from lhd_loading_ros.task.imu_mount import zero_problem
 from lhd_loading_ros.task.kinematics import ArmKinematics
 from lhd_loading_ros.task.params import TaskParams
 from lhd_loading_ros.task.viz import AttemptTrail, zone_boxes
@@ -181,6 +182,12 @@ class SupervisorNode(Node):
             Param("max_tilt_deg", 0.0, "deg: a machine tilted beyond this (|pitch| from <prefix>/imu, an IMU on the "
                   "rear frame) ends the attempt as a failure, and the IMU becomes a required input; 0: no limit "
                   "(a fresh IMU is still used for the final pitch)", lo=0.0, hi=45.0),
+            Param("imu_zero_deg", [0.0, 0.0], "[roll, pitch] deg the IMU (<prefix>/imu) reads with the machine standing "
+                  "on a level floor: its mounting, taken off before any use (the ArUco node's parameter of the same name "
+                  "must match; docs/real_machine.md Calibration step 9)", length=2, check=zero_problem),
+            Param("max_standing_tilt_deg", 1.5, "deg: to arm, a fresh IMU must read the standing machine tilted no more "
+                  "than this after imu_zero_deg (an IMU mounted 2 deg askew cost every attempt in the twin); 0: no check",
+                  lo=0.0, hi=10.0),
             Param("max_heading_deg", -1.0, "deg: to arm, the machine's heading (odometry yaw in the pile frame) within "
                   "+-this of the pile's axis; -1: the parameter file's randomization.heading_max_deg (the range the "
                   "machine's actors were trained to start from; the main job's, trained straight, lose attempts within "
@@ -219,6 +226,8 @@ class SupervisorNode(Node):
                             end_check_period=p.control_dt if gp("end_check_period") < 0 else gp("end_check_period"),
                             max_tilt_deg=gp("max_tilt_deg"), arm_fresh_fraction=gp("arm_fresh_fraction"),
                             slope_timeout=gp("slope_timeout"), zones_tolerance=gp("zones_tolerance"),
+                            imu_zero=tuple(math.radians(float(v)) for v in gp("imu_zero_deg")),
+                            max_standing_tilt_deg=gp("max_standing_tilt_deg"),
                             config_hash=config_hash(cfg), **placement_limits(cfg, gp("max_heading_deg"),
                                                                              gp("max_lateral_offset")))
         self.run_dir = Path(gp("run_dir")).expanduser().resolve()

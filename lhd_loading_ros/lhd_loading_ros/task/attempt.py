@@ -45,6 +45,7 @@ from dataclasses import dataclass, field, fields, replace
 
 from lhd_loading_ros.task.attempt_record import (INTERRUPTED_REASON, AttemptRow, bag_name, check_mass, judge,
                                                  never_ran_refusal)
+from lhd_loading_ros.task.imu_mount import level_orientation, zero_problem
 from lhd_loading_ros.task.kinematics import ArmKinematics, nose_down_pitch, quat_to_mat, state_from_measurements, with_tilt
 from lhd_loading_ros.task.metrics import drift_pct
 from lhd_loading_ros.task.state import LhdState
@@ -155,6 +156,12 @@ class Settings:
     # about half (docs/supervisor.md "Placement"). 0: no check (the paper's protocol: placed straight by the operator)
     max_heading_deg: float = 0.0
     max_lateral_offset: float = 0.0
+    # rad, (roll, pitch) the IMU reads with the machine standing on a level floor: its mounting, taken off its
+    # orientation before any use (task/imu_mount.py; docs/real_machine.md Calibration step 9)
+    imu_zero: tuple = (0.0, 0.0)
+    # deg: to ARM, a fresh IMU must read the machine (standing on its wheels in the attack pose) tilted no more than
+    # this, after imu_zero: an IMU mounted 2 deg askew cost rld_machine every attempt in the twin. 0: no check
+    max_standing_tilt_deg: float = 0.0
 
     def __post_init__(self):
         lo, hi = self.slope_range_deg
@@ -177,6 +184,11 @@ class Settings:
             raise ValueError(f"max_heading_deg = {self.max_heading_deg!r}: expected degrees in [0, 45] (0: no check)")
         if not (math.isfinite(self.max_lateral_offset) and 0.0 <= self.max_lateral_offset <= 1.0):
             raise ValueError(f"max_lateral_offset = {self.max_lateral_offset!r}: expected metres in [0, 1] (0: no check)")
+        if zero_problem([math.degrees(v) for v in self.imu_zero]):
+            raise ValueError(f"imu_zero = {self.imu_zero!r} rad: {zero_problem([math.degrees(v) for v in self.imu_zero])}")
+        if not (math.isfinite(self.max_standing_tilt_deg) and 0.0 <= self.max_standing_tilt_deg <= 10.0):
+            raise ValueError(f"max_standing_tilt_deg = {self.max_standing_tilt_deg!r}: expected degrees in [0, 10] "
+                             "(0: no check)")
         if not (math.isfinite(self.slope_timeout) and self.slope_timeout >= 0):
             raise ValueError(f"slope_timeout = {self.slope_timeout!r}: expected seconds >= 0 (0: no limit)")
         if not (math.isfinite(self.end_check_period) and self.end_check_period >= 0):
@@ -428,7 +440,7 @@ class Supervisor:
                 # the machine has it (the controllers see the same); turning a LEVELLED pose's arm
                 # here, about base_link at its floor height, would put it where it is not (the
                 # machine pivots on its front wheels, its rear axle rising)
-                tilted = state_from_measurements(self.kin, pos, with_tilt(quat, inp.values["imu"]), v_x, j,
+                tilted = state_from_measurements(self.kin, pos, with_tilt(quat, self._imu_q()), v_x, j,
                                                  False, False)
                 st = replace(st, phi_shovel=tilted.phi_shovel)
         except ValueError:          # a zero quaternion
@@ -442,10 +454,14 @@ class Supervisor:
         if q is None or self.inputs.age("imu", now, discount) > self.s.input_timeout or not _finite(*q):
             return None
         try:
-            R = quat_to_mat(*q)
+            R = quat_to_mat(*self._imu_q())
         except ValueError:                # a zero quaternion
             return None
         return math.acos(max(-1.0, min(1.0, R[2, 2]))), nose_down_pitch(R)
+
+    def _imu_q(self) -> tuple:
+        """The latest IMU orientation with its mounting (Settings.imu_zero) taken off: base_link's."""
+        return level_orientation(self.inputs.values["imu"], *self.s.imu_zero)
 
     def _tilt_problem(self, now: float, discount: bool = True) -> str:
         """With max_tilt_deg > 0: the machine tilted beyond it (the rear lifted, or on its side)."""
@@ -474,6 +490,13 @@ class Supervisor:
         tilt = self._tilt_problem(now, discount=False)
         if tilt:
             out.append(tilt)
+        standing = self._tilt(now, discount=False) if self.s.max_standing_tilt_deg > 0 else None
+        if standing is not None and not tilt and standing[0] > math.radians(self.s.max_standing_tilt_deg):
+            out.append(f"the IMU reads the standing machine tilted {math.degrees(standing[0]):.1f} deg (pitch "
+                       f"{math.degrees(standing[1]):+.1f} deg, nose down +; max_standing_tilt_deg "
+                       f"{self.s.max_standing_tilt_deg:g}): a machine on its wheels in the attack pose stands level; set "
+                       "the IMU's mounting (imu_zero_deg of the supervisor and the ArUco node: what it reads on a level "
+                       "floor, docs/real_machine.md Calibration step 9) or level the floor")
         inp, p = self.inputs, self.s.prefix
         if "slope" not in inp.values:
             out.append(f"no pile slope received ({p}/pile/slope, the LiDAR node)")
