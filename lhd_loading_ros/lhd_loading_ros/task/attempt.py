@@ -523,15 +523,15 @@ class Supervisor:
                 out.append(f"bucket tip in the restricted zone {at}, outside the permitted zone x in "
                            f"[{zones.x_obs_start:.3f}, {min(zones.x_obs_end, zones.x_cutoff):.3f}] m, |y| <= "
                            f"{zones.y_half:.3f} m: place the machine in front of the pile")
-        out += self._placement_problems()
+        out += self._placement_problems(tip)
         return out + list(extra)
 
-    def _placement_problems(self) -> list[str]:
+    def _placement_problems(self, tip) -> list[str]:
         """With max_heading_deg / max_lateral_offset set: the machine's heading (the odometry's yaw in the pile frame)
-        and the bucket tip's lateral offset (the tip computed from odometry and joints) beyond them."""
+        and the bucket tip's lateral offset (`tip`: _compute_tip's, None without valid inputs) beyond them."""
         s, out = self.s, []
-        odom, joints = self.inputs.values.get("odom"), self.inputs.values.get("joints")
-        if odom is None or joints is None:
+        odom = self.inputs.values.get("odom")
+        if odom is None:
             return out                        # the missing input is a problem of its own
         if s.max_heading_deg > 0.0 and _finite(*odom[1]):
             w, x, y, z = odom[1]          # (any length: the quaternion's own scale cancels)
@@ -539,12 +539,8 @@ class Supervisor:
             if abs(yaw) > s.max_heading_deg:
                 out.append(f"machine heading {yaw:+.1f} deg off the pile's axis (max_heading_deg {s.max_heading_deg:g}, "
                            "the range the actors were trained to start from): turn it straight in front of the pile")
-        if s.max_lateral_offset > 0.0:
-            try:
-                tip = state_from_measurements(self.kin, odom[0], odom[1], odom[2], joints, False, False)
-            except (ValueError, KeyError):
-                return out
-            if _finite(tip.y_shovel) and abs(tip.y_shovel) > s.max_lateral_offset:
+        if s.max_lateral_offset > 0.0 and tip is not None:
+            if abs(tip.y_shovel) > s.max_lateral_offset:
                 out.append(f"bucket tip {tip.y_shovel:+.3f} m off the pile's axis (max_lateral_offset "
                            f"{s.max_lateral_offset:.3f} m, the range the actors were trained to start from): move the "
                            "machine sideways in front of the pile")
