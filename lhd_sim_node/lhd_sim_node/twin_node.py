@@ -73,7 +73,7 @@ from lhd_loading_ros.ros.qos import LATCHED_QOS, MEASUREMENT_QOS, STATUS_QOS
 from lhd_loading_ros.ros.run import run_node
 from lhd_loading_ros.task.attempt import ENDED
 from lhd_loading_ros.task.config import load_config
-from lhd_loading_ros.task.imu_mount import mount_matrix
+from lhd_loading_ros.task.imu_mount import mount_matrix, zero_problem
 from lhd_loading_ros.task.randomization import Conditions
 
 from . import sim_sensors as ss
@@ -181,8 +181,7 @@ class TwinNode(Node):
                   "a MEMS IMU's 150-300 ug/sqrt(Hz) over its 25 Hz band is 0.007-0.015: a margin)", lo=0.0, hi=10.0),
             Param("imu_mount_deg", [0.0, 0.0], "deg, [roll, pitch] of the IMU's mounting on the rear frame (its axes "
                   "turned so, in base_link's: Rx(roll) Ry(pitch); positive pitch: nose down): both its orientation and "
-                  "its accelerometer see it, as a sensor bolted on askew", length=2,
-                  check=lambda v: None if all(abs(float(x)) <= 10.0 for x in v) else "expected each within +-10 deg"),
+                  "its accelerometer see it, as a sensor bolted on askew", length=2, check=zero_problem),
             Param("imu_accel_bias", 0.1, "m/s^2, the accelerometer's bias on each axis is drawn once from "
                   "U(-b, b) (a calibrated MEMS IMU's residual bias: tens of mg)", lo=0.0, hi=10.0),
             Param("markers_hz", 5.0, "Hz, the MarkerArray (0: none)", lo=0.0, hi=30.0),
