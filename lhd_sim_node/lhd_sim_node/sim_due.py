@@ -61,13 +61,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from lhd_loading_ros.task.arm_sensors import RATE_WINDOW_S, RateWindow
 from lhd_hw_bridge.fake_due import LOAD_CELL_OFFSET, LOAD_CELL_SCALE
 from lhd_hw_bridge.pty_link import close_pty, open_pty
 from lhd_hw_bridge.protocol import (ANGLE_SCALE, CURRENT_SCALE, FLAG_ENABLED, FLAG_ESTOP, FLAG_WATCHDOG,
                                     LC_CALIBRATED, LC_SATURATED, LC_TARED, RATE_SCALE, RAW_MAX, RAW_MIN, TYPE_COMMAND,
                                     TYPE_HEARTBEAT, WHEEL_SCALE, CommandFrame, FrameParser, LoadCellFrame,
                                     SensorFrame, TxSequence)
+from lhd_loading_ros.task.arm_sensors import RATE_WINDOW_S, RateWindow
 
 # the firmware's constants (lhd_due.ino; test/sim/test_sim_due.py reads them from the file)
 WATCHDOG_S = 0.250              # WATCHDOG_MS

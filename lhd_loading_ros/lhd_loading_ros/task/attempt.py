@@ -184,8 +184,9 @@ class Settings:
             raise ValueError(f"max_heading_deg = {self.max_heading_deg!r}: expected degrees in [0, 45] (0: no check)")
         if not (math.isfinite(self.max_lateral_offset) and 0.0 <= self.max_lateral_offset <= 1.0):
             raise ValueError(f"max_lateral_offset = {self.max_lateral_offset!r}: expected metres in [0, 1] (0: no check)")
-        if zero_problem([math.degrees(v) for v in self.imu_zero]):
-            raise ValueError(f"imu_zero = {self.imu_zero!r} rad: {zero_problem([math.degrees(v) for v in self.imu_zero])}")
+        why = zero_problem([math.degrees(v) for v in self.imu_zero])
+        if why:
+            raise ValueError(f"imu_zero = {self.imu_zero!r} rad: {why}")
         if not (math.isfinite(self.max_standing_tilt_deg) and 0.0 <= self.max_standing_tilt_deg <= 10.0):
             raise ValueError(f"max_standing_tilt_deg = {self.max_standing_tilt_deg!r}: expected degrees in [0, 10] "
                              "(0: no check)")
@@ -227,7 +228,7 @@ class Inputs:
     zones_error: str = ""             # the latest zones message was invalid: why
     estop: bool = False               # <prefix>/estop (latched); never received = released
 
-    joint_speeds: deque = field(default_factory=deque)   # (arrival, {joint: (position, velocity)}) over STOP_WINDOW_S
+    joint_history: deque = field(default_factory=deque)   # (arrival, {joint: (position, velocity)}) over STOP_WINDOW_S
     pauses: deque = field(default_factory=deque)   # (start, excess over STALL_S) of the caller's pauses
     last_active: float | None = None  # the caller's latest input taken or update (it was running)
 
@@ -247,9 +248,9 @@ class Inputs:
         if name == "zones":
             self.zones_error = ""
         elif name == "joints":
-            self.joint_speeds.append((now, dict(value)))
-            while self.joint_speeds and self.joint_speeds[0][0] < now - STOP_WINDOW_S:
-                self.joint_speeds.popleft()
+            self.joint_history.append((now, dict(value)))
+            while self.joint_history and self.joint_history[0][0] < now - STOP_WINDOW_S:
+                self.joint_history.popleft()
 
     def note_pause(self, start: float, excess: float, now: float) -> None:
         """The caller did not run from `start` for STALL_S + excess (seconds)."""
@@ -534,8 +535,11 @@ class Supervisor:
         if odom is None:
             return out                        # the missing input is a problem of its own
         if s.max_heading_deg > 0.0 and _finite(*odom[1]):
-            w, x, y, z = odom[1]          # (any length: the quaternion's own scale cancels)
-            yaw = math.degrees(math.atan2(2.0 * (w * z + x * y), w * w + x * x - y * y - z * z))
+            try:
+                R = quat_to_mat(*odom[1])
+            except ValueError:                # a zero quaternion: a problem of its own
+                return out
+            yaw = math.degrees(math.atan2(R[1, 0], R[0, 0]))    # the heading, as kinematics.with_tilt takes it
             if abs(yaw) > s.max_heading_deg:
                 out.append(f"machine heading {yaw:+.1f} deg off the pile's axis (max_heading_deg {s.max_heading_deg:g}, "
                            "the range the actors were trained to start from): turn it straight in front of the pile")
@@ -784,7 +788,7 @@ class Supervisor:
         j = self.inputs.values.get("joints")
         if j is None or self.inputs.age("joints", now) > self.s.input_timeout:
             return False
-        window = [v for t, v in self.inputs.joint_speeds if t >= now - STOP_WINDOW_S]
+        window = [v for t, v in self.inputs.joint_history if t >= now - STOP_WINDOW_S]
         for name in j:
             samples = [v[name] for v in window if name in v]
             if not samples or not _finite(*(x for pv in samples for x in pv)):

@@ -14,26 +14,15 @@ import math
 
 import numpy as np
 
-
-def mount_quaternion(roll: float, pitch: float) -> tuple[float, float, float, float]:
-    """(w, x, y, z) of Rx(roll) Ry(pitch), rad."""
-    a, b = roll / 2.0, pitch / 2.0
-    return (math.cos(a) * math.cos(b), math.sin(a) * math.cos(b), math.cos(a) * math.sin(b), math.sin(a) * math.sin(b))
-
-
-def _mul(p, q):
-    pw, px, py, pz = p
-    qw, qx, qy, qz = q
-    return (pw * qw - px * qx - py * qy - pz * qz, pw * qx + px * qw + py * qz - pz * qy,
-            pw * qy - px * qz + py * qw + pz * qx, pw * qz + px * qy - py * qx + pz * qw)
+from lhd_loading_ros.task.kinematics import mat_to_quat, quat_to_mat
 
 
 def level_orientation(q_imu, roll0: float, pitch0: float) -> tuple[float, float, float, float]:
-    """base_link's orientation (w, x, y, z) from the IMU's, mounted at (roll0, pitch0) rad: q_imu * q_mount^-1."""
+    """base_link's orientation (w, x, y, z) from the IMU's, mounted at (roll0, pitch0) rad: R_imu R_mount^T.
+    A quaternion with no finite, non-zero norm is a ValueError (task.kinematics.quat_to_mat)."""
     if roll0 == 0.0 and pitch0 == 0.0:
         return tuple(float(c) for c in q_imu)
-    w, x, y, z = mount_quaternion(roll0, pitch0)
-    return _mul(tuple(float(c) for c in q_imu), (w, -x, -y, -z))
+    return mat_to_quat(quat_to_mat(*q_imu) @ mount_matrix(roll0, pitch0).T)
 
 
 def mount_matrix(roll0: float, pitch0: float) -> np.ndarray:
