@@ -229,8 +229,8 @@ class PolicyNode(Node):
         self.episode_key = None
         self._status_publisher_seen = False
         self.status_watch = StatusWatch()   # the /lhd/episode status' age in this node's running time
-        self._lost_key = None            # the attempt whose status stopped arriving: it does not resume
-        self._lost_key_heard = False     # its running status came back (warned once)
+        self._lost_keys: set = set()     # the attempts whose status stopped arriving: none resumes (not only the latest)
+        self._lost_keys_heard: set = set()   # those whose running status came back (warned once each)
         self.attempts = 0                # running attempts begun (controller resets)
         self._status_stamp = None
         self._stamps = {"joints": None, "odom": None}
@@ -374,9 +374,9 @@ class PolicyNode(Node):
     def _set_episode(self, state, key) -> None:
         """The attempt's state changes: a new running attempt resets the controller; leaving
         running sends the one zero command (now, not at the next control period)."""
-        if state == RUNNING and key is not None and key == self._lost_key:
-            if not self._lost_key_heard:
-                self._lost_key_heard = True
+        if state == RUNNING and key is not None and key in self._lost_keys:
+            if key not in self._lost_keys_heard:
+                self._lost_keys_heard.add(key)
                 self.get_logger().warn(f"attempt {key}'s status came back after it had stopped arriving: the attempt "
                                        "is not resumed (arm a new one)")
             state = "lost"                   # that attempt's running status no longer counts
@@ -415,7 +415,7 @@ class PolicyNode(Node):
         the graph (a status that arrived before discovery caught up is no loss). A publisher that
         is still in the graph but silent (hung, SIGSTOP, a crashed process whose DDS lease has not
         expired yet: about 20 s) is found by the status' age: a running status older than
-        status_timeout ends the attempt, for good (`_lost_key`). This node's own pause does not
+        status_timeout ends the attempt, for good (`_lost_keys`). This node's own pause does not
         count (policy/status_watch.py): a check more than 3 periods + 50 ms after the previous one
         ends a pause, and the status' age counts from then at the earliest."""
         age = self.status_watch.age(time.monotonic(), 3.0 * period + 0.05)
@@ -423,7 +423,7 @@ class PolicyNode(Node):
             self.get_logger().error(f"no {self.episode_topic} status for {age:.1f} s of this node's running time "
                                     f"(status_timeout {self.status_timeout:g} s): the supervisor or sim node stopped "
                                     f"or hung; attempt {self.episode_key} has ended for this node")
-            self._lost_key, self._lost_key_heard = self.episode_key, False
+            self._lost_keys.add(self.episode_key)
             self._set_episode("lost", self.episode_key)
             self._hold_attempt_slope({})
             return
