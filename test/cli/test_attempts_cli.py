@@ -123,3 +123,21 @@ def test_mass_without_a_supervisor_is_exit_1():
 def test_module_usage():
     p = subprocess.run(CLI, capture_output=True, text=True, timeout=60)
     assert p.returncode == 2 and "lhd attempts RUN_DIR" in p.stdout
+
+
+def test_the_newest_status_is_the_last_heard_of_equal_stamps_and_a_restart_names_the_unweighed_attempt(run_dir):
+    """A review (2026-11-29, twelfth session): a supervisor on sim time without /clock stamps every status 0,
+    and `lhd attempt mass` took the oldest of its latched history (its confirmation then never came); a
+    supervisor restarted on the same run directory says idle, and the refusal did not say how to weigh the
+    attempt its predecessor left unweighed."""
+    from lhd_loading_ros.cli.attempts import _newest, _unweighed_hint
+
+    hist = [{"episode": "1", "state": "running", "stamp_ns": "0"}, {"episode": "1", "state": "timeout", "stamp_ns": "0"},
+            {"episode": "1", "state": "timeout", "stamp_ns": "0", "loaded_mass": "23.4"}]
+    assert _newest(hist) is hist[2]
+    stamped = [{"stamp_ns": "30"}, {"stamp_ns": "50"}, {"stamp_ns": "40"}]
+    assert _newest(stamped) is stamped[1]                       # stamps rule where they differ
+    hint = _unweighed_hint(str(run_dir))                         # RECORD: attempt 5 ended (success), no mass
+    assert "attempt 5" in hint and "lhd attempt mass KG --attempt 5" in hint
+    (run_dir / "attempts.csv").write_text("\n".join(RECORD.splitlines()[:5]) + "\n")   # attempts 1-4: all weighed
+    assert _unweighed_hint(str(run_dir)) == "" and _unweighed_hint(str(run_dir / "nowhere")) == ""

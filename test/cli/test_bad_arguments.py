@@ -54,8 +54,15 @@ LHD = [sys.executable, "-m", "lhd_loading_ros.cli.main"]
      "--slopes: 10 deg outside the piles of the parameter file (15-30 deg"),
     # `lhd up real`: a port that does not exist, an attempt timeout the supervisor would refuse
     # (it used to start nine nodes, then the bridge retried for ever or the supervisor exited 2)
-    (["up", "real", "--port", "/dev/ttyNOPE"], "--port '/dev/ttyNOPE' does not exist: expected the Due's serial "
-                                                "device, e.g. /dev/ttyACM0"),
+    (["up", "real", "--port", "/dev/ttyNOPE"], "--port '/dev/ttyNOPE' is no serial device (missing, empty or a "
+                                                "directory): expected the Due's serial device, e.g. /dev/ttyACM0"),
+    # an empty port is the current directory to pathlib, which exists: nine nodes started (a review, 2026-11-29)
+    (["up", "real", "--port", ""], "--port '' is no serial device (missing, empty or a directory)"),
+    (["up", "real", "--port", "/dev"], "--port '/dev' is no serial device"),
+    # namespaces and timeouts of the one-shot commands (a review: a traceback, and a timeout of -1 accepted)
+    (["estop", "on", "--namespace", "x y"], "'x y' is no ROS namespace"),
+    (["arm", "--timeout", "-1"], "--timeout: expected a number of seconds > 0, got -1"),
+    (["attempt", "mass", "20", "--namespace", "/"], "expected the machine's topic prefix, e.g. /lhd"),
     (["up", "real", "--port", "/dev/null", "--attempt-timeout", "nan"], "--attempt-timeout nan: expected seconds in "
                                                                         "[0.1, 600]"),
     (["up", "real", "--port", "/dev/null", "--attempt-timeout", "1000"], "--attempt-timeout 1000: expected seconds in "
@@ -145,3 +152,19 @@ def test_validate_physics_names_a_file_whose_piles_miss_its_cases(tmp_path):
                        timeout=120)
     assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
     assert "its cases are piles of 15-30 deg" in r.stderr and "has piles of 10-14 deg" in r.stderr
+
+
+@pytest.mark.parametrize("module, param", [("lhd_loading_ros.nodes.teleop_node", "joy_topic:=bad topic"),
+                                           ("lhd_loading_ros.nodes.lidar_slope_node", "scan_topic:=/scan/9x"),
+                                           ("lhd_loading_ros.nodes.teleop_node", "use_sim_time:=1")])
+def test_a_topic_parameter_that_is_no_ros_name_or_a_mistyped_bool_is_one_line(module, param):
+    """rclpy refuses these while the node is made (InvalidTopicNameException, InvalidParameterTypeException):
+    a 25-line traceback and exit 1 until a review (2026-11-29, twelfth session); now one line (ros/run.py)."""
+    p = subprocess.run([sys.executable, "-m", module, "--ros-args", "-p", param], capture_output=True, text=True,
+                       timeout=120)
+    out = p.stdout + p.stderr
+    assert p.returncode == 2 and "Traceback" not in out, out[-1500:]
+    lines = [ln for ln in out.splitlines() if ln.strip()]
+    assert len(lines) == 1, lines
+    want = "expecting type 'BOOL'" if "use_sim_time" in param else "expected a ROS name"
+    assert want in lines[0] and param.split(":=")[1] in lines[0]

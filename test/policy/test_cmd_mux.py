@@ -177,7 +177,7 @@ def test_an_attempt_whose_status_was_lost_does_not_run_again_when_it_comes_back(
     lost and keeps it ended (the policy node does the same); attempt 5 runs."""
     mux.on_episode("running", 0.0, "4")
     _drive(mux, 0.0, 2.0)                                  # no status after 0.0: lost at 1.51 s
-    assert mux.episode_state == "status lost" and mux.lost_key == "4"
+    assert mux.episode_state == "status lost" and mux.lost_keys == {"4"}
     assert mux.on_episode("running", 2.1, "4") == [] and mux.episode_state == "status lost"
     out = _drive(mux, 2.11, 3.0, status_every=None)
     assert not any(c == tuple(AUTO) for _, c in out)      # auto cut and gated: nothing forwarded
@@ -185,6 +185,32 @@ def test_an_attempt_whose_status_was_lost_does_not_run_again_when_it_comes_back(
     mux.on_episode("running", 3.1, "5")
     assert mux.running
     assert mux.on_command("auto", AUTO, 3.6) == [tuple(AUTO)]   # after 0.3 s of silence: uncut
+
+
+def test_every_lost_attempt_stays_ended_and_one_without_a_key_until_its_publisher_moves_on(mux):
+    """A third-party supervisor's status may carry no `episode` key (docs/ros_nodes.md). Such an attempt
+    lost and its `running` coming back (the same publisher waking up) must not drive again: only after the
+    publisher says anything else (ended, idle) is its next `running` a new attempt. Keyed attempts: every
+    lost one stays ended, not only the latest (a review, 2026-11-29, twelfth session: the key-less case
+    drove 29 commands after the outage)."""
+    mux.on_episode("running", 0.0)                        # no key
+    _drive(mux, 0.0, 2.0)
+    assert mux.episode_state == "status lost" and mux.lost_unkeyed
+    mux.on_episode("running", 2.1)                        # the same attempt's status back
+    out = _drive(mux, 2.11, 3.0)
+    assert mux.episode_state == "status lost" and not any(c == tuple(AUTO) for _, c in out)
+    mux.on_episode("idle", 3.0)                           # the publisher moved on ...
+    assert not mux.lost_unkeyed
+    mux.on_episode("running", 3.1)                        # ... its next running is a new attempt
+    assert mux.running and mux.on_command("auto", AUTO, 3.6) == [tuple(AUTO)]
+    # two keyed attempts lost in turn: the first one's late status does not run either
+    for key, t in (("7", 10.0), ("8", 20.0)):
+        mux.on_episode("running", t, key)
+        _drive(mux, t, t + 2.0)
+        assert mux.episode_state == "status lost"
+    assert mux.lost_keys == {"7", "8"}
+    mux.on_episode("running", 22.5, "7")
+    assert not mux.running
 
 
 def test_the_mux_s_own_pause_is_not_a_lost_status(mux):

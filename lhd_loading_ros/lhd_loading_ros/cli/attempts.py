@@ -18,9 +18,9 @@ import sys
 import time
 
 from lhd_loading_ros.task import json_out
-from lhd_loading_ros.cli.argtypes import pos_int
+from lhd_loading_ros.cli.argtypes import pos_float, pos_int, topic_prefix
 from lhd_loading_ros.task.attempt import ENDED
-from lhd_loading_ros.task.attempt_record import (CSV_NAME, check_mass, csv_path, format_table, read_rows,
+from lhd_loading_ros.task.attempt_record import (NEEDS_MASS, CSV_NAME, check_mass, csv_path, format_table, read_rows,
                                                  never_ran_refusal, summarize, weigh_row)
 
 WAIT_S = 5.0
@@ -32,6 +32,26 @@ def _stamp(status: dict) -> int:
         return int(status.get("stamp_ns", "0"))
     except ValueError:
         return 0
+
+
+def _newest(statuses: list) -> dict:
+    """The newest of the statuses heard: the largest stamp, and of equal stamps the last to arrive (a
+    supervisor on sim time without /clock stamps every status 0; the latched history comes in order)."""
+    return max(enumerate(statuses), key=lambda e: (_stamp(e[1]), e[0]))[1]
+
+
+def _unweighed_hint(run_dir: str) -> str:
+    """Where the run's record has ended attempts still without a mass (a supervisor restarted on the same
+    run directory starts idle and weighs only what it runs itself): the command that weighs the latest."""
+    try:
+        rows = [r for r in read_rows(csv_path(run_dir)) if r.mass_kg is None and r.outcome in NEEDS_MASS]
+    except (OSError, ValueError):
+        return ""
+    if not rows:
+        return ""
+    n = rows[-1].attempt
+    return (f"; the record {csv_path(run_dir)} has attempt {n} (from before this supervisor started) still "
+            f"unweighed: `lhd attempt mass KG --attempt {n}` records it")
 
 
 def _err(prog: str, msg: str, rc: int = 1) -> int:
@@ -64,8 +84,8 @@ def main(argv=None) -> int:
 
 # ------------------------------------------------------------------ ROS helpers
 def _ros_args(ap: argparse.ArgumentParser) -> None:
-    ap.add_argument("--namespace", default="/lhd", help="the machine's topic prefix (default /lhd)")
-    ap.add_argument("--timeout", type=float, default=WAIT_S, help=f"seconds to wait for the supervisor "
+    ap.add_argument("--namespace", type=topic_prefix, default="/lhd", help="the machine's topic prefix (default /lhd)")
+    ap.add_argument("--timeout", type=pos_float, default=WAIT_S, help=f"seconds to wait for the supervisor "
                     f"(default {WAIT_S:g})")
 
 
@@ -181,7 +201,7 @@ def attempt_mass_main(argv=None) -> int:
         if not ros.spin_until(lambda: latest, args.timeout):
             return _err(prog, f"no supervisor: nothing on {ns}/episode after {args.timeout:g} s (or use --run-dir)")
         ros.spin_until(lambda: False, HISTORY_S)      # the latched history comes in a burst: take the newest
-        st = max(latest, key=_stamp)
+        st = _newest(latest)
         if "controller" not in st or "run_dir" not in st:
             return _err(prog, f"{ns}/episode comes from the simulator, not a supervisor: nothing to weigh")
         n = st.get("episode", "0")
@@ -190,7 +210,8 @@ def attempt_mass_main(argv=None) -> int:
             return _weigh_offline(prog, csv_path(st["run_dir"]), args.attempt, kg)
         if st.get("state") not in ENDED:
             what = "no attempt has ended yet" if st.get("state") == "idle" else f"attempt {n} is {st.get('state')}"
-            return _err(prog, f"refused: {what}; weigh the bucket after the attempt ends")
+            hint = _unweighed_hint(st["run_dir"]) if st.get("state") == "idle" else ""
+            return _err(prog, f"refused: {what}; weigh the bucket after the attempt ends{hint}")
         if st.get("ran") == "false":
             return _err(prog, f"refused: {never_ran_refusal(n)}")
         pub = ros.node.create_publisher(Float64, f"{ns}/attempt/mass", MASS_QOS)
@@ -199,7 +220,7 @@ def attempt_mass_main(argv=None) -> int:
         pub.publish(Float64(data=kg))
 
         def confirmed() -> bool:
-            s = max(latest, key=_stamp)
+            s = _newest(latest)
             try:
                 return s.get("episode") == n and abs(float(s.get("loaded_mass", "nan")) - kg) < 0.006
             except ValueError:
@@ -208,7 +229,7 @@ def attempt_mass_main(argv=None) -> int:
         if not ros.spin_until(confirmed, args.timeout):
             return _err(prog, f"the supervisor did not confirm {kg:g} kg for attempt {n} within {args.timeout:g} s "
                               "(see its log)")
-        s = max(latest, key=_stamp)
+        s = _newest(latest)
         row = None
         try:
             row = next((r for r in read_rows(csv_path(s.get("run_dir", ""))) if str(r.attempt) == n), None)

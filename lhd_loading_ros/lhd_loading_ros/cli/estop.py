@@ -17,26 +17,22 @@ import os
 import sys
 import time
 
+from lhd_loading_ros.cli.argtypes import pos_float, topic_prefix
+
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="lhd estop", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("action", choices=("on", "off", "status"))
-    ap.add_argument("--namespace", default="/lhd", help="topic prefix of the machine (default /lhd)")
+    ap.add_argument("--namespace", type=topic_prefix, default="/lhd", help="topic prefix of the machine (default /lhd)")
     # 10 s: it returns as soon as the mux confirms; only a missing mux waits it out. 3 s (until
     # 2026-11-28) was sometimes shorter than a new process's DDS discovery on a loaded 2-core
     # machine, and a safety command must not report "no confirmation" for a mux that is there
-    ap.add_argument("--timeout", type=float, default=10.0,
+    ap.add_argument("--timeout", type=pos_float, default=10.0,
                     help="seconds to wait for the mux (default 10; it returns as soon as the mux confirms); "
                          "status listens at least 1 s")
     args = ap.parse_args(argv)
-    if not args.timeout > 0:
-        print(f"lhd estop: --timeout must be > 0 s, got {args.timeout}", file=sys.stderr)
-        return 2
-    ns = "/" + args.namespace.strip("/")
-    if ns == "/":
-        print("lhd estop: --namespace must name the machine's prefix, e.g. /lhd", file=sys.stderr)
-        return 2
+    ns = args.namespace           # checked by topic_prefix: "/name", a ROS namespace
 
     import rclpy
     from rclpy.duration import Duration

@@ -637,10 +637,11 @@ def main(argv=None) -> int:
     ap = parser()
     args = ap.parse_args(argv)
     check_args(ap, args)
-    if not Path(args.port).exists():
+    if not args.port.strip() or not Path(args.port).exists() or Path(args.port).is_dir():
+        # ("" is the current directory to Path, which exists: a review saw nine nodes start for --port "")
         # the bridge would retry a missing port for ever while eight nodes wait: a typo, or the Due
         # not plugged in, is said before anything starts
-        ap.error(f"--port {args.port!r} does not exist: expected the Due's serial device, e.g. /dev/ttyACM0 "
+        ap.error(f"--port {args.port!r} is no serial device (missing, empty or a directory): expected the Due's serial device, e.g. /dev/ttyACM0 "
                  "(`ls /dev/ttyACM* /dev/serial/by-id/`); plug the Due in first")
     return up_real(args)
 

@@ -86,7 +86,7 @@ from lhd_loading_ros.task.attempt import STATUS_TIMEOUT_S
 from lhd_loading_ros.task.config import config_name, load_config
 from lhd_loading_ros.task.kinematics import ArmKinematics
 from lhd_loading_ros.task.params import TaskParams
-from lhd_loading_ros.policy.status_watch import StatusWatch
+from lhd_loading_ros.policy.status_watch import StatusWatch, lost_attempt_resumes
 from lhd_loading_ros.policy.core import INPUTS, SLOW_INPUTS, Inputs, PolicyCore, ZERO_COMMAND
 from lhd_loading_ros.policy.actor_file import PolicyFileError, default_policy_dir, load_policy  # noqa: F401 (re-exported)
 from lhd_loading_ros.policy.tampier import TampierCore, default_tampier_path, load_tampier_config
@@ -230,6 +230,8 @@ class PolicyNode(Node):
         self._status_publisher_seen = False
         self.status_watch = StatusWatch()   # the /lhd/episode status' age in this node's running time
         self._lost_keys: set = set()     # the attempts whose status stopped arriving: none resumes (not only the latest)
+        self._lost_unkeyed = False       # one without a key was lost: a key-less running stays ended until the
+                                         # publisher says anything else (policy/status_watch.lost_attempt_resumes)
         self._lost_keys_heard: set = set()   # those whose running status came back (warned once each)
         self.attempts = 0                # running attempts begun (controller resets)
         self._status_stamp = None
@@ -374,11 +376,12 @@ class PolicyNode(Node):
     def _set_episode(self, state, key) -> None:
         """The attempt's state changes: a new running attempt resets the controller; leaving
         running sends the one zero command (now, not at the next control period)."""
-        if state == RUNNING and key is not None and key in self._lost_keys:
+        if lost_attempt_resumes(state, key, self._lost_keys, self._lost_unkeyed):
             if key not in self._lost_keys_heard:
                 self._lost_keys_heard.add(key)
-                self.get_logger().warn(f"attempt {key}'s status came back after it had stopped arriving: the attempt "
-                                       "is not resumed (arm a new one)")
+                self.get_logger().warn(f"attempt {key if key is not None else '(without an episode key)'}'s status "
+                                       "came back after it had stopped arriving: the attempt is not resumed (arm a "
+                                       "new one)")
             state = "lost"                   # that attempt's running status no longer counts
         was = self.running()
         new_attempt = state == RUNNING and (not was or key != self.episode_key)
@@ -396,6 +399,9 @@ class PolicyNode(Node):
     def _on_status(self, msg) -> None:
         self.status_watch.heard(time.monotonic())
         kv = {k.key: k.value for k in msg.values}
+        if kv.get("state", msg.message) != RUNNING:
+            self._lost_unkeyed = False       # the publisher moved on: its next key-less running is a new attempt
+            self._lost_keys_heard.discard(None)
         self._set_episode(kv.get("state", msg.message), kv.get("episode"))
         self._hold_attempt_slope(kv)
         try:
@@ -423,7 +429,10 @@ class PolicyNode(Node):
             self.get_logger().error(f"no {self.episode_topic} status for {age:.1f} s of this node's running time "
                                     f"(status_timeout {self.status_timeout:g} s): the supervisor or sim node stopped "
                                     f"or hung; attempt {self.episode_key} has ended for this node")
-            self._lost_keys.add(self.episode_key)
+            if self.episode_key is None:
+                self._lost_unkeyed = True
+            else:
+                self._lost_keys.add(self.episode_key)
             self._set_episode("lost", self.episode_key)
             self._hold_attempt_slope({})
             return

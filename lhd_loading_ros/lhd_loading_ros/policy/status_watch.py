@@ -32,3 +32,13 @@ class StatusWatch:
         if not on_time or self.arrival is None:
             return None
         return now - max(self.arrival, self.resumed_at)
+
+
+def lost_attempt_resumes(state: str, key: str | None, lost_keys: set, lost_unkeyed: bool) -> bool:
+    """Whether this status is a lost attempt's `running` coming back (a hung supervisor waking up), which
+    must not move the machine again (docs/teleop.md rule 8): its key is one whose status stopped arriving,
+    or it has no key (a third-party supervisor's status) while an attempt without a key was lost and the
+    publisher has said nothing but `running` since. The policy node and the command mux share it."""
+    if state != "running":
+        return False
+    return (key in lost_keys) if key is not None else lost_unkeyed

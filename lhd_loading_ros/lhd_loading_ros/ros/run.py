@@ -17,6 +17,8 @@ import threading
 from typing import Callable
 
 import rclpy
+from rclpy.exceptions import (InvalidParameterException, InvalidParameterTypeException, InvalidParameterValueException,
+                               NameValidationException)
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
@@ -26,6 +28,12 @@ SPIN_PERIOD_S = 0.1     # the longest a stop request waits for the spin loop to 
 # was seen at 80 % CPU ignoring SIGTERM, a review, 2026-11-28). The launchers kill a node 10 s
 # after their SIGTERM as well; a node whose launcher died has only this.
 SHUTDOWN_DEADLINE_S = 10
+
+
+def one_line(exc: Exception) -> str:
+    """An exception's message on one line (rclpy's name errors span three, with a caret)."""
+    lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip() and set(ln.strip()) != {"^"}]
+    return " ".join(lines)
 
 
 def run_node(make_node: Callable, name: str, args=None, before_destroy: Callable | None = None,
@@ -57,6 +65,17 @@ def run_node(make_node: Callable, name: str, args=None, before_destroy: Callable
         pass
     except ValueError as exc:
         print(f"{name}: {exc}", flush=True)
+        rc = 2
+    except NameValidationException as exc:
+        # a topic, service or namespace parameter (or remap) that is no ROS name: rclpy's three-line message
+        # (the name and a caret under the bad character) in one line
+        print(f"{name}: {one_line(exc)} (a topic or namespace parameter, or a remap; expected a ROS name: letters, "
+              "digits, '_' and '/' separators, not starting with a digit)", flush=True)
+        rc = 2
+    except (InvalidParameterException, InvalidParameterTypeException, InvalidParameterValueException) as exc:
+        # e.g. `-p use_sim_time:=1` (an integer for a bool): rclpy refuses it while the node is made
+        print(f"{name}: {one_line(exc)} (`-p name:=true` / `false` for a bool, a decimal point for a float)",
+              flush=True)
         rc = 2
     finally:
         main = threading.current_thread() is threading.main_thread()
