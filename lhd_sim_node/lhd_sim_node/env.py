@@ -29,6 +29,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from lhd_loading_ros.policy.core import slope_refusal
 from lhd_loading_ros.task.actions import apply_variant_filter, to_actuator, validate_action
 from lhd_loading_ros.task.arm_sensors import RATE_WINDOW_S, RateWindow, quantize
 from lhd_loading_ros.task.config import load_config
@@ -82,6 +83,7 @@ class LhdLoadingEnv(gym.Env):
         self.rho_nominal = nominal_density(self.cfg) if zones_density is None else float(zones_density)
         self.zones = None
         self.zones_from = "pile"
+        self.told_slope_deg, self.slope_refusal = None, ""     # set at reset
         self.conditions = NOMINAL
         self.observation_space = gym.spaces.Box(OBS_LOW, OBS_HIGH, dtype=np.float32)
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
@@ -128,6 +130,13 @@ class LhdLoadingEnv(gym.Env):
             slice_err = math.degrees(self.sim.pile.slice_slope(0.0) - self.sim.pile.alpha)
             c_obs = replace(c, slope_error_deg=c.slope_error_deg + slice_err)
         self._sensors = None if c_obs == NOMINAL else ObservationCorruptor(c_obs, self.np_random)
+        # the slope the controller is told (the LiDAR's: the pile's, its error, a rough face's slice), and
+        # whether the policy node would refuse it (outside the range the actors are trained on): on the
+        # machine such an attempt does not run. Training runs it with the observation clipped; an
+        # evaluation counts it as refused (learning/evaluate.run_policy_episode, refused_result)
+        self.told_slope_deg = math.degrees(self.sim.pile.alpha) + c_obs.slope_error_deg
+        self.slope_refusal = slope_refusal(math.radians(self.told_slope_deg),
+                                           (math.degrees(self.p.alpha_min), math.degrees(self.p.alpha_max)))
         self.zones, self.zones_from = self._task_zones(c_obs)
         s = self.sim.state()
         # the reward's x_midgoal: the paper's constant, or this pile's x_min (task.midgoal_from_pile)
@@ -141,7 +150,9 @@ class LhdLoadingEnv(gym.Env):
         self._state = s
         self._arm_rates = arm_rates
         self._m = self._measured(s)
-        return self._obs(self._m), self._info(s, "running", {})
+        info = self._info(s, "running", {})
+        info["told_slope_deg"], info["slope_refusal"] = self.told_slope_deg, self.slope_refusal
+        return self._obs(self._m), info
 
     def step(self, action):
         if self._done:
@@ -289,6 +300,19 @@ class LhdLoadingEnv(gym.Env):
             alpha_deg=math.degrees(self.sim.pile.alpha), material=self.sim.material,
             max_tilt_deg=math.degrees(self._max_tilt),
         )
+
+    def refused_result(self) -> EpisodeResult:
+        """The result of this episode not run because the controller refuses its told slope
+        (slope_refusal): nothing loaded, no time, as on the machine where the policy node commands
+        zero and the supervisor does not arm. Call right after reset."""
+        if not self.slope_refusal:
+            raise RuntimeError("refused_result() for an episode whose told slope is inside the trained range")
+        s = self._state
+        return EpisodeResult(
+            ret=0.0, loaded=0.0, phi_final=s.phi_shovel, reached_end_zone=False, failed=False, truncated=False,
+            steps=0, elapsed_s=0.0, front_drift_pct=0.0, rear_drift_pct=0.0, success_level=0,
+            alpha_deg=math.degrees(self.sim.pile.alpha), material=self.sim.material,
+            max_tilt_deg=math.degrees(self._max_tilt), refused=True)
 
     @property
     def state(self):

@@ -67,7 +67,7 @@ def test_a_kept_checkpoint_branches_a_paired_run(cfg, tmp_path):
     until = DemoConfig.from_training(validate(small(cfg, 600))["training"])
     for r in late_b:
         start = int(r["step"]) - int(r["steps"])
-        want = until.draw(episode_seed(3, int(r["episode"])), start)
+        want = until.draw(episode_seed(3, int(r["episode"]), cfg["training"]["episode_seed_offset"]), start)
         assert (want is None) == (r["driver"] == "actor"), r
     assert any(r["driver"] != "actor" for r in late_b)
     # the card and run.json say what the branch was trained with

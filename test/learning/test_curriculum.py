@@ -155,7 +155,7 @@ def test_a_short_run_draws_its_piles_from_the_curriculum_and_resumes_it(cfg, tmp
     assert len(rows) >= 6
     shallow = 0
     for r in rows:
-        seed_k = episode_seed(5, int(r["episode"]))
+        seed_k = episode_seed(5, int(r["episode"]), c["training"]["episode_seed_offset"])
         want = ref.draw(np.random.default_rng([seed_k, 0x5C]))
         assert float(r["alpha_deg"]) == pytest.approx(want, abs=0.006), (r, want)     # the CSV keeps 2 decimals
         shallow += want < 20.0

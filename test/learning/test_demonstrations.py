@@ -111,7 +111,7 @@ def test_a_short_run_puts_the_demonstrations_in_the_replay(cfg, tmp_path):
     d = DemoConfig.from_training(validate(c)["training"])
     exact = []
     for r in rows:
-        want = d.draw(episode_seed(3, int(r["episode"])), 0)
+        want = d.draw(episode_seed(3, int(r["episode"]), c["training"]["episode_seed_offset"]), 0)
         assert (want is None) == (r["driver"] == "actor")
         if want is not None:
             assert float(r["driver"].split()[-1]) == pytest.approx(want, abs=5e-4)

@@ -224,8 +224,10 @@ def _eval(args) -> int:
     deploy = args.deploy_filter
     env = LhdLoadingEnv(pol.variant, cfg, deploy_filter=deploy, randomize=args.randomize or None,
                         zones_from_estimate=True, zones_nominal_density=nominal, zones_density=args.zones_density)
-    res = evaluate(env, pol.actor, args.episodes, args.seed, cfg["task"]["bucket_capacity"], stress=args.stress)
+    res = evaluate(env, pol.actor, args.episodes, args.seed, cfg["task"]["bucket_capacity"], stress=args.stress,
+                   refuse=not args.run_refused)
     res.update({"policy": str(args.policy), "variant": pol.variant, "seed": args.seed, "deploy_filter": deploy,
+                "refuse": not args.run_refused,
                 "randomize": env.randomize, "stress": args.stress, "zones": args.zones,
                 "zones_density": env.rho_nominal if args.zones != "pile" else None})
     if args.json:
@@ -254,6 +256,11 @@ def format_eval(res: dict) -> str:
     f = res.get("failures", {})
     lines.append(f"failures: restricted zone {f.get('restricted_zone', 0)}, timeout {f.get('timeout', 0)}, "
                  f"end zone below SL 1 {f.get('end_zone_low_level', 0)}")
+    if res.get("refused"):
+        lines.append(f"refused: {res['refused']} of {res['episodes']} episodes told a slope outside the trained range "
+                     f"were not run (the policy node refuses them; success counts them as loading nothing); "
+                     f"success over the {res['episodes'] - res['refused']} run: {res['success_rate_run']:.2f}; "
+                     "the loading figures (ASL ... tilt) are over the run ones")
     return "\n".join(lines)
 
 
@@ -521,6 +528,11 @@ def _main(argv=None) -> int:
     p_eval.add_argument("--episodes", type=int, default=120)
     p_eval.add_argument("--seed", type=nonneg_int, default=2_000_000, help="evaluation seed (training evaluates on 1,000,000)")
     p_eval.add_argument("--deploy-filter", action="store_true", help="RLC: apply the deployment filter, as on the machine")
+    p_eval.add_argument("--run-refused", action="store_true",
+                        help="run the episodes whose told slope (pile + the drawn LiDAR error) lies outside the actor's "
+                             "trained range with the slope observation clipped, as every figure before 2026-11-29 "
+                             "(twelfth session) did; by default they are not run and count as refused, as the policy "
+                             "node and the supervisor refuse them on the machine")
     p_eval.add_argument("--stress", choices=list(STRESS_CASES), default=None,
                         help="actor: every episode under a named stress case (placement: heading +-3 deg, lip +-5 cm "
                              "off axis, camera noise/dropouts/delay, 100 ms actuator dead time; sensors; delay; light / dense gravel: "

@@ -25,8 +25,14 @@ def episode_conditions(i: int, seed: int) -> tuple[int, dict]:
     return seed + i, {"slope_deg": EVAL_SLOPES[i % 4], "material": EVAL_MATERIALS[(i // 4) % 2]}
 
 
-def run_policy_episode(env, policy: Callable[[np.ndarray], np.ndarray], seed: int, options: dict) -> EpisodeResult:
+def run_policy_episode(env, policy: Callable[[np.ndarray], np.ndarray], seed: int, options: dict,
+                       refuse: bool = False) -> EpisodeResult:
+    """One episode of `policy`. refuse: an episode whose told slope the policy node would refuse (outside
+    the trained range: env.slope_refusal) is not run and counts as refused (EpisodeResult.refused), as on
+    the machine; without it the actor runs it with its slope observation clipped to the range."""
     obs, _ = env.reset(seed=seed, options=options)
+    if refuse and getattr(env, "slope_refusal", ""):
+        return env.refused_result()
     while True:
         a = np.clip(np.asarray(policy(obs), dtype=np.float64), -1.0, 1.0)
         obs, _, term, trunc, info = env.step(a)
@@ -35,10 +41,13 @@ def run_policy_episode(env, policy: Callable[[np.ndarray], np.ndarray], seed: in
 
 
 def evaluate(env, policy: Callable[[np.ndarray], np.ndarray], episodes: int, seed: int,
-             bucket_capacity: float, breakdown: bool = True, stress: str | None = None) -> dict:
+             bucket_capacity: float, breakdown: bool = True, stress: str | None = None, refuse: bool = False) -> dict:
     """Run `episodes` stratified episodes; return the aggregate metrics (see metrics.aggregate),
     plus ``by_slope`` / ``by_material`` breakdowns when asked, and ``wall_s``. stress: a named
-    case of task.randomization.stress_conditions applied to every episode."""
+    case of task.randomization.stress_conditions applied to every episode. refuse: episodes told a
+    slope outside the trained range are not run but counted as refused, as the machine's nodes do
+    (lhd eval, lhd report --held-out, lhd ship); off for the training's periodic evaluation, whose
+    figures (and the tilt ramp that reads them) stay as every shipped run was trained."""
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
     t0 = time.perf_counter()
@@ -49,9 +58,9 @@ def evaluate(env, policy: Callable[[np.ndarray], np.ndarray], episodes: int, see
         if stress is not None:
             opts["conditions"] = stress_conditions(stress, i, env.cfg)
             opts["material"] = STRESS_MATERIAL.get(stress, opts["material"])
-        results.append(run_policy_episode(env, policy, s, opts))
+        results.append(run_policy_episode(env, policy, s, opts, refuse=refuse))
         where = getattr(env, "zones_from", None)       # set at reset: where this episode's zones came from
-        if where is not None:
+        if where is not None and not results[-1].refused:     # a refused episode is judged by no zones
             zones_from[where] = zones_from.get(where, 0) + 1
     out = aggregate(results, bucket_capacity)
     out["zones_from"] = zones_from
@@ -61,6 +70,7 @@ def evaluate(env, policy: Callable[[np.ndarray], np.ndarray], episodes: int, see
         out["by_material"] = {m: aggregate(rs, bucket_capacity)
                               for m in EVAL_MATERIALS if (rs := [r for r in results if r.material == m])}
     out["failures"] = {
+        "refused": sum(r.refused for r in results),
         "restricted_zone": sum(r.failed for r in results),
         "timeout": sum(r.truncated and not r.success for r in results),
         "end_zone_low_level": sum(r.reached_end_zone and not r.success for r in results),
@@ -128,4 +138,4 @@ def evaluate_under(condition: str, variant: str, actor, cfg: dict, episodes: int
                         zones_from_estimate=True, zones_nominal_density=zones_nominal_density(zones),
                         zones_density=zones_density)
     return evaluate(env, actor, episodes, seed, cfg["task"]["bucket_capacity"], breakdown=breakdown,
-                    stress=None if condition in CONDITIONS else condition)
+                    stress=None if condition in CONDITIONS else condition, refuse=True)

@@ -184,7 +184,10 @@ def run_job(job: Job) -> dict:
     if job.trace:
         from lhd_sim_node.sim_sensors import pile_profile
         profile = pile_profile(env.sim.pile).tolist()
-    told = math.radians(job.told_deg)
+    # the slope the LiDAR gives (env.told_slope_deg): the told one, plus a rough face's scanned slice under
+    # --stress rough / machine (until 2026-11-29 the RL actors were told job.told_deg there, while the zones
+    # were built from the slice's slope)
+    told = math.radians(env.told_slope_deg)
     if c == "teacher":
         from lhd_loading_ros.learning.demonstrations import demo_action
         teacher = teacher_setting(env.cfg)

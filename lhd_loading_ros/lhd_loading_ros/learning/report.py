@@ -62,7 +62,9 @@ def summarize(run_dirs: list) -> dict:
 
 
 HELD_OUT_METRICS = ("success_rate", "asl", "aml", "elapsed_s", "front_drift_pct", "rear_drift_pct", "max_tilt_deg",
-                    "tilt_over_5deg_rate")
+                    "tilt_over_5deg_rate", "refused_rate", "success_rate_run")
+# refused_rate: the episodes told a slope outside the trained range, not run (the policy node refuses them); they
+# count in success_rate as loading nothing, success_rate_run is over the run ones (task.metrics.aggregate)
 
 
 def _stats(vals) -> dict:
@@ -182,7 +184,8 @@ def plot_curves(groups: dict[str, list], path) -> Path:
         for ax, (m, title) in zip(axes, (("ar", "Average return"), ("aml", "Average material loaded [kg]"),
                                          ("asl", "Average success level"))):
             y = np.stack([e[m][:n] for e in evs])
-            mu, sd = y.mean(0), y.std(0)
+            mu = y.mean(0)
+            sd = y.std(0, ddof=1) if len(evs) > 1 else np.zeros_like(mu)    # the sample sd, as the tables
             ax.plot(x, mu, label=f"{label} ({len(evs)} seeds)")
             ax.fill_between(x, mu - sd, mu + sd, alpha=0.25)
             ax.set_title(title)

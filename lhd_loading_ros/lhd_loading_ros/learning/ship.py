@@ -36,6 +36,7 @@ def _brief(ev: dict) -> dict:
     out = {k: ev[k] for k in ("episodes", "success_rate", "asl", "aml", "ar", "elapsed_s", "front_drift_pct",
                               "rear_drift_pct")}
     out["restricted_zone"], out["timeout"] = ev["failures"]["restricted_zone"], ev["failures"]["timeout"]
+    out["refused"] = ev.get("refused", 0)     # told a slope outside the trained range: not run (task.metrics.aggregate)
     return out
 
 
@@ -312,10 +313,14 @@ def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=prin
 {dr_note} The same piles under drawn conditions ({drawn_conditions(cfg)}), and with the machine placed
 by hand (heading +-3 deg, lip +-5 cm, camera errors, 100 ms dead time):
 
-| condition | success | ASL | AML [kg] | elapsed [s] | restricted zone | timeout |
-|---|---|---|---|---|---|---|
-| randomised | {r['success_rate']:.3f} | {r['asl']:.2f} | {r['aml']:.1f} | {r['elapsed_s']:.2f} | {r['restricted_zone']} | {r['timeout']} |
-| placement corners | {st['success_rate']:.3f} | {st['asl']:.2f} | {st['aml']:.1f} | {st['elapsed_s']:.2f} | {st['restricted_zone']} | {st['timeout']} |
+| condition | success | ASL | AML [kg] | elapsed [s] | restricted zone | timeout | refused |
+|---|---|---|---|---|---|---|---|
+| randomised | {r['success_rate']:.3f} | {r['asl']:.2f} | {r['aml']:.1f} | {r['elapsed_s']:.2f} | {r['restricted_zone']} | {r['timeout']} | {r.get('refused', 0)} |
+| placement corners | {st['success_rate']:.3f} | {st['asl']:.2f} | {st['aml']:.1f} | {st['elapsed_s']:.2f} | {st['restricted_zone']} | {st['timeout']} | {st.get('refused', 0)} |
+
+Refused: episodes whose told slope (the pile's plus the drawn LiDAR error) lies outside the {lo_deg:g}-{hi_deg:g} deg the
+actor was trained on; the policy node refuses them and the supervisor does not arm them, so they are not run and
+count in the success as loading nothing; ASL, AML and time are over the attempts run.
 """
     gated_dirs = {c[1] for c in gated}
     filt = lambda e: (f"{e['with_deployment_filter']['success_rate']:.3f} | {e['with_deployment_filter']['asl']:.2f} | "  # noqa: E731
@@ -392,7 +397,7 @@ Held-out evaluation of each seed's {sub} actor ({'the shipped one is the median 
 |---|---|---|---|---|{'---|---|' if deploy else ''}---|---|
 {seeds_rows}
 
-Final training-time evaluation (step {min(summary['final_steps']):,}, evaluation seed 1,000,000), {len(runs)} seeds:
+Final training-time evaluation (step {min(summary['final_steps']):,}, evaluation seed 1,000,000{', under the domain randomisation it trained with: every episode drawn, told slopes outside the range run clipped' if trained_dr else ''}), {len(runs)} seeds:
 success {fin['success_rate']['mean']:.3f} ± {fin['success_rate']['sd']:.3f}, ASL {fin['asl']['mean']:.2f} ± {fin['asl']['sd']:.2f}
 (IQM {fin['asl']['iqm']:.2f}, 95 % bootstrap interval [{fin['asl']['iqm_ci95'][0]:.2f}, {fin['asl']['iqm_ci95'][1]:.2f}]),
 AML {fin['aml']['mean']:.1f} ± {fin['aml']['sd']:.1f} kg, AR {fin['ar']['mean']:.0f} ± {fin['ar']['sd']:.0f}.

@@ -26,6 +26,19 @@ SLOW_INPUTS = ("slope", "end_zone")   # once per attempt: a LiDAR at 1-5 Hz or a
 RANGE_TOL_DEG = 1e-6                  # a slope published in rad at exactly a range end is inside
 
 
+def slope_refusal(slope_rad: float, range_deg: tuple[float, float] | None) -> str:
+    """Why a controller made for the slopes `range_deg` (deg) refuses this told slope: "" when it is
+    inside (or unchecked: range None, or not a number, which the observation reports itself). The
+    policy node's rule; the environment's evaluation applies the same one (env.slope_refusal)."""
+    if range_deg is None or not math.isfinite(slope_rad):
+        return ""
+    lo, hi = range_deg
+    deg = math.degrees(slope_rad)
+    if lo - RANGE_TOL_DEG <= deg <= hi + RANGE_TOL_DEG:
+        return ""
+    return f"slope {deg:.1f} deg is outside the range the actor was trained on [{lo:g}, {hi:g}] deg: refused, not clipped"
+
+
 @dataclass
 class Inputs:
     """Latest value of each input and its arrival time (monotonic seconds)."""
@@ -84,14 +97,7 @@ class DecisionCore:
     def slope_refusal(self, slope_rad: float) -> str:
         """Why this slope is refused ("" when it is inside the trained range, or not a number:
         the observation reports a NaN itself)."""
-        if self.slope_range_deg is None or not math.isfinite(slope_rad):
-            return ""
-        lo, hi = self.slope_range_deg
-        deg = math.degrees(slope_rad)
-        if lo - RANGE_TOL_DEG <= deg <= hi + RANGE_TOL_DEG:
-            return ""
-        return (f"slope {deg:.1f} deg is outside the range the actor was trained on [{lo:g}, {hi:g}] deg: "
-                "refused, not clipped")
+        return slope_refusal(slope_rad, self.slope_range_deg)
 
     def decide(self, inp: Inputs, now: float, timeout: float, timeouts: dict | None = None) -> Decision:
         """`timeout` for every input, `timeouts` per input where it differs (Inputs.problems)."""

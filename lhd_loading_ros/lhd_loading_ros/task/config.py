@@ -145,6 +145,7 @@ SCHEMA: dict[str, Any] = {
         "demo_pre_curl": _f(0.0, 1.4), "demo_bc": _f(0.0, 100.0), "demo_until_step": _i(0, 100_000_000),
         "critic_huber": _f(0.0, 1e6), "noise_after_decay": _f(0.0, 1.0), "demo_bc_return_filter": _i(0, 1),
         "demo_told_zones": _i(0, 1), "demo_end_zone_stop": _f(0.0, 1.0),
+        "episode_seed_offset": _i(0, 2**31 - 2),
     },
 }
 
@@ -219,6 +220,12 @@ _RELATIONS = [
      lambda c: c["training"]["noise_decay_steps"] <= c["training"]["total_steps"]),
     ("training.learning_starts >= paper.ddpg.batch_size",
      lambda c: c["training"]["learning_starts"] >= c["paper"]["ddpg"]["batch_size"]),
+    # the training's episode seeds start at the offset (learning/train.episode_seed): with one, the periodic
+    # evaluation's piles lie below it, as do the held-out seeds of lhd eval / report / ship (2,000,000 and 3,000,000)
+    ("training.eval_seed + training.eval_episodes <= training.episode_seed_offset, where the offset is not 0 (the "
+     "periodic evaluation's piles apart from the training's)",
+     lambda c: int(c["training"].get("episode_seed_offset", 0)) == 0
+     or c["training"]["eval_seed"] + c["training"]["eval_episodes"] <= c["training"]["episode_seed_offset"]),
 ]
 
 
@@ -280,6 +287,10 @@ OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curric
                      ("training", "demo_until_step"): 0, ("training", "critic_huber"): 0.0,
                      ("training", "noise_after_decay"): 0.0, ("task", "r_success_mass_margin_kg"): 0.0,
                      ("training", "demo_bc_return_filter"): 0,
+                     # 0: the training's episode seeds run_seed * 1,000,003 + k, as every run before 2026-11-29
+                     # (twelfth session) drew them; run seeds 1-3 then shared their first ~115 piles with the
+                     # evaluation seeds 1,000,000 / 2,000,000 / 3,000,000 (learning/train.episode_seed)
+                     ("training", "episode_seed_offset"): 0,
                      # the demonstrations read the told zones and stop in the end zone (learning/demonstrations.py)
                      ("training", "demo_told_zones"): 0, ("training", "demo_end_zone_stop"): 0.0,
                      # actuator gains drawn per episode (task/randomization.py); 1 = the simulator's actuators
@@ -424,6 +435,8 @@ TRAINING_SCHEDULE_KEYS = ("twin_critics", "slope_curriculum", "slope_curriculum_
                           "demo_bc", "demo_until_step", "demo_bc_return_filter",
                           # what the demonstrations read and where they stop the wheels
                           "demo_told_zones", "demo_end_zone_stop",
+                          # where the training's episode seeds start (which piles it practised on)
+                          "episode_seed_offset",
                           # the critics' Huber loss (learning/ddpg.py)
                           "critic_huber",
                           # the exploration noise after its decay, when not noise_final_scale (a late change

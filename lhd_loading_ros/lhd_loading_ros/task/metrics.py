@@ -37,14 +37,17 @@ class EpisodeResult:
     material: str = "homogeneous"
     max_tilt_deg: float = 0.0    # largest |pitch| of the machine's rear frame at the control periods' ends: the
                                  # rear lifting in a breakout (not in the paper's metrics; docs/modeling.md)
+    refused: bool = False        # not run: the slope the controller was told lies outside the range it was trained
+                                 # on, which the policy node refuses (zero command) and the supervisor does not arm
 
     @property
     def success(self) -> bool:
         """The paper's definition (experimental settings): at least 20 kg loaded and
         phi^T > phi_thresh at the end (SL >= 1); "attempts that end with a timeout and meet
         both success conditions are considered successes". An attempt that ends in the
-        restricted zone is a failure. end_zone_rate (aggregate) counts the end zone apart."""
-        return not self.failed and self.success_level >= 1
+        restricted zone is a failure, and a refused one loads nothing. end_zone_rate (aggregate)
+        counts the end zone apart."""
+        return not self.failed and not self.refused and self.success_level >= 1
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -53,18 +56,28 @@ class EpisodeResult:
 
 
 def aggregate(results: list[EpisodeResult], bucket_capacity: float) -> dict:
-    """AR, AML, AFF, ASL, success rate, elapsed time and drift over a list of episodes."""
+    """AR, AML, AFF, ASL, success rate, elapsed time and drift over a list of episodes.
+
+    Refused episodes (EpisodeResult.refused: told a slope outside the trained range, not run, as on
+    the machine) count in `success_rate` as attempts that loaded nothing, the figure per pile placed;
+    `success_rate_run` is over the attempts that ran, `refused` / `refused_rate` count them, and every
+    other figure (what the loading did) is over the attempts that ran (NaN when none ran)."""
     if not results:
         raise ValueError("aggregate needs at least one episode result")
-    r = results
-    mean = lambda xs: float(np.mean(xs))  # noqa: E731
+    run = [e for e in results if not e.refused]
+    refused = len(results) - len(run)
+    r = run
+    mean = lambda xs: float(np.mean(xs)) if xs else float("nan")  # noqa: E731
     return {
-        "episodes": len(r),
+        "episodes": len(results),
+        "refused": refused,
+        "refused_rate": refused / len(results),
+        "success_rate_run": mean([1.0 if e.success else 0.0 for e in r]),
         "ar": mean([e.ret for e in r]),
         "aml": mean([e.loaded for e in r]),
         "aff": mean([e.loaded / bucket_capacity for e in r]),
         "asl": mean([e.success_level for e in r]),
-        "success_rate": mean([1.0 if e.success else 0.0 for e in r]),
+        "success_rate": sum(1 for e in run if e.success) / len(results),
         "end_zone_rate": mean([1.0 if e.reached_end_zone else 0.0 for e in r]),
         "elapsed_s": mean([e.elapsed_s for e in r]),
         "front_drift_pct": mean([e.front_drift_pct for e in r]),
