@@ -209,6 +209,41 @@ def test_a_stress_case_reaches_every_controller_on_the_same_piles(cfg):
         ex.grid(("rld",), stress="wet")
 
 
+def test_a_rough_face_read_beyond_the_trained_range_is_refused_for_the_rl_actors_only(cfg):
+    """`--stress rough` on 30 deg piles: the LiDAR scans one slice of the rough face, whose slope can exceed the
+    main job's 15-30 deg. Those RL attempts are refused, as the policy node refuses them (lhd eval counts them
+    so); the heuristic on the same piles runs. Which ones: computed here from the environment's own slice slope."""
+    from lhd_sim_node.env import LhdLoadingEnv
+    from lhd_loading_ros.task.randomization import stress_conditions
+
+    from lhd_loading_ros.policy.actor_file import default_policy_dir
+
+    ex._setup(None, {"rld": str(default_policy_dir("rld"))})   # the main job's actor, trained on 15-30 deg
+    env = LhdLoadingEnv("rld")
+    seen, rows = set(), []
+    for k in range(8):
+        job = ex.Job("controllers", "rld", 30.0, 30.0, "homogeneous", 3_000_000 + k, stress="rough", attempt=k)
+        env.reset(seed=job.seed, options={"slope_deg": 30.0, "material": "homogeneous",
+                                          "conditions": stress_conditions("rough", k, env.cfg)})
+        beyond = env.told_slope_deg > 30.0 + 1e-6
+        row = ex.run_job(job)
+        rows.append(row)
+        assert row["refused"] is beyond and row["told_deg"] == 30.0
+        if beyond:
+            assert not row["success"] and row["loaded_kg"] == 0.0 and row["elapsed_s"] == 0.0
+        else:
+            assert row["elapsed_s"] > 0.0
+        seen.add(beyond)
+        if k == 0 or beyond:                       # the heuristic is no actor: never refused
+            assert ex.run_job(ex.Job("controllers", "tampier", 30.0, 30.0, "homogeneous", job.seed, stress="rough",
+                                     attempt=k))["refused"] is False
+    assert seen == {True, False}, "8 rough piles all read on one side of 30 deg: pick other seeds"
+    every = next(r for r in ex.summarize_controllers(rows) if r["slope_deg"] == "all")
+    n = sum(r["refused"] for r in rows)
+    assert every["refused"] == n and every["success_rate"] <= (8 - n) / 8
+    assert f"RLD {n} attempts whose told slope" in ex.markdown_controllers(ex.summarize_controllers(rows))
+
+
 def test_the_end_zone_nodes_zones_reach_every_controller(cfg, params):
     """`lhd experiment paper --zones end-zone-node`: every attempt is judged, and the heuristic steered,
     by the end-zone node's wedge at the nominal density (1,880 kg/m^3), not the light pile's own end

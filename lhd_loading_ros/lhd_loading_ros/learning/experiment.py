@@ -199,7 +199,13 @@ def run_job(job: Job) -> dict:
         z = env.zones      # what the end-zone node gives the controller (the estimate's, with a slope error)
         end_zone = (z.x_min, z.x_max, z.z_min)
     path = [(env.state.x_shovel, env.state.z_shovel)]
-    while True:
+    lo, hi = math.degrees(env.p.alpha_min), math.degrees(env.p.alpha_max)
+    # an RL actor told a slope outside its trained range only through the stress (a rough face's slice) is
+    # refused by the policy node and not armed by the supervisor: not run, a failure that loads nothing (as
+    # lhd eval counts it). Table (b)'s rows told such a slope on purpose (marked *) still run: what the actor
+    # alone does with it
+    refused = c in ("rld", "rlc") and bool(env.slope_refusal) and lo - 1e-9 <= job.told_deg <= hi + 1e-9
+    while not refused:
         if c in ("rld", "rlc"):
             a = np.clip(np.asarray(_actor(c)(told_observation(obs, told, env.p)), dtype=np.float64), -1.0, 1.0)
             obs, _, term, trunc, info = env.step(a)
@@ -216,7 +222,9 @@ def run_job(job: Job) -> dict:
         if env.steps >= limit:
             r = env.result("timeout", truncated=True)
             break
-    row = {**asdict(job), "success": bool(r.success), "success_level": int(r.success_level),
+    if refused:
+        r = env.refused_result()
+    row = {**asdict(job), "refused": refused, "success": bool(r.success), "success_level": int(r.success_level),
            "reached_end_zone": bool(r.reached_end_zone), "failed": bool(r.failed), "timeout": bool(r.truncated),
            "loaded_kg": float(r.loaded), "elapsed_s": float(r.elapsed_s), "front_drift_pct": float(r.front_drift_pct),
            "rear_drift_pct": float(r.rear_drift_pct), "phi_final_deg": math.degrees(r.phi_final),
@@ -308,7 +316,7 @@ def summarize_controllers(rows: list[dict]) -> list[dict]:
             cell = [r for r in rs if r["controller"] == c and r["material"] == m and (a is None or r["slope_deg"] == a)]
             ok = [r for r in cell if r["success"]]
             row = {"controller": c, "material": m, "slope_deg": "all" if a is None else a, "attempts": len(cell),
-                   "success_rate": len(ok) / len(cell)}
+                   "success_rate": len(ok) / len(cell), "refused": sum(1 for r in cell if r.get("refused"))}
             for k in ("loaded_kg", "elapsed_s", "front_drift_pct", "rear_drift_pct"):
                 row[k], row[k + "_sd"] = _stat([r[k] for r in ok])
             out.append(row)
@@ -450,6 +458,11 @@ def markdown_controllers(summary: list[dict]) -> str:
                     cells.append(_f(100 * r[k], "{:.0f}") if pct else f"{_f(r[k])} ± {_f(r[k + '_sd'])}")
                 name = "all" if a == "all" else f"{a:g}"
                 L.append(f"| {label} | {name} | " + " | ".join(cells) + " |")
+        refused = {c: r["refused"] for r in rows if r["slope_deg"] == "all" and (c := r["controller"]) and r.get("refused")}
+        if refused:
+            L += ["", "Refused, counted as failures: " + ", ".join(f"{c.upper()} {n}" for c, n in refused.items())
+                  + " attempts whose told slope (the LiDAR's of a rough face's slice) lay outside the actor's trained "
+                  "range: the policy node refuses it and the supervisor does not arm, so they did not run."]
         L.append("")
     return "\n".join(L)
 
