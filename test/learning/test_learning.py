@@ -345,7 +345,8 @@ def test_ship_picks_a_seed_and_writes_the_model_card(cfg, tmp_path):
     assert (out / "lhd_params.yaml").read_text().count("the figures of its card were computed under this file") == 1
     assert f"--config {out}/lhd_params.yaml" in card and "also runs under it" in card
     assert f"--config {out}/lhd_params.yaml --deploy-filter --seed 2000000`" in card        # every command names it
-    assert f"--config {out}/lhd_params.yaml --seed 2000000 --randomize --deploy-filter`" in card
+    # the command reproduces the table: it names the episodes when they are not the default 120 (a review)
+    assert f"--config {out}/lhd_params.yaml --episodes 4 --seed 2000000 --randomize --deploy-filter`" in card
     # shipped under the default file itself: nothing is copied, no --config
     from lhd_loading_ros.learning.ship import parameter_file_need
     from lhd_loading_ros.policy.shipped import shipped_config
@@ -604,3 +605,25 @@ def test_lhd_eval_warns_when_the_end_zone_node_would_publish_no_zones(cfg, capsy
     assert json.loads(out)["zones_from"] == {"wedge at nominal density": 4} and "warning" not in err, err
     assert zones_fallback_warning({"zones_from": {"pile": 2}}) is None
     assert "1 of 3 episodes" in zones_fallback_warning({"zones_from": {"pile": 2, "pile, estimate out of range": 1}})
+
+
+def test_report_names_runs_that_ended_at_other_steps_or_before_their_plan(tmp_path):
+    """A review (2026-11-29, twelfth session): `lhd report` printed "final step 20,000" over one run at 60,000
+    and one stopped at 20,000, averaging the two stages without a word."""
+    import json
+
+    from lhd_loading_ros.learning.report import format_summary, summarize
+
+    head = "step,ar,aml,aff,asl,success_rate,elapsed_s,front_drift_pct,rear_drift_pct\n"
+    for name, last, plan in (("seed_0", 60000, 60000), ("seed_1", 20000, 60000)):
+        d = tmp_path / name
+        d.mkdir()
+        rows = "".join(f"{s},1,20,0.7,1,0.5,4,1,30\n" for s in range(10000, last + 1, 10000))
+        (d / "evals.csv").write_text(head + rows)
+        (d / "run.json").write_text(json.dumps({"ddpg": {"total_steps": plan}}))
+    s = summarize([tmp_path / "seed_0", tmp_path / "seed_1"])
+    assert s["final_steps"] == [60000, 20000] and s["planned_steps"] == [60000, 60000]
+    text = format_summary("mixed", s)
+    assert "last steps 20,000-60,000" in text and "unfinished: seed_1 at 20,000 of 60,000" in text
+    same = summarize([tmp_path / "seed_0"])
+    assert "final step 60,000" in format_summary("one", same) and "warning" not in format_summary("one", same)

@@ -107,8 +107,12 @@ def _train(args) -> int:
     from lhd_loading_ros.task.config import ConfigError
     from lhd_loading_ros.learning.runner import parse_seeds, run_seeds
 
+    if args.seeds and args.seed is not None:
+        print(f"lhd train: --seed {args.seed} and --seeds {args.seeds} are alternatives: one run, or several in "
+              "parallel", file=sys.stderr)
+        return 2
     try:
-        seeds = parse_seeds(args.seeds) if args.seeds else [args.seed]
+        seeds = parse_seeds(args.seeds) if args.seeds else [0 if args.seed is None else args.seed]
     except ValueError as exc:
         print(f"lhd train: {exc}", file=sys.stderr)
         return 2
@@ -490,7 +494,7 @@ def _main(argv=None) -> int:
     p_sweep.add_argument("--jobs", type=int, default=None, help="local Ray: trials at once (default: all cores)")
     p_train = sub.add_parser("train", help="train a DDPG loading policy (the paper's protocol)")
     p_train.add_argument("--variant", choices=["rld", "rlc"], required=True)
-    p_train.add_argument("--seed", type=nonneg_int, default=0)
+    p_train.add_argument("--seed", type=nonneg_int, default=None, help="the run's seed (default 0)")
     p_train.add_argument("--seeds", help="several seeds in parallel processes, e.g. 0-4 or 0,2,5")
     p_train.add_argument("--jobs", type=int, default=0, help="parallel processes for --seeds (default: cores)")
     p_train.add_argument("--steps", type=pos_int, default=None, help="environment steps (default: training.total_steps)")

@@ -4,6 +4,7 @@ spread across seeds (like the paper's performance-evolution figures)."""
 from __future__ import annotations
 
 import csv
+import json
 from pathlib import Path
 
 import numpy as np
@@ -51,7 +52,8 @@ def summarize(run_dirs: list) -> dict:
     """Final evaluation of each run -> per metric: mean, sd, iqm, iqm_ci95, values."""
     finals = [read_evals(d) for d in run_dirs]
     steps = [int(f["step"][-1]) for f in finals]
-    out = {"runs": [str(d) for d in run_dirs], "final_steps": steps, "metrics": {}}
+    out = {"runs": [str(d) for d in run_dirs], "final_steps": steps, "planned_steps": [planned_steps(d) for d in run_dirs],
+           "metrics": {}}
     for m in METRICS:
         vals = np.array([f[m][-1] for f in finals if m in f])
         if len(vals) == 0:
@@ -186,7 +188,7 @@ def plot_curves(groups: dict[str, list], path) -> Path:
             y = np.stack([e[m][:n] for e in evs])
             mu = y.mean(0)
             sd = y.std(0, ddof=1) if len(evs) > 1 else np.zeros_like(mu)    # the sample sd, as the tables
-            ax.plot(x, mu, label=f"{label} ({len(evs)} seeds)")
+            ax.plot(x, mu, label=f"{label} ({len(evs)} seeds)", marker="o" if n < 3 else None)   # one point: a dot
             ax.fill_between(x, mu - sd, mu + sd, alpha=0.25)
             ax.set_title(title)
             ax.set_xlabel("training steps [x1000]")
@@ -200,8 +202,34 @@ def plot_curves(groups: dict[str, list], path) -> Path:
     return path
 
 
+def planned_steps(run_dir) -> int | None:
+    """The steps the run was started for (run.json's DDPG settings), None where the file does not say."""
+    try:
+        return int(json.loads((Path(run_dir) / "run.json").read_text())["ddpg"]["total_steps"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def unfinished_note(s: dict) -> str:
+    """A line naming runs whose last evaluation is not at their planned end, or that ended at different steps:
+    their figures mix training stages (a review, 2026-11-29: "final step 20,000" was printed over a run at
+    60,000 and one stopped at 20,000). "" when every run reached the same planned end."""
+    finals, planned = s["final_steps"], s.get("planned_steps") or [None] * len(s["final_steps"])
+    short = [f"{Path(r).name} at {f:,} of {p:,}" for r, f, p in zip(s["runs"], finals, planned) if p and f < p]
+    if not short and len(set(finals)) <= 1:
+        return ""
+    at = ", ".join(f"{Path(r).name} {f:,}" for r, f in zip(s["runs"], finals))
+    return (f"  warning: the runs' last evaluations are at different steps ({at})"
+            + (f"; unfinished: {', '.join(short)} (resume them with the same lhd train command)" if short else "")
+            + ": these figures mix training stages")
+
+
 def format_summary(label: str, s: dict) -> str:
-    lines = [f"{label}: {len(s['runs'])} runs, final step {min(s['final_steps']):,}"]
+    finals = s["final_steps"]
+    at = f"final step {finals[0]:,}" if len(set(finals)) == 1 else f"last steps {min(finals):,}-{max(finals):,}"
+    lines = [f"{label}: {len(s['runs'])} runs, {at}"]
+    if unfinished_note(s):
+        lines.append(unfinished_note(s))
     for m, v in s["metrics"].items():
         lines.append(f"  {m:>16}: {v['mean']:9.3f} +- {v['sd']:7.3f}   IQM {v['iqm']:9.3f} "
                      f"[{v['iqm_ci95'][0]:.3f}, {v['iqm_ci95'][1]:.3f}]")

@@ -5,6 +5,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -38,6 +39,11 @@ def run_seeds(variant: str, seeds: list[int], out: Path, jobs: int, extra: list[
     pending = list(seeds)
     running: dict[int, subprocess.Popen] = {}
     failed = []
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        # SIGTERM (`timeout`, `kill`, a scheduler) stops the children as Ctrl-C does: they run in their own
+        # sessions, so without this they trained on, orphaned (a review, 2026-11-29)
+        previous = signal.signal(signal.SIGTERM, _raise_interrupt)
     try:
         while pending or running:
             while pending and len(running) < jobs:
@@ -57,6 +63,8 @@ def run_seeds(variant: str, seeds: list[int], out: Path, jobs: int, extra: list[
                     if p.returncode:
                         failed.append(s)
     except KeyboardInterrupt:
+        if previous is not None:         # a second SIGTERM must not cut the children's stop short
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
         for p in running.values():
             os.killpg(p.pid, signal.SIGINT)
         for p in running.values():
@@ -66,7 +74,32 @@ def run_seeds(variant: str, seeds: list[int], out: Path, jobs: int, extra: list[
                 os.killpg(p.pid, signal.SIGKILL)
         print("interrupted; rerun the same command to resume from the checkpoints", file=sys.stderr)
         return 130
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
     if failed:
-        print(f"failed seeds: {failed} (see their logs)", file=sys.stderr)
+        reasons: dict[str, list[int]] = {}
+        for s in failed:
+            reasons.setdefault(_reason(out / f"seed_{s}.log"), []).append(s)
+        why = "".join(f"\n  seed{'s' if len(ss) > 1 else ''} {', '.join(map(str, ss))}: {r}" for r, ss in reasons.items())
+        print(f"failed seeds: {failed} (their logs: {out}/seed_N.log){why}", file=sys.stderr)
         return 1
     return 0
+
+
+def _raise_interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+def _reason(path: Path, limit: int = 600) -> str:
+    """Why a seed's child failed, from its log: its last `lhd train: ...` message with the lines after it
+    (a refused config lists its problems), else the log's last line; on one line, at most `limit` chars."""
+    try:
+        lines = [ln.strip() for ln in path.read_text(errors="replace").splitlines() if ln.strip()]
+    except OSError:
+        return "(no log)"
+    if not lines:
+        return "(empty log)"
+    starts = [i for i, ln in enumerate(lines) if ln.startswith("lhd train:")]
+    text = " / ".join(lines[starts[-1]:] if starts else lines[-1:])
+    return text if len(text) <= limit else text[: limit - 3] + "..."

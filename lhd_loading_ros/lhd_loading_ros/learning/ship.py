@@ -218,6 +218,10 @@ def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=prin
     runs = sorted(d for d in Path(runs_dir).glob("seed_*") if (d / sub / "policy.json").is_file())
     if not runs:
         raise FileNotFoundError(f"{runs_dir} holds no finished seed (seed_*/{sub}/policy.json)")
+    unfinished = sorted(d.name for d in Path(runs_dir).glob("seed_*") if d.is_dir() and d not in runs)
+    if unfinished:      # named, not dropped in silence (a review, 2026-11-29): the median is of the others
+        log(f"left out, no {sub}/ actor (training unfinished: resume it with the same lhd train command): "
+            f"{', '.join(unfinished)}")
     # the pile's own zones, as evaluate_under's default and the card's `lhd eval` command (--zones pile)
     env = LhdLoadingEnv(variant, cfg, zones_from_estimate=True, zones_nominal_density=False)
     # RLC is ranked as the policy node runs it, with the deployment filter (as `lhd report` evaluates
@@ -308,12 +312,12 @@ def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=prin
                if trained_dr else "Trained without domain randomisation.")
     r, st = ev["randomized"], ev["stress_placement"]
     robust = f"""
-## When the machine differs (`lhd eval --policy {shown}{run_cfg} --seed {eval_seed} --randomize{' --deploy-filter' if deploy else ''}`, and with `--stress placement` in place of `--randomize`)
+## When the machine differs (`lhd eval --policy {shown}{run_cfg}{f' --episodes {episodes}' if episodes != 120 else ''} --seed {eval_seed} --randomize{' --deploy-filter' if deploy else ''}`, and with `--stress placement` in place of `--randomize`)
 
 {dr_note} The same piles under drawn conditions ({drawn_conditions(cfg)}), and with the machine placed
 by hand (heading +-3 deg, lip +-5 cm, camera errors, 100 ms dead time):
 
-| condition | success | ASL | AML [kg] | elapsed [s] | restricted zone | timeout | refused |
+| condition | success | ASL | AML [kg] | elapsed [s] | restricted zone (of {r['episodes']}) | timeout | refused |
 |---|---|---|---|---|---|---|---|
 | randomised | {r['success_rate']:.3f} | {r['asl']:.2f} | {r['aml']:.1f} | {r['elapsed_s']:.2f} | {r['restricted_zone']} | {r['timeout']} | {r.get('refused', 0)} |
 | placement corners | {st['success_rate']:.3f} | {st['asl']:.2f} | {st['aml']:.1f} | {st['elapsed_s']:.2f} | {st['restricted_zone']} | {st['timeout']} | {st.get('refused', 0)} |
@@ -334,8 +338,10 @@ count in the success as loading nothing; ASL, AML and time are over the attempts
                  f"attempts were left out of the choice (`--max-tilt-rate {max_tilt_rate:g}`): "
                  + ", ".join(f"{c[1].name} ({c[3]['tilt_over_5deg_rate']:.2f})" for c in gated)
                  + f"; the median is that of the other {len(kept)}." if gated else "")
+    unfinished_txt = ", ".join(unfinished)
     why = {"median": f"its final actor at step {m['steps']:,}; the median of {len(kept)} seeds on the held-out evaluation"
-                     f"{f' ({len(gated)} more left out for tilting the machine)' if gated else ''}",
+                     f"{f' ({len(gated)} more left out for tilting the machine)' if gated else ''}"
+                     f"{f'; left out, training unfinished: {unfinished_txt}' if unfinished else ''}",
            "best": f"its best training-time evaluation at step {m['steps']:,}; the best of {len(cands)} seeds",
            "best-final": (f"its final actor at step {m['steps']:,}, no checkpoint picking; the best of {len(cands)} seeds' "
                           f"final actors on the held-out seed {HELD_OUT_SEED:,}: a selection, not what a retraining "

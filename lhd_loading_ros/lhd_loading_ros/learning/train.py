@@ -22,6 +22,7 @@ A run resumed with fewer steps than it has is refused; with as many, it is compl
 """
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import math
@@ -150,7 +151,43 @@ def _branch(src: Path, out: Path, ckpt: Path, log) -> None:
     log(f"branched {out} from {src}")
 
 
-def train(variant: str, seed: int, out, steps: int | None = None, config=None, resume: bool = True,
+@contextlib.contextmanager
+def run_dir_lock(out: Path):
+    """An exclusive lock on a run directory for one trainer (flock on out/.train.lock, released when the
+    process ends however it ends): a second `lhd train` into the same directory, e.g. the same command
+    run again while an earlier one's children still train (a review, 2026-11-29: two trainers then wrote
+    one episodes.csv), is refused with the holder's pid."""
+    import fcntl
+
+    out.mkdir(parents=True, exist_ok=True)
+    f = open(out / ".train.lock", "a+")
+    try:
+        fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        f.seek(0)
+        who = f.read().strip() or "pid unknown"
+        f.close()
+        raise ValueError(f"another lhd train is writing {out} ({who}): stop it first, or train into another --out") \
+            from None
+    try:
+        f.seek(0)
+        f.truncate()
+        f.write(f"pid {os.getpid()}\n")
+        f.flush()
+        yield
+    finally:
+        fcntl.flock(f, fcntl.LOCK_UN)
+        f.close()
+
+
+def train(variant: str, seed: int, out, *args, **kwargs) -> dict:
+    """`_train` (below) holding run_dir_lock(out) for the whole run."""
+    out = Path(out)
+    with run_dir_lock(out):
+        return _train(variant, seed, out, *args, **kwargs)
+
+
+def _train(variant: str, seed: int, out, steps: int | None = None, config=None, resume: bool = True,
           progress: bool = True, eval_episodes: int | None = None, eval_every: int | None = None,
           checkpoint_every: int | None = None, log=print, randomize: bool = False, env_kind: str = "local",
           namespaces: list[str] | None = None, ros_timeout: float = 30.0, keep_checkpoints=(),
