@@ -543,3 +543,50 @@ def test_estop_currents_and_valve_states_are_published(rig):
     drive(node, pub, [1.0, -0.191, 0.2], 0.5)
     assert hw[-1].level == DiagnosticStatus.OK and status_values(hw[-1])["valve_boom"] == "1"
     assert dev.last_commands()[-1][1] == CommandFrame(1.0, 1, 1, True)
+
+
+def test_a_burst_of_late_frames_keeps_each_frames_measurement_instant(ros, tmp_path):
+    """The device's frames held up for 0.25 s (USB, a busy host) arrive in one read. joint_states carried
+    each frame's arrival until a review (2026-11-29, twelfth session): 25 frames measured over 0.24 s
+    stamped within 3 ms, 0.24 rad of boom in 3 ms to anything that differentiates or aligns them. Each is
+    now stamped at its measurement instant on the ROS clock (DeviceClock), 10 ms apart, never after its
+    arrival. Device times of the burst continue the emulator's own clock."""
+    from lhd_hw_bridge.protocol import SensorFrame, TxSequence
+
+    link = str(tmp_path / "due")
+    dev = FakeDue(link=link, rate=100.0, watchdog=0.25)
+    t_start = time.monotonic()                      # the emulator's clock starts here (within a few ms)
+    dev.start()
+    bridge = RosProcess("lhd_hw_bridge.bridge_node", {"port": link}, tmp_path / "bridge.log")
+    node = rclpy.create_node("bridge_burst_test")
+    js = []
+    node.create_subscription(JointState, "/lhd/joint_states", lambda m: js.append((time.monotonic(), m)), 500)
+    try:
+        assert spin_until(node, lambda: len(js) > 150, timeout=30.0), bridge.log()   # 1.5 s: the clock's window
+        dev.silent = True
+        t0 = time.monotonic()
+        spin_until(node, lambda: False, timeout=0.25)
+        tx, burst = TxSequence(), b""
+        for k in range(25):                          # what the device measured during the stall
+            burst += tx.encode(SensorFrame(int((t0 - t_start + k * 0.01) * 1e6), -0.5 - 0.001 * k, 0, 0, 0, 0, 0,
+                                           0, 0, 0, 0, 0, 0, 1))
+        n = len(js)
+        dev.send_raw(burst)
+        t_sent = time.monotonic()
+        dev.silent = False
+        assert spin_until(node, lambda: len(js) >= n + 25, timeout=5.0), bridge.log()
+        got = [(t, m) for t, m in js[n:] if m.position[0] <= -0.5 + 1e-9]   # the burst's frames (boom -0.5..)
+        assert len(got) == 25, len(got)
+        stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for _, m in got]
+        gaps = [b - a for a, b in zip(stamps, stamps[1:])]
+        assert all(abs(g - 0.01) < 0.002 for g in gaps), gaps                  # the device's 10 ms, not 0
+        assert 0.23 < stamps[-1] - stamps[0] < 0.25
+        # on the ROS clock (= monotonic + an offset here: the node and this test share the host's clock):
+        # each frame measured when the stall let it be, not when it arrived
+        ros_now = node.get_clock().now().nanoseconds * 1e-9
+        assert stamps[-1] <= ros_now and (ros_now - stamps[0]) > 0.25 - 0.05 + (time.monotonic() - t_sent)
+    finally:
+        node.destroy_node()
+        rc = bridge.stop()
+        dev.stop()
+    assert rc == 0, bridge.log()

@@ -411,3 +411,24 @@ def test_velocity_estimator_repeated_and_backward_stamps():
     assert v.velocity() == pytest.approx(0.37)
     assert not v.add(0.1, 0.0)                   # backward: the window restarts from this sample
     assert v.velocity() is None and len(v.samples) == 1
+
+
+def test_two_markers_of_the_machines_id_are_refused_not_picked_by_opencvs_order():
+    """A spare or calibration marker of the same id in view (a review, 2026-11-29, twelfth session): detect
+    took OpenCV's first, whose order changes from frame to frame, and the node published v_x of +-19 m/s, or
+    the spare's standstill, as measured. Two in one frame is ambiguous: refused; one alone is found."""
+    from lhd_loading_ros.perception.aruco import AmbiguousMarkerError
+
+    rng = np.random.default_rng(5)
+    K = intrinsics(640, 480)
+    T_cam_pile = np.linalg.inv(transform(CAM_XYZ, CAMERA_RPY))
+    tex = marker_texture("DICT_4X4_50", 7)
+    a, b = drive_poses(np.array([0.0, 0.0]), -0.75, 0.0)[0], drive_poses(np.array([0.0, 0.0]), -0.30, 0.0)[0]
+    img_a = render(K, 640, 480, T_cam_pile @ a, tex, SIZE, rng, noise=2.0, blur=1)
+    img_b = render(K, 640, 480, T_cam_pile @ b, tex, SIZE, rng, noise=2.0, blur=1)
+    det = MarkerDetector("DICT_4X4_50", 7, SIZE)
+    assert det.detect(img_a) is not None and det.detect(img_b) is not None
+    both = np.minimum(img_a, img_b)                     # dark markers on a light floor: both in one frame
+    with pytest.raises(AmbiguousMarkerError, match="2 markers of id 7 in view"):
+        det.detect(both)
+    assert MarkerDetector("DICT_4X4_50", 8, SIZE).detect(both) is None     # another id: still none

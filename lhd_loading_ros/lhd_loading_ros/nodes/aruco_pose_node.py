@@ -42,8 +42,8 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_
 from sensor_msgs.msg import CameraInfo, Image, Imu
 from std_msgs.msg import Bool
 
-from lhd_loading_ros.perception.aruco import (CameraModel, GravityCheck, ImageEncodingError, InertialVelocityEstimator,
-                                              KalmanVelocityEstimator, MarkerDetector, MountingPrior, VelocityEstimator,
+from lhd_loading_ros.perception.aruco import (AmbiguousMarkerError, CameraModel, GravityCheck, ImageEncodingError,
+                                              InertialVelocityEstimator, KalmanVelocityEstimator, MarkerDetector, MountingPrior, VelocityEstimator,
                                               dictionary, forward_acceleration, image_to_gray, level, marker_centre_ray,
                                               opencv_problem, position_on_plane, roll_pitch, tilted_base_position)
 from lhd_loading_ros.perception.geometry import quaternion_xyzw, rpy_matrix, transform
@@ -455,6 +455,10 @@ class ArucoPoseNode(Node):
             corners = self.detector.detect(gray)
             T_cam_marker = self.detector.pose(corners, cam, self.prior) if corners is not None else None
         except ImageEncodingError as exc:
+            self._reject(str(exc))
+            return
+        except AmbiguousMarkerError as exc:       # no pose from this frame, and none chosen near the last one
+            self.prior.reset()
             self._reject(str(exc))
             return
         except cv2.error as exc:   # a frame OpenCV cannot process must not end the node

@@ -52,6 +52,10 @@ class ImageEncodingError(ValueError):
     pass
 
 
+class AmbiguousMarkerError(ValueError):
+    """More than one marker of the machine's id in the image: which is the machine's cannot be told."""
+
+
 def image_to_gray(height: int, width: int, encoding: str, step: int, data: bytes) -> np.ndarray:
     """sensor_msgs/Image fields -> uint8 grayscale array (cv_bridge is not available here)."""
     if height <= 0 or width <= 0:
@@ -126,10 +130,16 @@ class MarkerDetector:
         corners, ids, _ = self.detector.detectMarkers(gray)
         if ids is None:
             return None
-        for c, i in zip(corners, ids.ravel()):
-            if int(i) == self.marker_id:
-                return c.reshape(4, 2).astype(np.float64)
-        return None
+        mine = [c for c, i in zip(corners, ids.ravel()) if int(i) == self.marker_id]
+        if len(mine) > 1:
+            # OpenCV's order of detections is not stable: taking the first jumped between the two markers
+            # (+-19 m/s of v_x, or a spare marker's standstill, published as measured; a review, 2026-11-29)
+            centres = ", ".join(f"({c.reshape(4, 2)[:, 0].mean():.0f}, {c.reshape(4, 2)[:, 1].mean():.0f})"
+                                for c in mine)
+            raise AmbiguousMarkerError(f"{len(mine)} markers of id {self.marker_id} in view, at pixels {centres}: "
+                                       "which is the machine's is ambiguous; expected one (cover or remove the "
+                                       "others, or give the machine another marker_id)")
+        return mine[0].reshape(4, 2).astype(np.float64) if mine else None
 
     def pose(self, corners: np.ndarray, cam: CameraModel, choose=None) -> np.ndarray | None:
         """4x4 pose of the marker in the camera frame (optical: x right, y down, z forward).
