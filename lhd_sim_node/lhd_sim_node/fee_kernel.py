@@ -20,7 +20,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .fee import BETA_LOCK, LIP_EPS, LIP_SEARCH, SLOPE_MAX, WINDOW_DEPTHS, WINDOW_MAX
+from .fee import BETA_LOCK, LIP_EPS, LIP_REACH, LIP_SEARCH, SLOPE_MAX, WINDOW_DEPTHS, WINDOW_MAX
 
 G = 9.81
 _EPS = 1e-9
@@ -53,13 +53,15 @@ def _mass_below(cum, vmass, j, i, z, dz, n_z):
 
 
 @njit(cache=True)
-def _lip_column(top, j, z, i_start, n_x):
+def _lip_column(top, j, z, i_start, n_x, x, dx):
     """fee.lip_column for slice j."""
     i_lo = i_start if i_start > 0 else 0
     i_hi = i_start + LIP_SEARCH
     if i_hi > n_x:
         i_hi = n_x
     for i in range(i_lo, i_hi):
+        if i * dx - x > 0.5 * dx + LIP_REACH:
+            return -1
         if top[j, i] > z + LIP_EPS:
             return i
     return -1
@@ -183,7 +185,7 @@ def fee_step(x, z, pitch, cut_x0, cut_z0, next_center, slices,
         i_start = int(xa / dx)
         for jj in range(slices.shape[0]):
             j = slices[jj]
-            i0 = _lip_column(top, j, z, i_start, n_x)
+            i0 = _lip_column(top, j, z, i_start, n_x, x, dx)
             if i0 < 0:
                 continue
             dv, alpha_s = _lip_depth(top, j, x_centers, z, x, i0, dx, h, n_x)

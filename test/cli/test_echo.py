@@ -2,6 +2,7 @@
 matches the publishers' QoS without flags (best effort; transient local for a value latched
 before it started), and it ends cleanly on SIGTERM and when its reader closes the pipe."""
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -15,6 +16,15 @@ from std_msgs.msg import Float64, String
 from rosutil import init_ros, shutdown_ros
 
 ECHO = [sys.executable, "-m", "lhd_loading_ros.cli.main", "echo"]
+# Fast DDS logs its own errors to stdout from C++ (e.g. "[RTPS_TRANSPORT_SHM Error] Failed init_port
+# fastrtps_port7001: open_and_lock_file failed", when two processes start the shared-memory transport at once
+# on a busy machine: it falls back to UDP and the messages arrive; CI failed once on it, 2026-11-29). They are
+# the middleware's, not lhd echo's: left out before the comparison, and only they
+FASTDDS_LOG = re.compile(r"^(\x1b\[[0-9;]*m)*\d{4}-\d\d-\d\d \d\d:\d\d:\d\d\.\d+ .*\[.*RTPS_[A-Z_]+.*(Error|Warning)")
+
+
+def echo_output(out: str) -> str:
+    return "".join(line for line in out.splitlines(keepends=True) if not FASTDDS_LOG.match(line))
 
 
 @pytest.fixture(scope="module")
@@ -47,7 +57,7 @@ def test_echo_matches_a_best_effort_publisher_without_flags(node):
     rc = publish_until_exit(p, pub, Float64(data=1.25))
     out, err = p.communicate()
     assert rc == 0, err
-    assert out == "data: 1.25\n---\ndata: 1.25\n---\n"
+    assert echo_output(out) == "data: 1.25\n---\ndata: 1.25\n---\n"
     node.destroy_publisher(pub)
 
 
@@ -58,7 +68,7 @@ def test_echo_gets_a_value_latched_before_it_started(node):
     p = subprocess.run(ECHO + ["/echo_test/latched", "--count", "1", "--wait", "60"], capture_output=True,
                        text=True, timeout=120)
     assert p.returncode == 0, p.stderr
-    assert p.stdout == "data: surveyed\n---\n"
+    assert echo_output(p.stdout) == "data: surveyed\n---\n"
     node.destroy_publisher(pub)
 
 
@@ -94,7 +104,7 @@ def test_echo_into_a_closed_pipe_ends_without_a_traceback(node):
     rc = publish_until_exit(p, pub, Float64(data=3.5))
     out, err = p.communicate()
     assert rc == 0
-    assert out == "data: 3.5\n"
+    assert echo_output(out) == "data: 3.5\n"
     assert "Traceback" not in err and "BrokenPipe" not in err, err
     assert "echo_status=0" in err, err
     node.destroy_publisher(pub)

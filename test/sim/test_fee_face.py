@@ -225,6 +225,34 @@ def test_small_roll_back_keeps_the_resistance(sim):
     assert skipped_a_cut_column >= 1  # the case of the issue occurred and was handled
 
 
+def test_a_lip_short_of_the_face_meets_no_wedge(sim):
+    """A cut trench, the lip at the floor, the intact face g ahead of it (a review, 2026-11-29, twelfth
+    session: at g = 4-6 cm the lip met 67-78 % of the at-face force and a second push stalled 2 cm short of
+    a face it never touched). A blade that does not touch the material has no passive wedge: the force is 0
+    once the face's first column begins more than half a column + fee.LIP_REACH ahead of the lip, and the
+    at-face force where it touches. By hand: the trench is every column behind the face cut down to the floor."""
+    from lhd_sim_node.fee import LIP_REACH
+
+    for alpha in (15.0, 25.0, 30.0):
+        _uniform_pile(sim, alpha)
+        p = sim.pile
+        x_face = 0.29                                      # the face's first intact column begins here
+        i_face = int(math.ceil(x_face / p.dx))
+        p.top[:, :i_face] = 0.0                            # the trench: cut to the floor behind the face
+        x_face = i_face * p.dx
+        forces = {}
+        for g in (0.0, 0.5 * p.dx + LIP_REACH + 0.005, 0.06, 0.10):
+            sim.place_machine(g - x_face)                  # the lip g short of the face (tip x = -d_attack)
+            assert sim.data.site_xpos[sim.sid_tip][0] == pytest.approx(x_face - g, abs=1e-4)
+            sim._update_fee()
+            sim._sync_from_kernel()
+            forces[g] = sim.model.tendon_frictionloss[sim.tid_fee]
+        print(f"\n{alpha} deg, dx {p.dx * 100:.1f} cm: lip at the face {forces[0.0]:.0f} N; short of it by "
+              + ", ".join(f"{g * 100:.1f} cm: {f:.0f} N" for g, f in forces.items() if g > 0))
+        assert forces[0.0] > 100.0                         # touching the face: the wedge
+        assert all(f == 0.0 for g, f in forces.items() if g > 0), forces
+
+
 def test_kernel_and_numpy_updates_agree(sim):
     """The simulator's compiled update equals its numpy reference, pose by pose."""
     for alpha, lift_from in ((16.0, 30), (30.0, 15)):  # the second loads beyond the capacity
