@@ -461,7 +461,7 @@ def markdown_controllers(summary: list[dict]) -> str:
         refused = {c: r["refused"] for r in rows if r["slope_deg"] == "all" and (c := r["controller"]) and r.get("refused")}
         if refused:
             L += ["", "Refused, counted as failures: " + ", ".join(f"{c.upper()} {n}" for c, n in refused.items())
-                  + " attempts whose told slope (the LiDAR's of a rough face's slice) lay outside the actor's trained "
+                  + " attempts whose told slope (the LiDAR's, of a rough face's slice) lay outside the actor's trained "
                   "range: the policy node refuses it and the supervisor does not arm, so they did not run."]
         L.append("")
     return "\n".join(L)
