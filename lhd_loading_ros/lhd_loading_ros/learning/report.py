@@ -228,8 +228,9 @@ def format_summary(label: str, s: dict) -> str:
     finals = s["final_steps"]
     at = f"final step {finals[0]:,}" if len(set(finals)) == 1 else f"last steps {min(finals):,}-{max(finals):,}"
     lines = [f"{label}: {len(s['runs'])} runs, {at}"]
-    if unfinished_note(s):
-        lines.append(unfinished_note(s))
+    note = unfinished_note(s)
+    if note:
+        lines.append(note)
     for m, v in s["metrics"].items():
         lines.append(f"  {m:>16}: {v['mean']:9.3f} +- {v['sd']:7.3f}   IQM {v['iqm']:9.3f} "
                      f"[{v['iqm_ci95'][0]:.3f}, {v['iqm_ci95'][1]:.3f}]")

@@ -86,7 +86,7 @@ from lhd_loading_ros.task.attempt import STATUS_TIMEOUT_S
 from lhd_loading_ros.task.config import config_name, load_config
 from lhd_loading_ros.task.kinematics import ArmKinematics
 from lhd_loading_ros.task.params import TaskParams
-from lhd_loading_ros.policy.status_watch import StatusWatch, lost_attempt_resumes
+from lhd_loading_ros.policy.status_watch import LostAttempts, StatusWatch
 from lhd_loading_ros.policy.core import INPUTS, SLOW_INPUTS, Inputs, PolicyCore, ZERO_COMMAND
 from lhd_loading_ros.policy.actor_file import PolicyFileError, default_policy_dir, load_policy  # noqa: F401 (re-exported)
 from lhd_loading_ros.policy.tampier import TampierCore, default_tampier_path, load_tampier_config
@@ -229,9 +229,7 @@ class PolicyNode(Node):
         self.episode_key = None
         self._status_publisher_seen = False
         self.status_watch = StatusWatch()   # the /lhd/episode status' age in this node's running time
-        self._lost_keys: set = set()     # the attempts whose status stopped arriving: none resumes (not only the latest)
-        self._lost_unkeyed = False       # one without a key was lost: a key-less running stays ended until the
-                                         # publisher says anything else (policy/status_watch.lost_attempt_resumes)
+        self._lost = LostAttempts()      # the attempts whose status stopped arriving: none resumes (status_watch.py)
         self._lost_keys_heard: set = set()   # those whose running status came back (warned once each)
         self.attempts = 0                # running attempts begun (controller resets)
         self._status_stamp = None
@@ -376,7 +374,7 @@ class PolicyNode(Node):
     def _set_episode(self, state, key) -> None:
         """The attempt's state changes: a new running attempt resets the controller; leaving
         running sends the one zero command (now, not at the next control period)."""
-        if lost_attempt_resumes(state, key, self._lost_keys, self._lost_unkeyed):
+        if self._lost.resumes(state, key):
             if key not in self._lost_keys_heard:
                 self._lost_keys_heard.add(key)
                 self.get_logger().warn(f"attempt {key if key is not None else '(without an episode key)'}'s status "
@@ -399,8 +397,9 @@ class PolicyNode(Node):
     def _on_status(self, msg) -> None:
         self.status_watch.heard(time.monotonic())
         kv = {k.key: k.value for k in msg.values}
-        if kv.get("state", msg.message) != RUNNING:
-            self._lost_unkeyed = False       # the publisher moved on: its next key-less running is a new attempt
+        state = kv.get("state", msg.message)
+        self._lost.heard(state)              # not running: the publisher moved on, its next key-less running is new
+        if state != RUNNING:
             self._lost_keys_heard.discard(None)
         self._set_episode(kv.get("state", msg.message), kv.get("episode"))
         self._hold_attempt_slope(kv)
@@ -421,7 +420,7 @@ class PolicyNode(Node):
         the graph (a status that arrived before discovery caught up is no loss). A publisher that
         is still in the graph but silent (hung, SIGSTOP, a crashed process whose DDS lease has not
         expired yet: about 20 s) is found by the status' age: a running status older than
-        status_timeout ends the attempt, for good (`_lost_keys`). This node's own pause does not
+        status_timeout ends the attempt, for good (`_lost`). This node's own pause does not
         count (policy/status_watch.py): a check more than 3 periods + 50 ms after the previous one
         ends a pause, and the status' age counts from then at the earliest."""
         age = self.status_watch.age(time.monotonic(), 3.0 * period + 0.05)
@@ -429,10 +428,7 @@ class PolicyNode(Node):
             self.get_logger().error(f"no {self.episode_topic} status for {age:.1f} s of this node's running time "
                                     f"(status_timeout {self.status_timeout:g} s): the supervisor or sim node stopped "
                                     f"or hung; attempt {self.episode_key} has ended for this node")
-            if self.episode_key is None:
-                self._lost_unkeyed = True
-            else:
-                self._lost_keys.add(self.episode_key)
+            self._lost.lose(self.episode_key)
             self._set_episode("lost", self.episode_key)
             self._hold_attempt_slope({})
             return

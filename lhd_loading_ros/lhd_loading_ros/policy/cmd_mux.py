@@ -35,7 +35,7 @@ from pathlib import Path
 import yaml
 
 from lhd_loading_ros.policy.actuator_limits import ZERO, ActuatorLimits, CommandInvalid
-from lhd_loading_ros.policy.status_watch import StatusWatch, lost_attempt_resumes
+from lhd_loading_ros.policy.status_watch import LostAttempts, StatusWatch
 from lhd_loading_ros.task.attempt import STATUS_TIMEOUT_S
 
 RUNNING = "running"
@@ -134,9 +134,15 @@ class CommandMux:
     status: StatusWatch = field(default_factory=StatusWatch)   # the episode status' age (policy/status_watch.py)
     status_lost_after: float | None = None   # the silence that ended the last attempt, for explain()
     episode_key: str | None = None    # the attempt the latest status is about
-    lost_keys: set = field(default_factory=set)   # the attempts whose status stopped arriving: none runs again
-    lost_unkeyed: bool = False        # an attempt without a key (a third-party status) was lost: a running status
-                                      # without a key stays ended until the publisher says anything else first
+    lost: LostAttempts = field(default_factory=LostAttempts)   # attempts whose status stopped arriving: none runs again
+
+    @property
+    def lost_keys(self) -> set:
+        return self.lost.keys
+
+    @property
+    def lost_unkeyed(self) -> bool:
+        return self.lost.unkeyed
 
     @property
     def resumed_at(self) -> float:
@@ -254,10 +260,9 @@ class CommandMux:
 
     def on_episode(self, state: str, now: float, key: str | None = None) -> list:
         self.status.heard(now)
-        if lost_attempt_resumes(state, key, self.lost_keys, self.lost_unkeyed):
+        self.lost.heard(state)
+        if self.lost.resumes(state, key):
             state = STATUS_LOST                   # that attempt's status was lost: it stays ended
-        elif state != RUNNING:
-            self.lost_unkeyed = False             # the publisher moved on: its next running is a new attempt
         return self._set_episode(state, now, key)
 
     def _set_episode(self, state: str, now: float, key: str | None) -> list:
@@ -295,10 +300,7 @@ class CommandMux:
         age = self.status.age(now, PAUSE_S)
         if self.running and self.status_timeout > 0.0 and age is not None and age > self.status_timeout:
             self.status_lost_after = age
-            if self.episode_key is None:
-                self.lost_unkeyed = True
-            else:
-                self.lost_keys.add(self.episode_key)
+            self.lost.lose(self.episode_key)
             out += self._set_episode(STATUS_LOST, now, self.episode_key)
         else:
             self._reselect(now, out)

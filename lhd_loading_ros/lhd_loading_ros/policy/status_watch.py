@@ -34,11 +34,30 @@ class StatusWatch:
         return now - max(self.arrival, self.resumed_at)
 
 
-def lost_attempt_resumes(state: str, key: str | None, lost_keys: set, lost_unkeyed: bool) -> bool:
-    """Whether this status is a lost attempt's `running` coming back (a hung supervisor waking up), which
-    must not move the machine again (docs/teleop.md rule 8): its key is one whose status stopped arriving,
-    or it has no key (a third-party supervisor's status) while an attempt without a key was lost and the
-    publisher has said nothing but `running` since. The policy node and the command mux share it."""
-    if state != "running":
-        return False
-    return (key in lost_keys) if key is not None else lost_unkeyed
+
+class LostAttempts:
+    """The attempts whose `running` status stopped arriving, which must not move the machine again when it
+    comes back (a hung supervisor waking up; docs/teleop.md rule 8): every lost key, and whether an attempt
+    without a key (a third-party supervisor's status) was lost, which holds until its publisher says anything
+    but `running`. The policy node and the command mux share it."""
+
+    def __init__(self) -> None:
+        self.keys: set = set()
+        self.unkeyed = False
+
+    def lose(self, key: str | None) -> None:
+        if key is None:
+            self.unkeyed = True
+        else:
+            self.keys.add(key)
+
+    def heard(self, state: str | None) -> None:
+        """Every status heard: one that is not `running` means its publisher moved on."""
+        if state != "running":
+            self.unkeyed = False
+
+    def resumes(self, state: str | None, key: str | None) -> bool:
+        """Whether this status is a lost attempt's `running` coming back."""
+        if state != "running":
+            return False
+        return (key in self.keys) if key is not None else self.unkeyed
