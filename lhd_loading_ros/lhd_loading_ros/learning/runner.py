@@ -78,6 +78,7 @@ def run_seeds(variant: str, seeds: list[int], out: Path, jobs: int, extra: list[
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
     if failed:
+        failed.sort()                    # in seed order, not in the order the children happened to exit
         reasons: dict[str, list[int]] = {}
         for s in failed:
             reasons.setdefault(_reason(out / f"seed_{s}.log"), []).append(s)
