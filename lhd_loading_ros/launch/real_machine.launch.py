@@ -1,7 +1,7 @@
 """ros2 launch lhd_loading_ros real_machine.launch.py port:=/dev/ttyACM0 [controller:=rld|rlc|tampier|teacher|teleop]
     [policy_dir:=DIR] [config:=lhd_params.yaml] [camera_topic:=/camera/image_raw] [camera_info_topic:=/camera/camera_info]
     [scan_topic:=/scan] [end_zone:=lidar|FILE.yaml] [joy_mapping:=xbox] [material:=homogeneous]
-    [run_dir:=runs/real/NAME] [attempt_timeout:=10.0] [record:=true] [storage:=mcap]
+    [run_dir:=runs/real/NAME] [attempt_timeout:=10.0] [teleop_attempt_timeout:=40.0] [record:=true] [storage:=mcap]
     [params_file:=<share>/config/real_machine.yaml] [joy:=true]
 
 The real-machine stack, as `lhd up real` starts it where `ros2 launch` is not installed: bridge,
@@ -86,6 +86,8 @@ def generate_launch_description():
         DeclareLaunchArgument("material", default_value="homogeneous", description="homogeneous | nonhomogeneous"),
         DeclareLaunchArgument("run_dir", default_value=os.path.join("runs", "real", stamp)),
         DeclareLaunchArgument("attempt_timeout", default_value="10.0", description="s (the paper: 10 s)"),
+        DeclareLaunchArgument("teleop_attempt_timeout", default_value="40.0",
+                              description="s, a teleoperated attempt's (the paper's operators took 10-16 s on average)"),
         DeclareLaunchArgument("record", default_value="true", description="one rosbag2 per attempt"),
         DeclareLaunchArgument("storage", default_value="mcap", description="mcap | sqlite3"),
         DeclareLaunchArgument("params_file", default_value=os.path.join(share, "config", "real_machine.yaml")),
@@ -112,7 +114,9 @@ def generate_launch_description():
                               # a YAML list from the launch configuration, "[14.0, 35.0]"
                               "slope_limits_deg": LaunchConfiguration("slope_limits"),
                               "attempt_timeout": ParameterValue(LaunchConfiguration("attempt_timeout"),
-                                                                value_type=float)}]),
+                                                                value_type=float),
+                              "teleop_attempt_timeout": ParameterValue(LaunchConfiguration("teleop_attempt_timeout"),
+                                                                       value_type=float)}]),
         Node(package="lhd_loading_ros", executable="cmd_mux_node", name="lhd_cmd_mux", output="screen",
              parameters=[pf, config]),
         Node(package="lhd_loading_ros", executable="teleop_node", name="lhd_teleop", output="screen",

@@ -99,6 +99,17 @@ def test_mass_into_a_run_folder_without_a_supervisor(run_dir):
     assert rc == 1 and "no attempt 9" in err
 
 
+def test_offline_weighing_says_what_it_replaced_and_what_still_waits(run_dir):
+    """A review (2026-11-29): `lhd attempt mass` replaced an earlier mass without a word, and said nothing of
+    an attempt still waiting for its mass."""
+    rc, out, err = run(attempt_mass_main, ["22", "--run-dir", str(run_dir), "--attempt", "4"])
+    assert rc == 0, err
+    assert "attempt 4: 21.00 kg replaced by 22.00 kg" in out, out
+    assert "still unweighed: attempt(s) 5 (`lhd attempt mass KG --attempt N`)" in out, out
+    rc, out, err = run(attempt_mass_main, ["26.5", "--run-dir", str(run_dir), "--attempt", "5"])
+    assert rc == 0 and "replaced" not in out and "still unweighed" not in out, out
+
+
 def ros_env():
     from rosutil import unique_domain_id
 

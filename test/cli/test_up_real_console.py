@@ -4,7 +4,8 @@ figures) and the `m KG` key's refusals (a review, 2026-11-28: a typo was taken s
 mass vanished into the supervisor's log, the checklist split sentences and reprinted every second)."""
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
-from lhd_loading_ros.cli.up_real import format_preflight, mass_refusal, preflight_key, preflight_problems
+from lhd_loading_ros.cli.up_real import (format_preflight, keep_earlier_logs, mass_refusal, preflight_key, preflight_problems,
+                                         record_diag_line)
 
 P1 = "joint states 0.90 s old (timeout 0.5 s; /lhd/joint_states, the bridge)"
 P2 = "bucket tip already in the end zone (x 0.812, y 0.003, z 0.411 m): back the machine off to the attack pose"
@@ -34,6 +35,22 @@ def test_the_checklist_is_printed_again_when_its_problems_change_not_their_figur
     assert preflight_key(status([P1, P2])) != preflight_key(status([P1]))
     assert preflight_key(status([P1])) != preflight_key(status([P1.replace("joint states", "odometry")]))
     assert preflight_key(DiagnosticStatus(message="ready to arm")) != preflight_key(status([P1]))
+
+
+def test_record_errors_reach_the_console_once_per_change():
+    """A review (2026-11-29): on a full disk the console printed "attempt 1 success" and the run exited 0
+    while neither attempts.csv nor the bag was written; the errors were in the node logs only."""
+    seen = {}
+    sup, rec = "/lhd_supervisor: record", "/lhd_recorder: recording"
+    assert record_diag_line(seen, sup, False, "record /r/attempts.csv") is None          # fine from the start
+    assert record_diag_line(seen, sup, True, "cannot write /r/attempts.csv: [Errno 28] No space left on device") \
+        == "record: ERROR cannot write /r/attempts.csv: [Errno 28] No space left on device"
+    assert record_diag_line(seen, sup, True, "cannot write /r/attempts.csv: [Errno 28] No space left on device") is None
+    assert record_diag_line(seen, rec, True, "idle; 1 bag(s) could not be opened or closed (see the log)") \
+        == "recorder: ERROR idle; 1 bag(s) could not be opened or closed (see the log)"
+    assert record_diag_line(seen, rec, True, "idle; 2 bag(s) could not be opened or closed (see the log)") is None
+    assert record_diag_line(seen, sup, False, "record /r/attempts.csv") == "record: ok again: record /r/attempts.csv"
+    assert record_diag_line(seen, sup, False, "record /r/attempts.csv") is None
 
 
 def test_m_kg_refusals_name_what_is_wrong():
@@ -74,3 +91,22 @@ def test_output_cut_off_by_its_reader_ends_without_a_traceback(tmp_path):
     whole = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "attempts", str(tmp_path)],
                            capture_output=True, text=True, timeout=60)
     assert whole.returncode == 0 and "RLD" in whole.stdout, whole.stderr
+
+
+def test_an_earlier_runs_logs_are_moved_aside_not_overwritten(tmp_path):
+    """A review (2026-11-29): `lhd up real` on a reused run folder overwrote yesterday's node logs."""
+    import os
+
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    assert keep_earlier_logs(logs) is None
+    (logs / "bridge.log").write_text("yesterday")
+    (logs / "supervisor.log").write_text("yesterday too")
+    os.utime(logs / "bridge.log", (1_700_000_000, 1_700_000_000))          # 2023-11-14 22:13:20 UTC
+    os.utime(logs / "supervisor.log", (1_700_000_060, 1_700_000_060))
+    dest = keep_earlier_logs(logs)
+    assert dest == logs / "earlier_20231114-221420"
+    assert (dest / "bridge.log").read_text() == "yesterday" and not list(logs.glob("*.log"))
+    (logs / "bridge.log").write_text("again")
+    os.utime(logs / "bridge.log", (1_700_000_060, 1_700_000_060))
+    assert keep_earlier_logs(logs) == logs / "earlier_20231114-221420_2"

@@ -70,6 +70,54 @@ def test_no_attempt_without_the_recorder_then_one_with_its_bag(rig):
         (sorted(rig.run_dir.rglob("*")), rig.recorder.log())
 
 
+def arm_when_ready(rig, timeout=60.0):
+    deadline, res = time.monotonic() + timeout, None
+    while time.monotonic() < deadline:
+        res = rig.call(rig.arm_client)
+        if res.success:
+            return res
+        time.sleep(0.5)
+    raise AssertionError(f"{res and res.message}\n{rig.recorder.log() if rig.recorder else ''}")
+
+
+def test_a_record_that_cannot_be_written_refuses_arming_and_loses_no_row(rig):
+    """A review (2026-11-29): on a full disk the attempts ran, the console printed them, and neither
+    attempts.csv nor the bags were written. The supervisor keeps a row whose write failed, refuses to arm
+    while it is unwritten (naming it) or while the record is no writable file, and writes it once the
+    record can be written again, before the next attempt's row."""
+    from lhd_loading_ros.task.attempt_record import read_rows
+
+    csv = rig.run_dir / "attempts.csv"
+    assert csv.is_file()
+    # the first test's recorder was stopped at its end (conftest: no process outlives its test): a new one
+    rig.recorder = RosProcess(RECORDER, {"run_dir": str(rig.run_dir)}, rig.run_dir.parent / "recorder2.log")
+    n0 = len(rig.statuses)
+    arm_when_ready(rig)
+    rig.wait_state("running", 2, since=n0)
+    saved = csv.with_name("attempts.saved")
+    csv.rename(saved)
+    csv.mkdir()                                    # the record unwritable (as root, permissions would not do)
+    rig.set_pose(END)
+    rig.wait_state("success", 2)
+    rig.set_pose(START)
+    time.sleep(0.5)
+    res = rig.call(rig.arm_client)
+    assert not res.success, res.message
+    assert "attempt(s) 2 not yet written to the record" in res.message, res.message
+    assert "is not a writable file" in res.message, res.message
+    csv.rmdir()
+    saved.rename(csv)                              # repaired: the row of attempt 2 goes in first
+    n1 = len(rig.statuses)
+    arm_when_ready(rig)
+    rig.wait_state("running", 3, since=n1)
+    rows = {r.attempt: r for r in read_rows(csv)}
+    assert sorted(rows) == [1, 2, 3], rows
+    assert rows[2].outcome == "success", rows[2]
+    rig.set_pose(END)
+    rig.wait_state("success", 3)
+    rig.set_pose(START)
+
+
 def test_a_malformed_node_name_is_refused_with_the_parameter(tmp_path):
     p = subprocess.run([sys.executable, "-m", SUPERVISOR, "--ros-args", "-p", f"run_dir:={tmp_path}",
                         "-p", "required_listeners:=['lhd recorder']"], capture_output=True, text=True, timeout=60)

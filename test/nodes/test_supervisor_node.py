@@ -365,6 +365,19 @@ def test_a_supervisor_killed_mid_attempt_leaves_the_attempt_in_the_record(rig):
     assert wait_for(lambda: "(next attempt 10)" in rig.proc.log(), 60.0), rig.proc.log()
 
 
+def test_numbering_goes_on_from_the_bags_when_the_record_was_moved_away(tmp_path):
+    """A review (2026-11-29): with attempts.csv moved aside (as the unreadable-record message asks), the
+    numbering restarted at 1 beside yesterday's bags/attempt_0001..7, so today's attempt 1 was filed as
+    attempt_0001_2 while its row named yesterday's bag. It goes on from the highest of both."""
+    (tmp_path / "bags" / "attempt_0007").mkdir(parents=True)
+    (tmp_path / "bags" / "attempt_0003_2").mkdir()
+    p = RosProcess(SUPERVISOR, {"run_dir": str(tmp_path)}, tmp_path / "sv.log")
+    try:
+        assert wait_for(lambda: "(next attempt 8)" in p.log(), 60.0), p.log()
+    finally:
+        p.stop()
+
+
 def test_an_unreadable_record_stops_the_node_with_one_line(tmp_path):
     (tmp_path / "attempts.csv").write_text("not,a,record\n1,2,3\n")
     p = RosProcess(SUPERVISOR, {"run_dir": str(tmp_path)}, tmp_path / "sv.log")

@@ -136,6 +136,32 @@ def test_an_untouched_trigger_reading_zero_does_not_drive():
     assert core.on_joy(*xbox_msg(rt=0.0, pressed=(4,)), 0.15).command == pytest.approx((HALF_TRIGGER, 0.0, 0.0))
 
 
+@pytest.mark.parametrize("gap", ["timer", "late_joy", "bad_joy"])
+def test_a_replugged_pad_must_show_its_triggers_at_rest_again(gap):
+    """A review (2026-11-29): after driving, the pad dropped out (no Joy past joy_timeout) and came back
+    with its untouched trigger reading 0 (joy_linux before the first move, or a restarted driver): a fresh
+    deadman press gave half throttle, because the trigger had been seen at rest before the drop-out. Any
+    gap (noticed by the timer, or only by the next Joy's arrival time) or unusable message forgets it."""
+    m = load_mapping(TELEOP / "xbox.yaml")
+    lim = ActuatorLimits((0.0, -0.191, 0.0), (2.7, 0.0, 0.2))
+    core = TeleopCore(m, lim, joy_timeout=0.5)
+    core.on_joy(*xbox_msg(), 0.0)
+    assert core.on_joy(*xbox_msg(rt=-1.0, pressed=(4,)), 0.05).command == (2.7, 0.0, 0.0)
+    if gap == "timer":
+        core.on_timer(0.70)                                                # the timeout stops it
+        t = 2.0
+    elif gap == "late_joy":
+        core.on_joy(*xbox_msg(rt=1.0), 0.10)                               # released, trigger at rest
+        t = 0.75                                                           # next Joy 0.65 s later
+    else:
+        core.on_joy([0.0] * 5, [0] * 11, 0.10)                            # a message of another layout
+        t = 0.15
+    core.on_joy(*xbox_msg(rt=0.0), t)                                      # back, deadman released
+    assert core.on_joy(*xbox_msg(rt=0.0, pressed=(4,)), t + 0.05).command == (0.0, 0.0, 0.0)
+    core.on_joy(*xbox_msg(rt=1.0, pressed=(4,)), t + 0.10)                 # seen at rest again
+    assert core.on_joy(*xbox_msg(rt=0.0, pressed=(4,)), t + 0.15).command == pytest.approx((HALF_TRIGGER, 0.0, 0.0))
+
+
 def test_helpers_by_hand():
     assert deadzone(0.3, 0.5) == 0.0 and deadzone(-0.75, 0.5) == -0.5 and deadzone(1.0, 0.5) == 1.0
     assert deadzone(1.2, 0.0) == 1.0

@@ -1185,6 +1185,30 @@ def test_a_new_attempt_timeout_applies_from_the_next_arming(kin):
     assert r.step(0.02) == "timeout" and r.sv.attempt.reason == "attempt_timeout 5 s passed"
 
 
+def test_a_teleoperated_attempt_gets_the_teleop_timeout(kin):
+    """A review (2026-11-29): `lhd up real --controller teleop` cut every teleoperated attempt at the
+    controllers' 10 s, where the paper's operators took 10.4-16.4 s on average (its Teleop column). A
+    teleop attempt gets teleop_attempt_timeout (40 s); the label decides at arming, both ways."""
+    r = Rig(kin, arm_delay=1.0, attempt_timeout=10.0).ready()
+    r.sv.controller = "teleop"
+    msg = r.arm()
+    assert "timeout 40 s" in msg and r.sv.attempt.timeout == 40.0
+    # and it runs at once: the gamepad is not gated, so what the operator drives after arming is timed
+    assert r.sv.state == "running" and "running in" not in msg
+    assert r.step(39.98) == "running"                    # well past 10 s: the operator is still loading
+    assert r.step(0.02) == "timeout" and r.sv.attempt.reason == "teleop_attempt_timeout 40 s passed"
+    r.sv.set_attempt_timeout(20.0, teleop=True)
+    r.sv.controller = "rld"                              # an autonomous controller: the paper's 10 s again
+    r.arm()
+    assert r.sv.state == "armed" and r.step(1.0) == "running"      # its arm delay
+    assert r.step(10.0) == "timeout" and r.sv.attempt.reason == "attempt_timeout 10 s passed"
+    r.sv.controller = "teleop"
+    r.arm()
+    assert r.step(19.98) == "running" and r.step(0.02) == "timeout"
+    with pytest.raises(ValueError, match="teleop_attempt_timeout"):
+        settings(teleop_attempt_timeout=math.nan)
+
+
 # ---------------------------------------------------------------- the machine's tilt (IMU)
 def quat_zyx(yaw, pitch, roll):
     """(w, x, y, z) of Rz(yaw) Ry(pitch) Rx(roll), by the half-angle formulas."""

@@ -308,3 +308,41 @@ def test_a_record_without_the_config_column_reads_and_several_files_are_named(tm
     assert "WARNING: the counted attempts were judged with 2 parameter files (config hash: RLD aaaa; Tampier bbbb)" \
         in table
     assert "WARNING" not in format_table(summarize([a, c])) and "WARNING" not in format_table(summarize([mk(1, mass=25.0)]))
+
+
+def test_run_dir_problems_name_what_cannot_keep_an_attempt(tmp_path):
+    """The supervisor's preflight item for the run folder (a review, 2026-11-29: on a full disk the attempts
+    ran and nothing was kept): the free space checked against min_free_mb by hand, a record that is no
+    file, a folder that is missing."""
+    from collections import namedtuple
+
+    from lhd_loading_ros.task.attempt_record import run_dir_problems
+
+    usage = namedtuple("usage", "total used free")
+    csv_file = tmp_path / "attempts.csv"
+    assert run_dir_problems(tmp_path, csv_file, 100e6, usage=lambda p: usage(0, 0, 100e6)) == []
+    (p,) = run_dir_problems(tmp_path, csv_file, 100e6, usage=lambda p: usage(0, 0, 12.34e6))
+    assert p.startswith("12.3 MB free on the run folder's file system") and "min_free_mb 100" in p, p
+    assert run_dir_problems(tmp_path, csv_file, 0.0, usage=lambda p: usage(0, 0, 0)) == []      # 0: no check
+
+    def broken(p):
+        raise OSError("stale file handle")
+    (p,) = run_dir_problems(tmp_path, csv_file, 1.0, usage=broken)
+    assert "cannot be used (stale file handle)" in p
+    csv_file.mkdir()
+    (p,) = run_dir_problems(tmp_path, csv_file, 0.0)
+    assert p == f"the record {csv_file} is not a writable file: fix it or pick another run_dir"
+    (p,) = run_dir_problems(tmp_path / "gone", csv_file, 0.0)
+    assert "is not a writable folder" in p
+
+
+def test_the_record_gets_the_mode_an_ordinary_file_would(tmp_path):
+    """mkstemp's 0600 made attempts.csv unreadable to the lab's other users (a review, 2026-11-29)."""
+    from lhd_loading_ros.task.attempt_record import write_rows
+
+    old = os.umask(0o022)
+    try:
+        write_rows(tmp_path / "attempts.csv", [])
+    finally:
+        os.umask(old)
+    assert (tmp_path / "attempts.csv").stat().st_mode & 0o777 == 0o644

@@ -251,10 +251,20 @@ def attempt_mass_main(argv=None) -> int:
 
 def _weigh_offline(prog: str, path, attempt, kg: float) -> int:
     try:
+        before = {r.attempt: r for r in read_rows(path)}
         row = weigh_row(path, attempt, kg, _phi_thresh())
     except (OSError, ValueError) as exc:
         return _err(prog, str(exc))
     _print_row(row)
+    # what the weighing changed besides, said (a review, 2026-11-29: an earlier mass was replaced and an attempt
+    # still waiting for its mass went unmentioned)
+    old = before.get(row.attempt)
+    if old is not None and old.mass_kg is not None and abs(old.mass_kg - row.mass_kg) >= 0.005:
+        print(f"attempt {row.attempt}: {old.mass_kg:.2f} kg replaced by {row.mass_kg:.2f} kg", flush=True)
+    waiting = sorted(n for n, r in before.items() if n != row.attempt and r.mass_kg is None and r.outcome in NEEDS_MASS)
+    if waiting:
+        print(f"still unweighed: attempt(s) {', '.join(map(str, waiting))} (`lhd attempt mass KG --attempt N`)",
+              flush=True)
     return 0
 
 

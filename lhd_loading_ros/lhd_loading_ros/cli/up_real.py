@@ -29,7 +29,6 @@ import argparse
 import math
 import os
 import re
-import shutil
 import sys
 import threading
 import time
@@ -79,6 +78,7 @@ def stack(args, run_dir: Path) -> list[tuple[str, str, dict, list[str]]]:
          {**common, "run_dir": str(run_dir), "controller": args.controller, "policy_dir": policy_dir,
           **({"slope_limits_deg": list(args.slope_limits)} if getattr(args, "slope_limits", None) else {}),
           "material": args.material, "attempt_timeout": args.attempt_timeout,
+          "teleop_attempt_timeout": args.teleop_attempt_timeout,
           "required_listeners": required_listeners(args)}, []),
         ("mux", "lhd_loading_ros.nodes.cmd_mux_node", {**common}, []),
         ("teleop", "lhd_loading_ros.nodes.teleop_node", {**common, "mapping": args.joy_mapping}, []),
@@ -156,12 +156,15 @@ def up_real(args) -> int:
     keep_logs = args.log_dir is not None
     log_dir = Path(args.log_dir) if keep_logs else run_dir / "logs"
     log_dir.mkdir(parents=True, exist_ok=True)
+    kept = keep_earlier_logs(log_dir)
+    if kept:
+        print(f"lhd up real: the node logs of an earlier run in this folder moved to {kept}", flush=True)
     params_file = Path(args.params_file) if args.params_file else default_params_file()
     ros_args = ["--params-file", str(params_file)] if params_file else []
     quiet = not args.verbose
     stop = threading.Event()
     state = {"episode": None, "state": None, "ended": 0, "preflight": None, "printed_preflight": None,
-             "kv": {}, "link": {}}
+             "kv": {}, "link": {}, "record": {}, "record_failed": False}
 
     def on_status(msg):
         kv = {k.key: k.value for k in msg.values}
@@ -203,6 +206,11 @@ def up_real(args) -> int:
                 if key != last and (not ok or last is not None):
                     print(f"serial link: {st.message}", flush=True)
                 state["link"][st.name] = key if (not ok or last is not None) else None
+            elif st.name.endswith(RECORD_DIAGNOSTICS):
+                line = record_diag_line(state["record"], st.name, st.level == DiagnosticStatus.ERROR, st.message)
+                if line:
+                    print(line, flush=True)
+                    state["record_failed"] |= st.level == DiagnosticStatus.ERROR
 
     children: list[Child] = []
     failed = True
@@ -290,9 +298,19 @@ def up_real(args) -> int:
             stop_real_stack(children, node)
             if crashed:
                 note_crash(run_dir, crashed.rstrip(":"), found_at=found_at)
-            if not keep_logs and not failed and args.remove_logs:
-                shutil.rmtree(log_dir, ignore_errors=True)
+            if not keep_logs and not failed and args.remove_logs and not state["record_failed"]:
+                for f in log_dir.glob("*.log"):         # this run's: an earlier run's, moved aside, stay
+                    f.unlink(missing_ok=True)
+                try:
+                    log_dir.rmdir()
+                except OSError:
+                    pass
     print(f"lhd up real: stopped; attempts in {run_dir / 'attempts.csv'} (`lhd attempts {run_dir}`)", flush=True)
+    if state["record_failed"]:
+        print(f"lhd up real: the record or a bag could not be written during this run (the `record` / `recorder` "
+              f"lines above; node logs in {log_dir}): attempts may be missing from {run_dir}", file=sys.stderr,
+              flush=True)
+        return 1
     return 0
 
 
@@ -388,6 +406,40 @@ def format_preflight(st) -> str:
 
 
 _NUMBER = re.compile(r"[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?")
+def keep_earlier_logs(log_dir: Path) -> Path | None:
+    """Node logs an earlier run left in `log_dir` (a run folder reused: the launcher opens each node's log anew)
+    moved into log_dir/<UTC time of the newest of them>/, which is returned; None when there were none (a review,
+    2026-11-29: yesterday's logs were overwritten)."""
+    import datetime
+
+    logs = sorted(log_dir.glob("*.log"))
+    if not logs:
+        return None
+    newest = max(f.stat().st_mtime for f in logs)
+    stamp = datetime.datetime.fromtimestamp(newest, datetime.timezone.utc).strftime("%Y%m%d-%H%M%S")
+    dest, k = log_dir / f"earlier_{stamp}", 2
+    while dest.exists():
+        dest, k = log_dir / f"earlier_{stamp}_{k}", k + 1
+    dest.mkdir()
+    for f in logs:
+        f.rename(dest / f.name)
+    return dest
+
+
+RECORD_DIAGNOSTICS = ("supervisor: record", "recorder: recording")
+
+
+def record_diag_line(seen: dict, name: str, error: bool, message: str) -> str | None:
+    """The console line for the supervisor's `record` or the recorder's diagnostic, or None: an ERROR when its
+    message changes (numbers aside), and once "ok again" after one. A full disk or a removed run folder left the
+    console printing "attempt N success" while nothing was kept (a review, 2026-11-29). `seen`: name -> last key."""
+    key = _NUMBER.sub("#", message) if error else "ok"
+    last = seen.get(name)
+    seen[name] = key if (error or last is not None) else None
+    if key == last or not (error or last is not None):
+        return None
+    who = "record" if name.endswith("record") else "recorder"
+    return f"{who}: ERROR {message}" if error else f"{who}: ok again: {message}"
 
 
 def preflight_key(st) -> tuple:
@@ -414,6 +466,8 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--joy-mapping", default="xbox", help="xbox | ps4 | f710 | a mapping YAML")
     ap.add_argument("--material", choices=["homogeneous", "nonhomogeneous"], default="homogeneous")
     ap.add_argument("--attempt-timeout", type=float, default=10.0, help="s (the paper: 10 s)")
+    ap.add_argument("--teleop-attempt-timeout", type=float, default=40.0,
+                    help="s, a teleoperated attempt's (--controller teleop; the paper's operators took 10-16 s on average)")
     ap.add_argument("--run-dir", help="attempts.csv and bags go here (default runs/real/<UTC time>)")
     ap.add_argument("--no-record", dest="record", action="store_false", help="no rosbag2 per attempt")
     ap.add_argument("--storage", choices=["mcap", "sqlite3"], default="mcap")
@@ -545,6 +599,8 @@ def check_args(ap: argparse.ArgumentParser, args) -> None:
     if not (math.isfinite(args.attempt_timeout) and lo <= args.attempt_timeout <= hi):
         ap.error(f"--attempt-timeout {args.attempt_timeout:g}: expected seconds in [{lo:g}, {hi:g}] (the paper: 10 s, "
                  "to protect the motors)")
+    if not (math.isfinite(args.teleop_attempt_timeout) and lo <= args.teleop_attempt_timeout <= hi):
+        ap.error(f"--teleop-attempt-timeout {args.teleop_attempt_timeout:g}: expected seconds in [{lo:g}, {hi:g}]")
     if args.attempts < 0:
         ap.error(f"--attempts must be >= 0, got {args.attempts}")
     if args.end_zone != "lidar" and not Path(args.end_zone).is_file():

@@ -53,10 +53,11 @@ from lhd_loading_ros.ros.qos import LATCHED_QOS, MEASUREMENT_QOS, STATUS_QOS
 from lhd_loading_ros.ros.run import run_node
 from lhd_loading_ros.task.attempt import (ATTEMPT_TIMEOUT_RANGE_S, ENDED, LIVE, STATUS_TIMEOUT_S, HwStatus, Settings,
                                          Supervisor, placement_limits)
-from lhd_loading_ros.task.attempt_record import MATERIALS, csv_path, read_rows, upsert_row
+from lhd_loading_ros.task.attempt_record import MATERIALS, csv_path, read_rows, run_dir_problems, upsert_row
 from lhd_loading_ros.task.config import config_hash, load_config
 from lhd_loading_ros.task.imu_mount import zero_problem
 from lhd_loading_ros.task.kinematics import ArmKinematics
+from lhd_loading_ros.task.recording import next_free_attempt
 from lhd_loading_ros.task.params import TaskParams
 from lhd_loading_ros.task.viz import AttemptTrail, zone_boxes
 from lhd_loading_ros.task.zones import Zones
@@ -74,6 +75,7 @@ from lhd_loading_ros.task.zones import Zones
 MASS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
                       durability=DurabilityPolicy.VOLATILE)
 CHECK_HZ = 50.0          # end conditions on the steady clock (and on every joints / odom arrival)
+RECORD_RETRY_S = 5.0     # s between tries at writing rows a write failed for (a full disk: logged each time)
 STATUS_HZ = 5.0          # <prefix>/episode at least this often (the controllers' status_timeout is 1.5 s)
 STALL_MARGIN_S = 0.1     # a gap between two statuses longer than status_timeout minus this: our own stall
 OVERTAKEN_NS = 1_000_000_000
@@ -154,6 +156,11 @@ class SupervisorNode(Node):
                   "from the next arming", lo=ATTEMPT_TIMEOUT_RANGE_S[0], hi=ATTEMPT_TIMEOUT_RANGE_S[1],
                   on_change=lambda v: self.core.set_attempt_timeout(v),
                   warn_change="the paper's 10 s protects the motors from pushing at full power against the pile"),
+            Param("teleop_attempt_timeout", 40.0, "s from running to timeout of a teleoperated attempt (controller "
+                  "teleop): the paper's operators took 10-16 s on average, the operator on the deadman protects the "
+                  "motors (docs/supervisor.md \"Teleoperated attempts\"); a change applies from the next arming",
+                  lo=ATTEMPT_TIMEOUT_RANGE_S[0], hi=ATTEMPT_TIMEOUT_RANGE_S[1],
+                  on_change=lambda v: self.core.set_attempt_timeout(v, teleop=True)),
             Param("arm_delay", 1.0, "s between armed and running (0: at once)", lo=0.0, hi=60.0),
             Param("status_timeout", STATUS_TIMEOUT_S, "s: the controllers' status_timeout (policy node, command mux: "
                   "they stop a running attempt whose status is older). When this node did not publish its status for "
@@ -205,6 +212,8 @@ class SupervisorNode(Node):
             Param("required_listeners", [""], "names of nodes that must subscribe to <prefix>/episode before "
                   "an attempt may be armed (a preflight item), e.g. ['lhd_recorder']: an attempt armed before the "
                   "recorder has discovered the status would have no bag; [''] for none", check=_check_node_names),
+            Param("min_free_mb", 100.0, "MB: to arm, the run folder's file system must have this much free space "
+                  "(the record and the recorder's bag of the attempt: a few MB each); 0: no check", lo=0.0, hi=1e6),
         ])
         gp = self.params.__getitem__
         cfg = load_config(gp("config") or None)
@@ -221,6 +230,7 @@ class SupervisorNode(Node):
         lo, hi, source = limited_slope_range_deg(lo, hi, source, gp("slope_limits_deg"))
         settings = Settings(slope_range_deg=(lo, hi), slope_source=source, phi_thresh=p.phi_thresh_pitch,
                             control_dt=p.control_dt, attempt_timeout=gp("attempt_timeout"),
+                            teleop_attempt_timeout=gp("teleop_attempt_timeout"),
                             arm_delay=gp("arm_delay"), input_timeout=gp("input_timeout"),
                             hw_status_timeout=gp("hw_status_timeout"), mass_settle_s=gp("mass_settle_s"), prefix=ns,
                             end_check_period=p.control_dt if gp("end_check_period") < 0 else gp("end_check_period"),
@@ -240,10 +250,15 @@ class SupervisorNode(Node):
         except ValueError as exc:
             raise ValueError(f"parameter 'run_dir' = {gp('run_dir')!r}: its record is unreadable ({exc}); "
                              "move it away or pick another run_dir") from None
-        first = max((r.attempt for r in rows), default=0) + 1
+        # on from the record and the bags both: a record moved aside (as the message above asks) restarted at 1 and
+        # filed attempt 1 again beside yesterday's bags/attempt_0001, which `lhd replay` then read today's mass for
+        first = max(max((r.attempt for r in rows), default=0) + 1, next_free_attempt(self.run_dir))
         self.core = Supervisor(settings, ArmKinematics.from_config(cfg), gp("controller"), gp("material"), first)
         self.record_error = ""
         self.rows_written = 0
+        self._unwritten: dict = {}       # attempt -> the latest row a write failed for (written again before arming)
+        self._retry_at = 0.0             # monotonic time of the next try at writing them (the preflight runs at 1 Hz)
+        self.min_free_bytes = self.params["min_free_mb"] * 1e6
         self._slow_source_ns: dict[str, int] = {}
         self._recorded = None            # (attempt, mass) of the latest row handed to the record
         self._status_sent = None         # monotonic time of the latest <prefix>/episode status
@@ -395,16 +410,41 @@ class SupervisorNode(Node):
         return [f"node {n} does not listen to {topic} yet (required_listeners): it would miss the attempt "
                 "(is it running?)" for n in self.required_listeners if n not in present]
 
+    def _record_problems(self) -> list[str]:
+        """A preflight item when the run folder cannot take this attempt's record and bag: not writable, less than
+        min_free_mb free, or rows of earlier attempts still unwritten (a review, 2026-11-29: on a full disk the
+        attempts ran, the console printed them, and attempts.csv and the bags were never written)."""
+        out = []
+        if self._unwritten and self.core.state not in LIVE and time.monotonic() >= self._retry_at:
+            self._retry_at = time.monotonic() + RECORD_RETRY_S
+            for row in list(self._unwritten.values()):
+                self._write(row)                    # written once there is room again: nothing is lost
+        if self._unwritten:
+            out.append(f"attempt(s) {', '.join(str(n) for n in sorted(self._unwritten))} not yet written to the "
+                       f"record ({self.record_error}): free space or fix {self.run_dir}, they are written "
+                       "before the next arming")
+        return out + run_dir_problems(self.run_dir, self.csv, self.min_free_bytes)
+
+    def _preflight_extra(self) -> list[str]:
+        return self._record_problems() + self._listener_problems()
+
     def _on_arm(self, request, response):
+        self._retry_at = 0.0                        # the rows not yet written: tried again now
         ok, message = self.core.arm(time.monotonic(), datetime.datetime.now(datetime.timezone.utc)
-                                    .strftime("%Y-%m-%dT%H:%M:%SZ"), self._listener_problems())
+                                    .strftime("%Y-%m-%dT%H:%M:%SZ"), self._preflight_extra())
         response.success, response.message = ok, message
         if ok:
             self.get_logger().info(message)
             self._publish_status()
             # the attempt in the record from now on: if this process dies before the end, the row
             # says so (aborted, INTERRUPTED_REASON) instead of the attempt and its bag going unrecorded
-            self._write(self.core.attempt.provisional_row())
+            if not self._write(self.core.attempt.provisional_row()):
+                # the check above passed and the write failed all the same: not started, nothing moved yet
+                # (a teleop attempt runs at once: the operator's machine stops with the abort)
+                self.core.abort(time.monotonic(), f"not started: {self.record_error}")
+                self._after_end()
+                response.success = False
+                response.message = f"not armed: {self.record_error}"
         else:
             self.get_logger().warn(message)
         return response
@@ -483,10 +523,16 @@ class SupervisorNode(Node):
         try:
             upsert_row(self.csv, row)
             self.rows_written += 1
-            self.record_error = ""
+            self._unwritten.pop(row.attempt, None)
+            if not self._unwritten:
+                self.record_error = ""
+            return True
         except (OSError, ValueError) as exc:
             self.record_error = f"cannot write {self.csv}: {exc}"
-            self.get_logger().error(self.record_error)
+            self._unwritten[row.attempt] = row
+            self.get_logger().error(self.record_error + f" (attempt {row.attempt} kept in memory, written again "
+                                    "before the next arming)")
+            return False
 
     def _publish_status(self) -> None:
         if self._own_stall(time.monotonic()):
@@ -522,7 +568,7 @@ class SupervisorNode(Node):
         return level, f"{c.state}: {values['reason']}", values
 
     def _diag_preflight(self):
-        problems = self.core.preflight(time.monotonic(), self._listener_problems())
+        problems = self.core.preflight(time.monotonic(), self._preflight_extra())
         if self.core.state in LIVE:
             return OK, f"attempt {self.core.attempt.number} {self.core.state}", {}
         if problems:
@@ -533,9 +579,10 @@ class SupervisorNode(Node):
         return OK, "ready to arm", {}
 
     def _diag_record(self):
-        values = {"csv": str(self.csv), "writes": self.rows_written}
+        values = {"csv": str(self.csv), "writes": self.rows_written, "unwritten": len(self._unwritten)}
         if self.record_error:
-            return ERROR, self.record_error, values
+            return ERROR, self.record_error + (f" (attempt(s) {', '.join(str(n) for n in sorted(self._unwritten))} "
+                                               "not written yet)" if self._unwritten else ""), values
         return OK, f"record {self.csv}", values
 
 

@@ -334,8 +334,13 @@ class TeleopCore:
             self.last_problem = out.problem = problem
             self.last_was_bad = True
             self.release_since = None
+            self.armed.clear()                  # what reads after it may be another driver's state
             self._stop(out, forced=True)
             return out
+        if self.last_joy is not None and now - self.last_joy > self.joy_timeout:
+            # a gap: the pad or its driver may have been replugged / restarted between two timer ticks,
+            # and an untouched trigger may read 0 again (half throttle): it must be seen at rest anew
+            self.armed.clear()
         self.last_joy = now
         self.last_was_bad = False
         self.armed |= m.rests(axes)
@@ -372,6 +377,10 @@ class TeleopCore:
         if self.last_joy is None:
             return out
         age = now - self.last_joy
+        if age > self.joy_timeout:
+            # the pad is gone (unplugged, driver stopped): a reconnected one reports an untouched trigger as
+            # 0 on some drivers, which with rest +1 is half throttle; the triggers must be seen at rest anew
+            self.armed.clear()
         if self.commanding and age > self.joy_timeout:
             self._stop(out, forced=True)
             self.deadman_held = False

@@ -34,6 +34,7 @@ import csv
 import io
 import math
 import os
+import shutil
 import tempfile
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -254,6 +255,11 @@ def write_rows(path, rows: list[AttemptRow]) -> None:
         w.writerow(r.to_csv())
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
+        # mkstemp makes it 0600: the record is a lab's shared result, readable as any file the user writes
+        # (the mode an open() would give under the process's umask; a review, 2026-11-29)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.fchmod(fd, 0o666 & ~umask)
         with os.fdopen(fd, "w", newline="") as f:
             f.write(buf.getvalue())
             f.flush()
@@ -448,3 +454,24 @@ def format_table(summary: dict, title: str = "") -> str:
     lines.append("metrics over successful attempts only (mean±std); row 'mean': the mean across slopes of the "
                  "per-slope means ± their standard deviation (the paper's x̄)")
     return "\n".join(lines)
+
+
+def run_dir_problems(run_dir: Path, csv_file: Path, min_free_bytes: float, usage=shutil.disk_usage) -> list[str]:
+    """Why the run folder cannot keep an attempt's record and bag now ([] = it can): not a writable folder,
+    `attempts.csv` not a writable file, or less than `min_free_bytes` free on its file system (0: not checked).
+    The supervisor's preflight (a review, 2026-11-29: on a full disk the attempts ran and nothing was kept)."""
+    run_dir, csv_file = Path(run_dir), Path(csv_file)
+    if not run_dir.is_dir() or not os.access(run_dir, os.W_OK | os.X_OK):
+        return [f"the run folder {run_dir} is not a writable folder: fix it or pick another run_dir"]
+    if csv_file.exists() and (not csv_file.is_file() or not os.access(csv_file, os.W_OK)):
+        return [f"the record {csv_file} is not a writable file: fix it or pick another run_dir"]
+    if min_free_bytes > 0:
+        try:
+            free = usage(run_dir).free
+        except OSError as exc:
+            return [f"the run folder {run_dir} cannot be used ({exc})"]
+        if free < min_free_bytes:
+            return [f"{free / 1e6:.1f} MB free on the run folder's file system ({run_dir}; min_free_mb "
+                    f"{min_free_bytes / 1e6:g}): the record and the bag would not be written; free space or pick "
+                    "another run_dir"]
+    return []
