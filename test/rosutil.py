@@ -39,8 +39,8 @@ class RosProcess:
     """A node started as a separate process (python -m module --ros-args ...)."""
 
     def __init__(self, module: str, params: dict, log_path, extra_env: dict | None = None,
-                 remaps: dict | None = None):
-        args = [sys.executable, "-m", module, "--ros-args"]
+                 remaps: dict | None = None, ros_args: list | None = None):
+        args = [sys.executable, "-m", module, "--ros-args", *(ros_args or [])]    # e.g. ["--params-file", F]
         # diagnostics at 4 Hz instead of 1 Hz: the tests that wait for a status wait less
         params = {DIAGNOSTICS_PERIOD: TEST_DIAGNOSTICS_PERIOD_S, **params}
         for k, v in params.items():

@@ -35,10 +35,14 @@ def refuse_unsound_params(context):
     policies/rld_machine or rlc_gains, with its own lhd_params.yaml unless config:= or $LHD_CONFIG names
     another), then raises (the launch ends, naming the problem, before any node starts) when params_file
     would leave every attempt without zones or commands, or the actor does not fit the parameter file;
-    returns the launch configurations the nodes read (actor_dir, actor_config, slope_limits)."""
+    returns the launch configurations the nodes read (actor_dir, actor_config, slope_limits, and the supervisor's
+    required_listeners, as `lhd up real` sets them: an attempt armed before the recorder, the mux or the
+    controller heard /lhd/episode had no bag or did not move)."""
     from launch.actions import SetLaunchConfiguration
 
-    from lhd_loading_ros.cli.up_real import machine_actor, stack_problem
+    from types import SimpleNamespace
+
+    from lhd_loading_ros.cli.up_real import machine_actor, required_listeners, stack_problem
     from lhd_loading_ros.policy.actor_file import PolicyFileError, load_policy
     from lhd_loading_ros.task.config import ConfigError, load_config
 
@@ -63,8 +67,11 @@ def refuse_unsound_params(context):
     if chosen.note:
         print(f"real_machine.launch.py: {chosen.note}", flush=True)
     limits = list(chosen.slope_limits) if chosen.slope_limits else [0.0, 90.0]
+    record = context.launch_configurations.get("record", "true").strip().lower() in ("true", "1", "yes")
+    listeners = required_listeners(SimpleNamespace(controller=controller, record=record))
     return [SetLaunchConfiguration("actor_dir", chosen.policy), SetLaunchConfiguration("actor_config", chosen.config),
-            SetLaunchConfiguration("slope_limits", f"[{limits[0]:.1f}, {limits[1]:.1f}]")]
+            SetLaunchConfiguration("slope_limits", f"[{limits[0]:.1f}, {limits[1]:.1f}]"),
+            SetLaunchConfiguration("required_listeners", "[" + ", ".join(f"'{n}'" for n in listeners) + "]")]
 
 
 def generate_launch_description():
@@ -113,6 +120,7 @@ def generate_launch_description():
                               "policy_dir": ParameterValue(policy_dir, value_type=str), "material": text("material"),
                               # a YAML list from the launch configuration, "[14.0, 35.0]"
                               "slope_limits_deg": LaunchConfiguration("slope_limits"),
+                              "required_listeners": LaunchConfiguration("required_listeners"),
                               "attempt_timeout": ParameterValue(LaunchConfiguration("attempt_timeout"),
                                                                 value_type=float),
                               "teleop_attempt_timeout": ParameterValue(LaunchConfiguration("teleop_attempt_timeout"),
@@ -124,8 +132,8 @@ def generate_launch_description():
         Node(package="joy", executable="joy_node", name="joy_node", output="screen",
              condition=IfCondition(LaunchConfiguration("joy"))),
         Node(package="lhd_loading_ros", executable="policy_node", name="lhd_policy", output="screen",
-             remappings=[("/lhd/cmd", "/lhd/cmd/auto")],
-             parameters=[pf, {**config, "policy_dir": ParameterValue(policy_dir, value_type=str),
+             # through the mux (a parameter, not a remap: a remap of /lhd/cmd missed under a namespace)
+             parameters=[pf, {**config, "cmd_topic": "cmd/auto", "policy_dir": ParameterValue(policy_dir, value_type=str),
                               "controller": PythonExpression(["'", controller, "' if '", controller,
                                                               "' in ('tampier', 'teacher') else 'actor'"])}],
              condition=IfCondition(PythonExpression(["'", controller, "' != 'teleop'"]))),

@@ -3,7 +3,8 @@
 
 The sim node and the policy node (the shipped RLD actor unless policy_dir is given; controller:=tampier
 or teacher runs the Tampier-style heuristic or the demonstrations' teacher instead), as
-`lhd up sim` starts them where `ros2 launch` is not installed. Under a namespace every /lhd
+`lhd up sim` starts them where `ros2 launch` is not installed; unlike `lhd up sim`, the launch does not end after
+`episodes` (the sim node stops resetting; Ctrl-C ends it) and prints no results table. Under a namespace every /lhd
 topic moves there, and /clock is remapped to the relative `clock` (so `<ns>/clock`; in the
 root namespace that is /clock itself), as `lhd up sim --namespace` does."""
 from launch import LaunchDescription
@@ -25,7 +26,8 @@ def generate_launch_description():
         DeclareLaunchArgument("controller", default_value="actor", description="actor | tampier | teacher"),
         DeclareLaunchArgument("slope_deg", default_value="-1.0", description="pile slope, deg (negative: random)"),
         DeclareLaunchArgument("material", default_value="random", description="homogeneous | nonhomogeneous | random"),
-        DeclareLaunchArgument("episodes", default_value="0", description="episodes before the sim stops (0: no limit)"),
+        DeclareLaunchArgument("episodes", default_value="0", description="episodes before the sim node stops resetting "
+                              "(0: no limit); the nodes keep running until Ctrl-C (`lhd up sim` exits by itself)"),
         DeclareLaunchArgument("mode", default_value="realtime", description="realtime | lockstep"),
         DeclareLaunchArgument("seed", default_value="0"),
         DeclareLaunchArgument("namespace", default_value="", description="e.g. /lhd2: two machines share a domain"),

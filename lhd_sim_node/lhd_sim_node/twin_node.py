@@ -112,7 +112,11 @@ def machine_sections(path: str) -> tuple[dict | None, dict | None]:
     if not isinstance(doc, dict):
         raise ValueError(f"parameter 'machine_params' = {path!r}: not a ROS parameter file (a mapping of node "
                          "names to ros__parameters expected)")
-    return doc.get("aruco_pose_node"), doc.get("lidar_slope_node")
+    # as rcl gives them to the two nodes in the root namespace, where `lhd up twin` runs them (the shipped file keys
+    # its sections /**/<node>, so that they reach the nodes under a namespace too)
+    from lhd_loading_ros.ros.params_file import params_of
+
+    return params_of(doc, "/aruco_pose_node") or None, params_of(doc, "/lidar_slope_node") or None
 
 
 def _weighed(status_values: dict) -> bool:

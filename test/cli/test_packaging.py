@@ -101,12 +101,15 @@ def test_real_machine_launch_file_checks_its_parameters_before_any_node(tmp_path
         ctx = LaunchContext()
         for a in actions:
             a.execute(ctx)
-        return {k: ctx.launch_configurations[k] for k in ("actor_dir", "actor_config", "slope_limits")}
+        return {k: ctx.launch_configurations[k] for k in ("actor_dir", "actor_config", "slope_limits",
+                                                           "required_listeners")}
 
     got = configs(run_check(default_params_file()))     # the machine's RLD, its own file, its validated slopes
     assert got["actor_dir"].endswith("rld_machine") and got["actor_config"].endswith("rld_machine/lhd_params.yaml")
     assert got["slope_limits"] == "[14.0, 35.0]"
-    assert configs(run_check(slow, "teleop")) == {"actor_dir": "", "actor_config": "", "slope_limits": "[0.0, 90.0]"}
+    assert got["required_listeners"] == "['lhd_cmd_mux', 'lhd_policy', 'lhd_recorder']"     # as `lhd up real` sets
+    assert configs(run_check(slow, "teleop")) == {"actor_dir": "", "actor_config": "", "slope_limits": "[0.0, 90.0]",
+                                                  "required_listeners": "['lhd_cmd_mux', 'lhd_recorder']"}
     with pytest.raises(RuntimeError, match="every attempt would end as lost_input"):
         run_check(slow)
     with pytest.raises(RuntimeError, match="expected one name for the pile frame"):

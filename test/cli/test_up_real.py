@@ -155,7 +155,7 @@ def start_stack(tmp_path, slope_deg=20.0, bucket_mass=BUCKET_MASS, attempt_timeo
     base_x0 = 0.05 - s0.x_shovel
     params = tmp_path / "machine.yaml"
     machine = yaml.safe_load((ROOT / "config" / "real_machine.yaml").read_text())
-    machine["aruco_pose_node"]["ros__parameters"].update(camera_xyz=list(CAMERA_XYZ), camera_rpy=list(CAMERA_RPY),
+    machine["/**/aruco_pose_node"]["ros__parameters"].update(camera_xyz=list(CAMERA_XYZ), camera_rpy=list(CAMERA_RPY),
                                                           image_reliable=True)
     params.write_text(yaml.safe_dump(machine))
     link = str(tmp_path / "due")

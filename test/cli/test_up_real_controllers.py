@@ -23,7 +23,7 @@ def controller_node(argv, tmp_path):
 def test_the_baselines_run_in_the_policy_node_without_an_actor(controller, tmp_path):
     (module, params, extra), sup = controller_node(["--controller", controller], tmp_path)
     assert module == "lhd_loading_ros.nodes.policy_node" and params["controller"] == controller
-    assert "policy_dir" not in params and extra == ["-r", "/lhd/cmd:=/lhd/cmd/auto"]
+    assert "policy_dir" not in params and extra == [] and params["cmd_topic"] == "cmd/auto"   # to the mux
     assert sup["controller"] == controller and sup["policy_dir"] == ""     # the record's label
 
 
@@ -91,7 +91,9 @@ def test_the_machine_parameter_file_confirms_the_teachers_drift():
 
     assert node_params(default_params_file(), "/lhd_policy")["teacher_drift_confirm"] == 6
     own = yaml.safe_load((ROOT / "config" / "policy_node.yaml").read_text())
-    assert own["lhd_policy"]["ros__parameters"]["teacher_drift_confirm"] == 1
+    from lhd_loading_ros.ros.params_file import params_of
+
+    assert params_of(own, "/lhd_policy")["teacher_drift_confirm"] == 1
 
 
 def test_machine_actor_is_the_launch_files_rule_too(tmp_path, monkeypatch):

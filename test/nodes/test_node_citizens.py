@@ -4,6 +4,7 @@ reason), use_sim_time, two machines under namespaces in one domain, slow and lat
 the slope-range refusal, /diagnostics, and an episode that starts with its controller."""
 import math
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -117,6 +118,12 @@ def test_other_numeric_type_starts_and_a_wrong_value_is_one_line_exit_2(tmp_path
         log = p.log()
         assert f"parameter '{name}'" in log and "expected" in log and "Traceback" not in log, log
         assert len(log.strip().splitlines()) == 1, log
+    # an empty list reaches a node as no value (rcl cannot type it): the line says how to write "none" (a review)
+    p = RosProcess(POLICY.replace("policy_node", "supervisor_node"),
+                   {"run_dir": str(tmp_path / "sv"), "required_listeners": "[]"}, tmp_path / "bad_list.log")
+    assert p.proc.wait(60) == 2, p.log()
+    p.stop()
+    assert "parameter 'required_listeners' has no value" in p.log() and "write [''] for none" in p.log(), p.log()
 
 
 # ------------------------------------------------------------------ sim node: runtime parameters, hold, diagnostics
@@ -327,6 +334,30 @@ def test_policy_node_refuses_an_actor_trained_with_another_observation_scaling(r
         ros.destroy_subscription(sub)
         ros.destroy_subscription(diag.sub)
         ros.destroy_publisher(pub_status)
+
+
+def test_the_machine_file_reaches_a_namespaced_policy_node_which_commands_through_the_mux(ros, tmp_path):
+    """A ROS review (2026-11-29): under a namespace (-r __ns:=/lhd2, or a launch file's PushRosNamespace) the
+    stacks' remap of the absolute /lhd/cmd to /lhd/cmd/auto matched nothing, so the controller published on
+    the bridge's /lhd2/cmd past the command mux; and config/real_machine.yaml's bare node keys reached no node,
+    so every calibrated value fell back to its default. The file now keys /**/<node> and the policy node has
+    cmd_topic (cmd/auto in the file)."""
+    root = Path(__file__).resolve().parents[2]
+    pol = RosProcess(POLICY, {}, tmp_path / "pol_ns.log", remaps={"__ns": "/lhd2"},
+                     ros_args=["--params-file", str(root / "config" / "real_machine.yaml")])
+    try:
+        def publishers(topic):
+            return sorted(f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in ros.get_publishers_info_by_topic(topic))
+        assert spin_until(ros, lambda: publishers("/lhd2/cmd/auto") == ["/lhd2/lhd_policy"], 60), pol.log()
+        assert publishers("/lhd2/cmd") == [] and publishers("/lhd/cmd") == []
+        client = AsyncParameterClient(ros, "/lhd2/lhd_policy")
+        assert client.wait_for_services(20.0)
+        fut = client.get_parameters(["teacher_drift_confirm", "cmd_topic"])
+        assert spin_until(ros, fut.done, 20)
+        got = [v.integer_value if v.type == 2 else v.string_value for v in fut.result().values]
+        assert got == [6, "cmd/auto"], got             # the machine file's values, not the node's defaults (1, cmd)
+    finally:
+        assert pol.stop() == 0, pol.log()
 
 
 # ------------------------------------------------------------------ whole episodes: use_sim_time, namespaces, start

@@ -460,7 +460,9 @@ def test_the_parameter_file_is_what_the_node_takes(ros, tmp_path):
     from lhd_loading_ros.nodes.recorder_node import RecorderNode
 
     path = Path(__file__).resolve().parents[2] / "config" / "recorder_node.yaml"
-    values = yaml.safe_load(path.read_text())["lhd_recorder"]["ros__parameters"]
+    from lhd_loading_ros.ros.params_file import params_of
+
+    values = params_of(yaml.safe_load(path.read_text()), "/lhd_recorder")
     overrides = [Parameter(k, value=v) for k, v in values.items()] + [Parameter("run_dir", value=str(tmp_path / "r"))]
     node = RecorderNode(context=ros.context, parameter_overrides=overrides)
     try:

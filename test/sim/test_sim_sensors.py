@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import yaml
 
+from lhd_loading_ros.ros.params_file import params_of
 from lhd_loading_ros.perception.aruco import MarkerDetector
 from lhd_loading_ros.perception.synthetic import DrawPoint
 from lhd_loading_ros.task.zones import Zones
@@ -19,7 +20,10 @@ from lhd_sim_node.simulator import LhdSimulator
 
 ROOT = Path(__file__).resolve().parents[2]
 NODES = ROOT / "lhd_loading_ros" / "lhd_loading_ros" / "nodes"
-MACHINE = yaml.safe_load((ROOT / "config" / "real_machine.yaml").read_text())
+# the sections as rcl gives them to the nodes (the file keys them /**/<node>: ros/params_file.py)
+MACHINE = {n: {"ros__parameters": params_of(yaml.safe_load((ROOT / "config" / "real_machine.yaml").read_text()), "/" + n)}
+           for n in ("aruco_pose_node", "lidar_slope_node", "lhd_hw_bridge", "end_zone_node", "lhd_supervisor",
+                     "lhd_policy")}
 CAM = {"camera_xyz": [-1.3, 0.0, 2.0]}          # above the marker's path during an attempt
 IDENTITY = (1.0, 0.0, 0.0, 0.0)                 # MuJoCo quaternion order w, x, y, z
 

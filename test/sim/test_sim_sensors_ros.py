@@ -26,6 +26,7 @@ from sensor_msgs.msg import CameraInfo, Image, LaserScan
 from std_msgs.msg import Float64MultiArray
 from visualization_msgs.msg import Marker, MarkerArray
 
+from lhd_loading_ros.ros.params_file import params_of
 from lhd_loading_ros.perception.synthetic import DrawPoint
 from lhd_loading_ros.task.config import load_config
 from lhd_loading_ros.task.end_zone import nominal_density
@@ -42,7 +43,10 @@ from rosutil import RosProcess, init_ros, shutdown_ros, spin_until
 SERIAL = True
 
 ROOT = Path(__file__).resolve().parents[2]
-MACHINE = yaml.safe_load((ROOT / "config" / "real_machine.yaml").read_text())
+# the sections as rcl gives them to the nodes (the file keys them /**/<node>: ros/params_file.py)
+MACHINE = {n: {"ros__parameters": params_of(yaml.safe_load((ROOT / "config" / "real_machine.yaml").read_text()), "/" + n)}
+           for n in ("aruco_pose_node", "lidar_slope_node", "lhd_hw_bridge", "end_zone_node", "lhd_supervisor",
+                     "lhd_policy")}
 REL = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)

@@ -140,7 +140,7 @@ def stack(args, run_dir: Path, link: str, params_file: Path | None) -> list[tupl
           "attempt_timeout": args.attempt_timeout}, []),
         ("mux", "lhd_loading_ros.nodes.cmd_mux_node", {**common}, []),
         ("controller", "lhd_loading_ros.nodes.policy_node",
-         {**common, "policy_dir": policy_dir, "trigger": args.trigger}, ["-r", "/lhd/cmd:=/lhd/cmd/auto"]),
+         {**common, "policy_dir": policy_dir, "trigger": args.trigger, "cmd_topic": "cmd/auto"}, []),
     ]
 
 

@@ -38,6 +38,7 @@ from typing import NamedTuple
 
 from lhd_loading_ros.cli.launcher import Child, _StopOnSignals, check_children, stop_stack
 from lhd_loading_ros.ros.params import discovery_wait_s
+from lhd_loading_ros.ros.params_file import params_of
 
 CONTROLLERS = ("rld", "rlc", "tampier", "teacher", "teleop")
 ENDED = ("success", "failure", "timeout", "estop", "lost_input", "aborted")
@@ -89,7 +90,7 @@ def stack(args, run_dir: Path) -> list[tuple[str, str, dict, list[str]]]:
             params["controller"] = args.controller
         else:
             params["policy_dir"] = policy_dir
-        nodes.append(("controller", "lhd_loading_ros.nodes.policy_node", params, ["-r", "/lhd/cmd:=/lhd/cmd/auto"]))
+        nodes.append(("controller", "lhd_loading_ros.nodes.policy_node", {**params, "cmd_topic": "cmd/auto"}, []))
     if args.record:
         nodes.append(("recorder", "lhd_loading_ros.nodes.recorder_node",
                       {"run_dir": str(run_dir), "storage": args.storage}, []))
@@ -485,28 +486,6 @@ def parser() -> argparse.ArgumentParser:
     return ap
 
 
-def _rcl_node_pattern(name: str) -> re.Pattern:
-    """A parameter file's node key as rcl matches it against a node's fully qualified name: a
-    leading / is implied, `*` is one name token, `**` any number of them (`/**` every node)."""
-    name = name if name.startswith("/") else "/" + name
-    rx = re.escape(name).replace(r"/\*\*", "(?:/[^/]+)*").replace(r"/\*", "/[^/]+")
-    return re.compile(rx + r"\Z")
-
-
-def _param_sections(doc, prefix: str = ""):
-    """(node key, ros__parameters) of a parameter file in file order, nested keys joined
-    (`/**: {lhd_policy: {ros__parameters: ...}}` is `/**/lhd_policy`)."""
-    if not isinstance(doc, dict):
-        return
-    for key, val in doc.items():
-        if not isinstance(val, dict):
-            continue
-        name = f"{prefix}/{str(key).strip('/')}" if prefix else str(key)
-        if isinstance(val.get("ros__parameters"), dict):
-            yield name, val["ros__parameters"]
-        yield from _param_sections({k: v for k, v in val.items() if k != "ros__parameters"}, name)
-
-
 def node_params(params_file: Path | None, node: str) -> dict:
     """The ROS parameters a parameter file gives the node `node` (fully qualified, e.g.
     /lhd_policy), as rcl applies them: every section whose key matches, in file order, a later one
@@ -519,12 +498,7 @@ def node_params(params_file: Path | None, node: str) -> dict:
         doc = yaml.safe_load(Path(params_file).read_text()) or {}
     except (OSError, yaml.YAMLError):
         return {}              # the nodes refuse an unreadable file and say why
-    fqn = node if node.startswith("/") else "/" + node
-    out: dict = {}
-    for key, params in _param_sections(doc):
-        if _rcl_node_pattern(key).match(fqn):
-            out.update(params)
-    return out
+    return params_of(doc, node)
 
 
 MIN_COMMANDS_PER_TIMEOUT = 2     # a controller's command may be one period late without the mux timing it out

@@ -69,6 +69,7 @@ command frames on the serial line.
 from __future__ import annotations
 
 import math
+import re
 import time
 from collections import deque
 
@@ -105,6 +106,15 @@ from lhd_loading_ros.ros.run import run_node
 # Observation and decision trace out: MEASUREMENT_QOS. Episode status in: STATUS_QOS (transient local: a node started
 # during an attempt learns at once whether it may command).
 TRIGGERS = ("timer", "lockstep", "odom")
+_CMD_TOPIC = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*\Z")
+
+
+def _cmd_topic_problem(value: str) -> str | None:
+    if not _CMD_TOPIC.match(value):
+        return ("expected a topic relative to the prefix, such as cmd or cmd/auto (no leading slash: the prefix, "
+                "/lhd or the node's namespace, comes first)")
+    return None
+
 CONTROLLERS = ("actor", "tampier", "teacher")
 SLOPE_SOURCES = ("attempt", "live")
 RUNNING = "running"              # the only /lhd/episode state in which a controller may move the machine
@@ -170,6 +180,10 @@ class PolicyNode(Node):
                   "on through one)", lo=0.0, hi=60.0),
             Param("namespace_prefix", "/lhd", "topic prefix in the root namespace (under a namespace, the "
                   "namespace is the prefix)"),
+            Param("cmd_topic", "cmd", "where the commands go, relative to the prefix: cmd (straight to the sim node "
+                  "or the bridge) or cmd/auto (through the command mux: the real machine). A parameter, not a remap: "
+                  "a remap of the absolute /lhd/cmd did not match under a namespace, and the controller wrote "
+                  "straight to the bridge past the mux (a review, 2026-11-29)", check=_cmd_topic_problem),
         ])
         gp = self.params.__getitem__
         self.rate_hz = gp("rate_hz")
@@ -246,7 +260,7 @@ class PolicyNode(Node):
         self._decided_mono_ns = None     # its monotonic time in ns, for the decision trace
         self.odom_decisions = self.fallback_decisions = self.odom_skipped = 0
 
-        self.pub_cmd = self.create_publisher(Float64MultiArray, f"{ns}/cmd", COMMAND_QOS)
+        self.pub_cmd = self.create_publisher(Float64MultiArray, f"{ns}/{gp('cmd_topic')}", COMMAND_QOS)
         self.pub_obs = self.create_publisher(Float32MultiArray, f"{ns}/observation", MEASUREMENT_QOS)
         self.pub_decision = self.create_publisher(DiagnosticStatus, f"{ns}/policy/decision", MEASUREMENT_QOS)
         self.create_subscription(JointState, f"{ns}/joint_states", self._on_js, qin)

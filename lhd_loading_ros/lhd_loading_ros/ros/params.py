@@ -190,8 +190,10 @@ class Params:
             raw = node.declare_parameter(s.name, s.default, loose).value
         except InvalidParameterValueException as exc:
             raise ValueError(f"parameter '{s.name}' is invalid ({exc}); expected {s.expected()}") from None
-        if raw is None:     # `-p name:=` with nothing, or a YAML null
-            raise ValueError(f"parameter '{s.name}' has no value; expected {s.expected()}")
+        if raw is None:     # `-p name:=` with nothing, or a YAML null (rcl reads an empty list `[]` so too)
+            hint = {"str_list": " (an empty list `[]` reaches a node as no value, rcl cannot type it: write [''] for none)",
+                    "float_list": " (an empty list `[]` reaches a node as no value, rcl cannot type it)"}.get(s.kind, "")
+            raise ValueError(f"parameter '{s.name}' has no value; expected {s.expected()}{hint}")
         value = s.coerce(raw)
         node.undeclare_parameter(s.name)
         node.declare_parameter(s.name, _as_param_value(s, value), s.descriptor(), ignore_override=True)
