@@ -93,6 +93,8 @@ def test_aruco_node_pose_speed_loss_and_staleness(ros, tmp_path):
         speeds = [o.twist.twist.linear.x for o in odom]
         assert all(math.isfinite(v) for v in speeds)
         assert all(o.twist.covariance[0] == pytest.approx(0.025 ** 2) for o in odom)   # the Kalman filter's measured error
+        # the axes it does not measure say so (not 0, which a fuser reads as perfect knowledge)
+        assert all([o.twist.covariance[7 * i] for i in range(1, 6)] == [1.0e6] * 5 for o in odom)
         assert len(speeds) > 30 and max(abs(v - speed) for v in speeds) < 0.02
         assert poses and not stale[-1]
         # the marker leaves the view: no odometry (an unknown speed is no message, never NaN),

@@ -59,6 +59,7 @@ POSE_VAR = 0.005 ** 2     # m^2, position variance of a fresh detection (about 5
 # docs/perception.md): the Kalman filter 0.025 m/s worst, the 0.3 s window 0.11 m/s (mostly its lag).
 # Not the filter's own P: its random-walk model (q = 1 m^2/s^3) says 0.11 m/s, 4x the measured error.
 SPEED_VAR = {"kalman": 0.025 ** 2, "window": 0.11 ** 2}
+UNMEASURED_VAR = 1.0e6     # (m/s)^2, (rad/s)^2: a twist axis the node does not measure (the usual "ignore this" value)
 # m: solvePnP's marker height may differ this much from marker_height before diagnostics warn (its
 # own error is about 2 cm on the twin's images: 1.6 cm bias, 0.6 cm sd, docs/perception.md)
 HEIGHT_TOLERANCE = 0.05
@@ -584,7 +585,11 @@ class ArucoPoseNode(Node):
             cov[7 * i] = POSE_VAR * 4.0  # rad^2: orientation from a 0.12 m marker is ~2x less certain
         od.pose.covariance = cov
         od.twist.twist.linear.x = v
+        # only v_x is measured: the other twist axes get a variance that says "not measured" (a fuser such as
+        # robot_localization took the zeros as perfect knowledge; a ROS review, 2026-11-29)
         tc = [0.0] * 36
+        for i in range(1, 6):
+            tc[7 * i] = UNMEASURED_VAR
         tc[0] = SPEED_VAR[self._vel_params["filter"]]
         od.twist.covariance = tc
         self.pub_odom.publish(od)

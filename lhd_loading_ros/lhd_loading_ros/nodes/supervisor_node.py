@@ -34,7 +34,7 @@ import re
 import time
 from pathlib import Path
 
-from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
 from rclpy.duration import Duration
 from rclpy.event_handler import SubscriptionEventCallbacks
@@ -75,6 +75,7 @@ from lhd_loading_ros.task.zones import Zones
 MASS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
                       durability=DurabilityPolicy.VOLATILE)
 CHECK_HZ = 50.0          # end conditions on the steady clock (and on every joints / odom arrival)
+END_ZONE_DIAG_S = 3.0    # s: the end-zone node's ERROR status counts this long (its diagnostics come at 1 Hz)
 RECORD_RETRY_S = 5.0     # s between tries at writing rows a write failed for (a full disk: logged each time)
 STATUS_HZ = 5.0          # <prefix>/episode at least this often (the controllers' status_timeout is 1.5 s)
 STALL_MARGIN_S = 0.1     # a gap between two statuses longer than status_timeout minus this: our own stall
@@ -89,6 +90,11 @@ def _check_node_names(v) -> str | None:
     bad = [n for n in v if n and not NODE_NAME.match(n)]
     return (f"not node names {bad}: expected names such as 'lhd_recorder' or '/ns/lhd_recorder' "
             "([''] for none)") if bad else None
+
+
+def _node_name_problem(v: str) -> str | None:
+    return None if not v or re.match(r"^[A-Za-z_][A-Za-z0-9_]*$", v) else \
+        "expected a node name such as end_zone_node (no namespace: this node's), or empty for none"
 
 
 def _utc_stamp() -> str:
@@ -212,6 +218,10 @@ class SupervisorNode(Node):
             Param("required_listeners", [""], "names of nodes that must subscribe to <prefix>/episode before "
                   "an attempt may be armed (a preflight item), e.g. ['lhd_recorder']: an attempt armed before the "
                   "recorder has discovered the status would have no bag; [''] for none", check=_check_node_names),
+            Param("end_zone_node", "end_zone_node", "name of the end-zone node in this node's namespace: while its "
+                  "/diagnostics 'zones' status is ERROR (it refuses the latest pile estimate: a toe beyond its limits, "
+                  "a slope in another frame) the zones latched are an earlier estimate's, and arming is refused; "
+                  "empty: not watched (surveyed zones, another zones source)", check=_node_name_problem),
             Param("min_free_mb", 100.0, "MB: to arm, the run folder's file system must have this much free space "
                   "(the record and the recorder's bag of the attempt: a few MB each); 0: no check", lo=0.0, hi=1e6),
         ])
@@ -288,6 +298,13 @@ class SupervisorNode(Node):
             self.create_subscription(Float64, f"{ns}/pile/slope", self._on_slope, qos, event_callbacks=events)
             self.create_subscription(Float64MultiArray, f"{ns}/pile/zones", self._on_zones, qos, event_callbacks=events)
         self.create_subscription(DiagnosticStatus, f"{ns}/hw/status", self._on_hw, MEASUREMENT_QOS)
+        # the end-zone node's own verdict on the latest pile estimate (it keeps the last good zones latched when it
+        # refuses one: without this the supervisor armed on a new pile's fresh slope with an earlier pile's zones)
+        ez = self.params["end_zone_node"]
+        self.end_zone_diag = (f"{self.get_namespace().rstrip('/')}/{ez}: zones") if ez else ""
+        self._end_zone_error = None       # (monotonic arrival, message) of its latest ERROR status, None when OK
+        if ez:
+            self.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, 50)
         self.create_subscription(Bool, f"{ns}/estop", self._on_estop, LATCHED_QOS)
         # the command mux's selected source (latched): a running attempt whose controller's commands
         # stop reaching the machine ends (task.attempt: Supervisor._command_problem)
@@ -410,6 +427,20 @@ class SupervisorNode(Node):
         return [f"node {n} does not listen to {topic} yet (required_listeners): it would miss the attempt "
                 "(is it running?)" for n in self.required_listeners if n not in present]
 
+    def _on_diagnostics(self, msg) -> None:
+        for st in msg.status:
+            if st.name == self.end_zone_diag:
+                self._end_zone_error = (time.monotonic(), st.message) if st.level == DiagnosticStatus.ERROR else None
+
+    def _end_zone_problems(self) -> list[str]:
+        """A preflight item while the end-zone node reports, within END_ZONE_DIAG_S, that it refuses the latest pile
+        estimate (a review, 2026-11-29: the previous pile's zones stayed latched and an attempt was armed with them)."""
+        e = self._end_zone_error
+        if e is None or time.monotonic() - e[0] > END_ZONE_DIAG_S:
+            return []
+        return [f"the end-zone node refuses the latest pile estimate ({e[1]}): the zones in use are an earlier "
+                "estimate's; fix the scan (the toe, the frame) or the end-zone node's limits"]
+
     def _record_problems(self) -> list[str]:
         """A preflight item when the run folder cannot take this attempt's record and bag: not writable, less than
         min_free_mb free, or rows of earlier attempts still unwritten (a review, 2026-11-29: on a full disk the
@@ -426,7 +457,7 @@ class SupervisorNode(Node):
         return out + run_dir_problems(self.run_dir, self.csv, self.min_free_bytes)
 
     def _preflight_extra(self) -> list[str]:
-        return self._record_problems() + self._listener_problems()
+        return self._end_zone_problems() + self._record_problems() + self._listener_problems()
 
     def _on_arm(self, request, response):
         self._retry_at = 0.0                        # the rows not yet written: tried again now
