@@ -44,6 +44,8 @@ from lhd_loading_ros.task.zones import classify, zones_for_slope_estimate
 from .simulator import MATERIALS, AttackError, LhdSimulator, SimulationError
 
 VARIANTS = ("rld", "rlc")
+ATTACK_REDRAWS = 5          # a stalled attack drive: the pile drawn again at most this often (reset, reset_or_redraw)
+D_ATTACK_LIMIT_M = 1.0     # m: the farthest start the reset option d_attack takes (the attack timeout's reach)
 RESET_OPTIONS = frozenset(("slope_deg", "material", "conditions", "d_attack", "attack_speed"))
 
 
@@ -53,9 +55,34 @@ class LhdLoadingEnv(gym.Env):
     def __init__(self, variant: str = "rld", config: dict | str | None = None, slope_deg: float | None = None,
                  material: str | None = None, deploy_filter: bool = False, randomize: bool | None = None,
                  zones_from_estimate: bool | None = None, zones_nominal_density: bool | None = None,
-                 zones_density: float | None = None):
+                 zones_density: float | None = None, attack_redraws: int | None = None, render_mode: str | None = None):
+        if render_mode is not None:
+            raise ValueError(f"render_mode = {render_mode!r}: this environment renders nothing (metadata render_modes "
+                             "is empty); `lhd replay BAG --video` animates a recorded attempt, and mujoco.viewer can "
+                             "show env.unwrapped.sim.model / .data")
+        self.render_mode = None
+        self._closed = False
         if variant not in VARIANTS:
             raise ValueError(f"variant must be one of {VARIANTS}, got {variant!r}")
+        # flags are booleans: a string such as "no" or "false" was taken as true (an RL-API review, 2026-11-29)
+        for name, v, optional in (("deploy_filter", deploy_filter, False), ("randomize", randomize, True),
+                                  ("zones_from_estimate", zones_from_estimate, True),
+                                  ("zones_nominal_density", zones_nominal_density, True)):
+            if not (isinstance(v, (bool, np.bool_)) or (optional and v is None)):
+                raise ValueError(f"{name} = {v!r}: expected True or False" + (" (or None: the config's)" if optional else ""))
+        if deploy_filter and variant != "rlc":
+            raise ValueError("deploy_filter=True is the RLC deployment filter (docs/training.md); the rld variant "
+                             "has no such filter: expected deploy_filter=False with variant 'rld'")
+        if attack_redraws is None:
+            attack_redraws = ATTACK_REDRAWS
+        if isinstance(attack_redraws, bool) or not isinstance(attack_redraws, numbers.Integral) or attack_redraws < 0:
+            raise ValueError(f"attack_redraws = {attack_redraws!r}: expected an integer >= 0")
+        # reset() draws the pile and conditions again, from the env's own random stream, where the attack drive
+        # cannot bury the bucket (AttackError: about 1 reset in 80 on 35 deg piles under the wide files'
+        # randomisation) or MuJoCo finds it unstable: a Gym loop, or a vector env's autoreset inside step(), must
+        # not die on it (a review). 0: raise at once (reset_or_redraw sets it so: its own redraws are seeded)
+        self.attack_redraws = int(attack_redraws)
+        self.attack_redraws_used = 0
         if material is not None and material not in MATERIALS:
             raise ValueError(f"material must be one of {MATERIALS} or None (random), got {material!r}")
         self.cfg = config if isinstance(config, dict) else load_config(config)
@@ -96,13 +123,37 @@ class LhdLoadingEnv(gym.Env):
         if slope_deg is None:
             return
         lo, hi = math.degrees(self.p.alpha_min), math.degrees(self.p.alpha_max)
-        if not (isinstance(slope_deg, (int, float)) and math.isfinite(slope_deg) and lo - 1e-9 <= slope_deg <= hi + 1e-9):
+        # any real number (numpy's float32 / int64 too; a review found them refused with an untrue message), not a bool
+        ok = isinstance(slope_deg, numbers.Real) and not isinstance(slope_deg, (bool, np.bool_))
+        if not (ok and math.isfinite(slope_deg) and lo - 1e-9 <= slope_deg <= hi + 1e-9):
             raise ValueError(f"{name} = {slope_deg!r} degrees is outside the configured pile range [{lo:g}, {hi:g}] "
                              "degrees (paper.episode.alpha_min_deg / alpha_max_deg); expected a slope in it")
 
     # ------------------------------------------------------------------ gym API
+    def _check_attack(self, options: dict) -> None:
+        """The reset options d_attack (m, the tip's distance before the toe when the drive in starts) and
+        attack_speed (rad/s of the wheels during it): finite, within what the attack drive can do."""
+        d = options.get("d_attack")
+        if d is not None and not (isinstance(d, numbers.Real) and math.isfinite(d) and 0.0 < d <= D_ATTACK_LIMIT_M):
+            raise ValueError(f"options['d_attack'] = {d!r}: expected metres in (0, {D_ATTACK_LIMIT_M:g}] (the config's "
+                             "paper.episode.d_attack_min..d_attack_max is what training draws)")
+        s = options.get("attack_speed")
+        if s is not None and not (isinstance(s, numbers.Real) and math.isfinite(s) and 0.0 < s <= self.p.wheels_max):
+            raise ValueError(f"options['attack_speed'] = {s!r}: expected a wheel speed in (0, {self.p.wheels_max:g}] "
+                             "rad/s (control.wheels_max)")
+
+    def close(self) -> None:
+        """No more episodes: step() and reset() refuse afterwards (the simulator's memory goes with the env)."""
+        self._done = True
+        self._closed = True
+
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        if self._closed:
+            raise RuntimeError("reset() on a closed environment: create a new one")
         super().reset(seed=seed)
+        # until this reset has built its episode, no step: a reset that raises must not leave the previous
+        # episode steppable on a half-built pile (a review stored such a transition)
+        self._done = True
         options = options or {}
         unknown = sorted(set(options) - RESET_OPTIONS)
         if unknown:       # a misspelt option would otherwise be dropped without a word (a review)
@@ -114,15 +165,24 @@ class LhdLoadingEnv(gym.Env):
         slope = options.get("slope_deg", self.slope_deg)
         self._check_slope(slope, "options['slope_deg']")
         alpha = None if slope is None else math.radians(slope)
-        c = options.get("conditions")
-        if c is None:
-            c = draw(self.np_random, self.ranges) if self.randomize else NOMINAL
-        elif not isinstance(c, Conditions):
-            raise ValueError(f"options['conditions'] must be a task.randomization.Conditions, got {type(c).__name__}")
-        arm_rates = self._arm_rate_windows(c)      # refused before anything of the episode is set
-        self.conditions = c
-        self.sim.reset(self.np_random, alpha=alpha, material=options.get("material", self.material),
-                       d_attack=options.get("d_attack"), attack_speed=options.get("attack_speed"), conditions=c)
+        given = options.get("conditions")
+        if given is not None and not isinstance(given, Conditions):
+            raise ValueError(f"options['conditions'] must be a task.randomization.Conditions, got {type(given).__name__}")
+        self._check_attack(options)
+        first_error = None
+        for redraw in range(self.attack_redraws + 1):
+            c = given if given is not None else (draw(self.np_random, self.ranges) if self.randomize else NOMINAL)
+            arm_rates = self._arm_rate_windows(c)      # refused before anything of the episode is set
+            self.conditions = c
+            try:
+                self.sim.reset(self.np_random, alpha=alpha, material=options.get("material", self.material),
+                               d_attack=options.get("d_attack"), attack_speed=options.get("attack_speed"), conditions=c)
+                break
+            except (AttackError, SimulationError) as exc:
+                first_error = first_error or exc
+        else:
+            raise first_error
+        self.attack_redraws_used = redraw
         c_obs = c
         if c.surface_sd > 0.0:
             # a rough face: the LiDAR scans one slice of it (the pile's XZ plane), whose own slope
@@ -152,6 +212,7 @@ class LhdLoadingEnv(gym.Env):
         self._m = self._measured(s)
         info = self._info(s, "running", {})
         info["told_slope_deg"], info["slope_refusal"] = self.told_slope_deg, self.slope_refusal
+        info["attack_redraws"] = self.attack_redraws_used
         return self._obs(self._m), info
 
     def step(self, action):
@@ -326,8 +387,6 @@ class LhdLoadingEnv(gym.Env):
         return self._m
 
 
-ATTACK_REDRAWS = 5
-
 
 def reset_or_redraw(env, seed_k: int, options: dict, log=print):
     """env.reset on the episode's seed; where the attack drive cannot bury the bucket (AttackError:
@@ -337,15 +396,19 @@ def reset_or_redraw(env, seed_k: int, options: dict, log=print):
     same slope. A stalled attack is not a transition the learner can use; it must not end the run.
     MuJoCo finding the attack drive unstable (SimulationError) is redrawn in the same way.
     Returns the first observation."""
+    own, env.attack_redraws = env.attack_redraws, 0        # the redraws here, seeded, as every run before
     try:
-        return env.reset(seed=seed_k, options=options)[0]
-    except (AttackError, SimulationError) as e:
-        first = e
-    for r in range(1, ATTACK_REDRAWS + 1):
         try:
-            obs = env.reset(seed=int(np.random.default_rng([seed_k, r]).integers(2**31 - 1)), options=options)[0]
-        except (AttackError, SimulationError):
-            continue
-        log(f"episode seed {seed_k}: {first}; its pile drawn again ({r} redraw{'s' if r > 1 else ''})")
-        return obs
-    raise first
+            return env.reset(seed=seed_k, options=options)[0]
+        except (AttackError, SimulationError) as e:
+            first = e
+        for r in range(1, ATTACK_REDRAWS + 1):
+            try:
+                obs = env.reset(seed=int(np.random.default_rng([seed_k, r]).integers(2**31 - 1)), options=options)[0]
+            except (AttackError, SimulationError):
+                continue
+            log(f"episode seed {seed_k}: {first}; its pile drawn again ({r} redraw{'s' if r > 1 else ''})")
+            return obs
+        raise first
+    finally:
+        env.attack_redraws = own

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import glob
 import os
+import pathlib
 
 import numba
 from numba import njit, types
@@ -81,11 +82,11 @@ def _drop_stale_cache() -> None:
     try:
         from lhd_loading_ros.task import kinematics
         deps.append(kinematics.__file__)
-        digest = hashlib.sha256(b"".join(open(f, "rb").read() for f in deps)).hexdigest()
+        digest = hashlib.sha256(b"".join(pathlib.Path(f).read_bytes() for f in deps)).hexdigest()
         dirs = [os.path.join(here, "__pycache__")] + ([ncfg.CACHE_DIR] if ncfg.CACHE_DIR else [])
         for d in dirs:
             stamp = os.path.join(d, "fused.deps")
-            if os.path.isdir(d) and (not os.path.isfile(stamp) or open(stamp).read() != digest):
+            if os.path.isdir(d) and (not os.path.isfile(stamp) or pathlib.Path(stamp).read_text() != digest):
                 for f in glob.glob(os.path.join(d, "**", "fused.run_*"), recursive=True):
                     os.remove(f)
                 with open(stamp, "w") as fh:

@@ -66,6 +66,39 @@ class FeeReport:
 
 
 class LhdSimulator:
+    # what points into this simulator's own MjData / MjModel: views and the raw C addresses the compiled loop
+    # takes. A copy or an unpickled simulator binds them to its own data again (__setstate__): a review found
+    # copy.deepcopy(env) stepping the original's physics and an unpickled env crashing (segmentation fault)
+    _BOUND = ("_ctrl", "_act", "_qpos", "_qvel", "_site_xpos", "_site_xmat", "_pm", "_pd")
+
+    def _bind_views(self) -> None:
+        # views into MjData (valid for the life of self.data): cheaper than attribute lookups
+        d = self.data
+        self._ctrl, self._act, self._qpos, self._qvel = d.ctrl, d.act, d.qpos, d.qvel
+        self._site_xpos, self._site_xmat = d.site_xpos, d.site_xmat
+        self._pm, self._pd = (self.model._address, self.data._address) if getattr(self, "fused", False) else (0, 0)
+
+    def __getstate__(self) -> dict:
+        st = {k: v for k, v in self.__dict__.items() if k not in self._BOUND}
+        del st["model"]              # the data carries its own copy of the model, which it was made with
+        return st
+
+    def __setstate__(self, st: dict) -> None:
+        self.__dict__.update(st)
+        self.model = self.data.model
+        self._bind_views()
+        if getattr(self, "_kargs", None) is not None:
+            # the kernel's views into MuJoCo's arrays came over as detached copies: the FEE force would go into
+            # an array the physics never reads. Those of this data and model instead (the rest, the pile's arrays
+            # and the kernel's state, came over with the same identities as the attributes that hold them)
+            d, m = self.data, self.model
+            self._kargs = (d.site_xpos, d.site_xmat, d.xipos, d.xfrc_applied, m.tendon_frictionloss, m.body_mass,
+                           *self._kargs[6:])
+        if getattr(self, "_body_args", None) is not None:        # the whole bucket's kernel (bucket_body.bind)
+            self._body_args = self.body.args = (self.data.xpos, self.data.xmat, self.model.body_mass,
+                                                self.model.dof_frictionloss, self.model.tendon_frictionloss,
+                                                *self._body_args[5:])
+
     def __init__(self, cfg: dict, articulation_hinge: bool = False):
         """articulation_hinge=True: the machine model before 2026-11-26, its articulation a hinge
         locked by an equality constraint (mjcf.build_mjcf; for comparisons), not a rigid joint."""
@@ -133,10 +166,7 @@ class LhdSimulator:
         self.act_boom_adr = m.actuator_actadr[self.act_boom]
         self.act_bucket_adr = m.actuator_actadr[self.act_bucket]
         self._act_wheels = [int(a) for a in self.act_wheels]
-        # views into MjData (valid for the life of self.data): cheaper than attribute lookups
-        d = self.data
-        self._ctrl, self._act, self._qpos, self._qvel = d.ctrl, d.act, d.qpos, d.qvel
-        self._site_xpos, self._site_xmat = d.site_xpos, d.site_xmat
+        self._bind_views()
         self.bucket_mass0 = float(m.body_mass[self.bid_bucket])
         self.geometry = attack_geometry(cfg["machine"])
         self.pile: VoxelPile | None = None
@@ -152,7 +182,7 @@ class LhdSimulator:
         self.fused = fused.AVAILABLE
         self._attack_marks = np.zeros((int(self.attack_timeout / (self.fee_every * m.opt.timestep)) + 2,
                                        2 + len(WHEELS)))
-        self._pm, self._pd = (self.model._address, self.data._address) if self.fused else (0, 0)
+        self._pm, self._pd = (self.model._address, self.data._address) if self.fused else (0, 0)   # (_bind_views too)
         vx = cfg["paper"]["voxels"]
         # the bucket's geometric capacity (m^3, struck + heap at repose) over the tip pitch (H4's table)
         cap_pitch, cap_vol = capacity_table(cfg)

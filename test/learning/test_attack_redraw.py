@@ -19,8 +19,12 @@ def steep_env():
 
 
 def test_a_stalled_attack_is_redrawn_at_the_same_slope(steep_env):
+    steep_env.attack_redraws = 0                      # the env's own redraws off: this seed's attack stalls
     with pytest.raises(AttackError, match="did not reach d_init"):
         steep_env.reset(seed=14, options={"slope_deg": 35.0})
+    steep_env.attack_redraws = ATTACK_REDRAWS         # on (the default): reset() itself draws again
+    _, info = steep_env.reset(seed=14, options={"slope_deg": 35.0})
+    assert info["attack_redraws"] >= 1 and abs(np.degrees(steep_env.sim.pile.alpha) - 35.0) < 1e-9
     lines = []
     obs = reset_or_redraw(steep_env, 14, {"slope_deg": 35.0}, lines.append)
     assert obs.shape == (12,) and np.isfinite(obs).all()

@@ -226,6 +226,10 @@ def _eval(args) -> int:
         print(f"lhd eval: {exc}", file=sys.stderr)
         return 1
     deploy = args.deploy_filter
+    if deploy and pol.variant != "rlc":
+        print(f"lhd eval: --deploy-filter is the RLC deployment filter; {args.policy} is an {pol.variant.upper()} actor, "
+              "which has none: leave the flag out", file=sys.stderr)
+        return 2
     env = LhdLoadingEnv(pol.variant, cfg, deploy_filter=deploy, randomize=args.randomize or None,
                         zones_from_estimate=True, zones_nominal_density=nominal, zones_density=args.zones_density)
     res = evaluate(env, pol.actor, args.episodes, args.seed, cfg["task"]["bucket_capacity"], stress=args.stress,

@@ -1,6 +1,6 @@
 """Fully connected ReLU networks with hand-written backward passes and Adam on one flat buffer.
 
-Why not ``nn.Sequential`` + autograd: at the sizes DDPG needs here (12 -> 256 -> 256 -> 3 at
+Why not ``nn.Sequential`` + autograd: at the sizes DDPG needs here (12 -> 64 -> 64 -> 3, the config's hidden sizes, or the paper-scale 256 x 256, at
 batch 256) a step of PyTorch's eager autograd and ``torch.optim.Adam`` on this 2-core CPU
 costs milliseconds of per-operator overhead, more than the arithmetic. One DDPG update
 through these classes is a few dozen ``addmm``/elementwise calls plus a six-call Adam on a

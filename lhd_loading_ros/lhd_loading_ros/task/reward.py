@@ -98,7 +98,8 @@ def r_bottom(z_bottom: float, z_pile_at_bottom: float, p: TaskParams) -> float:
 def r_weight(W: float, p: TaskParams, W_prev: float = 0.0) -> float:
     """Paper: R_weight * W^t (kg in the bucket), every step. With r_weight_increments = 1
     (default): R_weight * (W^t - W^{t-1}), the material as it enters the bucket; an episode
-    still sums to R_weight * W^T, but holding a full bucket earns nothing (docs/training.md)."""
+    sums to R_weight * (W^T - W^0), W^0 being what the attack drive scooped before the first step
+    (0.07-0.9 kg), and holding a full bucket earns nothing (docs/training.md)."""
     return p.R_weight * (W - W_prev) if p.r_weight_increments else p.R_weight * W
 
 
