@@ -87,6 +87,12 @@ def _talks_to_processes(module) -> bool:
 
 
 def pytest_configure(config):
+    # rcl's own log files of every node the suite starts: in the temporary folder, not ~/.ros/log (a review found
+    # 43 MB there, mostly the suite's)
+    if "ROS_LOG_DIR" not in os.environ and "ROS_HOME" not in os.environ:
+        import tempfile
+
+        os.environ["ROS_LOG_DIR"] = os.path.join(tempfile.gettempdir(), "lhd_test_ros_logs")
     config.addinivalue_line("markers", "ros: starts node processes or talks over DDS (depends on timing: `make test` "
                                        "runs these on TEST_JOBS workers, one test file per worker)")
     config.addinivalue_line("markers", "serial: a whole stack in real time (twin, real-machine launcher, sensor "

@@ -69,6 +69,22 @@ def test_echo_gets_a_value_latched_before_it_started(node):
                        text=True, timeout=120)
     assert p.returncode == 0, p.stderr
     assert echo_output(p.stdout) == "data: surveyed\n---\n"
+    # a relative name resolves in the root namespace, as ros2 topic echo's does; a type the topic does not carry
+    # is said, and one that is no type is named (a review, 2026-11-29)
+    p = subprocess.run(ECHO + ["echo_test/latched", "--count", "1", "--wait", "60"], capture_output=True,
+                       text=True, timeout=120)
+    assert p.returncode == 0 and echo_output(p.stdout) == "data: surveyed\n---\n", p.stderr
+    p = subprocess.Popen(ECHO + ["/echo_test/latched", "--type", "std_msgs/msg/Float64", "--wait", "60"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        _, err = p.communicate(timeout=8)
+    except subprocess.TimeoutExpired:
+        p.terminate()
+        _, err = p.communicate(timeout=30)
+    assert "carries std_msgs/msg/String, not std_msgs/msg/Float64: nothing will match" in err, err
+    p = subprocess.run(ECHO + ["/echo_test/latched", "--type", "foo/bar", "--wait", "60"], capture_output=True,
+                       text=True, timeout=120)
+    assert p.returncode == 1 and "--type 'foo/bar': expected a message type such as std_msgs/msg/Float64" in p.stderr
     node.destroy_publisher(pub)
 
 

@@ -382,3 +382,19 @@ def test_up_sim_refuses_a_domain_where_a_simulator_already_runs():
     finally:
         os.killpg(sim.pid, signal.SIGINT)
         sim.wait(20)
+
+
+def test_children_keep_rcl_logs_in_the_launchers_folder(tmp_path, monkeypatch):
+    """rcl's own log files of the nodes a launcher starts go to its log folder, not ~/.ros/log, unless the user
+    chose ROS_LOG_DIR or ROS_HOME (a review, 2026-11-29)."""
+    from lhd_loading_ros.cli.launcher import child_env
+
+    monkeypatch.delenv("ROS_LOG_DIR", raising=False)
+    monkeypatch.delenv("ROS_HOME", raising=False)
+    env = child_env(tmp_path)
+    assert env["ROS_LOG_DIR"] == str(tmp_path / "rcl") and env["PYTHONUNBUFFERED"] == "1"
+    monkeypatch.setenv("ROS_LOG_DIR", "/somewhere/else")
+    assert child_env(tmp_path)["ROS_LOG_DIR"] == "/somewhere/else"
+    monkeypatch.delenv("ROS_LOG_DIR")
+    monkeypatch.setenv("ROS_HOME", "/home/op/.ros")
+    assert "ROS_LOG_DIR" not in child_env(tmp_path)

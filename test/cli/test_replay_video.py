@@ -109,5 +109,8 @@ def test_mp4_without_imageio_ffmpeg_and_bad_names(cfg, tmp_path, capsys, monkeyp
     assert "expected a .gif or .mp4" in capsys.readouterr().err
     assert replay.main([str(bag), "--video", str(tmp_path / "a.gif"), "--fps", "0"]) == 2
     assert "--fps 0" in capsys.readouterr().err
+    # --plot's format too, before the bag is read (matplotlib's refusal was a traceback: a review)
+    assert replay.main([str(bag), "--plot", str(tmp_path / "a.txt")]) == 2
+    assert "--plot" in (err := capsys.readouterr().err) and ".png" in err and not (tmp_path / "a.txt").exists()
     with pytest.raises(replay_video.VideoError, match="at most"):
         replay_video.frame_times(0, 1e6, 10.0)

@@ -71,6 +71,9 @@ def test_a_small_study_end_to_end(tmp_path):
                         "--errors", "0,15", "--out", str(out)], capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stderr[-3000:]
     assert "Success rate [%]" in p.stdout and "| 15 | 30 | +15 |" in p.stdout
+    # into a pipe the progress is whole lines, no carriage returns (a review: a log got one line of thousands)
+    bars = [ln for ln in p.stderr.splitlines() if ln.startswith("lhd experiment paper [")]
+    assert "\r" not in p.stderr and 1 <= len(bars) <= 11 and bars[-1].split("] ")[1].startswith("10/10 attempts"), bars
     rows = list(csv.DictReader((out / "attempts.csv").open()))
     assert len(rows) == 2 + 2 * 2 * 2                      # table (a): 2 controllers; (b): both, 2 piles x 2 errors
     for r in rows:

@@ -83,6 +83,8 @@ def main(argv=None) -> int:
     ap.add_argument("--transient-local", action="store_true",
                     help="subscribe transient local whatever the publishers do")
     args = ap.parse_args(argv)
+    # a relative name resolves in the root namespace, as `ros2 topic echo lhd/odom` does (a review)
+    args.topic = args.topic if args.topic.startswith("/") else "/" + args.topic
     import rclpy
 
     from lhd_loading_ros.ros.run import SPIN_PERIOD_S, run_node
@@ -111,6 +113,9 @@ def main(argv=None) -> int:
         while not stop.is_set():
             types = dict(node.get_topic_names_and_types())
             if args.topic in types:
+                if type_name and type_name not in types[args.topic]:
+                    print(f"lhd echo: warning: {args.topic} carries {', '.join(types[args.topic])}, not {type_name}: "
+                          "nothing will match; leave --type out to take the graph's", file=sys.stderr, flush=True)
                 type_name = type_name or types[args.topic][0]
                 break
             if time.monotonic() > t_end:
@@ -122,8 +127,9 @@ def main(argv=None) -> int:
         if type_name:
             try:
                 cls = message_class(type_name)
-            except ValueError as exc:
-                raise EchoError(str(exc)) from None
+            except (ValueError, ImportError, AttributeError) as exc:
+                raise EchoError(f"--type {type_name!r}: expected a message type such as std_msgs/msg/Float64 "
+                                f"({exc})") from None
             qos = matched_qos(node.get_publishers_info_by_topic(args.topic), args.best_effort, args.transient_local)
             node.create_subscription(cls, args.topic, on_message, qos)
         return node

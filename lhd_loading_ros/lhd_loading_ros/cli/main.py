@@ -93,7 +93,7 @@ def _bench(args) -> int:
 
         res = bench_bridge(seconds=args.seconds)
     else:
-        print(f"lhd bench: unknown benchmark {args.what!r}; expected: sim, train, node, bridge, perception", file=sys.stderr)
+        print(f"lhd bench: unknown benchmark {args.what!r}; expected: sim, train, node, bridge, perception, twin", file=sys.stderr)
         return 2
     if args.json:
         print(json_out.dumps(res))
@@ -303,7 +303,7 @@ def _experiment(args) -> int:
         print(json_out.dumps({k: v for k, v in res.items() if k != "markdown"}))
     else:
         print(res["markdown"])
-        print(f"{res['attempts']} attempts in {res['wall_s']:.0f} s on {res['jobs']} processes; tables, CSV and "
+        print(f"{res['attempts']} attempts in {res['wall_s']:.0f} s on {res['jobs']} process{'es' if res['jobs'] != 1 else ''}; tables, CSV and "
               f"figures in {args.out}")
     return 0
 
@@ -479,12 +479,12 @@ def _main(argv=None) -> int:
     p_bench.add_argument("--cycles", type=pos_int, default=1000, help="node: policy cycles measured (10 Hz)")
     p_bench.add_argument("--vs-sb3", action="store_true", help="train: also time Stable-Baselines3's DDPG")
     p_bench.add_argument("--seconds", type=float, default=4.0, help="bridge: latency measurement time")
-    p_bench.add_argument("--json", action="store_true")
+    p_bench.add_argument("--json", action="store_true", help="one JSON line of the figures instead of the table")
     p_bench.add_argument("--steps", type=pos_int, default=None, help="sim, train: steps timed (default 3000; "
                          "sim --ros 1000)")
     p_bench.add_argument("--ros", action="store_true", help="sim: also through a lockstep sim node over DDS "
                          "(LhdLoadingRos-v0), next to the in-process figure")
-    p_bench.add_argument("--seed", type=nonneg_int, default=0)
+    p_bench.add_argument("--seed", type=nonneg_int, default=0, help="sim, train: the episodes' seed")
     p_bench.add_argument("--rounds", type=pos_int, default=3, help="alternating runs; the best of each is reported")
     p_bench.add_argument("--config", default=None, help="parameter file (default: config/lhd_params.yaml)")
     p_bench.add_argument("--jobs", type=int, default=1, help="train: time N processes at once, as a study runs "
@@ -526,7 +526,7 @@ def _main(argv=None) -> int:
     p_eval.add_argument("--controller", choices=["actor", "tampier"], default="actor",
                         help="actor: an exported policy (--policy); tampier: the Tampier-style heuristic baseline")
     p_eval.add_argument("--policy", help="policy directory (actor.npz + policy.json); required for --controller actor. "
-                        "An actor shipped with its own lhd_params.yaml (policies/*_twin*) needs --config DIR/lhd_params.yaml")
+                        "An actor shipped with its own lhd_params.yaml (ten of them: rld_machine, rld_gains, rlc_gains, rld_wide, the *_twin* ones...; policies/README.md) needs --config DIR/lhd_params.yaml")
     p_eval.add_argument("--slopes", default=None, help="tampier: pile slopes, degrees (default 15,20,25,30)")
     p_eval.add_argument("--material", choices=["both", "homogeneous", "nonhomogeneous"], default=None,
                         help="tampier: pile material (default both)")

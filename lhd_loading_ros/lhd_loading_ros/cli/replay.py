@@ -411,6 +411,18 @@ def main(argv=None) -> int:
         print(f"lhd replay: {exc}", file=sys.stderr)
         return 2
     extra = None
+    if args.plot:
+        # checked before the bag is read: matplotlib's own refusal came as a traceback (a review)
+        import matplotlib
+
+        matplotlib.use("Agg")
+        from matplotlib.figure import Figure
+
+        kinds = Figure().canvas.get_supported_filetypes()
+        if Path(args.plot).suffix.lstrip(".").lower() not in kinds:
+            print(f"lhd replay: --plot {args.plot}: expected a file ending in one of "
+                  f"{', '.join('.' + k for k in sorted(kinds))} (the image's format)", file=sys.stderr)
+            return 2
     if args.video:
         from lhd_loading_ros.cli import replay_video
 

@@ -937,6 +937,7 @@ def main(argv=None) -> int:
         rargv.append("--no-record")
     rap = real_parser()
     rap.prog = ap.prog
+    rap.error = ap.error       # a refusal shows the twin's usage, not `lhd up real`'s (--port, --settle...: a review)
     real_args = rap.parse_args(rargv)
     real_check_args(rap, real_args)      # sets the actor (the machine's default) and its own parameter file
     from lhd_loading_ros.task.config import ConfigError

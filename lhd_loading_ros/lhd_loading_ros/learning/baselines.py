@@ -168,15 +168,23 @@ def run_cli(episodes: int, seed: int, slopes: str, material: str, time_limit: fl
 
     from lhd_loading_ros.task.config import ConfigError, load_config
 
+    # each bad argument named alone (they were listed all at once, the good ones too: a review)
+    parts = str(slopes).split(",")
     try:
-        slope_list = tuple(float(v) for v in str(slopes).split(",") if v.strip())
+        slope_list = tuple(float(v) for v in parts)
     except ValueError:
         slope_list = ()
-    if (episodes < 1 or seed < 0 or not slope_list or not all(math.isfinite(v) for v in slope_list)
-            or not (math.isfinite(time_limit) and time_limit >= 0)):
-        print(f"tampier eval: expected --episodes >= 1 (got {episodes}), --seed >= 0 (got {seed}), --slopes as "
-              f"comma-separated degrees (got {slopes!r}), --time-limit a finite number of seconds >= 0, 0 for the "
-              f"environment's 200 steps (got {time_limit})", file=sys.stderr)
+    problems = []
+    if episodes < 1:
+        problems.append(f"--episodes {episodes}: expected >= 1")
+    if seed < 0:
+        problems.append(f"--seed {seed}: expected >= 0")
+    if not slope_list or not all(math.isfinite(v) for v in slope_list):
+        problems.append(f"--slopes {slopes!r}: expected comma-separated degrees, e.g. 15,20,25,30")
+    if not (math.isfinite(time_limit) and time_limit >= 0):
+        problems.append(f"--time-limit {time_limit}: expected seconds >= 0 (0: the environment's 200 steps)")
+    if problems:
+        print(f"tampier eval: {'; '.join(problems)}", file=sys.stderr)
         return 2
     try:
         cfg = load_config(config)

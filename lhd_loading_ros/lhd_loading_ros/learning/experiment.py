@@ -268,13 +268,19 @@ def run(jobs: list[Job], jobs_n: int = 0, config=None, policy_dirs: dict | None 
     rows: list = [None] * len(jobs)
     t0 = time.monotonic()
 
+    # on a terminal one line redrawn in place; into a file or pipe a line at each tenth (a review: a log file got
+    # one line of thousands of carriage returns)
+    tty = progress is not None and getattr(progress, "isatty", lambda: False)()
+
     def tick(done):
         if progress is not None:
+            if not tty and done != len(jobs) and int(10 * done / len(jobs)) == int(10 * (done - 1) / len(jobs)):
+                return
             el = time.monotonic() - t0
             eta = el / done * (len(jobs) - done) if done else float("nan")
             bar = "#" * int(30 * done / len(jobs))
-            progress.write(f"\rlhd experiment paper [{bar:<30}] {done}/{len(jobs)} attempts, {el:.0f} s, "
-                           f"about {eta:.0f} s left ")
+            progress.write(f"{'' if not tty else chr(13)}lhd experiment paper [{bar:<30}] {done}/{len(jobs)} attempts, "
+                           f"{el:.0f} s, about {eta:.0f} s left {'' if tty else chr(10)}")
             progress.flush()
 
     if n == 1:
@@ -287,7 +293,7 @@ def run(jobs: list[Job], jobs_n: int = 0, config=None, policy_dirs: dict | None 
             for done, (i, row) in enumerate(pool.imap_unordered(_indexed, list(enumerate(jobs)), chunksize=1), 1):
                 rows[i] = row
                 tick(done)
-    if progress is not None:
+    if progress is not None and tty:
         progress.write("\n")
     return rows
 
