@@ -67,7 +67,7 @@ def refuse_unsound_params(context):
     if chosen.note:
         print(f"real_machine.launch.py: {chosen.note}", flush=True)
     limits = list(chosen.slope_limits) if chosen.slope_limits else [0.0, 90.0]
-    record = context.launch_configurations.get("record", "true").strip().lower() in ("true", "1", "yes")
+    record = context.launch_configurations.get("record", "true").strip().lower() in ("true", "1")   # as IfCondition
     listeners = required_listeners(SimpleNamespace(controller=controller, record=record))
     return [SetLaunchConfiguration("actor_dir", chosen.policy), SetLaunchConfiguration("actor_config", chosen.config),
             SetLaunchConfiguration("slope_limits", f"[{limits[0]:.1f}, {limits[1]:.1f}]"),

@@ -168,7 +168,7 @@ def test_up_sim_first_attempt_time_is_the_environments(tmp_path):
 
     seed, slope = 7, 20.0
     pol = load_policy(default_policy_dir("rld"))
-    env = LhdLoadingEnv("rld", deploy_filter=True)
+    env = LhdLoadingEnv("rld")
     obs, _ = env.reset(seed=seed, options={"slope_deg": slope, "material": "homogeneous"})
     while True:
         obs, _, term, trunc, info = env.step(np.clip(pol.actor(obs), -1, 1))

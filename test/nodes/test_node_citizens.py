@@ -424,7 +424,7 @@ def test_first_episode_time_is_not_inflated_by_a_slow_controller_start(ros, tmp_
 
     seed, slope = 2, 20.0
     pol_file = load_policy(default_policy_dir("rld"))
-    env = LhdLoadingEnv("rld", deploy_filter=True)
+    env = LhdLoadingEnv("rld")
     obs, _ = env.reset(seed=seed, options={"slope_deg": slope, "material": "homogeneous"})
     while True:
         obs, _, term, trunc, info = env.step(np.clip(pol_file.actor(obs), -1, 1))

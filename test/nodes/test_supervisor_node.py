@@ -116,35 +116,50 @@ def test_arm_refused_while_the_end_zone_node_refuses_the_pile_estimate(rig):
     """A field review (2026-11-29): when the end-zone node refuses a new LiDAR estimate (a toe beyond its
     limits, a slope in another frame) the last good zones stay latched, and the supervisor armed on the new
     pile's fresh slope with an earlier pile's zones. The real end-zone node, fed a toe 7 m out: its ERROR
-    status on /diagnostics is a preflight item; gone (OK, or silent for 3 s), arming is possible again."""
-    from geometry_msgs.msg import Vector3Stamped
-
-    from lhd_loading_ros.nodes.supervisor_node import END_ZONE_DIAG_S
-
+    status on /diagnostics is a preflight item, kept after the node has gone (fail closed), until the node
+    reports OK again on a good estimate."""
     from diagnostic_msgs.msg import DiagnosticArray
+    from geometry_msgs.msg import Vector3Stamped
 
     item = "the end-zone node refuses the latest pile estimate (/lhd/pile/slope_stamped: toe x 7.000 m: expected " \
            "|toe x| <= 5 m"
     preflight = []
     sub = rig.node.create_subscription(DiagnosticArray, "/diagnostics", lambda m: preflight.extend(
         s.message for s in m.status if s.name == "/lhd_supervisor: preflight"), 50)
-    ez = RosProcess("lhd_loading_ros.nodes.end_zone_node", {}, rig.run_dir.parent / "end_zone.log")
     pub = rig.node.create_publisher(Vector3Stamped, "/lhd/pile/slope_stamped", 10)
+
+    def estimate(toe_x):
+        m = Vector3Stamped()
+        m.header.frame_id = "pile"
+        m.vector.x, m.vector.y, m.vector.z = math.radians(20.0), toe_x, 0.01
+        pub.publish(m)
+
+    def listed():          # the supervisor's own checklist names it (no arming until then: it would arm)
+        estimate(7.0)
+        return any(item in s for s in preflight[-3:])
+
+    ez = RosProcess("lhd_loading_ros.nodes.end_zone_node", {}, rig.run_dir.parent / "end_zone.log")
     try:
-        def listed():      # the supervisor's own checklist names it (no arming until then: it would arm)
-            m = Vector3Stamped()
-            m.header.frame_id = "pile"
-            m.vector.x, m.vector.y, m.vector.z = math.radians(20.0), 7.0, 0.01
-            pub.publish(m)
-            return any(item in s for s in preflight[-3:])
         assert wait_for(listed, 60.0), (preflight[-2:], ez.log())
         res = rig.call(rig.arm_client)
         assert not res.success and item in res.message, res.message
     finally:
-        rig.node.destroy_subscription(sub)
         ez.stop()
+    n = len(preflight)
+    assert wait_for(lambda: len(preflight) > n + 8, 10.0)               # 2 s of checklists with the node gone
+    assert all(item in s for s in preflight[-4:]), preflight[-1]         # still refused: fail closed
+    ez = RosProcess("lhd_loading_ros.nodes.end_zone_node", {}, rig.run_dir.parent / "end_zone_2.log")
+    try:
+        def cleared():
+            estimate(0.0)                                                # a good estimate: the node reports OK
+            return preflight and not any(item in s for s in preflight[-2:])
+        assert wait_for(cleared, 60.0), (preflight[-1:], ez.log())
+    finally:
+        ez.stop()
+        rig.node.destroy_subscription(sub)
         rig.node.destroy_publisher(pub)
-    time.sleep(END_ZONE_DIAG_S + 0.5)             # its last ERROR has aged out: the next test arms
+        rig.pub_zones.publish(Float64MultiArray(data=ZONES))            # the rig's own zones again
+        time.sleep(0.3)
 
 
 def test_arm_running_success_at_the_end_of_the_control_period(rig):

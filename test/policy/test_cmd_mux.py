@@ -237,3 +237,18 @@ def test_the_mux_s_own_pause_is_not_a_lost_status(mux):
     _drive(off, 0.0, 0.1, status_every=0.5)
     out = _drive(off, 0.11, 4.0)
     assert off.episode_state == "running" and all(c == tuple(AUTO) for t, c in out if t > 0.2)
+
+
+def test_an_armed_attempt_holds_every_source_the_gamepad_too(mux):
+    """A field review (2026-11-29): the ungated gamepad drove through the supervisor's 1 s arm delay, so a
+    teleop attempt's first second was neither timed nor sampled for drift. While an attempt is armed no source
+    is forwarded; the gamepad driving when the arming came is stopped at once, and drives again at running."""
+    mux.on_episode("idle", 0.0)
+    assert mux.on_command("teleop", TELE, 0.05) == [tuple(TELE)]     # placing the machine before an attempt
+    assert mux.on_episode("armed", 0.1) == [ZERO]                     # armed: stopped at once
+    assert mux.active == "none"
+    assert mux.on_command("teleop", TELE, 0.15) == [] and mux.on_command("teleop", TELE, 0.2) == []
+    assert mux.states["teleop"].dropped_gated == 2
+    assert "teleop: held: an attempt is armed; every source waits for it to run" in mux.explain(0.21)
+    assert mux.on_episode("running", 1.1) == []
+    assert mux.on_command("teleop", TELE, 1.15) == [tuple(TELE)]     # the attempt runs: the operator drives it

@@ -842,6 +842,16 @@ def test_arming_is_refused_while_the_gamepad_is_selected_or_the_mux_reports_the_
     r.ready()
     t.inputs.put("mux", "teleop", r.t)
     assert t.preflight(r.t) == []
+    # and an autonomous controller moving a teleop-labelled attempt is not that attempt (a review, 2026-11-29)
+    from dataclasses import replace
+
+    t.s = replace(t.s, arm_delay=0.0)
+    t.inputs.put("mux", "none", r.t)
+    r.arm()
+    r.step(0.1)
+    r.sv.inputs.put("mux", "auto", r.t)
+    assert r.step(0.02) == "aborted" and "an autonomous controller's commands moved a teleop attempt" in \
+        r.sv.attempt.reason
 
 
 def test_the_mux_left_over_from_the_last_attempt_is_not_this_attempts(kin):
@@ -1193,8 +1203,8 @@ def test_a_teleoperated_attempt_gets_the_teleop_timeout(kin):
     r.sv.controller = "teleop"
     msg = r.arm()
     assert "timeout 40 s" in msg and r.sv.attempt.timeout == 40.0
-    # and it runs at once: the gamepad is not gated, so what the operator drives after arming is timed
-    assert r.sv.state == "running" and "running in" not in msg
+    # the arm delay as for every controller (the mux holds the gamepad in it: cmd_mux.ARMED)
+    assert r.sv.state == "armed" and r.step(1.0) == "running"
     assert r.step(39.98) == "running"                    # well past 10 s: the operator is still loading
     assert r.step(0.02) == "timeout" and r.sv.attempt.reason == "teleop_attempt_timeout 40 s passed"
     r.sv.set_attempt_timeout(20.0, teleop=True)
@@ -1204,7 +1214,7 @@ def test_a_teleoperated_attempt_gets_the_teleop_timeout(kin):
     assert r.step(10.0) == "timeout" and r.sv.attempt.reason == "attempt_timeout 10 s passed"
     r.sv.controller = "teleop"
     r.arm()
-    assert r.step(19.98) == "running" and r.step(0.02) == "timeout"
+    assert r.step(1.0) == "running" and r.step(19.98) == "running" and r.step(0.02) == "timeout"
     with pytest.raises(ValueError, match="teleop_attempt_timeout"):
         settings(teleop_attempt_timeout=math.nan)
 

@@ -419,7 +419,8 @@ def main(argv=None) -> int:
         from matplotlib.figure import Figure
 
         kinds = Figure().canvas.get_supported_filetypes()
-        if Path(args.plot).suffix.lstrip(".").lower() not in kinds:
+        suffix = Path(args.plot).suffix.lstrip(".").lower()
+        if suffix and suffix not in kinds:          # (no suffix: matplotlib writes a PNG)
             print(f"lhd replay: --plot {args.plot}: expected a file ending in one of "
                   f"{', '.join('.' + k for k in sorted(kinds))} (the image's format)", file=sys.stderr)
             return 2

@@ -157,7 +157,7 @@ def up_real(args) -> int:
     keep_logs = args.log_dir is not None
     log_dir = Path(args.log_dir) if keep_logs else run_dir / "logs"
     log_dir.mkdir(parents=True, exist_ok=True)
-    kept = keep_earlier_logs(log_dir)
+    kept = keep_earlier_logs(log_dir) if not keep_logs else None    # (a folder the user named is left alone)
     if kept:
         print(f"lhd up real: the node logs of an earlier run in this folder moved to {kept}", flush=True)
     params_file = Path(args.params_file) if args.params_file else default_params_file()
@@ -302,6 +302,9 @@ def up_real(args) -> int:
             if not keep_logs and not failed and args.remove_logs and not state["record_failed"]:
                 for f in log_dir.glob("*.log"):         # this run's: an earlier run's, moved aside, stay
                     f.unlink(missing_ok=True)
+                import shutil
+
+                shutil.rmtree(log_dir / "rcl", ignore_errors=True)   # rcl's own files (launcher.child_env)
                 try:
                     log_dir.rmdir()
                 except OSError:

@@ -69,7 +69,6 @@ command frames on the serial line.
 from __future__ import annotations
 
 import math
-import re
 import time
 from collections import deque
 
@@ -106,13 +105,17 @@ from lhd_loading_ros.ros.run import run_node
 # Observation and decision trace out: MEASUREMENT_QOS. Episode status in: STATUS_QOS (transient local: a node started
 # during an attempt learns at once whether it may command).
 TRIGGERS = ("timer", "lockstep", "odom")
-_CMD_TOPIC = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*\Z")
+
+
+CMD_TOPICS = ("cmd", "cmd/auto")
 
 
 def _cmd_topic_problem(value: str) -> str | None:
-    if not _CMD_TOPIC.match(value):
-        return ("expected a topic relative to the prefix, such as cmd or cmd/auto (no leading slash: the prefix, "
-                "/lhd or the node's namespace, comes first)")
+    # only these two: any other relative name could be the mux's ungated, highest-priority gamepad source
+    # (cmd/teleop), which would put a controller above the operator (a review)
+    if value not in CMD_TOPICS:
+        return ("expected cmd (straight to the sim node or a bridge without a mux) or cmd/auto (through the command "
+                "mux), relative to the prefix")
     return None
 
 CONTROLLERS = ("actor", "tampier", "teacher")

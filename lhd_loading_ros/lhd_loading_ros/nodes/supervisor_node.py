@@ -63,7 +63,7 @@ from lhd_loading_ros.task.viz import AttemptTrail, zone_boxes
 from lhd_loading_ros.task.zones import Zones
 
 # QoS (lhd_loading_ros.ros.qos). Measurements in: sensor-data QoS (best effort), which matches
-# every publisher (the ArUco node's odometry is best effort); the bridge status MEASUREMENT_QOS
+# every publisher, reliable or best effort (the ArUco node's odometry is reliable); the bridge status MEASUREMENT_QOS
 # as the bridge publishes it. Slope and zones: a latched subscription (LATCHED_QOS) receives
 # what a latched publisher sent before this node started, a second, sensor-data one takes a
 # volatile publisher (as the policy node does). E-stop: LATCHED_QOS, so a supervisor started
@@ -75,7 +75,6 @@ from lhd_loading_ros.task.zones import Zones
 MASS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
                       durability=DurabilityPolicy.VOLATILE)
 CHECK_HZ = 50.0          # end conditions on the steady clock (and on every joints / odom arrival)
-END_ZONE_DIAG_S = 3.0    # s: the end-zone node's ERROR status counts this long (its diagnostics come at 1 Hz)
 RECORD_RETRY_S = 5.0     # s between tries at writing rows a write failed for (a full disk: logged each time)
 STATUS_HZ = 5.0          # <prefix>/episode at least this often (the controllers' status_timeout is 1.5 s)
 STALL_MARGIN_S = 0.1     # a gap between two statuses longer than status_timeout minus this: our own stall
@@ -167,7 +166,8 @@ class SupervisorNode(Node):
                   "motors (docs/supervisor.md \"Teleoperated attempts\"); a change applies from the next arming",
                   lo=ATTEMPT_TIMEOUT_RANGE_S[0], hi=ATTEMPT_TIMEOUT_RANGE_S[1],
                   on_change=lambda v: self.core.set_attempt_timeout(v, teleop=True)),
-            Param("arm_delay", 1.0, "s between armed and running (0: at once)", lo=0.0, hi=60.0),
+            Param("arm_delay", 1.0, "s between armed and running (0: at once); the command mux holds every source "
+                  "while an attempt is armed, the gamepad too", lo=0.0, hi=60.0),
             Param("status_timeout", STATUS_TIMEOUT_S, "s: the controllers' status_timeout (policy node, command mux: "
                   "they stop a running attempt whose status is older). When this node did not publish its status for "
                   "longer than that less 0.1 s (its process stalled), the running attempt is aborted with that reason, "
@@ -302,7 +302,7 @@ class SupervisorNode(Node):
         # refuses one: without this the supervisor armed on a new pile's fresh slope with an earlier pile's zones)
         ez = self.params["end_zone_node"]
         self.end_zone_diag = (f"{self.get_namespace().rstrip('/')}/{ez}: zones") if ez else ""
-        self._end_zone_error = None       # (monotonic arrival, message) of its latest ERROR status, None when OK
+        self._end_zone_error = None       # (monotonic arrival, message) of its latest status if ERROR, else None
         if ez:
             self.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, 50)
         self.create_subscription(Bool, f"{ns}/estop", self._on_estop, LATCHED_QOS)
@@ -321,7 +321,7 @@ class SupervisorNode(Node):
         self._publish_status()
         self.get_logger().info(f"supervisor up: record {self.csv} (next attempt {first}), controller "
                                f"{self.core.controller}, slope range [{lo:g}, {hi:g}] deg ({source}), timeout "
-                               f"{settings.attempt_timeout:g} s, arm delay {settings.arm_delay:g} s")
+                               f"{self.core.timeout_for_controller:g} s, arm delay {settings.arm_delay:g} s")
 
     # ------------------------------------------------------------------ inputs
     def _put(self, name: str, value) -> None:
@@ -433,10 +433,12 @@ class SupervisorNode(Node):
                 self._end_zone_error = (time.monotonic(), st.message) if st.level == DiagnosticStatus.ERROR else None
 
     def _end_zone_problems(self) -> list[str]:
-        """A preflight item while the end-zone node reports, within END_ZONE_DIAG_S, that it refuses the latest pile
-        estimate (a review, 2026-11-29: the previous pile's zones stayed latched and an attempt was armed with them)."""
+        """A preflight item while the end-zone node's latest status says it refuses the latest pile estimate (a
+        review, 2026-11-29: the previous pile's zones stayed latched and an attempt was armed with them). Kept until
+        a status of that node says otherwise: a node that died or hung in that state keeps arming refused (fail
+        closed; restart it, or set end_zone_node to '' for zones from elsewhere)."""
         e = self._end_zone_error
-        if e is None or time.monotonic() - e[0] > END_ZONE_DIAG_S:
+        if e is None:
             return []
         return [f"the end-zone node refuses the latest pile estimate ({e[1]}): the zones in use are an earlier "
                 "estimate's; fix the scan (the toe, the frame) or the end-zone node's limits"]
@@ -465,17 +467,18 @@ class SupervisorNode(Node):
                                     .strftime("%Y-%m-%dT%H:%M:%SZ"), self._preflight_extra())
         response.success, response.message = ok, message
         if ok:
-            self.get_logger().info(message)
-            self._publish_status()
-            # the attempt in the record from now on: if this process dies before the end, the row
-            # says so (aborted, INTERRUPTED_REASON) instead of the attempt and its bag going unrecorded
+            # the attempt in the record first, then its status (a review: a status published before a failed write
+            # let the mux see a live attempt for an instant): if this process dies before the end, the row says so
+            # (aborted, INTERRUPTED_REASON) instead of the attempt and its bag going unrecorded
             if not self._write(self.core.attempt.provisional_row()):
-                # the check above passed and the write failed all the same: not started, nothing moved yet
-                # (a teleop attempt runs at once: the operator's machine stops with the abort)
+                # the check above passed and the write failed all the same: not started, nothing published yet
                 self.core.abort(time.monotonic(), f"not started: {self.record_error}")
                 self._after_end()
                 response.success = False
                 response.message = f"not armed: {self.record_error}"
+                return response
+            self.get_logger().info(message)
+            self._publish_status()
         else:
             self.get_logger().warn(message)
         return response
@@ -545,7 +548,7 @@ class SupervisorNode(Node):
                                f"{row.phi_final_deg:.1f} deg")
         self._write(row)
 
-    def _write(self, row) -> None:
+    def _write(self, row) -> bool:
         # what _check compares: the attempt's own mass, not the row's (rounded to the record's 10 g: a
         # load cell's 22.004 kg is a row of 22.00, and comparing the two rewrote the row and logged it at
         # 50 Hz until the next arming). A failed write is reported, not retried at 50 Hz

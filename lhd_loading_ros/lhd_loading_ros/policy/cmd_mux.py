@@ -39,6 +39,10 @@ from lhd_loading_ros.policy.status_watch import LostAttempts, StatusWatch
 from lhd_loading_ros.task.attempt import STATUS_TIMEOUT_S
 
 RUNNING = "running"
+# an attempt armed, not yet running (the supervisor's arm delay): no source at all, the ungated gamepad too. The
+# machine stands still in that second for every controller; before 2026-11-29 the gamepad drove through it, so a
+# teleop attempt's first second of driving was neither timed nor sampled for drift (a field review)
+ARMED = "armed"
 STATUS_LOST = "status lost"      # episode_state after a running status stopped arriving
 PAUSE_S = 0.1                    # a gap between two ticks longer than this: the mux itself did not run
 ESTOP = "estop"
@@ -170,7 +174,7 @@ class CommandMux:
     def eligible(self, s: Source, now: float) -> bool:
         st = self.states[s.name]
         return (st.last_arrival is not None and now - st.last_arrival <= s.timeout and not st.cut
-                and (not s.gated or self.running))
+                and (not s.gated or self.running) and self.episode_state != ARMED)
 
     def select(self, now: float) -> str | None:
         if self.estop:
@@ -191,6 +195,8 @@ class CommandMux:
             return f"silent for {now - st.last_arrival:.2f} s (timeout {s.timeout:g} s)"
         if st.cut:
             return "cut until silent for its timeout (an attempt ended or the e-stop was released)"
+        if self.episode_state == ARMED:
+            return "held: an attempt is armed; every source waits for it to run"
         if s.gated and not self.running:
             if self.episode_state == STATUS_LOST:
                 return f"gated: {self._lost_text()}"
@@ -224,7 +230,7 @@ class CommandMux:
         self._uncut(now)
         sel = self.select(now)
         if sel != self.selected:
-            if self.selected is not None and sel != taking_over:
+            if self.selected is not None and (taking_over is None or sel != taking_over):
                 self._zero(now, out)
             self.selected = sel
 
@@ -254,7 +260,7 @@ class CommandMux:
             st.forwarded += 1
         elif st.cut:
             st.dropped_cut += 1
-        elif s.gated and not self.running:
+        elif (s.gated and not self.running) or self.episode_state == ARMED:
             st.dropped_gated += 1
         return out
 

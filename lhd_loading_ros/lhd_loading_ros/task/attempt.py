@@ -583,9 +583,8 @@ class Supervisor:
         self._stopped_since = None
         self.state = "armed"
         note = ""
-        if self.s.arm_delay == 0 or self.controller == "teleop":
-            # a teleoperated attempt runs at once: the operator's gamepad is never gated by the mux (the deadman is
-            # its authority), so driving during an arm delay would be neither timed nor sampled for drift (a review)
+        if self.s.arm_delay == 0:
+            # (the arm delay holds every source in the mux, the gamepad too: cmd_mux.ARMED)
             self._start_running(now)
         else:
             note = f", running in {self.s.arm_delay:g} s"
@@ -737,7 +736,14 @@ class Supervisor:
         if src == "estop":
             return ("estop", f"emergency stop engaged (the command mux reports it: {self.s.prefix}/cmd_mux/active "
                              "estop)")
-        if a.controller == "teleop" or src is None:
+        if src is None:
+            return None
+        if a.controller == "teleop":
+            # a teleop attempt has the operator's timeout and no takeover checks: an autonomous controller moving the
+            # machine in it (a stack whose supervisor is labelled teleop while an actor runs) is not that attempt
+            if src == "auto":
+                return ("aborted", "an autonomous controller's commands moved a teleop attempt (cmd_mux/active: auto): "
+                                   "the supervisor's controller label is teleop while a controller runs; fix the label")
             return None
         if src == "auto":
             a.auto_seen = True
