@@ -76,12 +76,19 @@ def test_echo_gets_a_value_latched_before_it_started(node):
     assert p.returncode == 0 and echo_output(p.stdout) == "data: surveyed\n---\n", p.stderr
     p = subprocess.Popen(ECHO + ["/echo_test/latched", "--type", "std_msgs/msg/Float64", "--wait", "60"],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    import threading
+
+    lines = []                                # read in a thread: it listens until stopped (Fast DDS may log first)
+    threading.Thread(target=lambda: lines.extend(iter(p.stderr.readline, "")), daemon=True).start()
+    want = "carries std_msgs/msg/String, not std_msgs/msg/Float64: nothing will match"
     try:
-        _, err = p.communicate(timeout=8)
-    except subprocess.TimeoutExpired:
+        t_end = time.monotonic() + 30
+        while time.monotonic() < t_end and not any(want in ln for ln in lines):
+            time.sleep(0.05)
+    finally:
         p.terminate()
-        _, err = p.communicate(timeout=30)
-    assert "carries std_msgs/msg/String, not std_msgs/msg/Float64: nothing will match" in err, err
+        p.wait(timeout=30)
+    assert any(want in ln for ln in lines), lines
     p = subprocess.run(ECHO + ["/echo_test/latched", "--type", "foo/bar", "--wait", "60"], capture_output=True,
                        text=True, timeout=120)
     assert p.returncode == 1 and "--type 'foo/bar': expected a message type such as std_msgs/msg/Float64" in p.stderr
