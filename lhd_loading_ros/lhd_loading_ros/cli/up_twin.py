@@ -345,6 +345,8 @@ class Watch:
         self.status: dict = {}              # the latest /lhd/episode key-values
         self.status_log: list[tuple[float, dict]] = []
         self.preflight = None
+        self.record_seen: dict = {}         # the record / recorder diagnostics' last keys (up_real.record_diag_line)
+        self.record_failed = False
         self.slope = self.zones = None      # the stack's latest estimates
         self.slope_scan_t = -1.0            # ROS time (s) of the scan behind the latest slope
         self.slope_fit = None               # (alpha rad, toe x m) of the latest slope_stamped
@@ -376,10 +378,18 @@ class Watch:
             self.status = kv
             self.status_log.append((now(), kv))
 
+        from lhd_loading_ros.cli.up_real import RECORD_DIAGNOSTICS, record_diag_line
+
         def on_diag(m):
             for st in m.status:
                 if st.name.endswith("supervisor: preflight"):
                     self.preflight = st
+                elif st.name.endswith(RECORD_DIAGNOSTICS):
+                    # the record or the bags cannot be written: said as it happens, as `lhd up real` does (a review)
+                    line = record_diag_line(self.record_seen, st.name, st.level == DiagnosticStatus.ERROR, st.message)
+                    if line:
+                        print(f"lhd up twin: {line}", file=sys.stderr, flush=True)
+                        self.record_failed |= st.level == DiagnosticStatus.ERROR
 
         def on_odom(m):
             t = now()
@@ -824,6 +834,10 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
     print(f"success rate {_fmt(success_rate, '.2f')} over {counted} counted attempt(s)"
           f"{f', {len(refused)} pile(s) without an attempt that ran' if refused else ''}; run folder {run_dir}",
           file=out, flush=True)
+    if w.record_failed and rc == 0:
+        print(f"lhd up twin: the record or a bag could not be written during this run (the record / recorder lines "
+              f"above; node logs in {log_dir}): attempts may be missing from {run_dir}", file=sys.stderr, flush=True)
+        rc = 1
     if args.json:
         mp = machine_pitch_success(records)
         print(json_out.dumps({"success_rate": success_rate,
