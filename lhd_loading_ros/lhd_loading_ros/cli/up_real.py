@@ -311,9 +311,7 @@ def up_real(args) -> int:
                     pass
     print(f"lhd up real: stopped; attempts in {run_dir / 'attempts.csv'} (`lhd attempts {run_dir}`)", flush=True)
     if state["record_failed"]:
-        print(f"lhd up real: the record or a bag could not be written during this run (the `record` / `recorder` "
-              f"lines above; node logs in {log_dir}): attempts may be missing from {run_dir}", file=sys.stderr,
-              flush=True)
+        print(record_failed_message("lhd up real", log_dir, run_dir), file=sys.stderr, flush=True)
         return 1
     return 0
 
@@ -414,13 +412,11 @@ def keep_earlier_logs(log_dir: Path) -> Path | None:
     """Node logs an earlier run left in `log_dir` (a run folder reused: the launcher opens each node's log anew)
     moved into log_dir/<UTC time of the newest of them>/, which is returned; None when there were none (a review,
     2026-11-29: yesterday's logs were overwritten)."""
-    import datetime
-
     logs = sorted(log_dir.glob("*.log"))
     if not logs:
         return None
     newest = max(f.stat().st_mtime for f in logs)
-    stamp = datetime.datetime.fromtimestamp(newest, datetime.timezone.utc).strftime("%Y%m%d-%H%M%S")
+    stamp = datetime.fromtimestamp(newest, timezone.utc).strftime("%Y%m%d-%H%M%S")
     dest, k = log_dir / f"earlier_{stamp}", 2
     while dest.exists():
         dest, k = log_dir / f"earlier_{stamp}_{k}", k + 1
@@ -428,6 +424,12 @@ def keep_earlier_logs(log_dir: Path) -> Path | None:
     for f in logs:
         f.rename(dest / f.name)
     return dest
+
+
+def record_failed_message(prog: str, log_dir, run_dir) -> str:
+    """The last line of `lhd up real` / `lhd up twin` when a record or bag error came during the run (exit 1)."""
+    return (f"{prog}: the record or a bag could not be written during this run (the record / recorder lines above; "
+            f"node logs in {log_dir}): attempts may be missing from {run_dir}")
 
 
 RECORD_DIAGNOSTICS = ("supervisor: record", "recorder: recording")

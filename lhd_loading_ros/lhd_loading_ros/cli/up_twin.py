@@ -835,8 +835,9 @@ def run_twin(args, real_args, slopes: list[float]) -> int:
           f"{f', {len(refused)} pile(s) without an attempt that ran' if refused else ''}; run folder {run_dir}",
           file=out, flush=True)
     if w.record_failed and rc == 0:
-        print(f"lhd up twin: the record or a bag could not be written during this run (the record / recorder lines "
-              f"above; node logs in {log_dir}): attempts may be missing from {run_dir}", file=sys.stderr, flush=True)
+        from lhd_loading_ros.cli.up_real import record_failed_message
+
+        print(record_failed_message("lhd up twin", log_dir, run_dir), file=sys.stderr, flush=True)
         rc = 1
     if args.json:
         mp = machine_pitch_success(records)
