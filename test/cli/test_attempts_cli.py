@@ -110,6 +110,45 @@ def test_offline_weighing_says_what_it_replaced_and_what_still_waits(run_dir):
     assert rc == 0 and "replaced" not in out and "still unweighed" not in out, out
 
 
+def test_offline_weighing_judges_on_the_rows_own_pitch_threshold(tmp_path):
+    """A review (2026-11-29): offline weighing judged every row on the default file's pitch threshold
+    (40 deg), whatever file the supervisor ran. A row now carries its supervisor's threshold: attempt 5
+    ended at 45 deg under a supervisor whose threshold was 50 deg, so 26.5 kg is SL 0 (45 is not > 50),
+    not the SL 4 the default 40 deg would give; attempt 4, recorded with 40 deg, is SL 3 at 24 kg."""
+    rows = RECORD.splitlines()
+    rows[4] = rows[4].replace(",bags/attempt_0004", ",bags/attempt_0004,abc,40.000")
+    rows[5] = rows[5].replace(",bags/attempt_0005", ",bags/attempt_0005,abc,50.000")
+    (tmp_path / "attempts.csv").write_text("\n".join(rows) + "\n")
+    rc, out, err = run(attempt_mass_main, ["26.5", "--run-dir", str(tmp_path), "--attempt", "5"])
+    assert rc == 0, err
+    assert "success_level=0" in out and "success=false" in out, out
+    assert "recorded without its pitch threshold" not in out, out
+    rc, out, err = run(attempt_mass_main, ["24", "--run-dir", str(tmp_path), "--attempt", "4"])
+    assert rc == 0 and "success_level=3" in out and "success=true" in out, out
+    back = {r.attempt: r for r in read_rows(tmp_path / "attempts.csv")}
+    assert (back[5].phi_thresh_deg, back[5].success_level, back[5].success) == (50.0, 0, False)
+
+
+def test_offline_weighing_of_a_row_without_its_threshold_says_which_file_judged_it(tmp_path):
+    """Rows written before the threshold was recorded: judged on --config's file (default: the default
+    file), said; a row whose supervisor ran another file (config_hash) gets a warning naming --config."""
+    from lhd_loading_ros.task.config import config_hash, load_config
+
+    rows = RECORD.splitlines()
+    rows[5] = rows[5].replace(",bags/attempt_0005", ",bags/attempt_0005,0123456789ab")
+    (tmp_path / "attempts.csv").write_text("\n".join(rows) + "\n")
+    assert config_hash(load_config()) != "0123456789ab"
+    rc, out, err = run(attempt_mass_main, ["26.5", "--run-dir", str(tmp_path), "--attempt", "5"])
+    assert rc == 0, err
+    assert "success_level=4" in out, out                     # 45 deg > the default file's 40 deg
+    assert "attempt 5: recorded without its pitch threshold; judged on the default parameter file's 40 deg" in out
+    assert "hash 0123456789ab" in err and "pass its file with --config" in err, err
+    rc, out, err = run(attempt_mass_main, ["26.5", "--run-dir", str(tmp_path), "--config", str(tmp_path / "no.yaml")])
+    assert rc == 2 and "--config: cannot read parameter file" in err, err
+    rc, out, err = run(attempt_mass_main, ["26.5", "--config", "config/lhd_params.yaml"])
+    assert rc == 2 and "--config is for --run-dir only" in err, err
+
+
 def ros_env():
     from rosutil import unique_domain_id
 

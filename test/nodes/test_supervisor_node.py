@@ -199,6 +199,8 @@ def test_arm_running_success_at_the_end_of_the_control_period(rig):
     assert rows[0].bag == "bags/attempt_0001" and rows[0].slope_deg == pytest.approx(20.0)
     from lhd_loading_ros.task.config import config_hash, load_config
     assert rows[0].config_hash == config_hash(load_config(None))       # the file the attempt was judged with
+    # and its pitch threshold, which offline weighing judges the row on (the default file: 40 deg)
+    assert rows[0].phi_thresh_deg == load_config(None)["paper"]["reward"]["phi_thresh_pitch_deg"] == 40.0
 
 
 def test_mass_from_the_cli_updates_the_row(rig):

@@ -25,7 +25,7 @@ def mk(attempt, controller="rld", slope=20.0, material="homogeneous", outcome="s
 def test_columns_are_the_contracts_and_the_rows_fields():
     assert COLUMNS == ("attempt", "started_utc", "controller", "slope_deg", "material", "outcome", "reason",
                        "mass_kg", "elapsed_s", "front_drift_pct", "rear_drift_pct", "phi_final_deg",
-                       "success_level", "success", "bag", "config_hash")
+                       "success_level", "success", "bag", "config_hash", "phi_thresh_deg")
     assert tuple(f.name for f in dataclasses.fields(AttemptRow)) == COLUMNS
 
 
@@ -37,8 +37,8 @@ def test_round_trip_upsert_and_atomic_rewrite(tmp_path):
     text = p.read_text().splitlines()
     assert text[0] == ",".join(COLUMNS)
     assert text[1] == ("1,2025-03-01T10:00:00Z,rld,20.00,homogeneous,success,\"r, with a comma\",,4.000,10.00,50.00,"
-                       "45.00,,,bags/attempt_0001,")
-    assert text[2].split(",")[-4:] == ["", "false", "bags/attempt_0002", ""]     # failure: known without weighing
+                       "45.00,,,bags/attempt_0001,,")
+    assert text[2].split(",")[-5:] == ["", "false", "bags/attempt_0002", "", ""]     # failure: known without weighing
     rows = read_rows(p)
     assert [r.attempt for r in rows] == [1, 2] and rows[0] == mk(1)
     new = weigh_row(p, None, 23.4, PHI_T)               # the latest: attempt 2 (a failure stays a failure)

@@ -14,6 +14,7 @@ Also `python -m lhd_loading_ros.cli.attempts attempts|mass|arm|abort ...`."""
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 
@@ -162,11 +163,13 @@ def _print_row(row) -> None:
                                                                  "success_level", "success")))
 
 
-def _phi_thresh() -> float:
+def _phi_thresh(config: str | None) -> float:
+    """The success test's pitch threshold (rad) of a parameter file (default: the default file):
+    only for rows recorded before the record kept the supervisor's own (phi_thresh_deg)."""
     from lhd_loading_ros.task.config import load_config
     from lhd_loading_ros.task.params import TaskParams
 
-    return TaskParams.from_config(load_config()).phi_thresh_pitch
+    return TaskParams.from_config(load_config(config)).phi_thresh_pitch
 
 
 def attempt_mass_main(argv=None) -> int:
@@ -177,14 +180,18 @@ def attempt_mass_main(argv=None) -> int:
     ap.add_argument("kg", help="the bucket's load on the scale, kg (0-200)")
     ap.add_argument("--attempt", type=pos_int, help="attempt number (default: the latest ended one)")
     ap.add_argument("--run-dir", help="edit this run's record directly, without a supervisor")
+    ap.add_argument("--config", help="with --run-dir, for a row recorded without its pitch threshold (before "
+                    "2026-11-30) only: the supervisor's parameter file (default: the default one)")
     _ros_args(ap)
     args = ap.parse_args(argv)
     try:
         kg = check_mass(args.kg)
     except ValueError as exc:
         return _err(prog, f"refused: {exc}", 2)
+    if args.config and not args.run_dir:
+        return _err(prog, "refused: --config is for --run-dir only (a running supervisor judges with its own file)", 2)
     if args.run_dir:
-        return _weigh_offline(prog, csv_path(args.run_dir), args.attempt, kg)
+        return _weigh_offline(prog, csv_path(args.run_dir), args.attempt, kg, args.config)
     ros = None
     try:
         from diagnostic_msgs.msg import DiagnosticStatus
@@ -249,13 +256,34 @@ def attempt_mass_main(argv=None) -> int:
             ros.close()
 
 
-def _weigh_offline(prog: str, path, attempt, kg: float) -> int:
+def _weigh_offline(prog: str, path, attempt, kg: float, config: str | None = None) -> int:
+    from lhd_loading_ros.task.config import ConfigError, config_hash, load_config
+
     try:
         before = {r.attempt: r for r in read_rows(path)}
-        row = weigh_row(path, attempt, kg, _phi_thresh())
+        fallback = cfg = None
+        # a row recorded with its supervisor's pitch threshold is judged on it (a review, 2026-11-29: offline
+        # weighing judged every row on the default file's threshold, whatever file the supervisor ran);
+        # an older row on --config's, or the default file's, said
+        old_rows = [r for r in before.values() if not math.isfinite(r.phi_thresh_deg)]
+        if old_rows:
+            cfg = load_config(config)
+            fallback = _phi_thresh(config)
+        row = weigh_row(path, attempt, kg, fallback)
+    except ConfigError as exc:
+        return _err(prog, f"--config: {exc}", 2)
     except (OSError, ValueError) as exc:
         return _err(prog, str(exc))
     _print_row(row)
+    old = before.get(row.attempt)
+    if old is not None and not math.isfinite(old.phi_thresh_deg):
+        src = config or "the default parameter file"
+        print(f"attempt {row.attempt}: recorded without its pitch threshold; judged on {src}'s "
+              f"{math.degrees(fallback):g} deg", flush=True)
+        if old.config_hash and old.config_hash != config_hash(cfg):
+            print(f"warning: attempt {row.attempt} was judged by a supervisor running a parameter file with hash "
+                  f"{old.config_hash}, not {src} ({config_hash(cfg)}): pass its file with --config", file=sys.stderr,
+                  flush=True)
     # what the weighing changed besides, said (a review, 2026-11-29: an earlier mass was replaced and an attempt
     # still waiting for its mass went unmentioned)
     old = before.get(row.attempt)

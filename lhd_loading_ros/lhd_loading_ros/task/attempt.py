@@ -300,6 +300,7 @@ class Attempt:
     end_checks: int = 0                   # end_check_period ends judged so far
     auto_seen: bool = False               # the command mux selected the autonomous controller while running
     config_hash: str = ""                 # the supervisor's parameter file (Settings.config_hash)
+    phi_thresh: float = math.nan          # rad, the success test's threshold it is judged on (Settings.phi_thresh)
     last_state: LhdState | None = None    # the latest tip while armed / running
     mass: float | None = None
     mass_source: str = ""
@@ -328,7 +329,8 @@ class Attempt:
                           reason=self.reason, mass_kg=self.mass, elapsed_s=self.elapsed_s,
                           front_drift_pct=drift_pct(self.front), rear_drift_pct=drift_pct(self.rear),
                           phi_final_deg=math.degrees(self.phi_final), success_level=self.success_level,
-                          success=self.success, bag=bag_name(self.number), config_hash=self.config_hash)
+                          success=self.success, bag=bag_name(self.number), config_hash=self.config_hash,
+                          phi_thresh_deg=math.degrees(self.phi_thresh))
 
 
 class Supervisor:
@@ -577,7 +579,8 @@ class Supervisor:
         self.next_number += 1
         self.attempt = Attempt(number=n, started_utc=utc, controller=self.controller, material=self.material,
                                slope_rad=float(inp.values["slope"]), zones=inp.values["zones"], armed_at=now,
-                               timeout=self.timeout_for_controller, config_hash=self.s.config_hash)
+                               timeout=self.timeout_for_controller, config_hash=self.s.config_hash,
+                               phi_thresh=self.s.phi_thresh)
         self.attempt.last_state = self._compute_tip(now, discount=False)
         self._cell.clear()
         self._stopped_since = None

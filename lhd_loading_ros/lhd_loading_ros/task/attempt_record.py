@@ -44,9 +44,11 @@ from lhd_loading_ros.task.metrics import success_level
 CSV_NAME = "attempts.csv"
 COLUMNS = ("attempt", "started_utc", "controller", "slope_deg", "material", "outcome", "reason", "mass_kg",
            "elapsed_s", "front_drift_pct", "rear_drift_pct", "phi_final_deg", "success_level", "success", "bag",
-           "config_hash")
-# the last column came on 2026-11-29: a record written before has none, and its rows read with it empty
-OPTIONAL_COLUMNS = ("config_hash",)
+           "config_hash", "phi_thresh_deg")
+# the last columns came on 2026-11-29 / 2026-11-30: a record written before has none, and its rows read with them
+# empty. phi_thresh_deg is the success test's pitch threshold the supervisor judged the attempt with, so a row is
+# weighed offline (`lhd attempt mass --run-dir`) on its own threshold, not on whatever parameter file is at hand
+OPTIONAL_COLUMNS = ("config_hash", "phi_thresh_deg")
 OUTCOMES = ("success", "failure", "timeout", "estop", "lost_input", "aborted")
 NEEDS_MASS = ("success", "timeout")          # success decided by the weighed mass and the final pitch
 NOT_COUNTED = ("aborted",)                   # the operator called the attempt off: not in the table
@@ -90,7 +92,7 @@ def check_mass(kg) -> float:
 # when it is read and weighed later (a review: a pitch of 40.004 deg was a success live and, written
 # as 40.00, a failure when weighed through the file; 19.996 kg was written 20.00 with success false).
 DIGITS = {"slope_deg": 2, "mass_kg": 2, "elapsed_s": 3, "front_drift_pct": 2, "rear_drift_pct": 2,
-          "phi_final_deg": 2}
+          "phi_final_deg": 2, "phi_thresh_deg": 3}
 
 
 def recorded(v: float | None, digits: int) -> float | None:
@@ -104,9 +106,9 @@ def recorded(v: float | None, digits: int) -> float | None:
 def judge(outcome: str, mass_kg: float | None, phi_final_rad: float, phi_thresh_rad: float
           ) -> tuple[int | None, bool | None]:
     """(success level, success) of an attempt: SL from the weighed mass and the final pitch
-    (metrics.success_level; a final pitch that was never measured gives SL 0), both at the record's
-    resolution (DIGITS), so that the written row judges the same again; success as in the module
-    docstring. None where the mass is still needed."""
+    (metrics.success_level; a final pitch that was never measured gives SL 0), mass, pitch and
+    threshold at the record's resolution (DIGITS), so that the written row judges the same again;
+    success as in the module docstring. None where the mass is still needed."""
     if outcome not in OUTCOMES:
         raise ValueError(f"outcome {outcome!r}: expected one of {OUTCOMES}")
     sl = None
@@ -114,6 +116,7 @@ def judge(outcome: str, mass_kg: float | None, phi_final_rad: float, phi_thresh_
         mass_kg = recorded(float(mass_kg), DIGITS["mass_kg"])
         if math.isfinite(phi_final_rad):
             phi_final_rad = math.radians(recorded(math.degrees(phi_final_rad), DIGITS["phi_final_deg"]))
+        phi_thresh_rad = math.radians(recorded(math.degrees(phi_thresh_rad), DIGITS["phi_thresh_deg"]))
         sl = success_level(mass_kg, phi_final_rad, phi_thresh_rad) if math.isfinite(phi_final_rad) else 0
     if outcome not in NEEDS_MASS:
         return sl, False
@@ -142,15 +145,23 @@ class AttemptRow:
     # the supervisor's parameter file (task.config.config_hash): the zones an attempt was judged on follow
     # from it, so `lhd attempts` says when a folder's attempts come from several; "" where not recorded
     config_hash: str = ""
+    # the success test's pitch threshold (deg) of the supervisor's parameter file; NaN where not recorded
+    phi_thresh_deg: float = math.nan
 
     def __post_init__(self):
         # the numbers at the record's resolution: the row in memory is the row in the file
         for name, digits in DIGITS.items():
             object.__setattr__(self, name, recorded(getattr(self, name), digits))
 
-    def weighed(self, mass_kg: float, phi_thresh_rad: float) -> "AttemptRow":
-        """This row with the weighed mass, its SL and success."""
+    def weighed(self, mass_kg: float, phi_thresh_rad: float | None = None) -> "AttemptRow":
+        """This row with the weighed mass, its SL and success: judged on the row's own pitch
+        threshold where it has one, else on `phi_thresh_rad` (ValueError when neither)."""
         m = check_mass(mass_kg)
+        if math.isfinite(self.phi_thresh_deg):
+            phi_thresh_rad = math.radians(self.phi_thresh_deg)
+        elif phi_thresh_rad is None:
+            raise ValueError(f"attempt {self.attempt}: the record has no pitch threshold (phi_thresh_deg) and none "
+                             "was given")
         sl, ok = judge(self.outcome, m, math.radians(self.phi_final_deg), phi_thresh_rad)
         return replace(self, mass_kg=m, success_level=sl, success=ok)
 
@@ -171,7 +182,8 @@ class AttemptRow:
                 "phi_final_deg": num(self.phi_final_deg, DIGITS["phi_final_deg"]),
                 "success_level": "" if self.success_level is None else str(self.success_level),
                 "success": "" if self.success is None else ("true" if self.success else "false"), "bag": self.bag,
-                "config_hash": self.config_hash}
+                "config_hash": self.config_hash,
+                "phi_thresh_deg": num(self.phi_thresh_deg, DIGITS["phi_thresh_deg"])}
 
     @classmethod
     def from_csv(cls, d: dict, where: str = "") -> "AttemptRow":
@@ -217,12 +229,16 @@ class AttemptRow:
         if ok_raw not in ("", "true", "false"):
             raise ValueError(f"{at}success = {ok_raw!r}; expected true, false or empty")
         phi = number("phi_final_deg", optional=True)
+        thresh = number("phi_thresh_deg", optional=True)
+        if thresh is not None and not 0.0 <= thresh < 90.0:
+            raise ValueError(f"{at}phi_thresh_deg = {thresh!r}; expected a pitch threshold in [0, 90) deg or empty")
         return cls(attempt=attempt, started_utc=get("started_utc"), controller=get("controller"),
                    slope_deg=number("slope_deg"), material=material, outcome=outcome, reason=get("reason"),
                    mass_kg=number("mass_kg", optional=True), elapsed_s=number("elapsed_s"),
                    front_drift_pct=number("front_drift_pct"), rear_drift_pct=number("rear_drift_pct"),
                    phi_final_deg=math.nan if phi is None else phi, success_level=sl,
-                   success=None if ok_raw == "" else ok_raw == "true", bag=get("bag"), config_hash=get("config_hash"))
+                   success=None if ok_raw == "" else ok_raw == "true", bag=get("bag"), config_hash=get("config_hash"),
+                   phi_thresh_deg=math.nan if thresh is None else thresh)
 
 
 def csv_path(run_dir) -> Path:
@@ -297,8 +313,9 @@ def never_ran(row: AttemptRow) -> bool:
     return row.elapsed_s == 0.0 and not is_unended(row)
 
 
-def weigh_row(path, attempt: int | None, mass_kg: float, phi_thresh_rad: float) -> AttemptRow:
-    """Set the mass of attempt `attempt` (None: the latest that ran) in the record; returns the new row."""
+def weigh_row(path, attempt: int | None, mass_kg: float, phi_thresh_rad: float | None = None) -> AttemptRow:
+    """Set the mass of attempt `attempt` (None: the latest that ran) in the record; returns the new row.
+    Judged on the row's own pitch threshold; `phi_thresh_rad` only for a row recorded without one."""
     rows = read_rows(path)
     if not rows:
         raise ValueError(f"{path}: no attempts recorded")
