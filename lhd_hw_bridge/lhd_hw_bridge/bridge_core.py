@@ -68,6 +68,15 @@ def deadband_problem(deadband: float) -> str | None:
     return None
 
 
+def baud_problem(baud) -> str | None:
+    """1200 baud is the Arduino SAM core's erase request: a native USB port opened at 1200 baud whose
+    DTR then drops (every close or reconnection) erases the Due's flash and starts its bootloader."""
+    if int(baud) == 1200:
+        return ("1200 baud erases the Arduino Due's firmware when the port closes (its core's 'touch' reset to the "
+                "bootloader); expected the link's rate, 115200")
+    return None
+
+
 def min_command_rate(device_watchdog: float) -> float:
     """The slowest safe command rate: with one command frame lost the device sees two periods
     without a command, and that must fit in half its watchdog (the other half is margin for

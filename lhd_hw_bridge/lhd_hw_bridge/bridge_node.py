@@ -33,6 +33,7 @@ Fail-safe behaviour (docs/hardware_bridge.md):
 from __future__ import annotations
 
 import dataclasses
+import math
 import threading
 import time
 
@@ -53,10 +54,10 @@ from lhd_loading_ros.ros.run import run_node
 from lhd_loading_ros.task.config import load_config
 
 from .bridge_core import (CMD_TIMEOUT_MAX, JOINT_NAMES, BridgeParams, CommandMapper, CommandRejected,
-                          LoadCellMonitor, Watchdog, CommandScheduler, command_rate_problem, deadband_problem,
+                          LoadCellMonitor, baud_problem, Watchdog, CommandScheduler, command_rate_problem, deadband_problem,
                           WheelAngles, DeviceClock, DriftWindow, arm_zero_problem, detect_drift, joint_state_arrays)
-from .protocol import (FLAG_ENABLED, FLAG_ESTOP, FLAG_WATCHDOG, TYPE_LOAD_CELL, TYPE_SENSOR, CommandFrame,
-                       FrameParser, HeartbeatFrame, LoadCellFrame, SensorFrame, TxSequence)
+from .protocol import (FLAG_ENABLED, FLAG_ESTOP, FLAG_HELD, FLAG_SENSOR_FAULT, FLAG_WATCHDOG, TYPE_LOAD_CELL,
+                       TYPE_SENSOR, CommandFrame, FrameParser, HeartbeatFrame, LoadCellFrame, SensorFrame, TxSequence)
 
 # Command frames at most every 2 ms: a 1 kHz teleop stream becomes <= 500 frames/s (about 6 kB/s, half
 # of a 115,200-baud UART); a 5 ms watchdog tick with a little jitter still sends every changed command
@@ -72,6 +73,10 @@ MIN_FRAME_GAP = 0.002
 WATCHDOG_TICK = 0.005   # s
 STATUS_PERIOD = 0.1     # s, <prefix>/hw/status (and at once when the flags or valve states change)
 DEVICE_STALE = 0.5      # s without a sensor frame: the device's report is no longer current
+# s of stop frames and ERROR after the device was seen reset (held with no e-stop and no fault, after a
+# frame that was not held): the supervisor ends a running attempt on the ERROR, though the first stop
+# frame clears the device's hold at once
+DEVICE_RESET_HOLD_S = 1.0
 LEVELS = {name: level for level, name in LEVEL_NAMES.items()}
 
 
@@ -101,7 +106,8 @@ class BridgeNode(Node):
             Param("port", "/dev/ttyACM0", "serial device of the Due (opened exclusively)",
                   check=lambda v: None if str(v).strip() else "is empty: expected the Due's serial device, e.g. "
                   "/dev/ttyACM0 (`ls /dev/ttyACM* /dev/serial/by-id/`)"),
-            Param("baud", 115200, "baud rate (UART; the Due's native USB port ignores it)", lo=1200, hi=4_000_000),
+            Param("baud", 115200, "baud rate (UART; the Due's native USB port ignores it, but not 1200)",
+                  lo=1200, hi=4_000_000, check=baud_problem),
             Param("namespace_prefix", "/lhd", "topic prefix when the node runs in the root namespace"),
             Param("cmd_timeout", base.cmd_timeout,
                   f"s without a valid command before stop frames (at most {CMD_TIMEOUT_MAX} s)",
@@ -150,6 +156,9 @@ class BridgeNode(Node):
         self._unaligned_since: float | None = None      # fresh odometry, but no window over it since then
         self._device: tuple[SensorFrame, float] | None = None  # (latest sensor frame, arrival time)
         self._estop = False
+        self._hold = False                 # the device holds the machine (e-stop, held, sensor fault)
+        self._reset_hold_until = -math.inf
+        self.device_resets = 0             # device resets seen while this node ran (DEVICE_RESET_HOLD_S)
         self._stop_evt = threading.Event()
         self.connected = False
         self.link_problem = "not opened yet"
@@ -235,7 +244,7 @@ class BridgeNode(Node):
 
     def current_command(self, now: float) -> CommandFrame:
         stale = self.watchdog.stale(now)
-        if stale or self._estop or self._cmd is None or self.device_silent(now):
+        if stale or self._hold or self._cmd is None or self.device_silent(now) or now < self._reset_hold_until:
             return CommandFrame.stop()
         return self._cmd
 
@@ -285,10 +294,12 @@ class BridgeNode(Node):
         with self._ser_lock:
             self._ser = ser
             self.parser.reset_link()
-            # the first frame on a (re)opened link is a stop; older commands no longer count
+            # the first frame on a (re)opened link is a stop; older commands no longer count. A 0x00
+            # first ends whatever partial frame the device still holds (a write cut short by the
+            # unplug): glued to it, the stop would fail its CRC (a review, 2026-11-30)
             self.watchdog.rearm(time.monotonic())
             try:
-                ser.write(self._tx.encode(CommandFrame.stop()))
+                ser.write(b"\x00" + self._tx.encode(CommandFrame.stop()))
             except (serial.SerialException, OSError) as exc:
                 self.link_problem = f"write to {self.port} failed: {exc}"
                 self._drop_port_locked()
@@ -346,7 +357,8 @@ class BridgeNode(Node):
         js.header.stamp = Time(nanoseconds=int(round(t_frame * 1e9)), clock_type=stamp.clock_type).to_msg()
         js.name = list(JOINT_NAMES)
         js.position, js.velocity = joint_state_arrays(f, self.wheels, self.arm_zeros)
-        self.pub_js.publish(js)
+        if not f.flags & FLAG_SENSOR_FAULT:
+            self.pub_js.publish(js)        # a faulty angle is no reading: nothing published (no made-up joints)
         a = self.wheels.angles
         with self._drift_lock:
             self.drift_window.add_wheels(t_frame, (a[0], a[1], 0.5 * (a[2] + a[3])), self.wheels.restarts)
@@ -368,10 +380,22 @@ class BridgeNode(Node):
             self.latency_hook(f)
         prev = self._device[0] if self._device is not None else None
         self._device = (f, now)
-        estop = bool(f.flags & FLAG_ESTOP)
-        if self._estop and not estop:
+        # the device holds the machine (its e-stop, a sensor fault, or held after a reset until a stop
+        # frame): stop frames meanwhile, and only commands received after it count
+        hold = bool(f.flags & (FLAG_ESTOP | FLAG_HELD | FLAG_SENSOR_FAULT))
+        if prev is not None and not prev.flags & FLAG_HELD and f.flags & FLAG_HELD and not f.flags & FLAG_ESTOP \
+                and not f.flags & FLAG_SENSOR_FAULT:
+            # held with no e-stop and no fault: the device was reset (power, brown-out, its watchdog) while
+            # this node ran. ERROR and stop frames for DEVICE_RESET_HOLD_S, so the supervisor ends a running
+            # attempt, even though the first stop frame clears the device's hold at once
+            self.device_resets += 1
+            self._reset_hold_until = now + DEVICE_RESET_HOLD_S
+            self.get_logger().error("the device was reset (held after power-up): machine held stopped, stop frames "
+                                    "sent; only commands received after it count")
+        if self._hold and not hold:
             self.watchdog.rearm(now)   # released: only commands received from now on count
-        self._estop = estop
+        self._hold = hold
+        self._estop = bool(f.flags & FLAG_ESTOP)
         if prev is None or (prev.flags, prev.valve_boom, prev.valve_bucket) != (f.flags, f.valve_boom, f.valve_bucket):
             self._publish_status()
 
@@ -410,10 +434,22 @@ class BridgeNode(Node):
                   # sent (the supervisor ends a running attempt on it). Not Watchdog.stale: that also
                   # covers the wait for a first command after a reconnection, and counts trips
                   "command_stale": self.watchdog.timed_out(time.monotonic())}
+        values["device_held"] = bool(f.flags & FLAG_HELD)
+        values["arm_sensor_fault"] = bool(f.flags & FLAG_SENSOR_FAULT)
+        values["device_resets"] = self.device_resets
         if age > DEVICE_STALE:
             return STALE, f"no sensor frame from the device for {age:.1f} s", values
         if f.flags & FLAG_ESTOP:
             return ERROR, "emergency stop pressed on the device: machine held stopped, stop frames sent", values
+        if f.flags & FLAG_SENSOR_FAULT:
+            return (ERROR, "arm angle sensor fault on the device (a boom or bucket angle is NaN or beyond its joint's "
+                           "limits by 0.3 rad: a broken wire, a failed conversion): machine held stopped, no joint "
+                           "states published", values)
+        if time.monotonic() < self._reset_hold_until:
+            return (ERROR, f"the device was reset (power, brown-out, its watchdog): machine held stopped for "
+                           f"{DEVICE_RESET_HOLD_S:g} s, stop frames sent; only commands received after it count", values)
+        if f.flags & FLAG_HELD:
+            return WARN, "device holds the machine stopped until a stop frame (power-up, released e-stop)", values
         if f.flags & FLAG_WATCHDOG:
             return (WARN, f"device watchdog holds the machine stopped (no command frame for "
                           f"{self.p.device_watchdog * 1000:.0f} ms); cleared by the next command", values)

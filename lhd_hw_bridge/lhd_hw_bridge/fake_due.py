@@ -38,7 +38,8 @@ from dataclasses import dataclass, field
 from lhd_loading_ros.task.arm_sensors import RATE_WINDOW_S, RateWindow
 
 from .pty_link import close_pty, open_pty
-from .protocol import (FLAG_ENABLED, FLAG_ESTOP, FLAG_WATCHDOG, LC_CALIBRATED, LC_SATURATED, LC_STALE, LC_TARED,
+from .protocol import (ANGLE_SCALE, FLAG_ENABLED, FLAG_ESTOP, FLAG_HELD, FLAG_SENSOR_FAULT, FLAG_WATCHDOG,
+                       LC_CALIBRATED, LC_SATURATED, LC_STALE, LC_TARED,
                        RAW_MAX, RAW_MIN, TYPE_COMMAND, TYPE_HEARTBEAT, CommandFrame, FrameParser, LoadCellFrame,
                        SensorFrame, TxSequence)
 
@@ -98,6 +99,7 @@ class FakeDue:
     drift_front: bool = False
     drift_rear: bool = False
     estop: bool = False                       # the emergency-stop button, pressed
+    boom_sensor_fault: bool = False           # the boom angle reads NaN (sent as -32768, flag bit 4), as the firmware
     currents: tuple[float, float, float] | None = None   # (fl, fr, rear) A reported instead of the model's
     load_cell: bool = False                   # fitted with the bucket's load cell: sends load-cell frames
     bucket_mass: float = 0.0                  # kg in the bucket, what the load cell weighs
@@ -128,6 +130,7 @@ class FakeDue:
         self.path = None
         self._last_cmd = None
         self._tripped = False
+        self.held = True        # as the firmware: stopped after power-up until a stop frame (enable = 0)
         self._thread = None
 
     # ------------------------------------------------------------------ pty
@@ -207,6 +210,8 @@ class FakeDue:
                 self._last_cmd = now
                 self._command = msg
                 self._tripped = False   # a fresh valid command re-arms the machine
+                if not msg.enable and not self.estop and not self.boom_sensor_fault:
+                    self.held = False   # a stop frame clears the hold
 
     def _apply_watchdog(self, now: float) -> None:
         """As the firmware: no command frame for `watchdog` s after one was received -> stopped
@@ -218,7 +223,10 @@ class FakeDue:
     def _apply_command(self) -> None:
         """The outputs from the last command, as the firmware's apply_outputs()."""
         c, p = self._command, self.plant
-        run = c is not None and c.enable and not self._tripped and not self.estop
+        if self.estop or self.boom_sensor_fault:
+            self.held = True            # released, the machine stays stopped until a stop frame
+            self._command = CommandFrame.stop()     # the firmware forgets the command
+        run = c is not None and c.enable and not self._tripped and not self.estop and not self.held
         p.enabled = run
         p.wheel_setpoint = min(max(c.wheel_setpoint, 0.0), WHEEL_MAX) if run else 0.0
         boom = max(c.valve_boom, 0) if run else 0        # lowering refused (not a maintenance build)
@@ -236,6 +244,8 @@ class FakeDue:
         if self._rate_t is None or t > self._rate_t:    # the rates as the firmware's arm_rate.h: over the last 0.1 s
             self._rate_t = t
             self._rates_now = (self._rate_windows[0].push(t, boom), self._rate_windows[1].push(t, bucket))
+        if self.boom_sensor_fault:
+            boom = -32768 * ANGLE_SCALE           # the firmware's sentinel for NaN
         frame = SensorFrame(
             device_time_us=int(t * 1e6), boom_angle=boom, bucket_angle=bucket,
             boom_rate=self._rates_now[0], bucket_rate=self._rates_now[1], wheel_fl=p.wheel_fl + n() * 1e-2,
@@ -243,7 +253,8 @@ class FakeDue:
             current_fl=currents[0], current_fr=currents[1], current_rear=currents[2], valve_boom=p.valve_boom,
             valve_bucket=p.valve_bucket,
             flags=(FLAG_ENABLED if p.enabled else 0) | (FLAG_WATCHDOG if self._tripped else 0)
-            | (FLAG_ESTOP if self.estop else 0))
+            | (FLAG_ESTOP if self.estop else 0) | (FLAG_HELD if self.held else 0)
+            | (FLAG_SENSOR_FAULT if self.boom_sensor_fault else 0))
         if self._put(fd, self._tx.encode(frame)):
             self.sent += 1
 

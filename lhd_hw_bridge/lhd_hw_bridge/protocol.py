@@ -44,6 +44,10 @@ MASS_SCALE = 1e-3       # kg per count (int32, grams)
 FLAG_ENABLED = 0x01
 FLAG_WATCHDOG = 0x02
 FLAG_ESTOP = 0x04
+# held: the device keeps the machine stopped until a stop frame (enable = 0): after power-up and any
+# reset, while the e-stop is pressed and after its release, during and after a sensor fault
+FLAG_HELD = 0x08
+FLAG_SENSOR_FAULT = 0x10  # an arm angle is no reading (NaN, or beyond its joint's limits by 0.3 rad)
 
 # load-cell frame: the HX711's conversions are 24-bit two's complement, sent sign-extended
 RAW_MIN, RAW_MAX = -(1 << 23), (1 << 23) - 1

@@ -12,8 +12,9 @@ What the device does, as the reference firmware (lhd_hw_bridge/firmware/lhd_due/
 * the wheel set-point is clamped to [0, 2.7] rad/s; boom lowering (-1) and bucket forward tilt
   (-1) are refused (not a maintenance build); a valve is closed at its joint limit
   (boom <= -1.0 rad raising, bucket >= 1.4 rad curling);
-* while the emergency stop is pressed (`estop`): wheels 0, valves closed, flag bit 2; the last
-  command applies again on release;
+* while the emergency stop is pressed (`estop`): wheels 0, valves closed, flag bit 2; held (flag
+  bit 3) from power-up and from an e-stop until a stop frame (enable = 0): a release alone never
+  restarts the machine;
 * sensor frames (0x01) at 100 Hz, load-cell frames (0x04) at 10 Hz (`load_cell`, default on).
 
 The plant is the simulator, driven with the actuator command of the outputs (`actuator_command`):
@@ -63,7 +64,7 @@ import numpy as np
 
 from lhd_hw_bridge.fake_due import LOAD_CELL_OFFSET, LOAD_CELL_SCALE
 from lhd_hw_bridge.pty_link import close_pty, open_pty
-from lhd_hw_bridge.protocol import (ANGLE_SCALE, CURRENT_SCALE, FLAG_ENABLED, FLAG_ESTOP, FLAG_WATCHDOG,
+from lhd_hw_bridge.protocol import (ANGLE_SCALE, CURRENT_SCALE, FLAG_ENABLED, FLAG_ESTOP, FLAG_HELD, FLAG_WATCHDOG,
                                     LC_CALIBRATED, LC_SATURATED, LC_TARED, RATE_SCALE, RAW_MAX, RAW_MIN, TYPE_COMMAND,
                                     TYPE_HEARTBEAT, WHEEL_SCALE, CommandFrame, FrameParser, LoadCellFrame,
                                     SensorFrame, TxSequence)
@@ -94,14 +95,15 @@ class Outputs:
     valve_bucket: int
     estop: bool
     watchdog: bool
+    held: bool = False
 
     @property
     def flags(self) -> int:
         return (FLAG_ENABLED if self.run else 0) | (FLAG_WATCHDOG if self.watchdog else 0) | \
-            (FLAG_ESTOP if self.estop else 0)
+            (FLAG_ESTOP if self.estop else 0) | (FLAG_HELD if self.held else 0)
 
 
-STOPPED = Outputs(False, 0.0, 0, 0, False, False)
+STOPPED = Outputs(False, 0.0, 0, 0, False, False, True)
 
 
 class Firmware:
@@ -115,6 +117,7 @@ class Firmware:
         self.tripped = False
         self.trips = 0
         self.estop = False                         # the emergency-stop button, pressed
+        self.held = True                           # stopped from power-up until a stop frame (enable = 0)
         self.commands = 0
         self.heartbeats = 0
 
@@ -124,6 +127,8 @@ class Firmware:
             self.command = msg
             self.last_cmd = now
             self.tripped = False          # a fresh valid command re-arms the machine
+            if not msg.enable and not self.estop:
+                self.held = False         # a stop frame clears the hold
             self.commands += 1
         else:
             self.heartbeats += 1          # host clock only: the command stream feeds the watchdog
@@ -136,15 +141,19 @@ class Firmware:
 
     def outputs(self, boom_angle: float, bucket_angle: float) -> Outputs:
         c = self.command
-        run = c is not None and c.enable and not self.tripped and not self.estop
+        if self.estop:
+            self.held = True
+            self.command = CommandFrame.stop()     # the firmware forgets the command on an e-stop
+            c = self.command
+        run = c is not None and c.enable and not self.tripped and not self.estop and not self.held
         if not run:
-            return Outputs(False, 0.0, 0, 0, self.estop, self.tripped)
+            return Outputs(False, 0.0, 0, 0, self.estop, self.tripped, self.held)
         wheel = min(max(c.wheel_setpoint, 0.0), WHEEL_MAX)
         boom = max(c.valve_boom, 0)        # lowering refused (not a maintenance build)
         bucket = max(c.valve_bucket, 0)    # forward tilt refused
-        if boom > 0 and boom_angle <= BOOM_MIN:          # +1 raises: the angle decreases to its limit
+        if boom > 0 and not boom_angle > BOOM_MIN:      # +1 raises: the angle decreases to its limit (NaN: closed)
             boom = 0
-        if bucket > 0 and bucket_angle >= BUCKET_MAX:
+        if bucket > 0 and not bucket_angle < BUCKET_MAX:
             bucket = 0
         return Outputs(True, wheel, boom, bucket, False, False)
 

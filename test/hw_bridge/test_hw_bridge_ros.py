@@ -346,6 +346,7 @@ def link_status(got) -> dict:
     ("cmd_timeout", 2.0, "'cmd_timeout' = 2.0 is invalid: out of range; expected a number in [0.01, 1.0]"),
     ("baud", "fast", "'baud' = 'fast' is invalid; expected an integer"),
     ("port", "''", "'port' = '' is invalid: is empty: expected the Due's serial device, e.g. /dev/ttyACM0"),
+    ("baud", 1200, "'baud' = 1200 is invalid: 1200 baud erases the Arduino Due's firmware when the port closes"),
 ])
 def test_unsafe_or_wrong_parameters_end_the_node_with_one_line_and_exit_2(ros, tmp_path, name, value, needle):
     bridge = RosProcess("lhd_hw_bridge.bridge_node", {"port": str(tmp_path / "none"), name: value},
@@ -590,3 +591,50 @@ def test_a_burst_of_late_frames_keeps_each_frames_measurement_instant(ros, tmp_p
         rc = bridge.stop()
         dev.stop()
     assert rc == 0, bridge.log()
+
+
+def test_a_device_reset_while_running_holds_the_machine_and_reports_error(rig):
+    """A review (2026-11-30): a Due reset (brown-out, its watchdog) was invisible to the host and the
+    streamed command moved the machine again at once. The firmware now comes up held (flag bit 3);
+    the bridge, seeing held after frames that were not, sends stop frames and reports ERROR for 1 s
+    (the supervisor ends a running attempt on it), then takes only commands received after."""
+    dev, bridge, node, pub, got = rig
+    hw = []
+    node.create_subscription(DiagnosticStatus, "/lhd/hw/status", hw.append, 50)
+    drive(node, pub, [1.0, -0.191, 0.2], 0.5)
+    assert dev.last_commands()[-1][1] == CommandFrame(1.0, 1, 1, True)
+    n = len(dev.received)
+    t_reset = time.monotonic()
+    dev.held = True                                  # what a reset leaves: held until a stop frame
+    drive(node, pub, [1.0, -0.191, 0.2], 0.7)        # the policy keeps commanding
+    window = [(t, m) for t, m in dev.received[n:] if isinstance(m, CommandFrame)]
+    assert window and all(m.is_stop for t, m in window if t - t_reset > 0.05), window[-5:]
+    assert any(s.level == DiagnosticStatus.ERROR and "the device was reset" in s.message for s in hw), \
+        [s.message for s in hw[-5:]]
+    assert status_values([s for s in hw if "the device was reset" in s.message][-1])["device_resets"] == "1"
+    assert not dev.held                              # the first stop frame cleared the device's hold
+    drive(node, pub, [1.0, -0.191, 0.2], 1.0)        # past the 1 s hold: fresh commands move it again
+    assert dev.last_commands()[-1][1] == CommandFrame(1.0, 1, 1, True)
+    assert hw[-1].level == DiagnosticStatus.OK, hw[-1].message
+
+
+def test_an_arm_sensor_fault_publishes_no_joint_state_and_stops(rig):
+    """The firmware sends a NaN angle as -32768 with flag bit 4: the bridge publishes no joint state
+    from such frames (no made-up angle), reports ERROR and sends stop frames; after the fault, the
+    device is held until the bridge's stop frame, then fresh commands run."""
+    dev, bridge, node, pub, got = rig
+    hw = []
+    node.create_subscription(DiagnosticStatus, "/lhd/hw/status", hw.append, 50)
+    drive(node, pub, [1.0, -0.191, 0.2], 0.3)
+    dev.boom_sensor_fault = True
+    drive(node, pub, [1.0, -0.191, 0.2], 0.3)
+    n_js, n_cmd = len(got["js"]), len(dev.received)
+    drive(node, pub, [1.0, -0.191, 0.2], 0.5)
+    assert len(got["js"]) == n_js, "joint states published from frames with a sensor fault"
+    assert all(m.is_stop for _, m in dev.received[n_cmd:] if isinstance(m, CommandFrame))
+    assert hw[-1].level == DiagnosticStatus.ERROR and "arm angle sensor fault" in hw[-1].message, hw[-1].message
+    assert dev.plant.valve_boom == 0 and dev.plant.wheel_setpoint == 0.0
+    dev.boom_sensor_fault = False
+    drive(node, pub, [1.0, -0.191, 0.2], 0.6)
+    assert len(got["js"]) > n_js + 10 and all(math.isfinite(x) for x in got["js"][-1].position)
+    assert dev.last_commands()[-1][1] == CommandFrame(1.0, 1, 1, True)

@@ -295,9 +295,11 @@ def test_firmware_speaks_the_document(firmware):
 
     try:
         read_for(0.3)
-        assert got and got[-1][2]["flags"] == 0                      # no command yet: nothing enabled
+        assert got and got[-1][2]["flags"] == 0x08                   # no command yet: held since power-up
         cmd = {"wheel_setpoint": 9.0, "valve_boom": 1, "valve_bucket": -1, "enable": 1}
         os.write(master, doc.raw_frame(0x7E, 0, b"x") + b"\x05garbage\x00")   # ignored
+        # the stop frame a host sends first on opening the port clears the hold
+        os.write(master, tx.frame("command", {"wheel_setpoint": 0.0, "valve_boom": 0, "valve_bucket": 0, "enable": 0}))
         for _ in range(20):
             os.write(master, tx.frame("command", cmd))
             read_for(0.02)

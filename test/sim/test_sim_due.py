@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lhd_hw_bridge.protocol import (FLAG_ENABLED, FLAG_ESTOP, FLAG_WATCHDOG, TYPE_LOAD_CELL, TYPE_SENSOR,
+from lhd_hw_bridge.protocol import (FLAG_ENABLED, FLAG_ESTOP, FLAG_HELD, FLAG_WATCHDOG, TYPE_LOAD_CELL, TYPE_SENSOR,
                                     CommandFrame, FrameParser, HeartbeatFrame, LoadCellFrame, SensorFrame,
                                     TxSequence)
 from lhd_sim_node import sim_due
@@ -40,7 +40,11 @@ def test_firmware_constants_are_the_reference_firmwares():
 
 def test_firmware_clamps_refuses_and_closes_valves_at_the_limits():
     fw = Firmware()
-    assert fw.outputs(0.0, 0.0) == Outputs(False, 0.0, 0, 0, False, False)        # no command yet
+    assert fw.outputs(0.0, 0.0) == Outputs(False, 0.0, 0, 0, False, False, True)  # no command yet: held
+    fw.receive(CommandFrame(3.5, 1, 1, True), 0.0)
+    assert fw.outputs(0.0, 0.0) == Outputs(False, 0.0, 0, 0, False, False, True)  # held until a stop frame
+    assert fw.outputs(0.0, 0.0).flags == FLAG_HELD
+    fw.receive(CommandFrame.stop(), 0.0)
     fw.receive(CommandFrame(3.5, 1, 1, True), 0.0)
     assert fw.outputs(-0.5, 0.5) == Outputs(True, 2.7, 1, 1, False, False)         # clamped to 2.7
     fw.receive(CommandFrame(-1.0, -1, -1, True), 0.01)
@@ -55,6 +59,8 @@ def test_firmware_clamps_refuses_and_closes_valves_at_the_limits():
 
 def test_firmware_watchdog_and_estop():
     fw = Firmware(watchdog=0.25)
+    fw.receive(CommandFrame.stop(), 0.0)        # the bridge's first frame clears the power-up hold
+    fw.command, fw.last_cmd = None, None
     fw.check_watchdog(10.0)
     assert not fw.tripped                       # before the first command the watchdog is not armed
     fw.receive(CommandFrame(2.0, 1, 0, True), 0.0)
@@ -71,8 +77,13 @@ def test_firmware_watchdog_and_estop():
     assert fw.outputs(-0.5, 0.5) == Outputs(True, 2.0, 1, 0, False, False)
     fw.estop = True
     out = fw.outputs(-0.5, 0.5)
-    assert out == Outputs(False, 0.0, 0, 0, True, False) and out.flags == FLAG_ESTOP
-    fw.estop = False                            # released: the last command applies again
+    assert out == Outputs(False, 0.0, 0, 0, True, False, True) and out.flags == FLAG_ESTOP | FLAG_HELD
+    fw.estop = False                            # released: nothing restarts (ISO 13850), held
+    assert fw.outputs(-0.5, 0.5) == Outputs(False, 0.0, 0, 0, False, False, True)
+    fw.receive(CommandFrame(2.0, 1, 0, True), 0.5)   # not even the same command again
+    assert fw.outputs(-0.5, 0.5).held
+    fw.receive(CommandFrame.stop(), 0.6)        # a stop frame clears the hold; then commands run
+    fw.receive(CommandFrame(2.0, 1, 0, True), 0.7)
     assert fw.outputs(-0.5, 0.5) == Outputs(True, 2.0, 1, 0, False, False)
 
 
@@ -151,6 +162,7 @@ def test_sensors_sample_the_machine_between_chunks(sim):
     sees the state interpolated between the chunk's start and end (checked against the two
     states read off the simulator), not the end state up to 20 ms early."""
     due = SimDue(sim)
+    due.firmware.receive(CommandFrame.stop(), 0.0)        # the host's first frame: the power-up hold cleared
     due.firmware.receive(CommandFrame(2.7, 0, 0, True), 0.0)
     for k in range(10):                        # get the machine moving
         due.step_chunk(0.02 * k, 100.0 + 0.02 * k)
@@ -176,6 +188,7 @@ def test_a_device_whose_arm_sensors_are_zeroed_off_the_attack_pose(sim):
     sensors read, as the firmware's do on the machine: a bucket whose sensor reads past BUCKET_MAX gets its
     curl valve closed while the true angle is well inside the range."""
     due = SimDue(sim)
+    due.firmware.receive(CommandFrame.stop(), 0.0)        # the host's first frame: the power-up hold cleared
     due.firmware.receive(CommandFrame(0.0, 0, 1, True), 0.0)              # curl back
     due.step_chunk(0.0, 100.0)
     assert due.applied.valve_bucket == 1                                   # inside the limits: it curls
@@ -196,6 +209,7 @@ def test_the_devices_rates_are_the_firmwares_differences_over_its_window(sim):
     angles the frames carry over the last 0.1 s, so after the valves open they ramp up over 0.1 s and then read
     the joints' speeds; a new pile (skip_backlog) starts the window afresh."""
     due = SimDue(sim)
+    due.firmware.receive(CommandFrame.stop(), 0.0)        # the host's first frame: the power-up hold cleared
     frames, t = [], 100.0
     for k in range(20):
         due.firmware.receive(CommandFrame(0.0, 1, 1, True), 0.02 * k)      # lift and curl at full speed
@@ -245,6 +259,7 @@ def test_device_watchdog_over_the_pty(sim, tmp_path):
     fd = _host(due.link)
     tx, parser, frames = TxSequence(), FrameParser(accept={TYPE_SENSOR, TYPE_LOAD_CELL}), []
     try:
+        os.write(fd, tx.encode(CommandFrame.stop()))     # a host's first frame, as the bridge's: clears the hold
         t_end = time.monotonic() + 1.0
         while time.monotonic() < t_end:
             os.write(fd, tx.encode(CommandFrame(1.0, 0, 0, True)))

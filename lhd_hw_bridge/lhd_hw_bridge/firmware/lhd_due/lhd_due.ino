@@ -29,9 +29,21 @@ static const uint32_t SENSOR_PERIOD_US = 10000;   // 100 Hz
 static_assert(RATE_WINDOW_US / SENSOR_PERIOD_US + 2 <= RATE_RING,
               "arm_rate.h keeps too few samples for RATE_WINDOW_US at this sensor period: raise RATE_RING");
 static const uint32_t WATCHDOG_MS = 250;          // stop when command frames stop
+// The SAM3X's own watchdog: resets the Due when loop() stops for this long. loop() can stop inside
+// SerialUSB.write(), which waits with no time limit for the host to collect the previous USB packet
+// (a cable pulled while the Due is powered from the machine): then neither the 250 ms watchdog
+// above nor the emergency-stop input would run again. After the reset setup() drives every output
+// off and the device holds the machine stopped until a stop frame (flag bit 3).
+#ifndef HW_WATCHDOG_MS
+#define HW_WATCHDOG_MS 100
+#endif
+static const uint16_t MAX_RX_PER_LOOP = 128;      // bytes taken per loop(): a flood of input cannot starve it
 static const float WHEEL_MAX = 2.7f;              // rad/s
 static const float BOOM_MIN = -1.0f, BOOM_MAX = 0.05f;      // rad, joint limits
 static const float BUCKET_MIN = -0.1f, BUCKET_MAX = 1.4f;   // rad
+// an arm angle further than this beyond its joint's limits is no reading (a broken wire reads a
+// rail, a failed conversion NaN): a sensor fault, flag bit 4, every output stopped
+static const float ANGLE_PLAUSIBLE_MARGIN = 0.3f;           // rad
 static const bool MAINTENANCE_BUILD = false;      // true allows lowering / forward tilt
 
 // ---------------------------------------------------------------- state
@@ -40,6 +52,14 @@ static Command cmd = {0.0f, 0, 0, false};
 static uint32_t last_cmd_ms = 0;
 static bool have_cmd = false;
 static bool watchdog_tripped = false;
+// held: the machine stays stopped, whatever the commands say, until a command frame with enable = 0
+// arrives with no emergency stop and no sensor fault. Set at power-up and every reset, while the
+// emergency stop is pressed and while an arm angle is faulty: releasing the emergency stop, or a
+// sensor that reads again, never restarts the machine by itself (ISO 13850: resetting an
+// emergency stop must not restart the machine). The host's stop frames clear it (the first frame
+// after it opens the port is a stop); flag bit 3.
+static bool held = true;
+static bool sensor_fault = false;
 // sequence numbers: one counter per frame type this device sends (docs/serial_protocol.md):
 // this one for sensor frames, seq_load_cell for load-cell frames (LHD_HAS_LOAD_CELL)
 static uint8_t seq_sensor = 0;
@@ -89,8 +109,15 @@ static int cobs_decode(const uint8_t *in, uint16_t n, uint8_t *out) {
 static void put_u16(uint8_t *p, uint16_t v) { p[0] = v & 0xFF; p[1] = v >> 8; }
 static void put_u32(uint8_t *p, uint32_t v) { for (int k = 0; k < 4; k++) p[k] = (v >> (8 * k)) & 0xFF; }
 static int16_t get_i16(const uint8_t *p) { return (int16_t)(p[0] | (p[1] << 8)); }
-static int16_t sat16(float v) { return v > 32767.0f ? 32767 : (v < -32768.0f ? -32768 : (int16_t)lroundf(v)); }
-static uint16_t satu16(float v) { return v > 65535.0f ? 65535 : (v < 0.0f ? 0 : (uint16_t)lroundf(v)); }
+// NaN (a failed reading) goes out as the field's sentinel, -32768 / 65535 (lroundf(NaN) is undefined)
+static int16_t sat16(float v) {
+  if (!(v == v)) return -32768;
+  return v > 32767.0f ? 32767 : (v < -32768.0f ? -32768 : (int16_t)lroundf(v));
+}
+static uint16_t satu16(float v) {
+  if (!(v == v)) return 65535;
+  return v > 65535.0f ? 65535 : (v < 0.0f ? 0 : (uint16_t)lroundf(v));
+}
 
 static void send_packet(uint8_t type, uint8_t seq, const uint8_t *payload, uint8_t len) {
   uint8_t pkt[MAX_PACKET];
@@ -104,6 +131,11 @@ static void send_packet(uint8_t type, uint8_t seq, const uint8_t *payload, uint8
 }
 
 // ---------------------------------------------------------------- hardware (HW: fill in)
+#ifdef LHD_HOST_IO
+#include "host_io.h"         // the tests' host build: angles and the e-stop set by the test, outputs logged
+#else
+// An angle that cannot be read (a failed conversion, an encoder error) should come back as NAN: it
+// stops the machine (sensor fault). A raw ADC value at a rail should too (a broken wire).
 static float read_boom_angle() { return 0.0f; }     // HW: encoder counts -> rad, 0 at the attack pose
 static float read_bucket_angle() { return 0.0f; }   // HW
 static float read_wheel(int which) { (void)which; return 0.0f; }    // HW: motor encoder / gear ratio, rad/s
@@ -111,22 +143,41 @@ static float read_current(int which) { (void)which; return 0.0f; }  // HW: curre
 static void drive_wheels(float setpoint) { (void)setpoint; }        // HW: speed loop of the three motors
 static void drive_valve(int joint, int8_t dir) { (void)joint; (void)dir; }  // HW: solenoid valves
 static bool estop_pressed() { return false; }                        // HW
+#endif
+
+// the SAM3X watchdog (Arduino SAM core: init() calls watchdogSetup() before setup(); the core's
+// default switches the watchdog off, and its mode register can be written once per reset)
+void watchdogSetup(void) { watchdogEnable(HW_WATCHDOG_MS); }
+
+// NaN fails: a NaN angle is not plausible
+static bool angle_plausible(float a, float lo, float hi) {
+  return a >= lo - ANGLE_PLAUSIBLE_MARGIN && a <= hi + ANGLE_PLAUSIBLE_MARGIN;
+}
 
 // what the outputs really do, for the sensor frame
 struct Outputs { bool run; int8_t boom; int8_t bucket; bool estop; };
 
+static const Command STOP_COMMAND = {0.0f, 0, 0, false};
+
 static Outputs apply_outputs(float boom_angle, float bucket_angle) {
   bool estop = estop_pressed();
-  bool run = cmd.enable && have_cmd && !watchdog_tripped && !estop;
+  sensor_fault = !angle_plausible(boom_angle, BOOM_MIN, BOOM_MAX) ||
+                 !angle_plausible(bucket_angle, BUCKET_MIN, BUCKET_MAX);
+  if (estop || sensor_fault) {
+    held = true;
+    cmd = STOP_COMMAND;        // nothing of the command before it is kept
+  }
+  bool run = cmd.enable && have_cmd && !watchdog_tripped && !estop && !held && !sensor_fault;
   float w = run ? cmd.wheel : 0.0f;
   if (w < 0.0f) w = 0.0f;
   if (w > WHEEL_MAX) w = WHEEL_MAX;
   int8_t boom = run ? cmd.boom : 0;
   int8_t bucket = run ? cmd.bucket : 0;
   if (!MAINTENANCE_BUILD) { if (boom < 0) boom = 0; if (bucket < 0) bucket = 0; }
-  // +1 raises the boom (angle decreases); stop at the joint limits
-  if ((boom > 0 && boom_angle <= BOOM_MIN) || (boom < 0 && boom_angle >= BOOM_MAX)) boom = 0;
-  if ((bucket > 0 && bucket_angle >= BUCKET_MAX) || (bucket < 0 && bucket_angle <= BUCKET_MIN)) bucket = 0;
+  // +1 raises the boom (angle decreases); stop at the joint limits. Written so that a NaN angle
+  // fails the test and closes the valve (a review: `boom_angle <= BOOM_MIN` is false for NaN)
+  if ((boom > 0 && !(boom_angle > BOOM_MIN)) || (boom < 0 && !(boom_angle < BOOM_MAX))) boom = 0;
+  if ((bucket > 0 && !(bucket_angle < BUCKET_MAX)) || (bucket < 0 && !(bucket_angle > BUCKET_MIN))) bucket = 0;
   drive_wheels(w);
   drive_valve(0, boom);
   drive_valve(1, bucket);
@@ -149,14 +200,16 @@ static void handle_packet(const uint8_t *pkt, int n) {
     cmd.boom = boom; cmd.bucket = bucket; cmd.enable = pl[4] == 1;
     last_cmd_ms = millis();
     have_cmd = true;
-    watchdog_tripped = false;   // a fresh valid command re-arms the machine
+    watchdog_tripped = false;   // a fresh valid command re-arms the machine after a lost link
+    // a stop frame clears the hold (power-up, e-stop released, sensor reading again), not motion
+    if (!cmd.enable && !estop_pressed() && !sensor_fault) held = false;
   } else if (pkt[1] == TYPE_HEARTBEAT && len == 4) {
     // host clock only: nothing to do (the command stream is the watchdog's heartbeat)
   }
 }
 
 static void poll_serial() {
-  while (SerialUSB.available() > 0) {
+  for (uint16_t taken = 0; taken < MAX_RX_PER_LOOP && SerialUSB.available() > 0; taken++) {
     uint8_t b = (uint8_t)SerialUSB.read();
     if (b == 0) {
       if (!rx_discard && rx_len > 0) {
@@ -291,14 +344,15 @@ static uint32_t last_sensor_us = 0;
 static RateWindow boom_rate_window, bucket_rate_window;   // arm_rate.h: the rates over the last 0.1 s
 
 void setup() {
+  drive_wheels(0.0f); drive_valve(0, 0); drive_valve(1, 0);   // first: outputs off, held (see `held`)
   SerialUSB.begin(115200);
-  drive_wheels(0.0f); drive_valve(0, 0); drive_valve(1, 0);
 #ifdef LHD_HAS_LOAD_CELL
   load_cell_setup();
 #endif
 }
 
 void loop() {
+  watchdogReset();
   poll_serial();
   uint32_t now_ms = millis();
   if (have_cmd && (uint32_t)(now_ms - last_cmd_ms) > WATCHDOG_MS && !watchdog_tripped) {
@@ -320,7 +374,8 @@ void loop() {
     for (int k = 0; k < 3; k++) put_u16(p + 18 + 2 * k, satu16(read_current(k) / 1e-3f));
     p[24] = (uint8_t)out.boom;      // what the valves do (closed at a limit, on e-stop, ...)
     p[25] = (uint8_t)out.bucket;
-    p[26] = (out.run ? 0x01 : 0) | (watchdog_tripped ? 0x02 : 0) | (out.estop ? 0x04 : 0);
+    p[26] = (out.run ? 0x01 : 0) | (watchdog_tripped ? 0x02 : 0) | (out.estop ? 0x04 : 0) | (held ? 0x08 : 0) |
+            (sensor_fault ? 0x10 : 0);
     send_packet(TYPE_SENSOR, seq_sensor++, p, sizeof p);
   }
 #ifdef LHD_HAS_LOAD_CELL
