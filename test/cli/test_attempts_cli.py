@@ -21,7 +21,7 @@ HEAD = ",".join(COLUMNS)
 RECORD = "\n".join([
     HEAD,
     "1,2025-03-01T10:00:00Z,rld,15.3,homogeneous,success,end zone,23.0,4.0,20,50,45,2,true,bags/attempt_0001",
-    "2,2025-03-01T10:01:00Z,rld,14.8,homogeneous,success,end zone,25.0,5.0,30,60,44,4,true,bags/attempt_0002",
+    "2,2025-03-01T10:01:00Z,rld,14.8,homogeneous,success,end zone,25.0,5.0,30,60,44,3,true,bags/attempt_0002",
     "3,2025-03-01T10:02:00Z,rld,15.0,homogeneous,failure,restricted,,1.0,0,0,10,,false,bags/attempt_0003",
     "4,2025-03-01T10:03:00Z,teleop,25.0,nonhomogeneous,timeout,timeout,21.0,10.0,10,70,50,1,true,bags/attempt_0004",
     "5,2025-03-01T10:04:00Z,teleop,25.0,nonhomogeneous,success,end zone,,8.0,10,70,50,,,bags/attempt_0005",
@@ -191,3 +191,40 @@ def test_the_newest_status_is_the_last_heard_of_equal_stamps_and_a_restart_names
     assert "attempt 5" in hint and "lhd attempt mass KG --attempt 5" in hint
     (run_dir / "attempts.csv").write_text("\n".join(RECORD.splitlines()[:5]) + "\n")   # attempts 1-4: all weighed
     assert _unweighed_hint(str(run_dir)) == "" and _unweighed_hint(str(run_dir / "nowhere")) == ""
+
+
+def test_a_duplicated_attempt_stops_the_table_and_the_weighing(run_dir):
+    """A review (2026-11-30): a second row for attempt 2 made `lhd attempts` count it twice, and `lhd attempt
+    mass --attempt 2 --run-dir` weighed the first, wrote one row for both and said it 'replaced' a mass."""
+    p = run_dir / "attempts.csv"
+    lines = RECORD.splitlines()
+    p.write_text("\n".join(lines + [lines[2].replace(",25.0,", ",15.0,")]) + "\n")
+    before = p.read_bytes()
+    rc, out, err = run(attempts_main, [str(run_dir), "--json"])
+    assert rc == 1 and out == "" and "attempt 2 on lines 3 and 8" in err, err
+    rc, out, err = run(attempt_mass_main, ["30", "--run-dir", str(run_dir), "--attempt", "2"])
+    assert rc == 1 and "replaced" not in out and "attempt 2 on lines 3 and 8" in err, (out, err)
+    assert p.read_bytes() == before
+
+
+def test_a_hand_edited_mass_is_counted_as_its_numbers_say(run_dir):
+    """A review (2026-11-30): attempt 2's mass edited 25.0 -> 15.0 with success=true left: it was still counted
+    a success with 15 kg. The table counts it as judged again and says so above it."""
+    p = run_dir / "attempts.csv"
+    p.write_text(RECORD.replace(",end zone,25.0,", ",end zone,15.0,"))
+    rc, out, _ = run(attempts_main, [str(run_dir)])
+    assert rc == 0
+    assert "WARNING: attempt 2: the record says success (SL 3), its numbers (15.00 kg) give no success (SL 0)" in out
+    mass = [l.split() for l in out.splitlines() if l.startswith("Material loaded")][0]
+    assert mass == ["Material", "loaded", "[kg]", "15", "23.00±0.00"]          # attempt 1 only
+    rc, out, _ = run(attempts_main, [str(run_dir), "--json"])
+    d = json.loads(out)
+    assert [j["attempt"] for j in d["rejudged"]] == [2]
+    assert next(c for c in d["cells"] if c["controller"] == "rld")["successes"] == 1
+
+
+def test_a_decimal_comma_is_named(run_dir):
+    p = run_dir / "attempts.csv"
+    p.write_text(RECORD.replace(",end zone,25.0,", ",end zone,25,0,"))
+    rc, _, err = run(attempts_main, [str(run_dir)])
+    assert rc == 1 and "line 3: 25,0 reads as two fields (a decimal comma?): write 25.0" in err, err

@@ -146,3 +146,88 @@ def test_a_sqlite3_bag_still_being_written_is_refused_and_read_once_its_writer_i
     s = scan_sqlite3(db)
     assert [m[1] for m in s.messages] == list(range(1_000, 1_010))
     assert {f.name: f.read_bytes() for f in (tmp_path / "bag").iterdir()} == before
+
+
+THING = "lhd_test_msgs/msg/Thing"          # a type no computer here knows: only the bag carries its definition
+
+
+def _bag_with_an_unknown_type(path, storage):
+    from rosbags.typesys import get_types_from_msg
+
+    ts = get_typestore(Stores.ROS2_JAZZY)
+    ts.register(get_types_from_msg("std_msgs/Header header\nfloat64 value\n", THING))
+    Header, Time = ts.types["std_msgs/msg/Header"], ts.types["builtin_interfaces/msg/Time"]
+    with Writer(path, version=9, storage_plugin=storage) as w:
+        w.set_custom_data("lhd.attempt", "5")
+        c = w.add_connection("/lhd/x", F64, typestore=TS)
+        t = w.add_connection("/lhd/thing", THING, typestore=ts)
+        for k in range(4):
+            w.write(c, 1_000 + k, TS.serialize_cdr(TS.types[F64](data=float(k)), F64))
+            msg = ts.types[THING](header=Header(stamp=Time(sec=k, nanosec=0), frame_id="pile"), value=0.5 * k)
+            w.write(t, 1_000 + k, ts.serialize_cdr(msg, THING))
+    return path
+
+
+def _read(path):
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as r:
+        return {c.topic: [r.deserialize(d, c.msgtype) for c, _, d in r.messages(connections=[c])]
+                for c in r.connections}
+
+
+@pytest.mark.parametrize("storage", [StoragePlugin.MCAP, StoragePlugin.SQLITE3])
+def test_a_topic_of_a_type_this_computer_does_not_know_is_kept(tmp_path, capsys, storage):
+    """A review (2026-11-30): such a topic was dropped without a word and the summary still counted its
+    messages. Its definition comes from the bag (the MCAP schema, sqlite3's message_definitions)."""
+    from lhd_loading_ros.cli.bag import main as bag_main
+
+    bag = _bag_with_an_unknown_type(tmp_path / "attempt_0005", storage)
+    (bag / "metadata.yaml").unlink()                               # never closed
+    assert bag_main(["recover", str(bag)]) == 0, capsys.readouterr()
+    out = capsys.readouterr()
+    assert "8 messages on 2 topics" in out.out and out.err == "", out
+    got = _read(tmp_path / "attempt_0005_recovered")
+    assert [m.value for m in got["/lhd/thing"]] == [0.0, 0.5, 1.0, 1.5]
+    assert [m.header.stamp.sec for m in got["/lhd/thing"]] == [0, 1, 2, 3]
+
+
+def test_a_topic_still_without_a_definition_is_named_and_not_counted(tmp_path, capsys):
+    import sqlite3
+
+    from lhd_loading_ros.cli.bag import main as bag_main
+
+    bag = _bag_with_an_unknown_type(tmp_path / "attempt_0005", StoragePlugin.SQLITE3)
+    (bag / "metadata.yaml").unlink()
+    conn = sqlite3.connect(next(bag.glob("*.db3")))
+    conn.execute("DELETE FROM message_definitions WHERE topic_type = ?", (THING,))
+    conn.commit()
+    conn.close()
+    assert bag_main(["recover", str(bag)]) == 3
+    out = capsys.readouterr()
+    assert "4 messages on 1 topics" in out.out, out
+    assert f"WARNING: /lhd/thing left out: type {THING}: no definition of {THING}" in out.err, out.err
+    assert list(_read(tmp_path / "attempt_0005_recovered")) == ["/lhd/x"]
+
+
+def test_a_cut_copy_that_kept_its_metadata_is_recovered(tmp_path, capsys):
+    """A review (2026-11-30): an interrupted copy (metadata.yaml there, the .mcap cut) was refused as 'closed'.
+    Decided from the file: cut, it is recovered into BAG_recovered with the metadata's custom data; whole,
+    it is refused."""
+    from lhd_loading_ros.cli import replay
+    from lhd_loading_ros.cli.bag import main as bag_main
+
+    bag = _bag_with_an_unknown_type(tmp_path / "attempt_0005", StoragePlugin.MCAP)
+    assert bag_main(["recover", str(bag)]) == 1
+    assert "was closed (its attempt_0005.mcap is complete): it needs no recovery" in capsys.readouterr().err
+    f = next(bag.glob("*.mcap"))
+    f.write_bytes(f.read_bytes()[:-100])                          # the copy stopped short of the footer
+    assert replay.main([str(bag)]) == 2
+    assert f"`lhd bag recover {bag}`" in capsys.readouterr().err
+    assert bag_main(["recover", str(bag)]) == 0
+    assert "8 messages on 2 topics" in capsys.readouterr().out
+    out = tmp_path / "attempt_0005_recovered"
+    assert len(_read(out)["/lhd/thing"]) == 4
+    import yaml
+    custom = yaml.safe_load((out / "metadata.yaml").read_text())["rosbag2_bagfile_information"]["custom_data"]
+    assert custom["lhd.attempt"] == "5" and custom["lhd.recovered_from"] == str(f)

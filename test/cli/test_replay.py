@@ -102,11 +102,27 @@ def write_bag(path, messages, storage=StoragePlugin.MCAP, custom=None):
     return path
 
 
+def record_row(attempt, outcome, mass=None, elapsed=1.5, reason="r"):
+    from lhd_loading_ros.task.attempt_record import AttemptRow, judge
+
+    sl, ok = judge(outcome, mass, math.radians(45.0), math.radians(40.0))
+    return AttemptRow(attempt=attempt, started_utc="2026-11-30T10:00:00Z", controller="teleop", slope_deg=20.0,
+                      material="homogeneous", outcome=outcome, reason=reason, mass_kg=mass, elapsed_s=elapsed,
+                      front_drift_pct=20.0, rear_drift_pct=60.0, phi_final_deg=45.0, success_level=sl, success=ok,
+                      bag=f"bags/attempt_{attempt:04d}", phi_thresh_deg=40.0)
+
+
+def write_record(run, rows):
+    from lhd_loading_ros.task.attempt_record import write_rows
+
+    write_rows(run / "attempts.csv", rows)
+
+
 @pytest.mark.parametrize("storage", [StoragePlugin.MCAP, StoragePlugin.SQLITE3])
 def test_the_metrics_of_an_attempt(cfg, tmp_path, capsys, storage):
     run = tmp_path / "run"
     bag = write_bag(run / "bags" / "attempt_0004", attempt_messages(cfg), storage, {"lhd.attempt": "4"})
-    (run / "attempts.csv").write_text("attempt,controller,outcome,mass_kg\n3,teleop,success,21.0\n4,teleop,timeout,23.4\n")
+    write_record(run, [record_row(3, "success", 21.0), record_row(4, "timeout", 23.4)])
     png = tmp_path / "out" / "a4.png"
     assert replay.main([str(bag), "--json", "--plot", str(png)]) == 0
     m = json.loads(capsys.readouterr().out)
@@ -183,3 +199,79 @@ def test_what_is_not_a_bag_exits_2(tmp_path, capsys):
     (bad / "metadata.yaml").write_text("rosbag2_bagfile_information: [")
     assert replay.main([str(bad)]) == 2
     assert "is not rosbag2 metadata" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("edit, said", [
+    # a spreadsheet's quoted decimal comma: lhd attempts refuses the file; replay said "not weighed yet"
+    (lambda t: t.replace(",23.40,", ',"23,40",'), "mass_kg = '23,40' is not a number"),
+    # a duplicated attempt: replay took the last row's mass
+    (lambda t: t + t.splitlines()[2].replace(",23.40,", ",11.00,") + "\n", "attempt 4 on lines 3 and 4"),
+])
+def test_the_record_is_read_as_lhd_attempts_reads_it(cfg, tmp_path, capsys, edit, said):
+    """A review (2026-11-30): replay parsed attempts.csv with its own code, quietly."""
+    run = tmp_path / "run"
+    bag = write_bag(run / "bags" / "attempt_0004", attempt_messages(cfg), custom={"lhd.attempt": "4"})
+    write_record(run, [record_row(3, "success", 21.0), record_row(4, "timeout", 23.4)])
+    csv = run / "attempts.csv"
+    csv.write_text(edit(csv.read_text()))
+    assert replay.main([str(bag)]) == 0
+    text = capsys.readouterr().out
+    assert "loaded mass: not weighed yet" in text and "11.00" not in text
+    line = next(l for l in text.splitlines() if l.startswith("missing: the run's record cannot be read"))
+    assert said in line, text
+
+
+def test_a_bag_without_its_end_takes_the_outcome_from_the_record(cfg, tmp_path, capsys):
+    """A review (2026-11-30): a recovered bag of an attempt the record calls aborted (its recorder died) was
+    reported and titled 'attempt 4: running'."""
+    run = tmp_path / "run"
+    msgs = [m for m in attempt_messages(cfg) if m[1] < 3 * S]                 # cut before the end status
+    bag = write_bag(run / "bags" / "attempt_0004_recovered", msgs)
+    write_record(run, [record_row(4, "aborted", reason="aborted by the operator (/lhd/abort)")])
+    assert replay.main([str(bag), "--json", "--plot", str(tmp_path / "p.png")]) == 0
+    m = json.loads(capsys.readouterr().out)
+    assert (m["attempt"], m["outcome"], m["end_in_bag"], m["outcome_source"]) == (4, "aborted", False, "attempts.csv")
+    assert replay._title(m) == "attempt 4: aborted (attempts.csv; no end in the bag)"
+    assert replay.main([str(bag)]) == 0
+    text = capsys.readouterr().out
+    assert ("attempt 4: aborted (aborted by the operator (/lhd/abort)) [from attempts.csv; no end in the bag]"
+            in text), text
+    (run / "attempts.csv").unlink()                                          # no record: said, not 'running' alone
+    assert replay.main([str(bag), "--json"]) == 0
+    m = json.loads(capsys.readouterr().out)
+    assert m["outcome"] == "running" and replay._title(m) == "attempt 4: running (no end in the bag)"
+
+
+def test_an_attempt_that_ended_while_armed_never_ran(cfg, tmp_path, capsys):
+    """A review (2026-11-30): an attempt aborted while armed (ran=false) was 'not weighed yet ... lhd attempt
+    mass KG' (which refuses it) with a final pitch from before arming."""
+    run = tmp_path / "run"
+    msgs = [m for m in attempt_messages(cfg) if m[0] != "/lhd/episode" or m[1] < 2 * S]
+    msgs += [("/lhd/joint_states", int(1.2 * S), JointState(name=["boom", "bucket"], position=[-0.1, 0.4],
+                                                               velocity=[0.0, 0.0])),
+             ("/lhd/odom", int(1.2 * S), Odometry(X0, cfg["machine"]["wheel_radius"])),
+             ("/lhd/episode", int(1.5 * S), _status("aborted", 4, int(1.5 * S), reason="aborted by the operator",
+                                                    ran="false", elapsed_s="0.00"))]
+    bag = write_bag(run / "bags" / "attempt_0004", [m for m in msgs if m[1] < int(1.6 * S)],
+                    custom={"lhd.attempt": "4"})
+    write_record(run, [record_row(4, "aborted", elapsed=0.0, reason="aborted by the operator")])
+    assert replay.main([str(bag)]) == 0
+    text = capsys.readouterr().out
+    assert "attempt 4: aborted (aborted by the operator): it ended while armed and never ran" in text, text
+    assert "not weighed yet" not in text and "lhd attempt mass" not in text
+    assert "loaded mass: none, the attempt never ran" in text
+    assert re.search(r"final pitch \(deg\) +- ", text), text
+    assert replay.main([str(bag), "--json"]) == 0
+    m = json.loads(capsys.readouterr().out)
+    assert m["ran"] is False and m["final_pitch_deg"] is None and replay._title(m).endswith("(never ran)")
+
+
+def test_a_cut_bag_with_its_metadata_points_to_bag_recover(cfg, tmp_path, capsys):
+    """A review (2026-11-30): a bag whose copy was interrupted (metadata.yaml there, its .mcap cut) said only
+    'File end magic is invalid'."""
+    bag = write_bag(tmp_path / "bag", attempt_messages(cfg))
+    f = next(bag.glob("*.mcap"))
+    f.write_bytes(f.read_bytes()[:-200])
+    assert replay.main([str(bag)]) == 2
+    err = capsys.readouterr().err
+    assert "cannot be read as a rosbag2" in err and f"`lhd bag recover {bag}`" in err, err

@@ -346,3 +346,68 @@ def test_the_record_gets_the_mode_an_ordinary_file_would(tmp_path):
     finally:
         os.umask(old)
     assert (tmp_path / "attempts.csv").stat().st_mode & 0o777 == 0o644
+
+
+def test_an_attempt_number_on_two_rows_is_refused_before_anything_is_rewritten(tmp_path):
+    """A review (2026-11-30): a second row for attempt 2 was read as a third attempt by `lhd attempts`,
+    weighing it deleted both rows and wrote one, and replay took the last. Every reader now stops, naming
+    both lines, and the weighing and the supervisor's upsert leave the file as it was."""
+    p = tmp_path / "attempts.csv"
+    write_rows(p, [mk(1, mass=25.0), mk(2, mass=29.9)])
+    lines = p.read_text().splitlines()
+    p.write_text("\n".join(lines + [lines[2].replace("29.90", "15.00")]) + "\n")
+    before = p.read_bytes()
+    with pytest.raises(ValueError, match="attempt 2 on lines 3 and 4"):
+        read_rows(p)
+    with pytest.raises(ValueError, match="attempt 2 on lines 3 and 4"):
+        weigh_row(p, 2, 30.0, PHI_T)
+    with pytest.raises(ValueError, match="attempt 2 on lines 3 and 4"):
+        upsert_row(p, mk(3))
+    assert p.read_bytes() == before
+
+
+def test_a_hand_edited_mass_is_judged_again_in_the_table():
+    """A review (2026-11-30): mass_kg edited 29.90 -> 15.00 with success left true was still counted a success
+    with 15 kg. The table judges each counted row again from its numbers and says which disagree. A row with
+    its threshold is judged on it; one without keeps its stored pitch verdict and has its mass judged again."""
+    ok = dataclasses.replace(mk(1, mass=29.9), phi_thresh_deg=40.0)
+    edited = dataclasses.replace(mk(2, mass=29.9), phi_thresh_deg=40.0, mass_kg=15.0)       # SL 5, true: stale
+    old_edit = dataclasses.replace(mk(3, mass=29.9), mass_kg=15.0)                          # no threshold
+    old_fine = dataclasses.replace(mk(4, mass=25.0, phi=30.0))                              # SL 0 at 30 deg (<40)
+    assert (edited.success_level, edited.success) == (5, True) and math.isnan(old_edit.phi_thresh_deg)
+    s = summarize([ok, edited, old_edit, old_fine])
+    assert [j["attempt"] for j in s["rejudged"]] == [2, 3]
+    assert s["rejudged"][0]["stored"] == {"success_level": 5, "success": True}
+    assert s["rejudged"][0]["judged"] == {"success_level": 0, "success": False}
+    (cell,) = s["cells"]
+    assert (cell["attempts"], cell["successes"]) == (4, 1) and cell["mass_kg"]["mean"] == pytest.approx(29.9)
+    out = format_table(s)
+    warn = out.splitlines()[0]
+    assert warn.startswith("WARNING: attempt 2: the record says success (SL 5), its numbers (15.00 kg) give no "
+                           "success (SL 0): counted as no success (SL 0)"), out
+    assert out.index("WARNING: attempt 3") < out.index("attempt(s) recorded")
+    assert "WARNING" not in format_table(summarize([ok, old_fine]))
+
+
+@pytest.mark.parametrize("text, message", [
+    # an unquoted decimal comma: every column after it shifted
+    ("2,t,rld,20.00,homogeneous,success,r,29,90,4.000,10.00,50.00,45.00,5,true,b,,40.000",
+     "line 3 has 18 fields, expected 17: a decimal comma\\? write 29.90"),
+    ("2,t,rld,20.00,homogeneous,success,r,29.90,4.000,10.00", "line 3 has 10 fields, expected 17"),
+])
+def test_spreadsheet_artefacts_are_named_not_misread(tmp_path, text, message):
+    p = tmp_path / "attempts.csv"
+    write_rows(p, [mk(1, mass=25.0)])
+    p.write_text(p.read_text() + text + "\n")
+    with pytest.raises(ValueError, match=message):
+        read_rows(p)
+
+
+def test_a_byte_order_mark_and_empty_rows_from_a_spreadsheet_are_read(tmp_path):
+    """Excel's UTF-8 begins with a byte-order mark (it read as 'columns attempt missing') and keeps rows of
+    only commas (read as "attempt = '' is not an integer")."""
+    p = tmp_path / "attempts.csv"
+    write_rows(p, [mk(1, mass=25.0), mk(2, mass=21.0)])
+    lines = p.read_text().splitlines()
+    p.write_bytes(("\ufeff" + "\r\n".join(lines[:2] + ["," * 16, lines[2], ",,,", "," * 19]) + "\r\n").encode())
+    assert read_rows(p) == [mk(1, mass=25.0), mk(2, mass=21.0)]

@@ -1,7 +1,7 @@
 """`lhd bag recover BAG [--out DIR]`: the readable part of an attempt's bag that was never closed
 (the recorder killed, the computer lost power) as a complete rosbag2 folder (cli/bag_recover.py),
 which `lhd replay` and `ros2 bag play` then read. Exit 0, 1 when nothing could be recovered, 2
-for bad arguments."""
+for bad arguments, 3 when the bag was written but topics were left out (each named with the reason)."""
 from __future__ import annotations
 
 import argparse
@@ -22,15 +22,18 @@ def main(argv=None) -> int:
     except (RecoverError, OSError) as exc:
         print(f"lhd bag recover: {exc}", file=sys.stderr)
         return 1
-    topics = sorted({scan.channels[c][1] for c, _, _ in scan.messages if c in scan.channels})
+    written = sum(scan.written.values())
     if scan.storage == "sqlite3":
         where = "the rows committed before the recorder stopped (sqlite3)"
     else:
         where = (f"{scan.chunks} chunks, " + ("the whole file" if scan.truncated_at is None else
                                               f"up to byte {scan.truncated_at} (the rest was cut off)"))
-    print(f"lhd bag recover: {len(scan.messages)} messages on {len(topics)} topics from {where}, written to {out} "
+    # the messages written, not those scanned (a review, 2026-11-30: dropped topics were counted)
+    print(f"lhd bag recover: {written} messages on {len(scan.written)} topics from {where}, written to {out} "
           f"(`lhd replay {out}`)")
-    return 0
+    for topic, why in sorted(scan.dropped.items()):
+        print(f"lhd bag recover: WARNING: {topic} left out: {why}", file=sys.stderr)
+    return 3 if scan.dropped else 0
 
 
 if __name__ == "__main__":

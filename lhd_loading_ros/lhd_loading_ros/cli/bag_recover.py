@@ -1,12 +1,18 @@
 """Recover an attempt's rosbag2 MCAP that was never closed (the recorder killed with SIGKILL, the
 computer lost power): the file then lacks its summary, footer and closing magic, and its folder
 lacks metadata.yaml, so no reader opens it. What the recorder flushed (every chunk it closed: it
-closes one every `flush_period_s`, docs/recorder.md) is read record by record from the
+closes one every `flush_period_s`, docs/recording.md) is read record by record from the
 specification (mcap.dev/spec: Header, then Schema, Channel and Chunk records; a Chunk holds
 Schema, Channel and Message records) up to the first truncated record, and written again as a
 complete rosbag2 folder beside the original, which is left as it is. The file is read without ROS;
 each type's definition and hash come from the recorder's own MessageTypes (the installed
-interfaces), as when it was recorded.
+interfaces), as when it was recorded, else from the definition the bag itself carries (the MCAP
+schema record, the sqlite3 `message_definitions` table): a type this computer does not know is
+kept. A topic that still cannot be written is named with the reason (`Scan.dropped`).
+
+Whether a bag needs recovering is decided from its storage file, not from its metadata.yaml: an
+MCAP file without its closing magic (the recorder killed, or a copy of a closed bag interrupted,
+which leaves its metadata.yaml beside a cut file) is recovered; one with it was closed.
 
 A sqlite3 bag (`storage: sqlite3`) killed the same way has its rows up to the recorder's last
 commit (every `flush_period_s`) in its `.db3`, but no metadata.yaml: its `topics` and `messages`
@@ -44,6 +50,8 @@ class Scan:
     truncated_at: int | None = None
     chunks: int = 0
     storage: str = "mcap"            # or sqlite3 (scan_sqlite3: the committed rows; no chunks)
+    written: dict = field(default_factory=dict)      # recover: topic -> messages written
+    dropped: dict = field(default_factory=dict)      # recover: topic -> why its messages were not written
 
 
 class _Buf:
@@ -210,9 +218,16 @@ def scan_sqlite3(path, work_dir=None) -> Scan:
                 raise RecoverError(f"{path}: no rosbag2 `topics` table (expected a rosbag2 sqlite3 bag)")
             qos_col = "offered_qos_profiles" if "offered_qos_profiles" in cols else "''"
             scan = Scan(storage="sqlite3")
+            # the definitions the bag carries (rosbag2 schema 4), for a type this computer does not know
+            defs = {}
+            if conn.execute("SELECT 1 FROM sqlite_master WHERE type='table' AND name='message_definitions'"
+                            ).fetchone():
+                defs = {t: (enc, text) for t, enc, text in conn.execute(
+                    "SELECT topic_type, encoding, encoded_message_definition FROM message_definitions")}
             for tid, name, typ, fmt, qos in conn.execute(
                     f"SELECT id, name, type, serialization_format, {qos_col} FROM topics ORDER BY id"):
-                scan.schemas[tid] = (typ, "ros2msg", "")
+                enc, text = defs.get(typ, ("ros2msg", ""))
+                scan.schemas[tid] = (typ, enc, text)
                 try:
                     profiles = parse_qos(qos) if qos else []
                 except Exception:  # noqa: BLE001 - a QoS text this rosbags cannot read: the reader's defaults
@@ -227,10 +242,48 @@ def scan_sqlite3(path, work_dir=None) -> Scan:
     return scan
 
 
+def _bag_definition(name: str, encoding: str, text: str) -> tuple[str, str]:
+    """(msgdef, rihs01) of `name` from the definition the bag carries (ros2msg text with its dependencies,
+    as rosbag2 writes it), registered in a typestore of its own; ValueError when there is none."""
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    if encoding != "ros2msg" or not text.strip():
+        raise ValueError(f"the bag carries no ros2msg definition of it (encoding {encoding!r})")
+    try:
+        store = get_typestore(Stores.EMPTY)
+        store.register(get_types_from_msg(text, name))
+        return store.generate_msgdef(name, ros_version=2)[0], store.hash_rihs01(name)
+    except Exception as exc:  # noqa: BLE001 - rosbags' parser and typestore errors: the reason, said
+        raise ValueError(f"its definition in the bag does not parse ({exc})") from None
+
+
+def _closed(file: Path) -> bool:
+    """True when the storage file was closed: an MCAP file that ends with its magic (footer and closing
+    magic are written last); a .db3 without a hot journal that SQLite finds intact."""
+    if file.suffix == ".mcap":
+        size = file.stat().st_size
+        with file.open("rb") as f:
+            if size < 2 * len(MAGIC):
+                return False
+            f.seek(size - len(MAGIC))
+            return f.read(len(MAGIC)) == MAGIC
+    if Path(str(file) + "-journal").is_file():
+        return False
+    try:
+        conn = sqlite3.connect(f"{file.resolve().as_uri()}?mode=ro", uri=True)
+        try:
+            return conn.execute("PRAGMA quick_check").fetchone()[0] == "ok"
+        finally:
+            conn.close()
+    except sqlite3.Error:
+        return False
+
+
 def recover(bag, out=None) -> tuple[Path, Scan]:
-    """Write the readable part of the never-closed bag folder `bag` as a complete rosbag2 folder
+    """Write the readable part of the never-closed (or cut) bag folder `bag` as a complete rosbag2 folder
     (version 9, the original's storage: MCAP or sqlite3) at `out` (default: BAG_recovered); the
-    original is not touched. Returns (out, scan). RecoverError saying why not."""
+    original is not touched. Returns (out, scan), scan.written the messages written per topic and
+    scan.dropped the topics left out with the reason. RecoverError saying why not."""
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.rosbag2.storage_mcap import get_qos
 
@@ -239,13 +292,15 @@ def recover(bag, out=None) -> tuple[Path, Scan]:
     bag = Path(bag)
     if not bag.is_dir():
         raise RecoverError(f"{bag}: not a folder (expected an attempt's bag folder, e.g. runs/real/.../bags/attempt_0001)")
-    if (bag / "metadata.yaml").is_file():
-        raise RecoverError(f"{bag} has its metadata.yaml: it was closed and needs no recovery (`lhd replay {bag}`)")
     files = sorted(bag.glob("*.mcap")) + sorted(bag.glob("*.db3"))
     if len(files) != 1:
         raise RecoverError(f"{bag}: expected one .mcap or .db3 file, found {len(files)}")
     if files[0].stat().st_size == 0:
         raise RecoverError(f"{files[0]} is empty: nothing was flushed before the recorder stopped")
+    # decided from the file (a review, 2026-11-30: an interrupted copy keeps metadata.yaml beside a cut file)
+    if (bag / "metadata.yaml").is_file() and _closed(files[0]):
+        raise RecoverError(f"{bag} was closed (its {files[0].name} is complete): it needs no recovery "
+                           f"(`lhd replay {bag}`)")
     out = Path(out) if out is not None else bag.with_name(bag.name + "_recovered")
     if out.exists():
         raise RecoverError(f"{out} exists: give another --out (nothing is overwritten)")
@@ -259,21 +314,45 @@ def recover(bag, out=None) -> tuple[Path, Scan]:
     writer = Writer(out, version=9, storage_plugin=StoragePlugin.SQLITE3 if sqlite else StoragePlugin.MCAP)
     writer.open()
     try:
+        for k, v in _custom_data(bag).items():       # a cut copy's metadata.yaml: the attempt, prefix, ...
+            writer.set_custom_data(k, v)
         writer.set_custom_data("lhd.recovered_from", str(files[0]))
         conns, types = {}, MessageTypes()
         for cid, (sid, topic, enc, meta) in sorted(scan.channels.items()):
-            name = scan.schemas.get(sid, ("",))[0]
+            name, encoding, text = scan.schemas.get(sid, ("", "", ""))
             if not name:
-                continue                    # a channel whose schema was not flushed: its messages are dropped
+                scan.dropped[topic] = "its schema was not flushed before the recorder stopped"
+                continue
             try:
                 msgdef, rihs = types.definition(name)
-            except ValueError:
-                continue                    # a type this computer does not know: left out
+            except ValueError as exc:
+                # a type this computer does not know (a review, 2026-11-30: such topics were dropped without a
+                # word): the definition the bag carries
+                try:
+                    msgdef, rihs = _bag_definition(name, encoding, text)
+                except ValueError as exc2:
+                    scan.dropped[topic] = f"type {name}: {exc}; {exc2}"
+                    continue
             conns[cid] = writer.add_connection(topic, name, msgdef=msgdef, rihs01=rihs, serialization_format=enc,
                                                offered_qos_profiles=meta if sqlite else get_qos(meta))
         for cid, t, data in sorted(scan.messages, key=lambda m: m[1]):
             if cid in conns:
                 writer.write(conns[cid], t, data)
+                topic = scan.channels[cid][1]
+                scan.written[topic] = scan.written.get(topic, 0) + 1
+            elif cid not in scan.channels:
+                scan.dropped.setdefault(f"(channel {cid})", "its channel record was not flushed")
     finally:
         writer.close()
     return out, scan
+
+
+def _custom_data(bag: Path) -> dict:
+    """The custom_data of the bag's metadata.yaml, if it has a readable one ({} otherwise)."""
+    import yaml
+
+    try:
+        info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+        return {str(k): str(v) for k, v in (info.get("custom_data") or {}).items()}
+    except (OSError, yaml.YAMLError, KeyError, TypeError, AttributeError):
+        return {}

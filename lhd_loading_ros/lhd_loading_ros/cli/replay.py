@@ -13,7 +13,6 @@ bag is said in a line (what cannot be computed without it); a path that is not a
 from __future__ import annotations
 
 import argparse
-import csv
 import math
 import sys
 from dataclasses import dataclass, field
@@ -101,7 +100,10 @@ def read_bag(path: Path, extra: dict | None = None) -> Recording:
         reader = AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY))
         reader.open()
     except (AnyReaderError, OSError) as exc:
-        raise ReplayError(f"{path} cannot be read as a rosbag2: {exc}") from None
+        # a storage file cut off after metadata.yaml was written (an interrupted copy) reads so: recover it
+        raise ReplayError(f"{path} cannot be read as a rosbag2: {exc}; if its file was cut off (an interrupted "
+                          f"copy, the recorder killed), `lhd bag recover {path}` writes what it holds as a "
+                          "complete bag") from None
     try:
         types = {c.topic: c.msgtype for c in reader.connections}
         counts: dict = {}
@@ -171,21 +173,24 @@ def _num(values: dict | None, key: str) -> float | None:
     return v if math.isfinite(v) else None
 
 
-def _mass_from_record(rec: Recording, attempt: int | None) -> float | None:
-    """The weighed mass in <run_dir>/attempts.csv (the supervisor's record: columns attempt and
-    mass_kg), when the bag sits in <run_dir>/bags/ and the attempt has been weighed."""
-    csv_path = rec.path.parent.parent / "attempts.csv"
-    if attempt is None or rec.path.parent.name != "bags" or not csv_path.is_file():
-        return None
+def _record_row(rec: Recording, attempt: int | None):
+    """(the attempt's row of <run_dir>/attempts.csv, why the record cannot be read): read as `lhd attempts`
+    reads it (task.attempt_record.read_rows: a duplicated attempt, a decimal comma are refused, not taken
+    quietly), when the bag sits in <run_dir>/bags/. (None, None) where there is no record or no such row."""
+    from lhd_loading_ros.task.attempt_record import read_rows
+
+    path = rec.path.parent.parent / "attempts.csv"
+    if attempt is None or rec.path.parent.name != "bags" or not path.is_file():
+        return None, None
     try:
-        with open(csv_path, newline="") as f:
-            rows = [r for r in csv.DictReader(f) if attempt_number({"episode": r.get("attempt")}) == attempt]
-    except (OSError, csv.Error):
-        return None
-    return _num(rows[-1], "mass_kg") if rows else None
+        rows = read_rows(path)
+    except (OSError, ValueError) as exc:
+        return None, f"the run's record cannot be read (no mass or outcome from it): {exc}"
+    return next((r for r in rows if r.attempt == attempt), None), None
 
 
 def analyse(rec: Recording, cfg: dict) -> dict:
+    from lhd_loading_ros.task.attempt_record import never_ran
     from lhd_loading_ros.task.kinematics import ArmKinematics
     from lhd_loading_ros.task.params import TaskParams
 
@@ -194,6 +199,9 @@ def analyse(rec: Recording, cfg: dict) -> dict:
     missing = []
     attempt = attempt_number({"episode": rec.custom.get("lhd.attempt")})
     w = attempt_window(rec.status, attempt)
+    row, record_problem = _record_row(rec, w.attempt)
+    # ended while armed (aborted, e-stop, a silent input): nothing was loaded, and its pitch is from before arming
+    ran = not ((w.end_status or {}).get("ran") == "false" or (row is not None and never_ran(row)))
     if not len(rec.status):
         missing.append(f"no {pre}/episode in the bag: outcome, attempt window, elapsed time, drift and commands "
                        f"per attempt unknown")
@@ -202,13 +210,21 @@ def analyse(rec: Recording, cfg: dict) -> dict:
                        f"(or the bag began after it ended)")
     elif w.t_end is None:
         missing.append(f"no end status of attempt {w.attempt} in {pre}/episode: the bag ends before the attempt "
-                       f"(recorder stopped during it); figures up to the last message")
+                       f"(recorder stopped during it); figures up to the last message"
+                       + ("; the outcome from attempts.csv" if row is not None else ""))
+    if record_problem:
+        missing.append(record_problem)
     last = w.last_status or {}
+    outcome, reason = (w.end_status or last).get("state"), (w.end_status or last).get("reason", "")
+    if w.end_status is None and row is not None:
+        # the bag has no end (a recovered bag: the recorder died): the record's outcome, not the last status's
+        outcome, reason = row.outcome, row.reason
     out = {
         "bag": str(rec.path), "storage": rec.storage, "duration_s": rec.duration_s,
         "messages": sum(rec.counts.values()), "topics": dict(sorted(rec.counts.items())),
-        "attempt": w.attempt, "outcome": (w.end_status or last).get("state"),
-        "reason": (w.end_status or last).get("reason", ""),
+        "attempt": w.attempt, "outcome": outcome, "reason": reason, "end_in_bag": w.end_status is not None,
+        "outcome_source": "attempts.csv" if w.end_status is None and row is not None else f"{pre}/episode",
+        "ran": ran,
         "controller": last.get("controller"), "slope_deg": _num(last, "slope_deg"), "material": last.get("material"),
         "note": rec.custom.get("lhd.note"),
     }
@@ -235,7 +251,7 @@ def analyse(rec: Recording, cfg: dict) -> dict:
         if not track:
             missing.append(f"{pre}/joint_states and {pre}/odom never give a usable state (boom and bucket "
                            f"positions, a unit quaternion, odometry before the joints): no tip trajectory")
-    phi = final_pitch(track, w)
+    phi = final_pitch(track, w) if ran else None
     out["final_pitch_deg"] = math.degrees(phi) if phi is not None else None
     out["final_pitch_reported_deg"] = _num(w.end_status, "phi_final_deg")
     in_attempt = [s for s in track if (w.t_start is None or s.t >= w.t_start) and (w.t_end is None or s.t <= w.t_end)]
@@ -246,9 +262,8 @@ def analyse(rec: Recording, cfg: dict) -> dict:
     # mass: the last status, else the run's record
     mass = _num(last, "loaded_mass")
     source = f"{pre}/episode" if mass is not None else None
-    if mass is None:
-        mass = _mass_from_record(rec, w.attempt)
-        source = "attempts.csv" if mass is not None else None
+    if mass is None and row is not None and row.mass_kg is not None:
+        mass, source = row.mass_kg, "attempts.csv"
     out["loaded_mass_kg"], out["mass_source"] = mass, source
     out["success_level"] = last.get("success_level")
     out["commands"] = command_stats(rec.cmd, w)
@@ -286,6 +301,11 @@ def format_text(m: dict) -> str:
     head = f"attempt {m['attempt'] if m['attempt'] is not None else '?'}: {m['outcome'] or 'unknown outcome'}"
     if m["reason"]:
         head += f" ({m['reason']})"
+    if not m.get("end_in_bag", True) and m["attempt"] is not None:
+        head += (" [from attempts.csv; no end in the bag]" if m.get("outcome_source") == "attempts.csv"
+                 else " [no end in the bag]")
+    if not m.get("ran", True):
+        head += ": it ended while armed and never ran"
     lines.append(head)
     ctx = [f"controller {m['controller']}" if m["controller"] else "",
            f"slope {m['slope_deg']:.1f} deg" if m["slope_deg"] is not None else "",
@@ -300,7 +320,9 @@ def format_text(m: dict) -> str:
     for name, mine, rep in rows:
         lines.append(f"{name:22}{_f(mine):>14}{_f(rep):>12}")
     lines.append(f"drift sampled at {m['drift_steps']} command(s) of the attempt")
-    if m["loaded_mass_kg"] is not None:
+    if not m.get("ran", True):
+        lines.append("loaded mass: none, the attempt never ran (nothing was loaded; no final pitch)")
+    elif m["loaded_mass_kg"] is not None:
         lines.append(f"loaded mass: {m['loaded_mass_kg']:.2f} kg ({m['mass_source']})"
                      + (f", success level {m['success_level']}" if m.get("success_level") not in (None, "") else ""))
     else:
@@ -321,6 +343,17 @@ def format_text(m: dict) -> str:
     for line in m["missing"]:
         lines.append(f"missing: {line}")
     return "\n".join(lines)
+
+
+def _title(m: dict) -> str:
+    """The plot's title: the attempt, its outcome and time; said when the bag holds no end (the outcome
+    then from attempts.csv, if it has one) and when the attempt never ran."""
+    t = f"attempt {m['attempt']}: {m['outcome']}" + (f", {m['elapsed_s']:.2f} s" if m["elapsed_s"] else "")
+    if not m.get("end_in_bag", True) and m["attempt"] is not None:
+        t += " (attempts.csv; no end in the bag)" if m.get("outcome_source") == "attempts.csv" else " (no end in the bag)"
+    if not m.get("ran", True):
+        t += " (never ran)"
+    return t
 
 
 def plot(m: dict, rec: Recording, out: Path) -> None:
@@ -370,7 +403,7 @@ def plot(m: dict, rec: Recording, out: Path) -> None:
     ax.set_aspect("equal", adjustable="box")
     if ax.get_legend_handles_labels()[0]:
         ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.22), ncol=2, fontsize=8)
-    ax.set_title(f"attempt {m['attempt']}: {m['outcome']}" + (f", {m['elapsed_s']:.2f} s" if m["elapsed_s"] else ""))
+    ax.set_title(_title(m))
     ts = [(t - t0) / 1e9 for t in rec.cmd.t]
     for i, name in enumerate(("u_wheels", "u_boom", "u_bucket")):
         a = fig.add_subplot(gs[i, 1])

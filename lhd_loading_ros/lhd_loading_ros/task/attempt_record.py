@@ -247,17 +247,65 @@ def csv_path(run_dir) -> Path:
     return p if p.suffix == ".csv" else p / CSV_NAME
 
 
+def _decimal_comma(names: list[str], fields: list[str], where: str) -> str:
+    """'29,90' when joining two neighbouring number fields at a point ('29', '90' -> 29.90) makes the row
+    read as an attempt (a spreadsheet's unquoted decimal comma), else ''."""
+    for i in range(len(fields) - 1):
+        a, b = fields[i].strip(), fields[i + 1].strip()
+        if a.lstrip("-").isdigit() and b.isdigit():
+            merged = fields[:i] + [f"{a}.{b}"] + fields[i + 2:]
+            if len(merged) <= len(names):
+                try:
+                    AttemptRow.from_csv(dict(zip(names, merged)), where)
+                except ValueError:
+                    continue
+                return f"{a},{b}"
+    return ""
+
+
 def read_rows(path) -> list[AttemptRow]:
-    """The rows of an attempts.csv ([] when the file does not exist yet)."""
+    """The rows of an attempts.csv ([] when the file does not exist yet). ValueError, before anything
+    is rewritten, for a row that does not read (naming its line and column), a row with more fields than
+    the header (a decimal comma from a spreadsheet: 29,90), and an attempt number on two rows. What a
+    spreadsheet adds harmlessly is read: a UTF-8 byte-order mark, rows of empty fields."""
     path = Path(path)
     if not path.exists():
         return []
-    with open(path, newline="") as f:
+    # utf-8-sig: Excel's UTF-8 starts with a byte-order mark, which read as part of the first column's name
+    with open(path, newline="", encoding="utf-8-sig") as f:
         reader = csv.DictReader(f)
-        missing = [c for c in COLUMNS if c not in (reader.fieldnames or []) and c not in OPTIONAL_COLUMNS]
+        names = reader.fieldnames or []
+        missing = [c for c in COLUMNS if c not in names and c not in OPTIONAL_COLUMNS]
         if missing:
             raise ValueError(f"{path}: not an attempts record (columns {', '.join(missing)} missing)")
-        return [AttemptRow.from_csv(d, f"{path} line {reader.line_num}") for d in reader]
+        rows, lines = [], {}
+        for d in reader:
+            at = f"{path} line {reader.line_num}"
+            extra = d.pop(None, None) or []
+            fields = [d[k] for k in names if d[k] is not None] + extra
+            if not any(v.strip() for v in fields):
+                continue            # a spreadsheet's empty row (only commas, however many)
+            if extra:
+                guess = _decimal_comma(names, fields, at).replace(",", ".")
+                raise ValueError(f"{at} has {len(fields)} fields, expected {len(names)}: a decimal comma? write "
+                                 f"{guess or '29.90'} (numbers with a point; text with a comma in double quotes)")
+            if any(v is None for k, v in d.items() if k not in OPTIONAL_COLUMNS):   # (those last: may be left out)
+                raise ValueError(f"{at} has {len(fields)} fields, expected {len(names)}: a field left out (an empty "
+                                 "one is written as nothing between two commas)")
+            try:
+                row = AttemptRow.from_csv(d, at)
+            except ValueError as exc:
+                split = _decimal_comma(names, fields, at)
+                if split:
+                    raise ValueError(f"{at}: {split} reads as two fields (a decimal comma?): write "
+                                     f"{split.replace(',', '.')}") from exc
+                raise
+            if row.attempt in lines:
+                raise ValueError(f"{path}: attempt {row.attempt} on lines {lines[row.attempt]} and {reader.line_num}: "
+                                 "the record keeps one row per attempt; delete or renumber the wrong one")
+            lines[row.attempt] = reader.line_num
+            rows.append(row)
+        return rows
 
 
 def write_rows(path, rows: list[AttemptRow]) -> None:
@@ -361,10 +409,41 @@ def controller_order(names) -> list[str]:
     return [c for c in PAPER_ORDER if c in names] + sorted(names - set(PAPER_ORDER))
 
 
+def judged_again(row: AttemptRow) -> tuple[int | None, bool | None]:
+    """(success level, success) of a row judged again from its own numbers (`judge`), not taken from its
+    stored columns, which a hand edit of `mass_kg` leaves stale (a review: 29.90 -> 15.00 kg still counted a
+    success). A row with its pitch threshold (phi_thresh_deg) is judged on mass_kg, phi_final_deg and it. A
+    row recorded without one (before 2026-11-30) is not judged on some other file's threshold: its stored
+    SL says whether the pitch was over its supervisor's threshold (SL >= 1) or, with 20 kg or more, not
+    (SL 0), and the mass is judged again; a mass with no stored SL stays unjudged (weigh it again)."""
+    if math.isfinite(row.phi_thresh_deg) or row.mass_kg is None:
+        return judge(row.outcome, row.mass_kg, math.radians(row.phi_final_deg), math.radians(
+            row.phi_thresh_deg if math.isfinite(row.phi_thresh_deg) else 0.0))
+    if row.success_level is None:
+        return row.success_level, row.success
+    # the pitch verdict of the stored SL (SL 0 with under 20 kg says nothing of the pitch: SL 0 either way)
+    sl = success_level(row.mass_kg, 1.0, 0.0) if row.success_level >= 1 else 0
+    return sl, (sl >= 1) if row.outcome in NEEDS_MASS else False
+
+
 def summarize(rows: list[AttemptRow]) -> dict:
     """The paper's table as data: `cells` (controller x material x slope), `across_slopes`
-    (the x-bar rows), and the attempts left out (aborted; no end recorded; not yet weighed)."""
+    (the x-bar rows), and the attempts left out (aborted; no end recorded; not yet weighed). Each
+    counted row is judged again from its numbers (`judged_again`) and counted so; `rejudged` lists
+    the rows whose stored success / success_level disagree."""
     left_out = lambda r: r.outcome in NOT_COUNTED or never_ran(r)     # noqa: E731
+    rejudged = []
+    fixed = []
+    for r in rows:
+        if not left_out(r):
+            sl, ok = judged_again(r)
+            if (sl, ok) != (r.success_level, r.success):
+                rejudged.append({"attempt": r.attempt, "mass_kg": r.mass_kg,
+                                 "stored": {"success_level": r.success_level, "success": r.success},
+                                 "judged": {"success_level": sl, "success": ok}})
+                r = replace(r, success_level=sl, success=ok)
+        fixed.append(r)
+    rows = fixed
     aborted = [r.attempt for r in rows if left_out(r) and not is_unended(r)]
     unended = [r.attempt for r in rows if is_unended(r)]
     pending = [r.attempt for r in rows if not left_out(r) and r.success is None]
@@ -399,7 +478,7 @@ def summarize(rows: list[AttemptRow]) -> dict:
         if r.config_hash and r.config_hash not in files.setdefault(r.controller, []):
             files[r.controller].append(r.config_hash)
     return {"rows": len(rows), "counted": len(counted), "aborted": aborted, "unended": unended, "not_weighed": pending,
-            "cells": cells, "across_slopes": across, "config_hashes": files}
+            "cells": cells, "across_slopes": across, "config_hashes": files, "rejudged": rejudged}
 
 
 def format_table(summary: dict, title: str = "") -> str:
@@ -407,6 +486,15 @@ def format_table(summary: dict, title: str = "") -> str:
     x-bar), a column per material x controller."""
     cells = summary["cells"]
     lines = [title] if title else []
+    def verdict(v):
+        ok = {True: "success", False: "no success", None: "waiting for the mass"}[v["success"]]
+        return ok + ("" if v["success_level"] is None else f" (SL {v['success_level']})")
+
+    for j in summary.get("rejudged", []):
+        mass = "no mass" if j["mass_kg"] is None else f"{j['mass_kg']:.2f} kg"
+        lines.append(f"WARNING: attempt {j['attempt']}: the record says {verdict(j['stored'])}, its numbers "
+                     f"({mass}) give {verdict(j['judged'])}: counted as {verdict(j['judged'])} (a hand edit? "
+                     f"`lhd attempt mass KG --attempt {j['attempt']} --run-dir DIR` rewrites the row)")
     lines.append(f"{summary['rows']} attempt(s) recorded, {summary['counted']} counted")
     if summary["aborted"]:
         lines.append(f"aborted (by the operator, or not started by the supervisor) or ended before they ran, not counted: "
