@@ -357,6 +357,8 @@ def test_sqlite3_an_existing_folder_and_a_shutdown_during_the_attempt(ros, tmp_p
     try:
         assert db.execute("SELECT schema_version FROM schema").fetchone()[0] == 4
         topic_id = db.execute("SELECT id FROM topics WHERE name = '/lhd/cmd'").fetchone()[0]
+        written = [r[0] for r in db.execute("SELECT timestamp FROM messages ORDER BY id")]
+        assert written == sorted(written)          # on the sim clock too, the log time never goes back
         rows = db.execute("SELECT data FROM messages WHERE topic_id = ? ORDER BY timestamp", (topic_id,)).fetchall()
         assert [list(deserialize_message(r[0], Float64MultiArray).data) for r in rows] == \
             [[1.0, 0.0, 0.1 * k] for k in range(8)]
@@ -372,6 +374,34 @@ def test_sqlite3_an_existing_folder_and_a_shutdown_during_the_attempt(ros, tmp_p
     assert "attempt 3: running" in text and "no end status of attempt 3" in text
     assert "commands during the attempt: 8" in text
     assert re.search(r"rear drift \(%\) +50\.00 +-\n", text) and "drift sampled at 8 command(s)" in text
+
+
+def test_log_times_on_the_sim_clock_never_go_back_within_a_bag(monkeypatch):
+    """A review (2026-11-30): with use_sim_time the log time was the sim clock's now minus the wall-clock
+    wait in the executor; the sim clock jumps between callbacks (and in lockstep runs faster than the
+    wall clock), so a message that waited long came out earlier than the one written before it, and a
+    bag's end status was logged before its running statuses. The sequence below is that case: message
+    B arrived early, waited 16 ms, and was taken after A at the same sim time."""
+    from types import SimpleNamespace
+
+    from lhd_loading_ros.nodes import recorder_node
+    from lhd_loading_ros.nodes.recorder_node import RecorderNode
+
+    sim_now = {"ns": 0}
+    node = SimpleNamespace(_last_sim_ns=0, _sim_time_active=lambda: True,
+                           get_clock=lambda: SimpleNamespace(now=lambda: SimpleNamespace(nanoseconds=sim_now["ns"])))
+    wall = {"ns": 0}
+    monkeypatch.setattr(recorder_node.time, "time_ns", lambda: wall["ns"])
+    ms = 1_000_000
+    out = []
+    for sim_ns, wall_ns, received_ns in ((20 * ms, 21 * ms, 20 * ms),     # A: taken at once
+                                         (20 * ms, 21 * ms, 5 * ms),      # B: arrived 16 ms before it was taken
+                                         (40 * ms, 41 * ms, 40 * ms)):
+        sim_now["ns"], wall["ns"] = sim_ns, wall_ns
+        out.append(RecorderNode.receive_time(node, {"received_timestamp": received_ns}))
+    assert out == [19 * ms, 19 * ms, 39 * ms]          # B at A's time, not 4 ms: never back
+    node._sim_time_active = lambda: False              # on the system clock: DDS's arrival stamp as it is
+    assert RecorderNode.receive_time(node, {"received_timestamp": 5 * ms}) == 5 * ms
 
 
 @pytest.mark.parametrize("storage, ext", [("mcap", "mcap"), ("sqlite3", "db3")])

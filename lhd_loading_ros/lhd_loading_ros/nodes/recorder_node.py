@@ -247,6 +247,7 @@ class RecorderNode(Node):
         self.types = MessageTypes()
         self.plan = RecordingPlan(post_roll_s=p["post_roll_s"])
         self.writer: Writer | None = None
+        self._last_sim_ns = 0               # the latest log time written on the sim clock (receive_time)
         self.bag_path: Path | None = None
         self.attempt: int | None = None
         self.recorded: dict[str, _Recorded] = {}
@@ -308,8 +309,10 @@ class RecorderNode(Node):
         path, note = bag_folder(self.run_dir, attempt)
         if note:
             self.get_logger().warn(note)
-        writer = Writer(path, version=BAG_VERSION, storage_plugin=self.storage)
         try:
+            # in the try: rosbags' Writer refuses in its constructor a path that exists (another recorder on the
+            # run folder took the name first: a review), which from a timer callback would end the node
+            writer = Writer(path, version=BAG_VERSION, storage_plugin=self.storage)
             writer.open()
         except Exception as exc:  # noqa: BLE001 - a full disk or a removed run_dir must not end the node
             self.failed_bags += 1
@@ -322,6 +325,7 @@ class RecorderNode(Node):
         if note:
             writer.set_custom_data("lhd.note", note)
         self.writer, self.bag_path, self.attempt = writer, path, attempt
+        self._last_sim_ns = 0
         self.recorded, self.skipped = {}, {}
         self.failed_writes = 0
         self.get_logger().info(f"attempt {attempt} {state}: recording into {path}")
@@ -427,14 +431,17 @@ class RecorderNode(Node):
         """When DDS received the message, in ns of the node's ROS clock. DDS stamps the arrival
         on the system clock (`received_timestamp`), before the message waits for this node's
         executor: so two topics keep their true order even when the node is busy (a drift flag
-        and the command after it). With use_sim_time the wait is taken off the sim clock's now."""
+        and the command after it). With use_sim_time the wait is taken off the sim clock's now, and
+        the time never goes back within a bag: the sim clock jumps between callbacks and, in lockstep,
+        runs faster than the wall clock the wait is measured on, so the difference went back in time
+        and a bag's end status could be logged before its running statuses (a review, 2026-11-30)."""
         now = self.get_clock().now().nanoseconds
         received = int(info.get("received_timestamp", 0) or 0) if isinstance(info, dict) else 0
-        if received <= 0:
-            return now
         if not self._sim_time_active():
-            return received
-        return max(0, now - max(0, time.time_ns() - received))
+            return received if received > 0 else now
+        t = now if received <= 0 else max(0, now - max(0, time.time_ns() - received))
+        self._last_sim_ns = max(self._last_sim_ns, t)
+        return self._last_sim_ns
 
     def _sim_time_active(self) -> bool:
         return bool(getattr(self.get_clock(), "ros_time_is_active", False))
