@@ -47,7 +47,9 @@ def test_done_needs_the_final_actor_with_the_studys_steps(tmp_path):
     (t.run_dir / "final" / "policy.json").write_text(json.dumps({"steps": 50}))
     assert not t.done()                 # a shorter earlier run is not this study's
     (t.run_dir / "final" / "policy.json").write_text(json.dumps({"steps": 100}))
-    assert t.done()
+    assert not t.done() and "config_hash None" in t.stale()     # nor one of another parameter file
+    (t.run_dir / "final" / "policy.json").write_text(json.dumps({**t.expected(), "steps": 100}))
+    assert t.done() and t.stale() is None
 
 
 @pytest.mark.parametrize("study, why", [

@@ -155,3 +155,34 @@ def test_a_pile_steeper_than_its_repose_is_refused(cfg, alpha_max, phi_max, refu
             validate(cfg)
     else:
         validate(cfg)
+
+
+@pytest.mark.parametrize("eval_seed, episodes, refused", [
+    (1_000_000, 120, False), (2_000_000, 10, True), (1_999_990, 20, True), (3_000_000, 1, True),
+    (3_999_999, 5, True), (4_000_000, 100, False), (1_999_880, 120, False)])
+def test_a_periodic_evaluation_on_the_held_out_seeds_is_refused(cfg, eval_seed, episodes, refused):
+    """The periodic evaluation (which picks best/) must not see the piles of lhd eval / report --held-out /
+    ship (2,000,000 on) or of ship's confirmation and lhd experiment paper (3,000,000 on) (a review, 2026-11-30)."""
+    cfg["training"]["eval_seed"], cfg["training"]["eval_episodes"] = eval_seed, episodes
+    if refused:
+        with pytest.raises(ConfigError, match="outside the held-out evaluation seeds 2,000,000-3,999,999"):
+            validate(cfg)
+    else:
+        validate(cfg)
+
+
+def test_a_float_written_as_1e_4_is_read_as_a_number(cfg, tmp_path):
+    """PyYAML reads `actor_lr: 1e-4` as the string '1e-4' (YAML 1.1): a float field takes it, an int field does not."""
+    import yaml as _yaml
+
+    text = _yaml.safe_dump(cfg).replace("actor_lr: 0.0001", "actor_lr: 1e-4")
+    assert "actor_lr: 1e-4" in text
+    p = tmp_path / "lr.yaml"
+    p.write_text(text)
+    assert load_config(str(p))["paper"]["ddpg"]["actor_lr"] == 1e-4
+    cfg["training"]["eval_episodes"] = "10"
+    cfg["paper"]["ddpg"]["critic_lr"] = "fast"
+    with pytest.raises(ConfigError) as exc:
+        validate(cfg)
+    assert "'training.eval_episodes' = '10' is not a number" in str(exc.value)
+    assert "'paper.ddpg.critic_lr' = 'fast' is not a number" in str(exc.value)

@@ -103,6 +103,9 @@ def _bench(args) -> int:
     return 0
 
 
+TORCH_PIN, TORCH_INDEX = "2.13.0", "https://download.pytorch.org/whl/cpu"     # requirements.txt
+
+
 def _train(args) -> int:
     from lhd_loading_ros.task.config import ConfigError
     from lhd_loading_ros.learning.runner import parse_seeds, run_seeds
@@ -119,6 +122,9 @@ def _train(args) -> int:
     if args.steps is not None and args.steps < 1:
         print(f"lhd train: --steps must be >= 1, got {args.steps}", file=sys.stderr)
         return 2
+    if args.jobs < 0:            # as lhd report / experiment: 0 is one per core (a review: -1 looped forever)
+        print(f"lhd train: --jobs must be >= 0 (0: one per core), got {args.jobs}", file=sys.stderr)
+        return 2
     namespaces = None
     if args.env == "ros":
         namespaces = [n.strip() for n in (args.namespaces or "").split(",") if n.strip()]
@@ -133,6 +139,13 @@ def _train(args) -> int:
     elif args.namespaces:
         print("lhd train: --namespaces is for --env ros", file=sys.stderr)
         return 2
+    try:
+        # training needs it: said in one line, not an ImportError traceback (a review, 2026-11-30)
+        __import__("torch")
+    except ImportError as exc:
+        print(f"lhd train: PyTorch is not importable ({exc}): training needs it; install the pinned CPU build with "
+              f"`pip install torch=={TORCH_PIN} --index-url {TORCH_INDEX}` (requirements.txt)", file=sys.stderr)
+        return 1
     out = Path(args.out) if args.out else Path("runs") / args.variant
     if len(seeds) > 1:
         extra = (["--steps", str(args.steps)] if args.steps else []) + (["--config", args.config] if args.config else [])
@@ -311,8 +324,8 @@ def _experiment(args) -> int:
 def _sweep(args) -> int:
     from lhd_loading_ros.learning.sweep import StudyError, sweep
 
-    if args.jobs is not None and args.jobs < 1:
-        print(f"lhd sweep: --jobs must be >= 1, got {args.jobs}", file=sys.stderr)
+    if args.jobs is not None and args.jobs < 0:
+        print(f"lhd sweep: --jobs must be >= 0 (0: one per core), got {args.jobs}", file=sys.stderr)
         return 2
     try:
         return sweep(args.study, address=args.address, jobs=args.jobs)
@@ -334,14 +347,25 @@ def _report(args) -> int:
         print("lhd report: --zones and --zones-density apply to --held-out only: the training curves were measured "
               "by the training itself", file=sys.stderr)
         return 2
-    groups: dict[str, list] = {}
+    from lhd_loading_ros.learning.report import group_labels
+
+    found = []
     for r in args.runs:
         p = Path(r)
         dirs = sorted(d for d in p.glob("seed_*") if d.is_dir()) if not (p / "evals.csv").exists() else [p]
         if not dirs:
             print(f"lhd report: {r} holds no training run (no evals.csv, no seed_*/)", file=sys.stderr)
             return 2
-        groups[p.name if len(dirs) > 1 else str(p)] = dirs
+        found.append((p, dirs))
+    # a group by its folder's name, with its parents where two share one (study1/rld, study2/rld); one run by its path
+    multi = [p for p, dirs in found if len(dirs) > 1]
+    names = dict(zip(multi, group_labels(multi)))
+    groups: dict[str, list] = {}
+    for p, dirs in found:
+        label = names[p] if len(dirs) > 1 else str(p)
+        while label in groups:           # one run's path equal to a group's label, or a path given twice
+            label += "'"
+        groups[label] = dirs
     try:
         summaries = {k: summarize(v) for k, v in groups.items()}
         if args.held_out:
@@ -495,12 +519,12 @@ def _main(argv=None) -> int:
                              "resumable; run folders for lhd report")
     p_sweep.add_argument("study", help="study file (YAML; lhd_loading_ros/learning/sweep.py, docs/training.md)")
     p_sweep.add_argument("--address", help="a running Ray cluster (default: a local Ray on this machine)")
-    p_sweep.add_argument("--jobs", type=int, default=None, help="local Ray: trials at once (default: all cores)")
+    p_sweep.add_argument("--jobs", type=int, default=None, help="local Ray: trials at once (default or 0: all cores)")
     p_train = sub.add_parser("train", help="train a DDPG loading policy (the paper's protocol)")
     p_train.add_argument("--variant", choices=["rld", "rlc"], required=True)
     p_train.add_argument("--seed", type=nonneg_int, default=None, help="the run's seed (default 0)")
     p_train.add_argument("--seeds", help="several seeds in parallel processes, e.g. 0-4 or 0,2,5")
-    p_train.add_argument("--jobs", type=int, default=0, help="parallel processes for --seeds (default: cores)")
+    p_train.add_argument("--jobs", type=int, default=0, help="parallel processes for --seeds (default 0: one per core)")
     p_train.add_argument("--steps", type=pos_int, default=None, help="environment steps (default: training.total_steps)")
     p_train.add_argument("--out", help="run directory (default runs/<variant>/seed_<N>; with --seeds, the parent)")
     p_train.add_argument("--config", default=None)
@@ -509,7 +533,9 @@ def _main(argv=None) -> int:
     p_train.add_argument("--namespaces", help="--env ros: the sim nodes' namespaces, comma-separated (e.g. "
                          "/sim0,/sim1; '/' for the un-namespaced node)")
     p_train.add_argument("--ros-timeout", type=float, default=30.0, help="--env ros: seconds to wait for a sim node")
-    p_train.add_argument("--no-resume", dest="resume", action="store_false", help="start over even if a checkpoint exists")
+    p_train.add_argument("--no-resume", dest="resume", action="store_false",
+                         help="start over even if a checkpoint exists; the previous run's files (checkpoints, best/, "
+                              "final/, run.json, logs) move to previous_<UTC time>/ in the run folder, nothing deleted")
     p_train.add_argument("--keep-checkpoint", type=int, action="append", default=[], metavar="STEP",
                          help="also keep the checkpoint of this step as checkpoint_step<STEP>.pt (repeatable), for "
                               "--branch-from")

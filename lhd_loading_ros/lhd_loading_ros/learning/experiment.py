@@ -263,7 +263,10 @@ def run(jobs: list[Job], jobs_n: int = 0, config=None, policy_dirs: dict | None 
         raise ValueError(f"{where}: {', '.join(f'{a:g}' for a in outside)} deg outside the piles of the parameter file "
                          f"({lo:g}-{hi:g} deg, paper.episode.alpha_min_deg / alpha_max_deg)")
     for c in sorted({j.controller for j in jobs} & {"rld", "rlc"}):
-        load_policy(dirs[c]).check_config(cfg)    # before the pool: an actor trained with another scaling is refused
+        pol = load_policy(dirs[c]).check_config(cfg)    # before the pool: an actor trained with another scaling is refused
+        if pol.variant != c:       # an RLC actor run as RLD (or back) would be tabled under the wrong name
+            raise ValueError(f"--{c} {dirs[c]} is an {pol.variant.upper()} actor, not {c.upper()}: expected a policy "
+                             f"folder of the {c.upper()} variant (its policy.json says variant {c!r})")
     n = jobs_n or usable_cores()
     rows: list = [None] * len(jobs)
     t0 = time.monotonic()
@@ -570,6 +573,13 @@ def figures(rows: list[dict], err_summary: list[dict], out: Path) -> list[str]:
     return written
 
 
+# what paper() writes into its --out: a previous run's are removed first, so that none of them (a paired table, a
+# figure this run does not draw) is left beside the new ones (a review, 2026-11-30)
+OUTPUT_FILES = ("attempts.csv", "table_controllers.csv", "table_controllers.md", "table_slope_error.csv",
+                "table_slope_error.md", "table_paired.csv", "table_paired.md", "summary.json", "mass_vs_time.png",
+                "tip_trajectories.png", "slope_error.png")
+
+
 def paper(out: str | os.PathLike, episodes: int = 10, controllers=CONTROLLERS, slopes=SLOPES, materials=MATERIALS,
           errors=ERRORS, jobs_n: int = 0, seed: int = 3_000_000, config=None, policy_dirs: dict | None = None,
           progress=sys.stderr, stress: str | None = None, zones: str = "pile", zones_density: float | None = None) -> dict:
@@ -584,6 +594,13 @@ def paper(out: str | os.PathLike, episodes: int = 10, controllers=CONTROLLERS, s
         if created and not any(out.iterdir()):
             out.rmdir()          # a refused or interrupted run leaves no empty folder behind
         raise
+    old = [f for f in OUTPUT_FILES if (out / f).is_file()]
+    if old:                      # only now, the run done: a refused or interrupted one keeps the previous files
+        for f in old:
+            (out / f).unlink()
+        if progress is not None:
+            progress.write(f"lhd experiment paper: removed the previous run's {', '.join(old)} from {out}\n")
+            progress.flush()
     ctl = summarize_controllers(rows)
     err = summarize_slope_error(rows)
     _write_csv(out / "attempts.csv", rows)

@@ -32,8 +32,11 @@ def r_is_number(s: str) -> bool:
 
 
 def iqm(x) -> float:
-    """Interquartile mean: the mean of the middle 50 % (floor(n/4) values dropped at each end)."""
+    """Interquartile mean: the mean of the middle 50 % (floor(n/4) values dropped at each end); NaN when
+    any value is NaN (np.sort puts NaNs last, where they were dropped unseen: a review, 2026-11-30)."""
     x = np.sort(np.asarray(x, dtype=float))
+    if np.isnan(x).any():
+        return float("nan")
     k = len(x) // 4
     return float(np.mean(x[k: len(x) - k]))
 
@@ -46,6 +49,33 @@ def bootstrap_ci(x, stat=iqm, n: int = 10_000, level: float = 0.95, seed: int = 
     vals = np.array([stat(x[i]) for i in idx])
     lo, hi = np.quantile(vals, [(1 - level) / 2, 1 - (1 - level) / 2])
     return float(lo), float(hi)
+
+
+def group_labels(paths: list) -> list[str]:
+    """Labels of lhd report's groups, one per path given: its folder name, with as many parent folders as
+    make it unique where two share a name (study1/rld, study2/rld: a review, 2026-11-30, found one group
+    dropped when they were keyed by name), the same path given twice numbered."""
+    parts = [Path(p).resolve().parts for p in paths]
+    depth = [1] * len(paths)
+
+    def label(i):
+        return "/".join(parts[i][-depth[i]:])
+
+    while True:
+        seen: dict = {}
+        for i in range(len(paths)):
+            seen.setdefault(label(i), []).append(i)
+        grow = [i for ids in seen.values() if len(ids) > 1 for i in ids if depth[i] < len(parts[i])]
+        if not grow:
+            break
+        for i in grow:
+            depth[i] += 1
+    out, count = [], {}
+    for i in range(len(paths)):
+        lab = label(i)
+        count[lab] = count.get(lab, 0) + 1
+        out.append(lab if count[lab] == 1 else f"{lab} ({count[lab]})")
+    return out
 
 
 def summarize(run_dirs: list) -> dict:

@@ -35,6 +35,8 @@ def run_seeds(variant: str, seeds: list[int], out: Path, jobs: int, extra: list[
     """Run `lhd train` for each seed as a child process, at most `jobs` at a time. Logs go to
     out/seed_N.log. Ctrl-C stops every child (their checkpoints let them resume). per_seed(seed):
     further arguments for that seed's child (e.g. its --branch-from)."""
+    if jobs < 1:                     # 0 or less would start none and wait for ever
+        raise ValueError(f"jobs must be >= 1, got {jobs}")
     out.mkdir(parents=True, exist_ok=True)
     pending = list(seeds)
     running: dict[int, subprocess.Popen] = {}

@@ -19,6 +19,7 @@ The median is then the median of the seeds that remain."""
 from __future__ import annotations
 
 import json
+import os
 import shutil
 from pathlib import Path
 
@@ -206,6 +207,64 @@ def drawn_conditions(cfg: dict) -> str:
     return ", ".join(parts)
 
 
+def check_out(out, runs_dir, runs=()) -> None:
+    """Refuse an --out whose replacement would destroy what it must not (a review, 2026-11-30: `lhd ship RUNS
+    --out RUNS` deleted every seed's checkpoints): `out` must not be, contain or lie inside `runs_dir` or one of
+    `runs` (the seeds' folders), and a folder already there must be a policy folder (policy.json), which
+    is replaced; an empty folder is used as well. ValueError naming what was wrong."""
+    o = Path(out).resolve()
+    for d in [Path(runs_dir), *map(Path, runs)]:
+        r = d.resolve()
+        if o == r or r.is_relative_to(o):
+            raise ValueError(f"--out {out} {'is' if o == r else 'contains'} the training runs {d}: shipping replaces "
+                             "--out and would delete them; expected a policy folder outside the runs, e.g. "
+                             "policies/<variant>")
+        if o.is_relative_to(r):
+            raise ValueError(f"--out {out} lies inside the training runs {d}; expected a policy folder outside "
+                             "them, e.g. policies/<variant>")
+    p = Path(out)
+    if p.exists() or p.is_symlink():
+        if not p.is_dir():
+            raise ValueError(f"--out {out} exists and is not a folder; expected a new folder or a policy folder "
+                             "(one with policy.json) to replace")
+        if not (p / "policy.json").is_file() and any(p.iterdir()):
+            raise ValueError(f"--out {out} exists and is not a policy folder (no policy.json): lhd ship replaces "
+                             "its --out and would delete what is there; expected a new folder or a policy folder "
+                             "written by lhd ship")
+
+
+def check_alike(runs: list, metas: list, sub: str, final_steps: list) -> None:
+    """Refuse seeds that are not alike: actors with different config hashes (trained on other parameter
+    files), or runs trained for different numbers of steps (`sub` final: their final actors' steps; else
+    the runs' last evaluations, `final_steps`): their ranking would mix training stages."""
+    hashes = {m.get("config_hash") for m in metas}
+    if len(hashes) > 1:
+        raise ValueError(f"the seeds' {sub}/ actors were trained on different parameter files (config hash "
+                         + ", ".join(f"{d.name} {m.get('config_hash')}" for d, m in zip(runs, metas))
+                         + "); expected one study's seeds: ship from a folder holding only runs of one config")
+    steps = [int(m.get("steps", -1)) for m in metas] if sub == "final" else [int(s) for s in final_steps]
+    if len(set(steps)) > 1:
+        raise ValueError("the seeds were trained for different numbers of steps ("
+                         + ", ".join(f"{d.name} {s:,}" for d, s in zip(runs, steps))
+                         + "): their ranking would mix training stages; resume the shorter ones with the same "
+                         "lhd train command and the larger --steps, or ship from a folder holding runs of one length")
+
+
+def _install(tmp: Path, out: Path) -> None:
+    """Put the finished folder `tmp` (a sibling of `out`) in the place of `out`: the old one is renamed aside
+    first and removed only once the new one is in place."""
+    old = None
+    if out.exists() or out.is_symlink():
+        old = out.with_name(f".{out.name}.old-{os.getpid()}")
+        os.replace(out, old)
+    os.replace(tmp, out)
+    if old is not None:
+        if old.is_symlink() or not old.is_dir():
+            old.unlink()
+        else:
+            shutil.rmtree(old)
+
+
 def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=print, select: str = "median",
          max_tilt_rate: float | None = None) -> dict:
     from lhd_sim_node.env import LhdLoadingEnv
@@ -219,6 +278,10 @@ def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=prin
     if not runs:
         raise FileNotFoundError(f"{runs_dir} holds no finished seed (seed_*/{sub}/policy.json)")
     unfinished = sorted(d.name for d in Path(runs_dir).glob("seed_*") if d.is_dir() and d not in runs)
+    out = Path(out)
+    check_out(out, runs_dir, runs)       # before any evaluation: a wrong --out costs nothing
+    summary = summarize(runs)
+    check_alike(runs, [json.loads((d / sub / "policy.json").read_text()) for d in runs], sub, summary["final_steps"])
     if unfinished:      # named, not dropped in silence (a review, 2026-11-29): the median is of the others
         log(f"left out, no {sub}/ actor (training unfinished: resume it with the same lhd train command): "
             f"{', '.join(unfinished)}")
@@ -258,19 +321,34 @@ def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=prin
         ev = evaluate(env, pol.actor, episodes, eval_seed, cfg["task"]["bucket_capacity"])
         log(f"{best_dir.name}/{sub} on the confirmation seed {eval_seed:,}: success {ev['success_rate']:.3f}, "
             f"ASL {ev['asl']:.2f}, AML {ev['aml']:.1f}")
-    out = Path(out)
     config_text = Path(config).read_text() if config is not None else None   # before `out` goes: it may hold it
-    if out.exists():
-        shutil.rmtree(out)
-    shutil.copytree(best_dir / sub, out)
-    summary = summarize(runs)
-    plot_curves({variant.upper(): runs}, out / "training_curves.png")
+    check_out(out, runs_dir, runs)       # again: nothing may have appeared there meanwhile
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(f".{out.name}.tmp-{os.getpid()}")     # written in full here, then renamed into place
+    if tmp.exists():
+        shutil.rmtree(tmp)
+    shutil.copytree(best_dir / sub, tmp)
+    try:
+        res = _write_card(variant, runs, tmp, out, config, config_text, cfg, pol, ev, env_deploy, episodes, eval_seed,
+                          select, sub, best_dir, cands, kept, gated, unfinished, max_tilt_rate, summary, log)
+        _install(tmp, out)
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp)
+    return res
+
+
+def _write_card(variant, runs, tmp: Path, out: Path, config, config_text, cfg, pol, ev, env_deploy, episodes,
+                eval_seed, select, sub, best_dir, cands, kept, gated, unfinished, max_tilt_rate, summary, log) -> dict:
+    """The card, evaluation.json, curves and parameter file of the shipped actor, written into `tmp`
+    (renamed to `out` by the caller); the card names `out`."""
+    plot_curves({variant.upper(): runs}, tmp / "training_curves.png")
     shown = shown_path(out)
     need = parameter_file_need(pol, cfg) if config is not None else ""
     own_params = bool(need)
     if own_params:
         src = shown_path(Path(config))
-        write_parameter_file(config_text, src, out, shown, need)
+        write_parameter_file(config_text, src, tmp, shown, need)
         log(f"copied {src} to {shown}/{PARAMS_FILE}: "
             + ("the actor runs only with it" if need == "own" else "the card's figures were computed under it"))
     run_cfg = f" --config {shown}/{PARAMS_FILE}" if own_params else ""
@@ -291,7 +369,7 @@ def ship(variant: str, runs_dir, out, episodes: int = 120, config=None, log=prin
     ev["randomized"] = _brief(evaluate_under("randomized", variant, pol.actor, cfg, episodes, eval_seed))
     ev["stress_placement"] = _brief(evaluate_under("placement", variant, pol.actor, cfg, episodes, eval_seed))
     ev["evaluation_seed"] = eval_seed
-    (out / "evaluation.json").write_text(json_out.dumps(ev, indent=1) + "\n")
+    (tmp / "evaluation.json").write_text(json_out.dumps(ev, indent=1) + "\n")
     m = pol.meta
     lo_deg, hi_deg, _ = pol.trained_slope_range_deg(cfg)
     own_note = {"own": (" Under a parameter file that scales the observation otherwise (the default "
@@ -418,7 +496,7 @@ successful attempt{margin_note}, r_weight paid on the material entering the buck
 forward-tilted bucket (the paper's prose){tilt_note}.
 Not yet run on the scaled machine.
 """
-    (out / "README.md").write_text(card)
+    (tmp / "README.md").write_text(card)
     return {"variant": variant, "shipped_from": str(best_dir / sub), "select": select, "evaluation": ev,
             "left_out_for_tilt": [str(c[1]) for c in gated],
             "summary": summary}

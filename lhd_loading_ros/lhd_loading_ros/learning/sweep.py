@@ -20,8 +20,10 @@ with overrides gets its own parameter file, <out>/configs/grid_<key>=<value>....
 A value given twice (which would put two trials in one folder) is refused.
 
 Each trial is a Ray task (num_cpus=1) that runs `lhd train ... --out <run folder>` as a child
-process, its log in <out>/<group>/seed_<N>.log. Resumable: a trial whose final actor has the
-study's steps is skipped, the others resume from their checkpoint (lhd train's resume), so after
+process, its log in <out>/<group>/seed_<N>.log. Resumable: a trial whose final actor is what the
+study would train now (config hash, variant, randomisation and steps in its policy.json) is skipped;
+one trained under other settings (the study changed since) is refused by name, neither skipped nor
+overwritten; the others resume from their checkpoint (lhd train's resume), so after
 a crash (of a worker, a node or the driver) the same command goes on; Ray retries a task whose
 worker died. Progress: one line per finished trial and <out>/sweep_status.json.
 
@@ -64,6 +66,7 @@ class Trial:
     run_dir: Path
     steps: int | None
     settings: dict = field(default_factory=dict)
+    cfg: dict | None = None          # the parameter file the trial trains under (validated), for stale()
 
     @property
     def name(self) -> str:
@@ -80,16 +83,40 @@ class Trial:
             cmd += ["--randomize"]
         return cmd
 
-    def done(self) -> bool:
-        """The final actor exists and has the study's steps."""
+    def expected(self) -> dict:
+        """What the trial's final actor records (policy.json) when trained under the study as it is now."""
+        from lhd_loading_ros.task.config import config_hash
+
+        cfg = self.cfg
+        if self.randomize:             # as lhd train --randomize
+            cfg = {**cfg, "randomization": {**cfg["randomization"], "enabled": 1}}
+        return {"variant": self.variant, "config_hash": config_hash(cfg),
+                "randomize": bool(int(cfg.get("randomization", {}).get("enabled", 0))),
+                "steps": self.steps if self.steps is not None else int(cfg["training"]["total_steps"])}
+
+    def stale(self) -> str | None:
+        """Why the trial's final actor is not what the study would train now (another config hash, variant,
+        randomisation or number of steps: the study's settings changed since), None when it is or when
+        there is no final actor yet."""
         meta = self.run_dir / "final" / "policy.json"
         if not meta.is_file():
-            return False
+            return None
         try:
-            got = int(json.loads(meta.read_text()).get("steps", -1))
-        except (ValueError, OSError):
-            return False
-        return self.steps is None or got == self.steps
+            m = json.loads(meta.read_text())
+        except (ValueError, OSError) as exc:
+            return f"final/policy.json unreadable ({exc})"
+        want = self.expected() if self.cfg is not None else {"steps": self.steps} if self.steps is not None else {}
+        tw = m.get("trained_with") if isinstance(m.get("trained_with"), dict) else {}
+        got = {"variant": m.get("variant"), "config_hash": m.get("config_hash"), "randomize": tw.get("randomize"),
+               "steps": m.get("steps")}
+        if "randomize" not in tw:      # a card from before trained_with: its config hash says it
+            want.pop("randomize", None)
+        diff = [f"{k} {got[k]} != {v}" for k, v in want.items() if got[k] != v]
+        return ", ".join(diff) or None
+
+    def done(self) -> bool:
+        """The final actor exists and is what the study would train now (stale() is None)."""
+        return (self.run_dir / "final" / "policy.json").is_file() and self.stale() is None
 
 
 def _set_key(cfg: dict, dotted: str, value) -> None:
@@ -172,14 +199,17 @@ def load_study(path) -> tuple[Path, list[Trial]]:
             from lhd_loading_ros.task.config import validate
 
             try:
-                validate(copy.deepcopy(cfg))
+                checked = validate(copy.deepcopy(cfg))      # as lhd train will read the file written from cfg
             except ConfigError as exc:
                 raise StudyError(f"{path}: overrides {settings} make an invalid parameter file: {exc}") from None
             settings["_config"] = cfg
+        else:
+            checked = base_cfg
         for variant, r in itertools.product(variants, rand):
             group = f"{variant}{'_dr' if r else ''}{suffix}"
             for s in seeds:
-                trials.append(Trial(group, variant, s, r, cfg_file, out / group / f"seed_{s}", steps, settings))
+                trials.append(Trial(group, variant, s, r, cfg_file, out / group / f"seed_{s}", steps, settings,
+                                    checked))
     seen: dict = {}
     for t in trials:
         seen.setdefault(t.run_dir, []).append(t)
@@ -239,6 +269,14 @@ def check_address(address: str, timeout: float = 5.0) -> None:
 
 def sweep(study_path, address: str | None = None, jobs: int | None = None, log=print) -> int:
     out, trials = load_study(study_path)
+    stale = [(t, why) for t in trials if (why := t.stale()) is not None]
+    if stale:       # neither skipped as done nor overwritten: the user decides (a review, 2026-11-30)
+        raise StudyError(
+            f"{len(stale)} finished trial(s) were trained under other settings than the study's now (the study "
+            "file, its overrides or its config changed since): "
+            + "; ".join(f"{t.name} ({why})" for t, why in stale[:5]) + (" ..." if len(stale) > 5 else "")
+            + f"; move those run folders out of {out} to train them again under the new settings, or give the "
+            "study another 'out'")
     out.mkdir(parents=True, exist_ok=True)
     todo = [t for t in trials if not t.done()]
     status = {"study": str(Path(study_path).resolve()), "out": str(out), "trials": len(trials),

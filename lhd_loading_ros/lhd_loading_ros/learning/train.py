@@ -19,6 +19,8 @@ episode in progress is dropped and starts again (training episode k always uses 
 seed (run seed, k), so with one environment the sequence of piles is the same with or without a
 resume; with several sim nodes the episodes in progress start again first, each index once).
 A run resumed with fewer steps than it has is refused; with as many, it is complete.
+A run started over (resume=False, `lhd train --no-resume`) first moves the previous run's files
+(checkpoints, best/, final/, run.json, the logs) into previous_<UTC time>/ of the folder: nothing is deleted.
 """
 from __future__ import annotations
 
@@ -35,7 +37,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from lhd_loading_ros.task.config import config_hash, load_config
+from lhd_loading_ros.task.config import TILT_SCHEDULE_KEYS, TRAINING_SCHEDULE_KEYS, config_hash, load_config
 from lhd_loading_ros.task.metrics import result_from_status
 from lhd_loading_ros.learning.curriculum import CurriculumConfig, SlopeCurriculum
 from lhd_loading_ros.learning.demonstrations import DemoConfig
@@ -128,6 +130,63 @@ def _truncate_csv(path: Path, key: str, limit: int, fields=None) -> None:
         w = csv.DictWriter(f, fieldnames=fields, restval="")
         w.writeheader()
         w.writerows(kept)
+
+
+# what a run leaves in its folder (the module docstring), moved aside by --no-resume (set_aside)
+RUN_FILES = ("checkpoint.pt", "checkpoint.pt.tmp", "run.json", "evals.csv", "episodes.csv", "curriculum.csv", "best",
+             "final", "tb")
+
+
+def set_aside(out: Path) -> Path | None:
+    """Move a previous run's files (RUN_FILES and checkpoint_step*.pt) out of `out` into
+    out/previous_<UTC time>/ (a review, 2026-11-30: --no-resume left the old checkpoints, actors and
+    run.json beside the new run's logs). Returns that folder, None when there was nothing to move."""
+    names = [n for n in RUN_FILES if (out / n).exists()] + sorted(p.name for p in out.glob("checkpoint_step*.pt"))
+    if not names:
+        return None
+    stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+    dest, k = out / f"previous_{stamp}", 1
+    while dest.exists():
+        k += 1
+        dest = out / f"previous_{stamp}_{k}"
+    dest.mkdir()
+    for n in names:
+        os.replace(out / n, dest / n)
+    return dest
+
+
+def schedule_of(cfg: dict) -> dict:
+    """The training schedule left out of the config hash on purpose (TRAINING_SCHEDULE_KEYS, TILT_SCHEDULE_KEYS:
+    what --branch-from may change): kept in the checkpoint, so that a plain resume under another one is refused.
+    Keys that mean nothing while what they tune is off (a ramp's steps without the ramp, ...) are left out."""
+    t, k = cfg.get("training", {}), cfg.get("task", {})
+    out = {**{f"training.{n}": t.get(n) for n in TRAINING_SCHEDULE_KEYS},
+           **{f"task.{n}": k.get(n) for n in TILT_SCHEDULE_KEYS}}
+    off = set()
+    if not int(t.get("slope_curriculum", 0) or 0):
+        off |= {f"training.{n}" for n in TRAINING_SCHEDULE_KEYS if n.startswith("slope_curriculum_")}
+    if float(t.get("lr_final_scale", 1.0)) >= 1.0:
+        off.add("training.lr_decay_from")
+    if float(t.get("demo_share", 0.0) or 0.0) <= 0.0:
+        off |= {f"training.{n}" for n in TRAINING_SCHEDULE_KEYS if n.startswith("demo_") and n != "demo_share"}
+    elif float(t.get("demo_bc", 0.0) or 0.0) <= 0.0:
+        off.add("training.demo_bc_return_filter")
+    if float(k.get("r_tilt_per_deg", 0.0) or 0.0) <= 0.0:
+        off |= {"task.r_tilt_ramp_after_success", "task.r_tilt_ramp_steps", "task.r_tilt_ramp_pitch_margin"}
+    elif float(k.get("r_tilt_ramp_after_success", 0.0) or 0.0) <= 0.0:
+        off |= {"task.r_tilt_ramp_steps", "task.r_tilt_ramp_pitch_margin"}
+    return {n: v for n, v in out.items() if n not in off}
+
+
+def load_checkpoint(ckpt: Path) -> dict:
+    """torch.load of a checkpoint; ValueError saying what to do when the file is unreadable (truncated, empty)."""
+    import pickle
+
+    try:
+        return torch.load(ckpt, weights_only=True)
+    except (OSError, EOFError, RuntimeError, ValueError, pickle.UnpicklingError) as exc:
+        raise ValueError(f"{ckpt} unreadable ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else 'empty'}):"
+                         " remove it or use --no-resume") from None
 
 
 def _rank(ev: dict) -> tuple:
@@ -350,8 +409,9 @@ def _train(variant: str, seed: int, out, steps: int | None = None, config=None, 
     if branch_from is not None:
         _branch(Path(branch_from), out, ckpt, log)
         resume = True
+    schedule = schedule_of(cfg)
     if resume and ckpt.exists():
-        st = torch.load(ckpt, weights_only=True)
+        st = load_checkpoint(ckpt)
         if st["variant"] != variant or st["seed"] != seed:
             raise ValueError(f"{ckpt} belongs to variant {st['variant']} seed {st['seed']}, not {variant} seed "
                              f"{seed}; use another --out or remove the checkpoint")
@@ -374,6 +434,16 @@ def _train(variant: str, seed: int, out, steps: int | None = None, config=None, 
                              "the same margin or use another --out")     # (checkpoints before the key: not checked)
         if ramp.enabled and st.get("tilt_ramp"):      # (the replay's columns already refused a ramp switched on/off)
             ramp.load_state_dict(json.loads(st["tilt_ramp"]))
+        # after the checks above, whose messages say more of their own keys
+        if branch_from is None and st.get("schedule"):      # (checkpoints before the key: not checked)
+            was = json.loads(st["schedule"])
+            changed = [k for k in sorted(set(was) | set(schedule)) if was.get(k) != schedule.get(k)]
+            if changed:     # else run.json and the actor's trained_with would claim the new schedule for the whole run
+                raise ValueError(
+                    f"{ckpt} was trained under another training schedule: "
+                    + ", ".join(f"{k} {was.get(k)!r} -> {schedule.get(k)!r}" for k in changed)
+                    + "; resume with the schedule it had, or go on under the new one as a branch of a kept checkpoint "
+                    "into another --out (lhd train --branch-from RUN/checkpoint_step<N>.pt, docs/training.md)")
         rng.bit_generator.state = json.loads(st["rng"])
         noise.x[:] = st["noise_x"].numpy()
         more = st.get("noise_more")
@@ -404,6 +474,10 @@ def _train(variant: str, seed: int, out, steps: int | None = None, config=None, 
         log(f"resumed {out} at step {step:,} (episode {episode})")
     else:
         pending, next_episode = [], 0
+        if not resume:                 # --no-resume: the old run's files moved aside, nothing deleted
+            aside = set_aside(out)
+            if aside is not None:
+                log(f"--no-resume: moved the previous run's files to {aside}/ (nothing deleted); starting over")
         for f in ("evals.csv", "episodes.csv", "curriculum.csv"):
             (out / f).unlink(missing_ok=True)
 
@@ -440,7 +514,9 @@ def _train(variant: str, seed: int, out, steps: int | None = None, config=None, 
               # the step the learning-rate decay runs to (0: no decay): a resume must not move it
               "lr_total_steps": dc.total_steps if dc.lr_final_scale < 1.0 else 0,
               # r_success's mass margin (never in the config hash): a resume must keep it
-              "r_success_mass_margin_kg": mass_margin}
+              "r_success_mass_margin_kg": mass_margin,
+              # the training schedule (never in the hash either): a plain resume must keep it (--branch-from may not)
+              "schedule": json.dumps(schedule, sort_keys=True)}
         tmp = out / "checkpoint.pt.tmp"
         torch.save(st, tmp)
         if step in keep:

@@ -27,6 +27,7 @@ from lhd_loading_ros.task.config import hash_matches, sim_change_note
 FORMAT = "lhd-actor/1"
 ACTOR_FILE = "actor.npz"
 META_FILE = "policy.json"
+OBS_SIZE, ACT_SIZE = 12, 3       # an actor's input (task.observation.OBS_NAMES) and output (task.actions.ACT_NAMES)
 
 
 class PolicyFileError(ValueError):
@@ -322,4 +323,8 @@ def load_policy(directory) -> LoadedPolicy:
     actor = NumpyActor(layers)
     if actor.sizes != meta["architecture"]["sizes"]:
         raise PolicyFileError(f"{d}: weights have sizes {actor.sizes}, {META_FILE} says {meta['architecture']['sizes']}")
+    if actor.sizes[0] != OBS_SIZE or actor.sizes[-1] != ACT_SIZE:     # else a shape error deep in the first step
+        raise PolicyFileError(f"{d}: the actor maps {actor.sizes[0]} inputs to {actor.sizes[-1]} outputs (sizes "
+                              f"{actor.sizes}); expected {OBS_SIZE} (the observation) to {ACT_SIZE} (wheels, boom, "
+                              "bucket)")
     return LoadedPolicy(actor, meta, d)

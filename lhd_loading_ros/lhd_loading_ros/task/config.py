@@ -159,6 +159,7 @@ def _whole(x: float) -> bool:
 
 
 # Relations between keys: (description, predicate).
+HELD_OUT_SEEDS = (2_000_000, 4_000_000)   # [first, end) of the held-out evaluations' episode seeds (_RELATIONS)
 _RELATIONS = [
     # the simulator's own checks (simulator.py), said here so that `lhd config check` and every
     # command refuse such a file with one line instead of a traceback from the simulator (a review)
@@ -226,6 +227,12 @@ _RELATIONS = [
      "periodic evaluation's piles apart from the training's)",
      lambda c: int(c["training"].get("episode_seed_offset", 0)) == 0
      or c["training"]["eval_seed"] + c["training"]["eval_episodes"] <= c["training"]["episode_seed_offset"]),
+    # the held-out evaluations' piles (lhd eval / report --held-out / ship from 2,000,000; ship's confirmation seed and
+    # lhd experiment paper from 3,000,000): the periodic evaluation, which picks best/, must not have seen them
+    ("training.eval_seed .. eval_seed + eval_episodes lies outside the held-out evaluation seeds 2,000,000-3,999,999 "
+     "(lhd eval / report --held-out / ship: 2,000,000; ship's confirmation and lhd experiment paper: 3,000,000)",
+     lambda c: not (c["training"]["eval_seed"] < HELD_OUT_SEEDS[1]
+                    and c["training"]["eval_seed"] + c["training"]["eval_episodes"] > HELD_OUT_SEEDS[0])),
 ]
 
 
@@ -255,6 +262,13 @@ def _check(node: Any, schema: Any, path: str, errors: list[str]) -> None:
             if not ok:
                 errors.append(f"'{full}' = {val!r} is not valid; expected {_describe(spec)}")
             continue
+        if kind == "float" and isinstance(val, str):
+            # PyYAML reads 1e-4 (no dot in the mantissa) as a string, not a number (YAML 1.1): a float field
+            # takes a string that is a number (an int field, or a list, does not)
+            try:
+                val = node[key] = float(val.strip())
+            except ValueError:
+                pass
         if isinstance(val, bool) or not isinstance(val, (int, float)):
             errors.append(f"'{full}' = {val!r} is not a number; expected {_describe(spec)}")
             continue
