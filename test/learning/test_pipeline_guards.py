@@ -142,13 +142,18 @@ def test_sweep_refuses_finished_trials_of_changed_settings(cfg, tmp_path):
     _write_configs([t])
     train(t.variant, t.seed, t.run_dir, steps=t.steps, config=str(t.config_path), progress=False, log=lambda *a: None)
     assert t.done() and t.stale() is None          # what the trial's own lhd train records is what it expects
-    # a fixed override changed (not in the group's name) or the steps left out: refused by name, not skipped
-    for change in ({"overrides": {**study["overrides"], "training.eval_episodes": 2}}, {"steps": None}):
+    # a fixed override changed (not in the group's name), or fewer steps than it has: refused by name, not skipped
+    for change in ({"overrides": {**study["overrides"], "training.eval_episodes": 2}}, {"steps": 1}):
         p.write_text(yaml.safe_dump({**study, **change}))
         with pytest.raises(StudyError, match="1 finished trial\\(s\\) were trained under other settings.*rld/seed_0 "
-                                             "\\((config_hash|steps) "):
+                                             "\\((config_hash .* != |steps 2 > 1)"):
             sweep(p, log=lambda *a: None)
     assert json.loads((t.run_dir / "final" / "policy.json").read_text())["steps"] == 2     # left as it was
+    # more steps (or none: the file's total_steps) is the study going on: not done, resumed, not refused
+    for change in ({"steps": 4}, {"steps": None}):
+        p.write_text(yaml.safe_dump({**study, **change}))
+        _, (t2,) = load_study(p)
+        assert t2.stale() is None and not t2.done()
 
 
 # --- 4. lhd report: two groups of one name ------------------------------------------------------------------

@@ -96,8 +96,9 @@ class Trial:
 
     def stale(self) -> str | None:
         """Why the trial's final actor is not what the study would train now (another config hash, variant,
-        randomisation or number of steps: the study's settings changed since), None when it is or when
-        there is no final actor yet."""
+        randomisation, or more steps than the study's: the study's settings changed since), None when it
+        is, when there is no final actor yet, or when it has fewer steps (the study with more steps
+        resumes it: lhd train's resume)."""
         meta = self.run_dir / "final" / "policy.json"
         if not meta.is_file():
             return None
@@ -111,12 +112,24 @@ class Trial:
                "steps": m.get("steps")}
         if "randomize" not in tw:      # a card from before trained_with: its config hash says it
             want.pop("randomize", None)
-        diff = [f"{k} {got[k]} != {v}" for k, v in want.items() if got[k] != v]
+        diff = [f"{k} {got[k]} != {v}" for k, v in want.items() if k != "steps" and got[k] != v]
+        if "steps" in want and isinstance(got["steps"], int) and got["steps"] > want["steps"]:
+            diff.append(f"steps {got['steps']} > {want['steps']}")
         return ", ".join(diff) or None
 
     def done(self) -> bool:
-        """The final actor exists and is what the study would train now (stale() is None)."""
-        return (self.run_dir / "final" / "policy.json").is_file() and self.stale() is None
+        """The final actor exists, is what the study would train now (stale() is None) and has the
+        study's steps (fewer: resumed)."""
+        meta = self.run_dir / "final" / "policy.json"
+        if not meta.is_file() or self.stale() is not None:
+            return False
+        if self.steps is None and self.cfg is None:
+            return True
+        want = self.expected()["steps"] if self.cfg is not None else self.steps
+        try:
+            return int(json.loads(meta.read_text()).get("steps", -1)) == want
+        except (ValueError, OSError):
+            return False
 
 
 def _set_key(cfg: dict, dotted: str, value) -> None:
