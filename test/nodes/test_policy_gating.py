@@ -413,3 +413,40 @@ def test_a_supervisor_that_dies_or_hangs_mid_attempt_stops_the_controller(ros, t
                 p.wait()
         assert pol.stop() == 0, pol.log()
         rig.close()
+
+
+def test_refused_joint_states_and_odometry_stop_the_actor_and_diagnostics_say_why(ros, tmp_path):
+    """A review (2026-11-30): joint states with other names stopped the actor, but /diagnostics said only
+    that the joints were old; odometry whose quaternion had norm 5 was normalised in silence and the actor
+    kept commanding. Both are refused now, the actor sends zeros only, and `inputs` and `decision` name
+    the message that was refused and what is expected; good messages again, and it commands again."""
+    rig = Rig(ros)
+    pol = RosProcess(POLICY, {}, tmp_path / "pol.log")
+    try:
+        assert spin_until(ros, lambda: rig.has("inputs", DiagnosticStatus.OK, "all inputs fresh"), 60), pol.log()
+        rig.publish_status("running")
+        assert rig.wait_commanding(), pol.log()[-2000:]
+        for break_it, mend, needle in (
+                (lambda: setattr(rig, "js", JointState(name=["joint1", "joint2"], position=[0.0, 0.0],
+                                                        velocity=[0.0, 0.0])),
+                 lambda: setattr(rig, "js", JointState(name=["boom", "bucket"], position=[0.0, 0.0],
+                                                        velocity=[0.0, 0.0])),
+                 "its last message was refused: joint_states without boom/bucket (names ['joint1', 'joint2']); "
+                 "expected joints named boom and bucket"),
+                (lambda: setattr(rig.od.pose.pose.orientation, "w", 5.0),
+                 lambda: setattr(rig.od.pose.pose.orientation, "w", 1.0),
+                 "its last message was refused: odometry orientation (5, 0, 0, 0) has norm 5; expected a unit "
+                 "quaternion")):
+            break_it()
+            t0 = time.monotonic()
+            assert spin_until(ros, lambda: rig.has("inputs", DiagnosticStatus.WARN, needle)
+                              and rig.has("decision", DiagnosticStatus.WARN, needle), 10), \
+                (needle, {k: v.message for k, v in rig.diag.items()})
+            after = [c for t, c in rig.cmds if t >= t0]
+            assert ZERO in after and set(map(tuple, after[after.index(ZERO):])) == {tuple(ZERO)}, after   # zeros only
+            mend()
+            assert rig.wait_commanding(), pol.log()[-2000:]
+            assert spin_until(ros, lambda: rig.has("inputs", DiagnosticStatus.OK, "all inputs fresh"), 10)
+    finally:
+        assert pol.stop() == 0, pol.log()
+        rig.close()

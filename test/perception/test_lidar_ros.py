@@ -196,7 +196,10 @@ def test_no_pile_publishes_nothing_and_says_why_and_the_last_value_keeps_its_sta
                  f"no range of the scan's {len(r)} beams lies in [range_min 0.05, range_max 30] m"),
                 (lambda m: setattr(m.header.stamp, "sec", 0) or setattr(m.header.stamp, "nanosec", 0),
                  "scan stamp is zero: expected its acquisition time"),
-                (lambda m: setattr(m.header.stamp, "sec", int(time.time() + 1e6)), "ahead of this node's clock")]:
+                (lambda m: setattr(m.header.stamp, "sec", int(time.time() + 1e6)), "ahead of this node's clock"),
+                # another sensor's scans, fitted with this mount, gave a wrong slope said OK (a review, 2026-11-30)
+                (lambda m: setattr(m.header, "frame_id", "horizontal_lidar"),
+                 "scan in frame 'horizontal_lidar'; expected 'lidar' (sensor_frame_id")]:
             m = scan_msg(r, amin, inc, t=63.0)
             change(m)
             cases.append((m, why))
@@ -217,6 +220,11 @@ def test_no_pile_publishes_nothing_and_says_why_and_the_last_value_keeps_its_sta
             assert st.header.stamp.sec == 60 and abs(math.degrees(st.vector.x) - 20.0) < 1.0
         finally:
             late.destroy_node()
+        c = cloud_msg(synthetic_cloud(math.radians(20.0), np.random.default_rng(3)), t=63.5)
+        c.header.frame_id = "camera"
+        assert spin_until(rig.node, lambda: "point cloud in frame 'camera'; expected 'lidar'" in rig.proc.log()
+                          or rig.pub_cloud.publish(c), 10.0, step=0.1), rig.proc.log()
+        assert len(rig.stamped) == n
         # pointcloud_to_laserscan's default range_max (DBL_MAX: inf in the float32 field) is a valid scan
         m = scan_msg(r, amin, inc, t=64.0)
         m.range_max = math.inf

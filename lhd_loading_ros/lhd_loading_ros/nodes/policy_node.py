@@ -125,6 +125,8 @@ NO_PUBLISHER = "no attempt running (no /lhd/episode publisher: start the sim nod
 FALLBACK_CHECKS = 4             # trigger odom: fallback checks per control period
 FALLBACK_AFTER_ODOM = 1.5       # periods without a decision after an odometry-triggered one
 OVERTAKEN_NS = 1_000_000_000    # a slow-input sample this much older than the one in use came late
+# |norm - 1| of an odometry quaternion beyond this is refused: a unit one (float32 publishers: about 1e-7)
+QUAT_NORM_TOL = 1e-3
 # zero-command reasons on /diagnostics: these need a person (wrong pile, wrong actor), the rest
 # (inputs not there yet or stale, a NaN) may clear by themselves
 ERROR_KINDS = ("no_actor", "out_of_range", "actor_output")
@@ -301,7 +303,9 @@ class PolicyNode(Node):
             vel = msg.velocity[i] if i < len(msg.velocity) else math.nan
             joints[n] = (pos, vel)
         if "boom" not in joints or "bucket" not in joints:
-            self.get_logger().warn(f"joint_states without boom/bucket (got {list(msg.name)})", throttle_duration_sec=2.0)
+            why = f"joint_states without boom/bucket (names {list(msg.name)}); expected joints named boom and bucket"
+            self.inputs.reject("joints", why, time.monotonic())
+            self.get_logger().warn(why, throttle_duration_sec=2.0)
             return
         self._put("joints", joints)
         self._stamps["joints"] = stamp_ns(msg.header.stamp)
@@ -309,6 +313,15 @@ class PolicyNode(Node):
 
     def _on_odom(self, msg: Odometry) -> None:
         pp, q = msg.pose.pose.position, msg.pose.pose.orientation
+        n = math.sqrt(q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z)
+        if math.isfinite(n) and n > 0.0 and abs(n - 1.0) > QUAT_NORM_TOL:
+            # a broken publisher: normalised in silence it was taken as a pose (a review, 2026-11-30); a zero or
+            # non-finite one goes on to the refusal with its own reason (task.kinematics.quat_to_mat)
+            why = (f"odometry orientation ({q.w:g}, {q.x:g}, {q.y:g}, {q.z:g}) has norm {n:.4g}; expected a unit "
+                   f"quaternion (within {QUAT_NORM_TOL:g})")
+            self.inputs.reject("odom", why, time.monotonic())
+            self.get_logger().warn(why, throttle_duration_sec=2.0)
+            return
         self._put("odom", ((pp.x, pp.y, pp.z), (q.w, q.x, q.y, q.z), msg.twist.twist.linear.x))
         self._stamps["odom"] = stamp_ns(msg.header.stamp)
         self._maybe_lockstep()

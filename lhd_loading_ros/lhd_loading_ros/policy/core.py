@@ -44,10 +44,23 @@ class Inputs:
     """Latest value of each input and its arrival time (monotonic seconds)."""
     values: dict = field(default_factory=dict)
     arrival: dict = field(default_factory=dict)
+    rejected: dict = field(default_factory=dict)     # name -> (why its last message was refused, when)
 
     def put(self, name: str, value, now: float) -> None:
         self.values[name] = value
         self.arrival[name] = now
+
+    def reject(self, name: str, why: str, now: float) -> None:
+        """A message of `name` that is not a usable value (wrong joint names, a quaternion that is not
+        unit): not taken, and the reason joins the input's problem while it is missing or stale, so
+        /diagnostics says why instead of only that it is old (a review, 2026-11-30)."""
+        self.rejected[name] = (why, now)
+
+    def _why(self, name: str) -> str:
+        r = self.rejected.get(name)
+        if r is None or (name in self.arrival and self.arrival[name] >= r[1]):
+            return ""
+        return f" (its last message was refused: {r[0]})"
 
     def missing(self) -> bool:
         return any(name not in self.values for name in INPUTS)
@@ -59,9 +72,9 @@ class Inputs:
         for name in INPUTS:
             t = (timeouts or {}).get(name, timeout)
             if name not in self.values:
-                out.append(f"no {name} received yet")
+                out.append(f"no {name} received yet{self._why(name)}")
             elif now - self.arrival[name] > t:
-                out.append(f"{name} is {now - self.arrival[name]:.2f} s old (timeout {t} s)")
+                out.append(f"{name} is {now - self.arrival[name]:.2f} s old (timeout {t} s){self._why(name)}")
         return out
 
 
