@@ -23,9 +23,14 @@ Fail-safe behaviour (docs/hardware_bridge.md):
 * the port is opened exclusively: a second bridge on it keeps retrying and says why in
   /diagnostics instead of writing too;
 * serial loss -> reopen with exponential backoff inside the node; the first frame after a
-  reconnection is a stop, and only commands received after it count; counters survive;
-* while the device reports its emergency stop, stop frames; after the release only commands
-  received after it count;
+  reconnection is a 0x00 and a stop; counters survive;
+* while the device holds the machine (its emergency stop, held after a reset or a release, a
+  sensor fault: flag bits 2-4), stop frames; a device reset seen (flag bit 5) -> stop frames and
+  ERROR for DEVICE_RESET_HOLD_S, so the supervisor ends a running attempt; no joint state or drift
+  flag from a frame with a sensor fault;
+* after any of these (a reconnection, a hold, a reset) the machine moves again only once an all-zero
+  command has come: a command stream that went on through the fault (a gamepad held, a controller
+  outside the supervisor) does not restart the machine by itself (ISO 13850's reset is not a start);
 * on shutdown a stop frame is sent before the port closes;
 * a load-cell frame that is stale, saturated, not calibrated or not tared publishes no mass (the
   reason goes to /diagnostics, `load_cell`); the load cell never influences the commands.
@@ -56,7 +61,7 @@ from lhd_loading_ros.task.config import load_config
 from .bridge_core import (CMD_TIMEOUT_MAX, JOINT_NAMES, BridgeParams, CommandMapper, CommandRejected,
                           LoadCellMonitor, baud_problem, Watchdog, CommandScheduler, command_rate_problem, deadband_problem,
                           WheelAngles, DeviceClock, DriftWindow, arm_zero_problem, detect_drift, joint_state_arrays)
-from .protocol import (FLAG_ENABLED, FLAG_ESTOP, FLAG_HELD, FLAG_SENSOR_FAULT, FLAG_WATCHDOG, TYPE_LOAD_CELL,
+from .protocol import (FLAG_ENABLED, FLAG_ESTOP, FLAG_HELD, FLAG_RESET, FLAG_SENSOR_FAULT, FLAG_WATCHDOG, TYPE_LOAD_CELL,
                        TYPE_SENSOR, CommandFrame, FrameParser, HeartbeatFrame, LoadCellFrame, SensorFrame, TxSequence)
 
 # Command frames at most every 2 ms: a 1 kHz teleop stream becomes <= 500 frames/s (about 6 kB/s, half
@@ -78,6 +83,11 @@ DEVICE_STALE = 0.5      # s without a sensor frame: the device's report is no lo
 # frame clears the device's hold at once
 DEVICE_RESET_HOLD_S = 1.0
 LEVELS = {name: level for level, name in LEVEL_NAMES.items()}
+
+
+def zero_motion(frame: CommandFrame) -> bool:
+    """A command that moves nothing: the fresh start after a fault (BridgeNode.await_zero)."""
+    return frame.wheel_setpoint == 0.0 and frame.valve_boom == 0 and frame.valve_bucket == 0
 
 
 def open_problem(port: str, exc: Exception) -> str:
@@ -158,7 +168,10 @@ class BridgeNode(Node):
         self._estop = False
         self._hold = False                 # the device holds the machine (e-stop, held, sensor fault)
         self._reset_hold_until = -math.inf
+        # after a reconnection, a hold or a reset: stop frames until an all-zero command arrives (a fresh start)
+        self.await_zero, self.await_zero_why = True, "the bridge started"
         self.device_resets = 0             # device resets seen while this node ran (DEVICE_RESET_HOLD_S)
+        self.frame_faults = 0              # frames whose handling raised (a bug): in /diagnostics
         self._stop_evt = threading.Event()
         self.connected = False
         self.link_problem = "not opened yet"
@@ -215,6 +228,9 @@ class BridgeNode(Node):
             return
         self._cmd = frame
         now = time.monotonic()
+        if self.await_zero and zero_motion(frame) and not self._hold and now >= self._reset_hold_until:
+            self.await_zero = False        # the fresh start: commands after this one move the machine
+            self.get_logger().info(f"all-zero command after {self.await_zero_why}: commands move the machine again")
         self.watchdog.feed(now)
         self._send_command(now, self.current_command(now), tripped=False)   # a changed one leaves at once
 
@@ -244,7 +260,8 @@ class BridgeNode(Node):
 
     def current_command(self, now: float) -> CommandFrame:
         stale = self.watchdog.stale(now)
-        if stale or self._hold or self._cmd is None or self.device_silent(now) or now < self._reset_hold_until:
+        if stale or self._hold or self._cmd is None or self.device_silent(now) or now < self._reset_hold_until \
+                or self.await_zero:
             return CommandFrame.stop()
         return self._cmd
 
@@ -298,6 +315,7 @@ class BridgeNode(Node):
             # first ends whatever partial frame the device still holds (a write cut short by the
             # unplug): glued to it, the stop would fail its CRC (a review, 2026-11-30)
             self.watchdog.rearm(time.monotonic())
+            self._need_zero("a reconnection of the serial link")
             try:
                 ser.write(b"\x00" + self._tx.encode(CommandFrame.stop()))
             except (serial.SerialException, OSError) as exc:
@@ -339,14 +357,27 @@ class BridgeNode(Node):
                 continue
             if data:
                 for _, msg in self.parser.feed(data):   # sensor and load-cell frames only (accept)
-                    if isinstance(msg, LoadCellFrame):
-                        self._on_load_cell(msg)
-                    else:
-                        self._publish(msg)
+                    try:
+                        if isinstance(msg, LoadCellFrame):
+                            self._on_load_cell(msg)
+                        else:
+                            self._publish(msg)
+                    except Exception as exc:  # noqa: BLE001 - a fault here must not end the reader thread in silence
+                        # (the device's state would go stale and stop frames follow, but nobody would know why)
+                        self.frame_faults += 1
+                        self.get_logger().error(f"handling a frame from the device failed: {exc!r}",
+                                                throttle_duration_sec=1.0)
 
     def _publish(self, f: SensorFrame) -> None:
         now = time.monotonic()
         self.sensor_frames += 1
+        if not f.flags & FLAG_SENSOR_FAULT:
+            # a frame with a sensor fault carries no reading (an angle, rate, wheel speed or current that is not
+            # one): no joint state, no drift flag, nothing integrated from it (a review, 2026-11-30)
+            self._publish_measurements(f, now)
+        self._device_state(f, now)
+
+    def _publish_measurements(self, f: SensorFrame, now: float) -> None:
         js = JointState()
         stamp = self.get_clock().now()
         t_frame = self.device_clock.stamp(f.device_time_us, stamp.nanoseconds * 1e-9)   # measured, not arrived
@@ -357,8 +388,7 @@ class BridgeNode(Node):
         js.header.stamp = Time(nanoseconds=int(round(t_frame * 1e9)), clock_type=stamp.clock_type).to_msg()
         js.name = list(JOINT_NAMES)
         js.position, js.velocity = joint_state_arrays(f, self.wheels, self.arm_zeros)
-        if not f.flags & FLAG_SENSOR_FAULT:
-            self.pub_js.publish(js)        # a faulty angle is no reading: nothing published (no made-up joints)
+        self.pub_js.publish(js)
         a = self.wheels.angles
         with self._drift_lock:
             self.drift_window.add_wheels(t_frame, (a[0], a[1], 0.5 * (a[2] + a[3])), self.wheels.restarts)
@@ -378,26 +408,35 @@ class BridgeNode(Node):
         self.pub_drift.publish(Bool(data=front or rear))
         if self.latency_hook is not None:
             self.latency_hook(f)
+
+    def _device_state(self, f: SensorFrame, now: float) -> None:
         prev = self._device[0] if self._device is not None else None
         self._device = (f, now)
         # the device holds the machine (its e-stop, a sensor fault, or held after a reset until a stop
-        # frame): stop frames meanwhile, and only commands received after it count
+        # frame): stop frames meanwhile, and then an all-zero command before motion
         hold = bool(f.flags & (FLAG_ESTOP | FLAG_HELD | FLAG_SENSOR_FAULT))
-        if prev is not None and not prev.flags & FLAG_HELD and f.flags & FLAG_HELD and not f.flags & FLAG_ESTOP \
-                and not f.flags & FLAG_SENSOR_FAULT:
-            # held with no e-stop and no fault: the device was reset (power, brown-out, its watchdog) while
-            # this node ran. ERROR and stop frames for DEVICE_RESET_HOLD_S, so the supervisor ends a running
-            # attempt, even though the first stop frame clears the device's hold at once
+        if f.flags & FLAG_RESET and prev is not None and not prev.flags & FLAG_RESET:
+            # the device was reset (power, brown-out, its watchdog) while this node ran: ERROR and stop frames
+            # for DEVICE_RESET_HOLD_S, so the supervisor ends a running attempt, though the first stop frame
+            # clears the device's hold at once. (Seen at power-up, before this node's first stop: not a reset
+            # during a run. A reset on the native USB port drops the link first: a reconnection, below.)
             self.device_resets += 1
             self._reset_hold_until = now + DEVICE_RESET_HOLD_S
-            self.get_logger().error("the device was reset (held after power-up): machine held stopped, stop frames "
-                                    "sent; only commands received after it count")
+            self.get_logger().error("the device was reset: machine held stopped, stop frames sent; it moves again "
+                                    "after an all-zero command")
+            self._need_zero("a reset of the device")
+        if hold and not self._hold:
+            self._need_zero("the device held the machine (e-stop, sensor fault or held)")
         if self._hold and not hold:
             self.watchdog.rearm(now)   # released: only commands received from now on count
         self._hold = hold
         self._estop = bool(f.flags & FLAG_ESTOP)
         if prev is None or (prev.flags, prev.valve_boom, prev.valve_bucket) != (f.flags, f.valve_boom, f.valve_bucket):
             self._publish_status()
+
+    def _need_zero(self, why: str) -> None:
+        if not self.await_zero:
+            self.await_zero, self.await_zero_why = True, why
 
     def _on_load_cell(self, f: LoadCellFrame) -> None:
         mass = self.load_cell.accept(f, time.monotonic())
@@ -445,11 +484,16 @@ class BridgeNode(Node):
             return (ERROR, "arm angle sensor fault on the device (a boom or bucket angle is NaN or beyond its joint's "
                            "limits by 0.3 rad: a broken wire, a failed conversion): machine held stopped, no joint "
                            "states published", values)
+        values["awaiting_zero_command"] = self.await_zero
         if time.monotonic() < self._reset_hold_until:
             return (ERROR, f"the device was reset (power, brown-out, its watchdog): machine held stopped for "
                            f"{DEVICE_RESET_HOLD_S:g} s, stop frames sent; only commands received after it count", values)
         if f.flags & FLAG_HELD:
             return WARN, "device holds the machine stopped until a stop frame (power-up, released e-stop)", values
+        if self.await_zero and self._cmd is not None and not zero_motion(self._cmd):
+            return (WARN, f"machine held stopped after {self.await_zero_why}: it moves again after an all-zero "
+                          "command on <prefix>/cmd (release the gamepad's trigger, or end the controller's attempt)",
+                    values)
         if f.flags & FLAG_WATCHDOG:
             return (WARN, f"device watchdog holds the machine stopped (no command frame for "
                           f"{self.p.device_watchdog * 1000:.0f} ms); cleared by the next command", values)
@@ -471,12 +515,16 @@ class BridgeNode(Node):
                   "command_frame_rate_hz": round(command_hz, 1), **self.parser.counters(),
                   "watchdog_trips": self.watchdog.trips, "rejected_commands": self.mapper.rejected,
                   "clamped_commands": self.mapper.clamped, "reconnects": self.reconnects,
-                  "disconnects": self.disconnects, "command_stale": stale, "drift_from": self.drift_from}
+                  "disconnects": self.disconnects, "command_stale": stale, "drift_from": self.drift_from,
+                  "frame_handling_faults": self.frame_faults}
         errors = {k: values[k] for k in ("framing_errors", "crc_errors", "overflows", "unknown_types")}
         new_errors = {k: v - self._error_marks.get(k, 0) for k, v in errors.items()}
         self._error_marks = errors
         if not self.connected:
             return ERROR, f"serial link down: {self.link_problem}", values
+        if self.frame_faults:
+            return ERROR, (f"{self.frame_faults} device frame(s) could not be handled (a fault of this node: see its "
+                           "log); stop frames follow when sensor frames stop being taken"), values
         if sensor_hz < 50.0:
             if sum(new_errors.values()) and sensor_hz < 1.0:
                 said = ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in new_errors.items() if v)

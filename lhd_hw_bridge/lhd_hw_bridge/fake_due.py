@@ -38,8 +38,8 @@ from dataclasses import dataclass, field
 from lhd_loading_ros.task.arm_sensors import RATE_WINDOW_S, RateWindow
 
 from .pty_link import close_pty, open_pty
-from .protocol import (ANGLE_SCALE, FLAG_ENABLED, FLAG_ESTOP, FLAG_HELD, FLAG_SENSOR_FAULT, FLAG_WATCHDOG,
-                       LC_CALIBRATED, LC_SATURATED, LC_STALE, LC_TARED,
+from .protocol import (ANGLE_SCALE, FLAG_ENABLED, FLAG_ESTOP, FLAG_HELD, FLAG_RESET, FLAG_SENSOR_FAULT,
+                       FLAG_WATCHDOG, LC_CALIBRATED, LC_SATURATED, LC_STALE, LC_TARED,
                        RAW_MAX, RAW_MIN, TYPE_COMMAND, TYPE_HEARTBEAT, CommandFrame, FrameParser, LoadCellFrame,
                        SensorFrame, TxSequence)
 
@@ -131,6 +131,7 @@ class FakeDue:
         self._last_cmd = None
         self._tripped = False
         self.held = True        # as the firmware: stopped after power-up until a stop frame (enable = 0)
+        self.was_reset = True   # flag bit 5 until the first stop frame (reset(): as after a reset)
         self._thread = None
 
     # ------------------------------------------------------------------ pty
@@ -211,7 +212,7 @@ class FakeDue:
                 self._command = msg
                 self._tripped = False   # a fresh valid command re-arms the machine
                 if not msg.enable and not self.estop and not self.boom_sensor_fault:
-                    self.held = False   # a stop frame clears the hold
+                    self.held = self.was_reset = False   # a stop frame clears the hold
 
     def _apply_watchdog(self, now: float) -> None:
         """As the firmware: no command frame for `watchdog` s after one was received -> stopped
@@ -254,7 +255,7 @@ class FakeDue:
             valve_bucket=p.valve_bucket,
             flags=(FLAG_ENABLED if p.enabled else 0) | (FLAG_WATCHDOG if self._tripped else 0)
             | (FLAG_ESTOP if self.estop else 0) | (FLAG_HELD if self.held else 0)
-            | (FLAG_SENSOR_FAULT if self.boom_sensor_fault else 0))
+            | (FLAG_SENSOR_FAULT if self.boom_sensor_fault else 0) | (FLAG_RESET if self.was_reset else 0))
         if self._put(fd, self._tx.encode(frame)):
             self.sent += 1
 
@@ -298,6 +299,12 @@ class FakeDue:
         with self._lock:
             if self._master is not None:
                 os.write(self._master, wire)
+
+    def reset(self) -> None:
+        """What a reset of the Due leaves (power, brown-out, its watchdog): no command, held and flagged
+        reset until a stop frame."""
+        self._command, self._last_cmd, self._tripped = None, None, False
+        self.held = self.was_reset = True
 
     def last_commands(self) -> list:
         return [(t, m) for t, m in self.received if isinstance(m, CommandFrame)]

@@ -64,7 +64,8 @@ import numpy as np
 
 from lhd_hw_bridge.fake_due import LOAD_CELL_OFFSET, LOAD_CELL_SCALE
 from lhd_hw_bridge.pty_link import close_pty, open_pty
-from lhd_hw_bridge.protocol import (ANGLE_SCALE, CURRENT_SCALE, FLAG_ENABLED, FLAG_ESTOP, FLAG_HELD, FLAG_WATCHDOG,
+from lhd_hw_bridge.protocol import (ANGLE_SCALE, CURRENT_SCALE, FLAG_ENABLED, FLAG_ESTOP, FLAG_HELD, FLAG_RESET,
+                                    FLAG_WATCHDOG,
                                     LC_CALIBRATED, LC_SATURATED, LC_TARED, RATE_SCALE, RAW_MAX, RAW_MIN, TYPE_COMMAND,
                                     TYPE_HEARTBEAT, WHEEL_SCALE, CommandFrame, FrameParser, LoadCellFrame,
                                     SensorFrame, TxSequence)
@@ -96,14 +97,15 @@ class Outputs:
     estop: bool
     watchdog: bool
     held: bool = False
+    was_reset: bool = False
 
     @property
     def flags(self) -> int:
         return (FLAG_ENABLED if self.run else 0) | (FLAG_WATCHDOG if self.watchdog else 0) | \
-            (FLAG_ESTOP if self.estop else 0) | (FLAG_HELD if self.held else 0)
+            (FLAG_ESTOP if self.estop else 0) | (FLAG_HELD if self.held else 0) | (FLAG_RESET if self.was_reset else 0)
 
 
-STOPPED = Outputs(False, 0.0, 0, 0, False, False, True)
+STOPPED = Outputs(False, 0.0, 0, 0, False, False, True, True)
 
 
 class Firmware:
@@ -118,6 +120,7 @@ class Firmware:
         self.trips = 0
         self.estop = False                         # the emergency-stop button, pressed
         self.held = True                           # stopped from power-up until a stop frame (enable = 0)
+        self.was_reset = True                      # flag bit 5, likewise
         self.commands = 0
         self.heartbeats = 0
 
@@ -128,7 +131,7 @@ class Firmware:
             self.last_cmd = now
             self.tripped = False          # a fresh valid command re-arms the machine
             if not msg.enable and not self.estop:
-                self.held = False         # a stop frame clears the hold
+                self.held = self.was_reset = False    # a stop frame clears the hold
             self.commands += 1
         else:
             self.heartbeats += 1          # host clock only: the command stream feeds the watchdog
@@ -147,7 +150,7 @@ class Firmware:
             c = self.command
         run = c is not None and c.enable and not self.tripped and not self.estop and not self.held
         if not run:
-            return Outputs(False, 0.0, 0, 0, self.estop, self.tripped, self.held)
+            return Outputs(False, 0.0, 0, 0, self.estop, self.tripped, self.held, self.was_reset)
         wheel = min(max(c.wheel_setpoint, 0.0), WHEEL_MAX)
         boom = max(c.valve_boom, 0)        # lowering refused (not a maintenance build)
         bucket = max(c.valve_bucket, 0)    # forward tilt refused

@@ -146,7 +146,7 @@ def test_offline_weighing_of_a_row_without_its_threshold_says_which_file_judged_
     rc, out, err = run(attempt_mass_main, ["26.5", "--run-dir", str(tmp_path), "--config", str(tmp_path / "no.yaml")])
     assert rc == 2 and "--config: cannot read parameter file" in err, err
     rc, out, err = run(attempt_mass_main, ["26.5", "--config", "config/lhd_params.yaml"])
-    assert rc == 2 and "--config is for --run-dir only" in err, err
+    assert rc == 2 and "--config is for a weighing of the record" in err, err
 
 
 def ros_env():

@@ -275,3 +275,15 @@ def test_a_cut_bag_with_its_metadata_points_to_bag_recover(cfg, tmp_path, capsys
     assert replay.main([str(bag)]) == 2
     err = capsys.readouterr().err
     assert "cannot be read as a rosbag2" in err and f"`lhd bag recover {bag}`" in err, err
+
+
+def test_a_number_used_twice_takes_nothing_from_the_other_attempts_row(cfg, tmp_path, capsys):
+    """A review (2026-11-30): bags/attempt_0004_2 (a restarted supervisor reused number 4) took the outcome
+    and the mass of the record's attempt 4, whose bag is bags/attempt_0004."""
+    run = tmp_path / "run"
+    bag = write_bag(run / "bags" / "attempt_0004_2", attempt_messages(cfg), custom={"lhd.attempt": "4"})
+    write_record(run, [record_row(4, "timeout", 23.4)])
+    assert replay.main([str(bag)]) == 0
+    text = capsys.readouterr().out
+    assert "23.40" not in text and "loaded mass: not weighed yet" in text, text
+    assert "the record's attempt 4 names the bag bags/attempt_0004, not this one (attempt_0004_2" in text, text

@@ -26,7 +26,7 @@ import doc_protocol as doc
 LAYOUTS = doc.read_layouts()
 HOST = Path(__file__).parent / "firmware_host"
 FIRMWARE = Path(__file__).resolve().parents[2] / "lhd_hw_bridge/lhd_hw_bridge/firmware/lhd_due/lhd_due.ino"
-ENABLED, WATCHDOG, ESTOP, HELD, SENSOR_FAULT = 0x01, 0x02, 0x04, 0x08, 0x10    # the document's flag bits
+ENABLED, WATCHDOG, ESTOP, HELD, SENSOR_FAULT, RESET = 0x01, 0x02, 0x04, 0x08, 0x10, 0x20   # the document's flag bits
 RUN = {"wheel_setpoint": 2.0, "valve_boom": 1, "valve_bucket": 1, "enable": 1}
 STOP = {"wheel_setpoint": 0.0, "valve_boom": 0, "valve_bucket": 0, "enable": 0}
 
@@ -118,11 +118,12 @@ def running(dev: Device) -> bool:
 def test_power_up_holds_the_machine_until_a_stop_frame(device):
     device.send(RUN, n=15)
     v = device.last()
-    assert v["flags"] == HELD and (v["valve_boom"], v["valve_bucket"]) == (0, 0), v
+    assert v["flags"] == HELD | RESET and (v["valve_boom"], v["valve_bucket"]) == (0, 0), v
     assert device.outputs() == [(0.0, 0, 0)], device.log()      # never driven
     device.send(STOP)
     device.send(RUN, n=5)
     assert running(device), (device.last(), device.outputs())
+    assert device.last()["flags"] == ENABLED                     # the reset flag cleared by the stop frame
 
 
 def test_a_nan_angle_is_a_sensor_fault_that_stops_everything_and_is_not_sent_as_zero(device):
@@ -148,8 +149,9 @@ def test_a_nan_angle_is_a_sensor_fault_that_stops_everything_and_is_not_sent_as_
     assert running(device)
 
 
-def test_a_nan_angle_closes_the_valve_at_the_joint_limit_test_as_well(device):
-    """The limit tests themselves fail safe (`!(angle > BOOM_MIN)`): at the limit the valve closes."""
+def test_a_valve_closes_at_its_joint_limit(device):
+    """At the limit itself the valve closes (the tests are written `!(angle > BOOM_MIN)`, so a NaN would fail
+    them too; a NaN never gets there, the sensor fault stops everything first)."""
     device.send(STOP)
     device.io(boom=-1.0)                       # at BOOM_MIN: raising refused, curling allowed
     device.send(RUN, n=5)
@@ -199,10 +201,46 @@ def test_a_write_the_usb_host_never_collects_resets_the_due_which_then_holds(exe
         dev.frames.clear()
         dev.send(RUN, n=15)
         v = dev.last()
-        assert v["flags"] == HELD and (v["valve_boom"], v["valve_bucket"]) == (0, 0), v
+        assert v["flags"] == HELD | RESET and (v["valve_boom"], v["valve_bucket"]) == (0, 0), v
         assert dev.outputs()[-1] == (0.0, 0, 0)
         dev.send(STOP)
         dev.send(RUN, n=5)
         assert running(dev)
     finally:
         dev.close()
+
+
+def test_the_arm_rates_after_a_sensor_fault_are_not_made_of_the_faulty_samples(device):
+    """A review (2026-11-30): a rail (3.0 rad) or NaN angle stayed in the 0.1 s rate window after the sensor
+    read again, and the frames without flag bit 4 carried a rate of -3.3 rad/s for a window. The windows now
+    start afresh: a bucket standing still at 0.5 rad reads a rate of 0 in every frame after the fault."""
+    device.send(STOP)
+    device.io(bucket=3.0, boom="nan")
+    device.send(RUN, n=5)
+    assert device.last()["flags"] & SENSOR_FAULT
+    device.io(bucket=0.5, boom=-0.5)
+    device.frames.clear()
+    device.send(RUN, n=15)
+    after = [v for v in device.frames if not v["flags"] & SENSOR_FAULT]
+    assert len(after) >= 10, device.frames[-3:]
+    assert all(abs(v["bucket_rate"]) < 1e-3 and abs(v["boom_rate"]) < 1e-3 for v in after), \
+        [(v["boom_rate"], v["bucket_rate"]) for v in after]
+
+
+def test_a_nan_wheel_speed_is_a_sensor_fault(device):
+    """Every field has a NaN sentinel (docs/serial_protocol.md), and a NaN wheel speed or current sets flag
+    bit 4 too, so the host never reads -32.768 rad/s as a wheel speed: every output stops, held after."""
+    device.send(STOP)
+    device.send(RUN, n=5)
+    assert running(device)
+    device.io(wheel="nan")
+    device.send(RUN, n=5)
+    v = device.last()
+    assert v["flags"] == SENSOR_FAULT | HELD and v["wheel_fl"] == pytest.approx(-32.768), v
+    assert device.outputs()[-1] == (0.0, 0, 0)
+    device.io(wheel=0.0)
+    device.send(RUN, n=5)
+    assert device.last()["flags"] == HELD
+    device.send(STOP)
+    device.send(RUN, n=5)
+    assert running(device)

@@ -41,6 +41,7 @@ def rig(ros, tmp_path):
     pub = node.create_publisher(Float64MultiArray, "/lhd/cmd", 1)
     ok = spin_until(node, lambda: len(got["js"]) > 5, timeout=20.0)
     assert ok, "no joint states from the bridge:\n" + bridge.log()
+    drive(node, pub, [0.0, 0.0, 0.0], 0.2)     # the fresh start the bridge waits for (the mux's idle zeros)
     yield dev, bridge, node, pub, got
     node.destroy_node()
     rc = bridge.stop()
@@ -172,11 +173,16 @@ def test_unplug_and_replug_reconnects_and_sends_stop_first(rig):
     drive(node, pub, [2.0, -0.191, 0.2], 1.0)       # commands keep coming while unplugged
     n = len(dev.received)
     dev.plug()
-    drive(node, pub, [2.0, -0.191, 0.2], 2.5)       # backoff, reopen, then commands again
+    drive(node, pub, [2.0, -0.191, 0.2], 2.5)       # backoff, reopen; the same commands keep coming
     after = [m for _, m in dev.received[n:] if isinstance(m, CommandFrame)]
     assert after, "the bridge did not reconnect:\n" + bridge.log()
     assert after[0].is_stop                          # first thing on the new link
-    assert after[-1] == CommandFrame(2.0, 1, 1, True)  # and it carries on with fresh commands
+    # the stream that went on through the unplug does not restart the machine (2026-11-30): stops only,
+    # until an all-zero command (the mux's idle zeros, a released trigger), then fresh commands move it
+    assert all(m.is_stop for m in after), after[-3:]
+    drive(node, pub, [0.0, 0.0, 0.0], 0.2)
+    drive(node, pub, [2.0, -0.191, 0.2], 0.3)
+    assert dev.last_commands()[-1][1] == CommandFrame(2.0, 1, 1, True)
     assert bridge.alive()
     n_js = len(got["js"])
     spin_until(node, lambda: len(got["js"]) > n_js + 10, timeout=2.0)
@@ -438,6 +444,7 @@ def test_watchdog_stops_the_machine_with_use_sim_time_and_no_clock(ros, tmp_path
     node.create_subscription(JointState, "/lhd/joint_states", js.append, 50)
     try:
         assert spin_until(node, lambda: len(js) > 5, timeout=20.0), bridge.log()
+        drive(node, pub, [0.0, 0.0, 0.0], 0.2)             # the fresh start after the bridge started
         delay = stop_delay(dev, node, pub)
         assert 0.25 <= delay < 0.3 + 0.005 + 0.05, delay
         assert any(not m.is_stop for _, m in dev.last_commands())      # the commands did reach the device
@@ -468,6 +475,7 @@ def test_topics_follow_the_node_namespace(ros, tmp_path):
     try:
         assert spin_until(node, lambda: len(got["/lhd2/joint_states"]) > 20 and got["/lhd2/hw/status"], 20.0), \
             (tmp_path / "bridge.log").read_text()
+        drive(node, pub, [0.0, 0.0, 0.0], 0.2)
         drive(node, pub, [1.0, 0.0, 0.0], 0.5)
         assert dev.last_commands()[-1][1] == CommandFrame(1.0, 0, 0, True)
         assert got["/lhd/joint_states"] == []
@@ -541,6 +549,13 @@ def test_estop_currents_and_valve_states_are_published(rig):
                                         and "emergency stop" in s.message for d in got["diag"][-2:]
                                         for s in d.status), timeout=3.0)
     dev.estop = False
+    drive(node, pub, [1.0, -0.191, 0.2], 0.5)               # released: the stream alone restarts nothing
+    assert all(m.is_stop for _, m in dev.last_commands()[-10:]) and dev.plant.valve_boom == 0
+    assert not dev.held                                     # the bridge's stop frames cleared the device's hold
+    assert spin_until(node, lambda: any(s.level == DiagnosticStatus.WARN and s.name.endswith("device")
+                                        and "it moves again after an all-zero command" in s.message
+                                        for d in got["diag"][-2:] for s in d.status), timeout=3.0)
+    drive(node, pub, [0.0, 0.0, 0.0], 0.2)                  # the fresh start (a released trigger, the mux's zeros)
     drive(node, pub, [1.0, -0.191, 0.2], 0.5)
     assert hw[-1].level == DiagnosticStatus.OK and status_values(hw[-1])["valve_boom"] == "1"
     assert dev.last_commands()[-1][1] == CommandFrame(1.0, 1, 1, True)
@@ -605,7 +620,7 @@ def test_a_device_reset_while_running_holds_the_machine_and_reports_error(rig):
     assert dev.last_commands()[-1][1] == CommandFrame(1.0, 1, 1, True)
     n = len(dev.received)
     t_reset = time.monotonic()
-    dev.held = True                                  # what a reset leaves: held until a stop frame
+    dev.reset()                                      # held and flagged reset until a stop frame
     drive(node, pub, [1.0, -0.191, 0.2], 0.7)        # the policy keeps commanding
     window = [(t, m) for t, m in dev.received[n:] if isinstance(m, CommandFrame)]
     assert window and all(m.is_stop for t, m in window if t - t_reset > 0.05), window[-5:]
@@ -613,7 +628,10 @@ def test_a_device_reset_while_running_holds_the_machine_and_reports_error(rig):
         [s.message for s in hw[-5:]]
     assert status_values([s for s in hw if "the device was reset" in s.message][-1])["device_resets"] == "1"
     assert not dev.held                              # the first stop frame cleared the device's hold
-    drive(node, pub, [1.0, -0.191, 0.2], 1.0)        # past the 1 s hold: fresh commands move it again
+    drive(node, pub, [1.0, -0.191, 0.2], 1.0)        # past the 1 s hold, the same stream: still stopped
+    assert all(m.is_stop for _, m in dev.last_commands()[-10:])
+    drive(node, pub, [0.0, 0.0, 0.0], 0.2)           # the fresh start
+    drive(node, pub, [1.0, -0.191, 0.2], 0.3)
     assert dev.last_commands()[-1][1] == CommandFrame(1.0, 1, 1, True)
     assert hw[-1].level == DiagnosticStatus.OK, hw[-1].message
 
@@ -637,4 +655,7 @@ def test_an_arm_sensor_fault_publishes_no_joint_state_and_stops(rig):
     dev.boom_sensor_fault = False
     drive(node, pub, [1.0, -0.191, 0.2], 0.6)
     assert len(got["js"]) > n_js + 10 and all(math.isfinite(x) for x in got["js"][-1].position)
+    assert all(m.is_stop for _, m in dev.last_commands()[-10:])       # no restart without a fresh start
+    drive(node, pub, [0.0, 0.0, 0.0], 0.2)
+    drive(node, pub, [1.0, -0.191, 0.2], 0.3)
     assert dev.last_commands()[-1][1] == CommandFrame(1.0, 1, 1, True)

@@ -218,7 +218,10 @@ def test_bridge_and_doc_implementation_interoperate_over_a_pty(ros, tmp_path):
         kv = {k.key: k.value for k in hw[-1].values}
         assert (kv["current_fl_A"], kv["current_fr_A"], kv["valve_boom"], kv["valve_bucket"]) == \
             ("4.321", "5.5", "1", "0")
-        # host -> device: commands decode, each type numbered from 0 without a gap
+        # host -> device: commands decode, each type numbered from 0 without a gap (a zero first: the fresh
+        # start the bridge waits for before it moves the machine)
+        pub.publish(Float64MultiArray(data=[0.0, 0.0, 0.0]))
+        send_sensor_frames(5)
         for _ in range(20):
             pub.publish(Float64MultiArray(data=[1.5, -0.191, 0.0]))
             send_sensor_frames(5)
@@ -295,7 +298,7 @@ def test_firmware_speaks_the_document(firmware):
 
     try:
         read_for(0.3)
-        assert got and got[-1][2]["flags"] == 0x08                   # no command yet: held since power-up
+        assert got and got[-1][2]["flags"] == 0x28                   # no command yet: held and reset since power-up
         cmd = {"wheel_setpoint": 9.0, "valve_boom": 1, "valve_bucket": -1, "enable": 1}
         os.write(master, doc.raw_frame(0x7E, 0, b"x") + b"\x05garbage\x00")   # ignored
         # the stop frame a host sends first on opening the port clears the hold

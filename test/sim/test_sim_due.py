@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lhd_hw_bridge.protocol import (FLAG_ENABLED, FLAG_ESTOP, FLAG_HELD, FLAG_WATCHDOG, TYPE_LOAD_CELL, TYPE_SENSOR,
+from lhd_hw_bridge.protocol import (FLAG_ENABLED, FLAG_ESTOP, FLAG_HELD, FLAG_RESET, FLAG_WATCHDOG, TYPE_LOAD_CELL, TYPE_SENSOR,
                                     CommandFrame, FrameParser, HeartbeatFrame, LoadCellFrame, SensorFrame,
                                     TxSequence)
 from lhd_sim_node import sim_due
@@ -40,10 +40,10 @@ def test_firmware_constants_are_the_reference_firmwares():
 
 def test_firmware_clamps_refuses_and_closes_valves_at_the_limits():
     fw = Firmware()
-    assert fw.outputs(0.0, 0.0) == Outputs(False, 0.0, 0, 0, False, False, True)  # no command yet: held
+    assert fw.outputs(0.0, 0.0) == Outputs(False, 0.0, 0, 0, False, False, True, True)  # no command yet: held
     fw.receive(CommandFrame(3.5, 1, 1, True), 0.0)
-    assert fw.outputs(0.0, 0.0) == Outputs(False, 0.0, 0, 0, False, False, True)  # held until a stop frame
-    assert fw.outputs(0.0, 0.0).flags == FLAG_HELD
+    assert fw.outputs(0.0, 0.0) == Outputs(False, 0.0, 0, 0, False, False, True, True)  # until a stop frame
+    assert fw.outputs(0.0, 0.0).flags == FLAG_HELD | FLAG_RESET
     fw.receive(CommandFrame.stop(), 0.0)
     fw.receive(CommandFrame(3.5, 1, 1, True), 0.0)
     assert fw.outputs(-0.5, 0.5) == Outputs(True, 2.7, 1, 1, False, False)         # clamped to 2.7
@@ -343,6 +343,9 @@ def test_bridge_joint_states_and_load_cell_are_the_simulators(ros, sim, tmp_path
         assert m0 > 0.0                                   # the attack cut some material
         assert mass[-1] == pytest.approx(m0, abs=1e-3)
         js.clear()
+        for _ in range(3):                                # the fresh start the bridge waits for: an all-zero command
+            pub.publish(Float64MultiArray(data=[0.0, 0.0, 0.0]))
+            spin_until(node, lambda: False, timeout=0.05)
         t_end = time.monotonic() + 1.5
         while time.monotonic() < t_end:                   # drive, lift and curl at full speed
             pub.publish(Float64MultiArray(data=[1.0, -0.191, 0.2]))

@@ -411,3 +411,20 @@ def test_a_byte_order_mark_and_empty_rows_from_a_spreadsheet_are_read(tmp_path):
     lines = p.read_text().splitlines()
     p.write_bytes(("\ufeff" + "\r\n".join(lines[:2] + ["," * 16, lines[2], ",,,", "," * 19]) + "\r\n").encode())
     assert read_rows(p) == [mk(1, mass=25.0), mk(2, mass=21.0)]
+
+
+@pytest.mark.parametrize("thresh", [-90.0, -5.0, 0.0, 40.0, 89.9999, 90.0])
+def test_every_threshold_the_parameter_file_allows_is_written_and_read_back(tmp_path, thresh):
+    """A review (2026-11-30): the reader took phi_thresh_deg in [0, 90) where the parameter file allows
+    [-90, 90]; a supervisor run with -5 or 90 wrote a record it could then not read (every later write
+    failed, lhd attempts refused it)."""
+    import dataclasses
+
+    p = tmp_path / "attempts.csv"
+    upsert_row(p, dataclasses.replace(mk(1), phi_thresh_deg=thresh))
+    (back,) = read_rows(p)
+    assert back.phi_thresh_deg == pytest.approx(thresh, abs=5e-4)
+    bad = p.read_text().replace(p.read_text().splitlines()[1].rsplit(",", 1)[1], "95.000")
+    p.write_text(bad)
+    with pytest.raises(ValueError, match=r"phi_thresh_deg = 95.0; expected a pitch threshold in \[-90, 90\] deg"):
+        read_rows(p)

@@ -180,16 +180,18 @@ def attempt_mass_main(argv=None) -> int:
     ap.add_argument("kg", help="the bucket's load on the scale, kg (0-200)")
     ap.add_argument("--attempt", type=pos_int, help="attempt number (default: the latest ended one)")
     ap.add_argument("--run-dir", help="edit this run's record directly, without a supervisor")
-    ap.add_argument("--config", help="with --run-dir, for a row recorded without its pitch threshold (before "
-                    "2026-11-30) only: the supervisor's parameter file (default: the default one)")
+    ap.add_argument("--config", help="for a row recorded without its pitch threshold (before 2026-11-30), weighed "
+                    "from the record (--run-dir, or --attempt N of an earlier attempt): the supervisor's parameter "
+                    "file (default: the default one)")
     _ros_args(ap)
     args = ap.parse_args(argv)
     try:
         kg = check_mass(args.kg)
     except ValueError as exc:
         return _err(prog, f"refused: {exc}", 2)
-    if args.config and not args.run_dir:
-        return _err(prog, "refused: --config is for --run-dir only (a running supervisor judges with its own file)", 2)
+    if args.config and not args.run_dir and args.attempt is None:
+        return _err(prog, "refused: --config is for a weighing of the record (--run-dir, or --attempt N of an earlier "
+                          "attempt); a running supervisor judges its latest attempt with its own file", 2)
     if args.run_dir:
         return _weigh_offline(prog, csv_path(args.run_dir), args.attempt, kg, args.config)
     ros = None
@@ -214,7 +216,10 @@ def attempt_mass_main(argv=None) -> int:
         n = st.get("episode", "0")
         if args.attempt is not None and str(args.attempt) != n:
             # an earlier attempt: the supervisor weighs its latest only; the record is edited directly
-            return _weigh_offline(prog, csv_path(st["run_dir"]), args.attempt, kg)
+            return _weigh_offline(prog, csv_path(st["run_dir"]), args.attempt, kg, args.config)
+        if args.config:
+            return _err(prog, f"refused: --config with attempt {n}, the supervisor's latest: it judges it with its own "
+                              "file", 2)
         if st.get("state") not in ENDED:
             what = "no attempt has ended yet" if st.get("state") == "idle" else f"attempt {n} is {st.get('state')}"
             hint = _unweighed_hint(st["run_dir"]) if st.get("state") == "idle" else ""

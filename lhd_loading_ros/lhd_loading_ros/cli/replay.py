@@ -186,7 +186,14 @@ def _record_row(rec: Recording, attempt: int | None):
         rows = read_rows(path)
     except (OSError, ValueError) as exc:
         return None, f"the run's record cannot be read (no mass or outcome from it): {exc}"
-    return next((r for r in rows if r.attempt == attempt), None), None
+    row = next((r for r in rows if r.attempt == attempt), None)
+    name = rec.path.name.removesuffix("_recovered")          # lhd bag recover's copy is the attempt's bag too
+    if row is not None and row.bag and Path(row.bag).name != name:
+        # the number was used again (bags/attempt_0003_2 beside attempt_0003): the record's row of that number is
+        # the other attempt's, whose bag it names (a review, 2026-11-30: its outcome and mass were taken)
+        return None, (f"the record's attempt {attempt} names the bag {row.bag}, not this one ({rec.path.name}: the "
+                      "number was used twice): no mass or outcome taken from it")
+    return row, None
 
 
 def analyse(rec: Recording, cfg: dict) -> dict:

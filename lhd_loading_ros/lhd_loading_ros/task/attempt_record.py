@@ -230,8 +230,9 @@ class AttemptRow:
             raise ValueError(f"{at}success = {ok_raw!r}; expected true, false or empty")
         phi = number("phi_final_deg", optional=True)
         thresh = number("phi_thresh_deg", optional=True)
-        if thresh is not None and not 0.0 <= thresh < 90.0:
-            raise ValueError(f"{at}phi_thresh_deg = {thresh!r}; expected a pitch threshold in [0, 90) deg or empty")
+        if thresh is not None and not -90.0 <= thresh <= 90.0:
+            # the parameter file's own range (task.config: phi_thresh_pitch_deg): what the supervisor writes reads
+            raise ValueError(f"{at}phi_thresh_deg = {thresh!r}; expected a pitch threshold in [-90, 90] deg or empty")
         return cls(attempt=attempt, started_utc=get("started_utc"), controller=get("controller"),
                    slope_deg=number("slope_deg"), material=material, outcome=outcome, reason=get("reason"),
                    mass_kg=number("mass_kg", optional=True), elapsed_s=number("elapsed_s"),

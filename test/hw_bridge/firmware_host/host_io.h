@@ -1,6 +1,7 @@
 // The firmware's hardware functions on the host, for the tests that build with -DLHD_HOST_IO
 // (test_firmware_safety.py): the arm angles and the e-stop come from the file named by
-// LHD_HOST_IO_FILE (lines "boom <rad|nan>", "bucket <rad|nan>", "estop <0|1>"; read again at most
+// LHD_HOST_IO_FILE (lines "boom <rad|nan>", "bucket <rad|nan>", "wheel <rad/s|nan>" (front left),
+// "estop <0|1>"; read again at most
 // every 2 ms), and every change of the outputs goes to stderr as one line
 // "outputs wheel=<rad/s> boom=<-1|0|1> bucket=<-1|0|1>" (the first call always), so a test sees
 // what the motors and valves would do even while the device sends nothing.
@@ -10,7 +11,7 @@
 #include <string.h>
 
 struct HostIo {
-  float boom = 0.0f, bucket = 0.0f;
+  float boom = 0.0f, bucket = 0.0f, wheel = 0.0f;
   bool estop = false;
   uint32_t read_us = 0;
   bool read_once = false;
@@ -32,6 +33,7 @@ struct HostIo {
       float v = strcmp(val, "nan") == 0 ? NAN : strtof(val, nullptr);
       if (strcmp(key, "boom") == 0) boom = v;
       else if (strcmp(key, "bucket") == 0) bucket = v;
+      else if (strcmp(key, "wheel") == 0) wheel = v;
       else if (strcmp(key, "estop") == 0) estop = v != 0.0f;
     }
     fclose(f);
@@ -45,7 +47,7 @@ static HostIo host_io;
 
 static float read_boom_angle() { host_io.refresh(); return host_io.boom; }
 static float read_bucket_angle() { host_io.refresh(); return host_io.bucket; }
-static float read_wheel(int which) { (void)which; return 0.0f; }
+static float read_wheel(int which) { host_io.refresh(); return which == 0 ? host_io.wheel : 0.0f; }
 static float read_current(int which) { (void)which; return 0.0f; }
 static bool estop_pressed() { host_io.refresh(); return host_io.estop; }
 static void drive_wheels(float setpoint) {

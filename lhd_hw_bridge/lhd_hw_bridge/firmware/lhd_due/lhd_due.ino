@@ -42,7 +42,8 @@ static const float WHEEL_MAX = 2.7f;              // rad/s
 static const float BOOM_MIN = -1.0f, BOOM_MAX = 0.05f;      // rad, joint limits
 static const float BUCKET_MIN = -0.1f, BUCKET_MAX = 1.4f;   // rad
 // an arm angle further than this beyond its joint's limits is no reading (a broken wire reads a
-// rail, a failed conversion NaN): a sensor fault, flag bit 4, every output stopped
+// rail, a failed conversion NaN): a sensor fault, flag bit 4, every output stopped. So is a NaN
+// wheel speed or motor current
 static const float ANGLE_PLAUSIBLE_MARGIN = 0.3f;           // rad
 static const bool MAINTENANCE_BUILD = false;      // true allows lowering / forward tilt
 
@@ -59,7 +60,9 @@ static bool watchdog_tripped = false;
 // emergency stop must not restart the machine). The host's stop frames clear it (the first frame
 // after it opens the port is a stop); flag bit 3.
 static bool held = true;
-static bool sensor_fault = false;
+static bool was_reset = true;      // from power-up or any reset until the first stop frame: flag bit 5
+static bool sensor_fault = false;  // this loop: an arm angle is no reading, or the last frame's readings had a NaN
+static bool reading_fault = false; // the last sensor frame read a NaN wheel speed or current
 // sequence numbers: one counter per frame type this device sends (docs/serial_protocol.md):
 // this one for sensor frames, seq_load_cell for load-cell frames (LHD_HAS_LOAD_CELL)
 static uint8_t seq_sensor = 0;
@@ -145,8 +148,8 @@ static void drive_valve(int joint, int8_t dir) { (void)joint; (void)dir; }  // H
 static bool estop_pressed() { return false; }                        // HW
 #endif
 
-// the SAM3X watchdog (Arduino SAM core: init() calls watchdogSetup() before setup(); the core's
-// default switches the watchdog off, and its mode register can be written once per reset)
+// the SAM3X watchdog (Arduino SAM core: its main() calls watchdogSetup() before init() and setup(); the
+// core's default switches the watchdog off, and its mode register can be written once per reset)
 void watchdogSetup(void) { watchdogEnable(HW_WATCHDOG_MS); }
 
 // NaN fails: a NaN angle is not plausible
@@ -162,7 +165,7 @@ static const Command STOP_COMMAND = {0.0f, 0, 0, false};
 static Outputs apply_outputs(float boom_angle, float bucket_angle) {
   bool estop = estop_pressed();
   sensor_fault = !angle_plausible(boom_angle, BOOM_MIN, BOOM_MAX) ||
-                 !angle_plausible(bucket_angle, BUCKET_MIN, BUCKET_MAX);
+                 !angle_plausible(bucket_angle, BUCKET_MIN, BUCKET_MAX) || reading_fault;
   if (estop || sensor_fault) {
     held = true;
     cmd = STOP_COMMAND;        // nothing of the command before it is kept
@@ -202,7 +205,7 @@ static void handle_packet(const uint8_t *pkt, int n) {
     have_cmd = true;
     watchdog_tripped = false;   // a fresh valid command re-arms the machine after a lost link
     // a stop frame clears the hold (power-up, e-stop released, sensor reading again), not motion
-    if (!cmd.enable && !estop_pressed() && !sensor_fault) held = false;
+    if (!cmd.enable && !estop_pressed() && !sensor_fault) { held = false; was_reset = false; }
   } else if (pkt[1] == TYPE_HEARTBEAT && len == 4) {
     // host clock only: nothing to do (the command stream is the watchdog's heartbeat)
   }
@@ -368,14 +371,31 @@ void loop() {
     put_u32(p, now_us);
     put_u16(p + 4, (uint16_t)sat16(boom / 1e-4f));
     put_u16(p + 6, (uint16_t)sat16(bucket / 1e-4f));
-    put_u16(p + 8, (uint16_t)sat16(rate_window_push(&boom_rate_window, now_us, boom) / 1e-4f));
-    put_u16(p + 10, (uint16_t)sat16(rate_window_push(&bucket_rate_window, now_us, bucket) / 1e-4f));
-    for (int k = 0; k < 3; k++) put_u16(p + 12 + 2 * k, (uint16_t)sat16(read_wheel(k) / 1e-3f));
-    for (int k = 0; k < 3; k++) put_u16(p + 18 + 2 * k, satu16(read_current(k) / 1e-3f));
+    float boom_rate = NAN, bucket_rate = NAN;
+    if (sensor_fault) {
+      // a faulty angle never enters the rate windows: they start afresh once the angles read again (a
+      // review: a NaN or rail sample kept the rates at -3.3 rad/s for a window after the fault cleared)
+      rate_window_reset(&boom_rate_window);
+      rate_window_reset(&bucket_rate_window);
+    } else {
+      boom_rate = rate_window_push(&boom_rate_window, now_us, boom);
+      bucket_rate = rate_window_push(&bucket_rate_window, now_us, bucket);
+    }
+    put_u16(p + 8, (uint16_t)sat16(boom_rate / 1e-4f));
+    put_u16(p + 10, (uint16_t)sat16(bucket_rate / 1e-4f));
+    bool nan_reading = false;
+    for (int k = 0; k < 3; k++) {
+      float w = read_wheel(k), a = read_current(k);
+      nan_reading = nan_reading || !(w == w) || !(a == a);
+      put_u16(p + 12 + 2 * k, (uint16_t)sat16(w / 1e-3f));
+      put_u16(p + 18 + 2 * k, satu16(a / 1e-3f));
+    }
+    reading_fault = nan_reading;     // stops the outputs from the next loop; said in this frame already
+    if (nan_reading) { sensor_fault = true; held = true; }
     p[24] = (uint8_t)out.boom;      // what the valves do (closed at a limit, on e-stop, ...)
     p[25] = (uint8_t)out.bucket;
     p[26] = (out.run ? 0x01 : 0) | (watchdog_tripped ? 0x02 : 0) | (out.estop ? 0x04 : 0) | (held ? 0x08 : 0) |
-            (sensor_fault ? 0x10 : 0);
+            (sensor_fault ? 0x10 : 0) | (was_reset ? 0x20 : 0);
     send_packet(TYPE_SENSOR, seq_sensor++, p, sizeof p);
   }
 #ifdef LHD_HAS_LOAD_CELL
