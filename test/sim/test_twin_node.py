@@ -82,6 +82,7 @@ class Rig:
         self.bridge = RosProcess("lhd_hw_bridge.bridge_node", {"port": self.link}, tmp_path / "bridge.log")
         assert spin_until(n, lambda: len(g["js"]) > 5, timeout=20.0), "no joint states from the bridge:\n" + \
             self.bridge.log() + self.twin.log()
+        self.drive([0.0, 0.0, 0.0], 0.2)     # the fresh start the bridge waits for (the mux's idle zeros)
 
     def spin(self, seconds):
         spin_until(self.node, lambda: False, timeout=seconds)
@@ -333,7 +334,8 @@ def test_ended_attempt_and_reset_service_make_new_piles(rig):
 def test_estop_button_holds_the_machine_and_release_needs_a_fresh_command(rig):
     """`estop:=true` at run time presses the simulated machine's button: the machine stops while
     /lhd/cmd still asks to drive, the device reports it (flag bit 2: the bridge's hw/status);
-    on release the bridge only obeys commands received after it, and the machine drives again."""
+    on release the same stream restarts nothing (2026-11-30: it used to drive again at once); after an
+    all-zero command (the fresh start) the machine drives again."""
     from rclpy.parameter import Parameter
     from rclpy.parameter_client import AsyncParameterClient
 
@@ -361,6 +363,12 @@ def test_estop_button_holds_the_machine_and_release_needs_a_fresh_command(rig):
     t_release = time.monotonic()
     rig.drive([1.0, 0.0, 0.0], 1.0)
     assert status[-1]["estop"] == "False"
+    still = [s for s in g["odom"] if s[0] > t_release + 0.6]
+    assert still and all(abs(m.twist.twist.linear.x) < 0.01 for _, m in still), [m.twist.twist.linear.x
+                                                                                  for _, m in still]
+    rig.drive([0.0, 0.0, 0.0], 0.2)                      # the fresh start
+    t_release = time.monotonic()
+    rig.drive([1.0, 0.0, 0.0], 1.0)
     after = [s for s in g["odom"] if s[0] > t_release + 0.8]
     # the median, as above: on a loaded machine a starved test process lets the bridge's 0.3 s command
     # timeout brake the wheels for a moment at the end of the drive

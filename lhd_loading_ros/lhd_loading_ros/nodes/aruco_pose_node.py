@@ -449,10 +449,13 @@ class ArucoPoseNode(Node):
                          "camera differently, set match_info_frame:=false)")
             return
         try:
-            gray = image_to_gray(msg.height, msg.width, msg.encoding, msg.step, bytes(msg.data))
-            if cam.width and cam.height and (msg.width, msg.height) != (cam.width, cam.height):
+            # the size first: a frame of another size is refused before it is copied and converted (a review:
+            # a 36 MB frame was converted to grey, then refused)
+            if msg.width and msg.height and cam.width and cam.height and (msg.width, msg.height) != (cam.width,
+                                                                                                  cam.height):
                 raise ImageEncodingError(f"image {msg.width}x{msg.height} differs from CameraInfo's "
                                          f"{cam.width}x{cam.height}; expected the calibrated size")
+            gray = image_to_gray(msg.height, msg.width, msg.encoding, msg.step, bytes(msg.data))
             corners = self.detector.detect(gray)
             T_cam_marker = self.detector.pose(corners, cam, self.prior) if corners is not None else None
         except ImageEncodingError as exc:
