@@ -59,10 +59,12 @@ from lhd_loading_ros.ros.run import run_node
 from lhd_loading_ros.task.config import load_config
 
 from .bridge_core import (CMD_TIMEOUT_MAX, JOINT_NAMES, BridgeParams, CommandMapper, CommandRejected,
-                          LoadCellMonitor, baud_problem, Watchdog, CommandScheduler, command_rate_problem, deadband_problem,
+                          LoadCellMonitor, baud_problem, Watchdog, CommandScheduler, command_rate_problem,
+                          deadband_problem,
                           WheelAngles, DeviceClock, DriftWindow, arm_zero_problem, detect_drift, joint_state_arrays)
-from .protocol import (FLAG_ENABLED, FLAG_ESTOP, FLAG_HELD, FLAG_RESET, FLAG_SENSOR_FAULT, FLAG_WATCHDOG, TYPE_LOAD_CELL,
-                       TYPE_SENSOR, CommandFrame, FrameParser, HeartbeatFrame, LoadCellFrame, SensorFrame, TxSequence)
+from .protocol import (FLAG_ENABLED, FLAG_ESTOP, FLAG_HELD, FLAG_RESET, FLAG_SENSOR_FAULT, FLAG_WATCHDOG,
+                       TYPE_LOAD_CELL, TYPE_SENSOR, CommandFrame, FrameParser, HeartbeatFrame, LoadCellFrame,
+                       SensorFrame, TxSequence)
 
 # Command frames at most every 2 ms: a 1 kHz teleop stream becomes <= 500 frames/s (about 6 kB/s, half
 # of a 115,200-baud UART); a 5 ms watchdog tick with a little jitter still sends every changed command
@@ -78,9 +80,8 @@ MIN_FRAME_GAP = 0.002
 WATCHDOG_TICK = 0.005   # s
 STATUS_PERIOD = 0.1     # s, <prefix>/hw/status (and at once when the flags or valve states change)
 DEVICE_STALE = 0.5      # s without a sensor frame: the device's report is no longer current
-# s of stop frames and ERROR after the device was seen reset (held with no e-stop and no fault, after a
-# frame that was not held): the supervisor ends a running attempt on the ERROR, though the first stop
-# frame clears the device's hold at once
+# s of stop frames and ERROR after the device was seen reset while this node ran (flag bit 5 newly set): the
+# supervisor ends a running attempt on the ERROR, though the first stop frame clears the device's hold at once
 DEVICE_RESET_HOLD_S = 1.0
 LEVELS = {name: level for level, name in LEVEL_NAMES.items()}
 
@@ -481,13 +482,14 @@ class BridgeNode(Node):
         if f.flags & FLAG_ESTOP:
             return ERROR, "emergency stop pressed on the device: machine held stopped, stop frames sent", values
         if f.flags & FLAG_SENSOR_FAULT:
-            return (ERROR, "arm angle sensor fault on the device (a boom or bucket angle is NaN or beyond its joint's "
-                           "limits by 0.3 rad: a broken wire, a failed conversion): machine held stopped, no joint "
-                           "states published", values)
+            return (ERROR, "sensor fault on the device (an arm angle NaN or beyond its joint's limits by 0.3 rad: a "
+                           "broken wire, a failed conversion; or a NaN wheel speed or current): machine held stopped, "
+                           "no joint state or drift flag published", values)
         values["awaiting_zero_command"] = self.await_zero
         if time.monotonic() < self._reset_hold_until:
             return (ERROR, f"the device was reset (power, brown-out, its watchdog): machine held stopped for "
-                           f"{DEVICE_RESET_HOLD_S:g} s, stop frames sent; only commands received after it count", values)
+                           f"{DEVICE_RESET_HOLD_S:g} s, stop frames sent; then it moves again after an all-zero "
+                           "command", values)
         if f.flags & FLAG_HELD:
             return WARN, "device holds the machine stopped until a stop frame (power-up, released e-stop)", values
         if self.await_zero and self._cmd is not None and not zero_motion(self._cmd):

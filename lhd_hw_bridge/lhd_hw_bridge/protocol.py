@@ -47,7 +47,7 @@ FLAG_ESTOP = 0x04
 # held: the device keeps the machine stopped until a stop frame (enable = 0): after power-up and any
 # reset, while the e-stop is pressed and after its release, during and after a sensor fault
 FLAG_HELD = 0x08
-FLAG_SENSOR_FAULT = 0x10  # a reading is not one: an arm angle NaN or beyond its joint's limits by 0.3 rad, or a NaN
+FLAG_SENSOR_FAULT = 0x10  # a reading is not one: an arm angle NaN or beyond its joint's limits by 0.3 rad; any NaN
 FLAG_RESET = 0x20         # the device was reset (power-up, brown-out, its watchdog) and has had no stop frame since
 
 # load-cell frame: the HX711's conversions are 24-bit two's complement, sent sign-extended
