@@ -173,6 +173,9 @@ def test_report_keeps_groups_that_share_a_name(cfg, tmp_path, capsys):
     assert group_labels([a, tmp_path / "study1" / "rlc"]) == ["rld", "rlc"]      # unique names stay short
     twice = group_labels([a, a])                                                   # a path given twice
     assert twice[1] == twice[0] + " (2)"
+    assert main(["report", str(a), str(a), "--json"]) == 0                         # through the command too
+    res = json.loads(capsys.readouterr().out)
+    assert len(res) == 2 and sorted(res)[1] == sorted(res)[0] + " (2)", sorted(res)
 
 
 # --- 5. lhd experiment paper: an actor of the other variant ----------------------------------------------------

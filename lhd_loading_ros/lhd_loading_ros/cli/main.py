@@ -358,11 +358,11 @@ def _report(args) -> int:
             return 2
         found.append((p, dirs))
     # a group by its folder's name, with its parents where two share one (study1/rld, study2/rld); one run by its path
-    multi = [p for p, dirs in found if len(dirs) > 1]
-    names = dict(zip(multi, group_labels(multi)))
+    multi = [i for i, (p, dirs) in enumerate(found) if len(dirs) > 1]       # by position: a path given twice is two
+    names = dict(zip(multi, group_labels([found[i][0] for i in multi])))
     groups: dict[str, list] = {}
-    for p, dirs in found:
-        label = names[p] if len(dirs) > 1 else str(p)
+    for i, (p, dirs) in enumerate(found):
+        label = names[i] if len(dirs) > 1 else str(p)
         while label in groups:           # one run's path equal to a group's label, or a path given twice
             label += "'"
         groups[label] = dirs
