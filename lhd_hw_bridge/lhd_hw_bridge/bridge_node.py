@@ -163,6 +163,9 @@ class BridgeNode(Node):
         self.drift_window = DriftWindow(self.p.control_period)   # the training's drift rule (bridge_core)
         self.device_clock = DeviceClock()        # each sensor frame's measurement instant on the ROS clock
         self._drift_lock = threading.Lock()      # odometry (executor) and frames (reader thread) feed it
+        # the device's hold, the reset hold and the fresh-start wait: set by the reader thread, cleared by a command
+        # in the executor; one lock, so a zero command taken just as a hold begins cannot clear the new wait
+        self._hold_lock = threading.Lock()
         self.drift_from = "currents: no odometry yet"   # what decided the last frame's drift flags (diagnostics)
         self._unaligned_since: float | None = None      # fresh odometry, but no window over it since then
         self._device: tuple[SensorFrame, float] | None = None  # (latest sensor frame, arrival time)
@@ -229,8 +232,11 @@ class BridgeNode(Node):
             return
         self._cmd = frame
         now = time.monotonic()
-        if self.await_zero and zero_motion(frame) and not self._hold and now >= self._reset_hold_until:
-            self.await_zero = False        # the fresh start: commands after this one move the machine
+        with self._hold_lock:
+            fresh = self.await_zero and zero_motion(frame) and not self._hold and now >= self._reset_hold_until
+            if fresh:
+                self.await_zero = False    # the fresh start: commands after this one move the machine
+        if fresh:
             self.get_logger().info(f"all-zero command after {self.await_zero_why}: commands move the machine again")
         self.watchdog.feed(now)
         self._send_command(now, self.current_command(now), tripped=False)   # a changed one leaves at once
@@ -316,7 +322,8 @@ class BridgeNode(Node):
             # first ends whatever partial frame the device still holds (a write cut short by the
             # unplug): glued to it, the stop would fail its CRC (a review, 2026-11-30)
             self.watchdog.rearm(time.monotonic())
-            self._need_zero("a reconnection of the serial link")
+            with self._hold_lock:
+                self._need_zero("a reconnection of the serial link")
             try:
                 ser.write(b"\x00" + self._tx.encode(CommandFrame.stop()))
             except (serial.SerialException, OSError) as exc:
@@ -416,6 +423,14 @@ class BridgeNode(Node):
         # the device holds the machine (its e-stop, a sensor fault, or held after a reset until a stop
         # frame): stop frames meanwhile, and then an all-zero command before motion
         hold = bool(f.flags & (FLAG_ESTOP | FLAG_HELD | FLAG_SENSOR_FAULT))
+        with self._hold_lock:
+            self._hold_update(f, prev, hold, now)
+        self._estop = bool(f.flags & FLAG_ESTOP)
+        if prev is None or (prev.flags, prev.valve_boom, prev.valve_bucket) != (f.flags, f.valve_boom, f.valve_bucket):
+            self._publish_status()
+
+    def _hold_update(self, f: SensorFrame, prev: SensorFrame | None, hold: bool, now: float) -> None:
+        """The hold, reset hold and fresh-start wait from this frame (under _hold_lock)."""
         if f.flags & FLAG_RESET and prev is not None and not prev.flags & FLAG_RESET:
             # the device was reset (power, brown-out, its watchdog) while this node ran: ERROR and stop frames
             # for DEVICE_RESET_HOLD_S, so the supervisor ends a running attempt, though the first stop frame
@@ -431,11 +446,9 @@ class BridgeNode(Node):
         if self._hold and not hold:
             self.watchdog.rearm(now)   # released: only commands received from now on count
         self._hold = hold
-        self._estop = bool(f.flags & FLAG_ESTOP)
-        if prev is None or (prev.flags, prev.valve_boom, prev.valve_bucket) != (f.flags, f.valve_boom, f.valve_bucket):
-            self._publish_status()
 
     def _need_zero(self, why: str) -> None:
+        """Stop frames until an all-zero command (called under _hold_lock, or before the reader runs)."""
         if not self.await_zero:
             self.await_zero, self.await_zero_why = True, why
 
