@@ -220,6 +220,9 @@ class BridgeNode(Node):
 
     # ------------------------------------------------------------------ ROS inputs
     def _on_cmd(self, msg: Float64MultiArray) -> None:
+        # the fresh start is a command of exact zeros as sent (the mux's, a released trigger's, the policy node's),
+        # not one the mapper turns into no motion (a review: [-1, 0.191, -0.2], all refused, counted as one)
+        raw_zero = len(msg.data) == 3 and all(v == 0.0 for v in msg.data)
         try:
             frame = self.mapper.map(msg.data)
         except CommandRejected as exc:
@@ -233,7 +236,7 @@ class BridgeNode(Node):
         self._cmd = frame
         now = time.monotonic()
         with self._hold_lock:
-            fresh = self.await_zero and zero_motion(frame) and not self._hold and now >= self._reset_hold_until
+            fresh = self.await_zero and raw_zero and not self._hold and now >= self._reset_hold_until
             if fresh:
                 self.await_zero = False    # the fresh start: commands after this one move the machine
         if fresh:
@@ -279,6 +282,11 @@ class BridgeNode(Node):
 
     def _tick(self) -> None:
         now = time.monotonic()
+        if self._device is not None and self.device_silent(now) and not self.await_zero:
+            # frames stopped (a cable that carries ours but not the device's): an e-stop or a reset in the silence
+            # would go unseen, and the stop frames meanwhile clear the device's hold (a review, 2026-11-30)
+            with self._hold_lock:
+                self._need_zero("a silence of the device")
         trips = self.watchdog.trips
         cmd = self.current_command(now)         # checks the watchdog: a trip sends the stop at once
         tripped = self.watchdog.trips > trips
@@ -448,9 +456,8 @@ class BridgeNode(Node):
         self._hold = hold
 
     def _need_zero(self, why: str) -> None:
-        """Stop frames until an all-zero command (called under _hold_lock, or before the reader runs)."""
-        if not self.await_zero:
-            self.await_zero, self.await_zero_why = True, why
+        """Stop frames until an all-zero command, for the latest reason (called under _hold_lock)."""
+        self.await_zero, self.await_zero_why = True, why
 
     def _on_load_cell(self, f: LoadCellFrame) -> None:
         mass = self.load_cell.accept(f, time.monotonic())
@@ -490,6 +497,11 @@ class BridgeNode(Node):
         values["device_held"] = bool(f.flags & FLAG_HELD)
         values["arm_sensor_fault"] = bool(f.flags & FLAG_SENSOR_FAULT)
         values["device_resets"] = self.device_resets
+        values["awaiting_zero_command"] = self.await_zero
+        if f.flags & FLAG_SENSOR_FAULT:       # the frame's readings are not readings: none shown as one
+            for k in ("current_fl_A", "current_fr_A", "current_rear_A", "boom_angle_device_rad",
+                      "bucket_angle_device_rad"):
+                values[k] = "invalid (sensor fault)"
         if age > DEVICE_STALE:
             return STALE, f"no sensor frame from the device for {age:.1f} s", values
         if f.flags & FLAG_ESTOP:
@@ -498,7 +510,6 @@ class BridgeNode(Node):
             return (ERROR, "sensor fault on the device (an arm angle NaN or beyond its joint's limits by 0.3 rad: a "
                            "broken wire, a failed conversion; or a NaN wheel speed or current): machine held stopped, "
                            "no joint state or drift flag published", values)
-        values["awaiting_zero_command"] = self.await_zero
         if time.monotonic() < self._reset_hold_until:
             return (ERROR, f"the device was reset (power, brown-out, its watchdog): machine held stopped for "
                            f"{DEVICE_RESET_HOLD_S:g} s, stop frames sent; then it moves again after an all-zero "
@@ -506,9 +517,11 @@ class BridgeNode(Node):
         if f.flags & FLAG_HELD:
             return WARN, "device holds the machine stopped until a stop frame (power-up, released e-stop)", values
         if self.await_zero and self._cmd is not None and not zero_motion(self._cmd):
-            return (WARN, f"machine held stopped after {self.await_zero_why}: it moves again after an all-zero "
-                          "command on <prefix>/cmd (release the gamepad's trigger, or end the controller's attempt)",
-                    values)
+            # ERROR: a command asks for motion that is withheld, so a running attempt ends (lost_input) instead of
+            # standing still to its timeout and counting (a review, 2026-11-30: a 0.1 s USB stall did that)
+            return (ERROR, f"machine held stopped after {self.await_zero_why}: a command asks for motion; it moves "
+                           "again after an all-zero command on <prefix>/cmd (release the gamepad's trigger; a running "
+                           "attempt ends)", values)
         if f.flags & FLAG_WATCHDOG:
             return (WARN, f"device watchdog holds the machine stopped (no command frame for "
                           f"{self.p.device_watchdog * 1000:.0f} ms); cleared by the next command", values)

@@ -13,8 +13,9 @@ What the device does, as the reference firmware (lhd_hw_bridge/firmware/lhd_due/
   (-1) are refused (not a maintenance build); a valve is closed at its joint limit
   (boom <= -1.0 rad raising, bucket >= 1.4 rad curling);
 * while the emergency stop is pressed (`estop`): wheels 0, valves closed, flag bit 2; held (flag
-  bit 3) from power-up and from an e-stop until a stop frame (enable = 0): a release alone never
-  restarts the machine;
+  bit 3) and, from power-up, flagged reset (bit 5) until a stop frame (enable = 0): a release alone
+  never restarts the machine. The simulator's readings are always readings, so this device never
+  reports a sensor fault (bit 4; lhd_hw_bridge.fake_due can);
 * sensor frames (0x01) at 100 Hz, load-cell frames (0x04) at 10 Hz (`load_cell`, default on).
 
 The plant is the simulator, driven with the actuator command of the outputs (`actuator_command`):

@@ -234,7 +234,12 @@ def test_a_nan_wheel_speed_is_a_sensor_fault(device):
     device.send(RUN, n=5)
     assert running(device)
     device.io(wheel="nan")
+    device.frames.clear()
     device.send(RUN, n=5)
+    first = next(v for v in device.frames if v["flags"] & SENSOR_FAULT)
+    # the frame that reports the fault shows the outputs stopped already (a review: the first one had the valves
+    # open and ENABLED set: the readings came after the outputs)
+    assert not first["flags"] & ENABLED and (first["valve_boom"], first["valve_bucket"]) == (0, 0), first
     v = device.last()
     assert v["flags"] == SENSOR_FAULT | HELD and v["wheel_fl"] == pytest.approx(-32.768), v
     assert device.outputs()[-1] == (0.0, 0, 0)

@@ -413,7 +413,14 @@ class PolicyNode(Node):
             state = "lost"                   # that attempt's running status no longer counts
         was = self.running()
         new_attempt = state == RUNNING and (not was or key != self.episode_key)
+        armed_now = state == "armed" and (self.episode_state != "armed" or key != self.episode_key)
         self.episode_state, self.episode_key = state, key
+        if armed_now and self.trigger != "lockstep":
+            # one zero at the arming: a bridge fed straight by this node (cmd_topic cmd, no mux) moves the machine
+            # again after its start, a reconnection or a hold only once an all-zero command came (a review,
+            # 2026-11-30: the first attempt after each stood still to its timeout). With a mux the zero is held
+            # like every source while armed; the machine stands still while armed either way
+            self.pub_cmd.publish(Float64MultiArray(data=list(ZERO_COMMAND)))
         if new_attempt:
             self.core.reset()
             self.attempts += 1

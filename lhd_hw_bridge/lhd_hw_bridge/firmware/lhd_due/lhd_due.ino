@@ -62,7 +62,7 @@ static bool watchdog_tripped = false;
 static bool held = true;
 static bool was_reset = true;      // from power-up or any reset until the first stop frame: flag bit 5
 static bool sensor_fault = false;  // this loop: an arm angle is no reading, or the last frame's readings had a NaN
-static bool reading_fault = false; // the last sensor frame read a NaN wheel speed or current
+static bool reading_fault = false; // this loop read a NaN wheel speed or current
 // sequence numbers: one counter per frame type this device sends (docs/serial_protocol.md):
 // this one for sensor frames, seq_load_cell for load-cell frames (LHD_HAS_LOAD_CELL)
 static uint8_t seq_sensor = 0;
@@ -363,6 +363,16 @@ void loop() {
     cmd.enable = false; cmd.wheel = 0.0f; cmd.boom = 0; cmd.bucket = 0;
   }
   float boom = read_boom_angle(), bucket = read_bucket_angle();
+  // every reading before the outputs: a NaN wheel speed or current stops them in this loop, and the frame
+  // that reports the fault already shows them stopped (a review: it showed both valves still open)
+  float wheel[3], current[3];
+  bool nan_reading = false;
+  for (int k = 0; k < 3; k++) {
+    wheel[k] = read_wheel(k);
+    current[k] = read_current(k);
+    nan_reading = nan_reading || !(wheel[k] == wheel[k]) || !(current[k] == current[k]);
+  }
+  reading_fault = nan_reading;
   Outputs out = apply_outputs(boom, bucket);
   uint32_t now_us = micros();
   if ((uint32_t)(now_us - last_sensor_us) >= SENSOR_PERIOD_US) {
@@ -383,15 +393,10 @@ void loop() {
     }
     put_u16(p + 8, (uint16_t)sat16(boom_rate / 1e-4f));
     put_u16(p + 10, (uint16_t)sat16(bucket_rate / 1e-4f));
-    bool nan_reading = false;
     for (int k = 0; k < 3; k++) {
-      float w = read_wheel(k), a = read_current(k);
-      nan_reading = nan_reading || !(w == w) || !(a == a);
-      put_u16(p + 12 + 2 * k, (uint16_t)sat16(w / 1e-3f));
-      put_u16(p + 18 + 2 * k, satu16(a / 1e-3f));
+      put_u16(p + 12 + 2 * k, (uint16_t)sat16(wheel[k] / 1e-3f));
+      put_u16(p + 18 + 2 * k, satu16(current[k] / 1e-3f));
     }
-    reading_fault = nan_reading;     // stops the outputs from the next loop; said in this frame already
-    if (nan_reading) { sensor_fault = true; held = true; }
     p[24] = (uint8_t)out.boom;      // what the valves do (closed at a limit, on e-stop, ...)
     p[25] = (uint8_t)out.bucket;
     p[26] = (out.run ? 0x01 : 0) | (watchdog_tripped ? 0x02 : 0) | (out.estop ? 0x04 : 0) | (held ? 0x08 : 0) |
