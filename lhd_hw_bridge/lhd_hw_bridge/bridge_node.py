@@ -83,6 +83,9 @@ DEVICE_STALE = 0.5      # s without a sensor frame: the device's report is no lo
 # s of stop frames and ERROR after the device was seen reset while this node ran (flag bit 5 newly set): the
 # supervisor ends a running attempt on the ERROR, though the first stop frame clears the device's hold at once
 DEVICE_RESET_HOLD_S = 1.0
+# s without a sensor frame after which the machine moves again only after an all-zero command (a silence long
+# enough for an e-stop press and release to go unseen); shorter gaps get stop frames only (device_silent)
+SILENCE_FRESH_START_S = 1.0
 LEVELS = {name: level for level, name in LEVEL_NAMES.items()}
 
 
@@ -282,11 +285,13 @@ class BridgeNode(Node):
 
     def _tick(self) -> None:
         now = time.monotonic()
-        if self._device is not None and self.device_silent(now) and not self.await_zero:
-            # frames stopped (a cable that carries ours but not the device's): an e-stop or a reset in the silence
-            # would go unseen, and the stop frames meanwhile clear the device's hold (a review, 2026-11-30)
+        if self._device is not None and now - self._device[1] > SILENCE_FRESH_START_S and not self.await_zero:
+            # frames stopped long enough for an e-stop to be pressed and released unseen (a cable that carries ours
+            # but not the device's), while the stop frames sent meanwhile clear the device's hold (a review,
+            # 2026-11-30). Shorter gaps (a busy host) get stop frames (device_silent) but no fresh start
             with self._hold_lock:
-                self._need_zero("a silence of the device")
+                self._need_zero(f"a silence of the device ({now - self._device[1]:.1f} s without a sensor frame)")
+            self.get_logger().warn(f"{self.await_zero_why}: machine held stopped until an all-zero command")
         trips = self.watchdog.trips
         cmd = self.current_command(now)         # checks the watchdog: a trip sends the stop at once
         tripped = self.watchdog.trips > trips

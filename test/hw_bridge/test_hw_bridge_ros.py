@@ -678,7 +678,7 @@ def test_a_silent_device_needs_the_fresh_start_when_its_frames_come_back(rig):
     drive(node, pub, [1.0, -0.191, 0.2], 0.4)
     assert dev.last_commands()[-1][1] == CommandFrame(1.0, 1, 1, True)
     dev.silent = True
-    drive(node, pub, [1.0, -0.191, 0.2], 0.6)                 # > cmd_timeout without a frame: stop frames
+    drive(node, pub, [1.0, -0.191, 0.2], 1.2)                 # > 1 s without a frame: stop frames, a fresh start
     dev.estop = True
     drive(node, pub, [1.0, -0.191, 0.2], 0.2)
     dev.estop = False

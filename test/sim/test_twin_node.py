@@ -88,6 +88,10 @@ class Rig:
         spin_until(self.node, lambda: False, timeout=seconds)
 
     def drive(self, data, seconds):
+        # one zero first, as the command mux's idle zeros between two drives: the bridge moves the machine again
+        # after a silence of the device (a test process starved on a loaded machine) only after an all-zero command
+        self.pub_cmd.publish(Float64MultiArray(data=[0.0, 0.0, 0.0]))
+        self.spin(0.02)
         t_end = time.monotonic() + seconds
         while time.monotonic() < t_end:
             self.pub_cmd.publish(Float64MultiArray(data=list(data)))
