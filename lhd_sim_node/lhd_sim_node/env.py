@@ -213,6 +213,7 @@ class LhdLoadingEnv(gym.Env):
         info = self._info(s, "running", {})
         info["told_slope_deg"], info["slope_refusal"] = self.told_slope_deg, self.slope_refusal
         info["attack_redraws"] = self.attack_redraws_used
+        info["attack_stalled"] = bool(self.sim.attack_stalled)   # started short of d_init (sim.attack_min_depth)
         return self._obs(self._m), info
 
     def step(self, action):

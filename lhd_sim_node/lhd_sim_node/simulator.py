@@ -124,6 +124,8 @@ class LhdSimulator:
         self.fee_by_motion = int(pc["fee_wedge_by_motion"])
         self.fee_wedge_tau = float(pc["fee_wedge_tau"])
         self.attack_timeout = sc["attack_timeout"]
+        self.attack_min_depth = float(sc.get("attack_min_depth", 0.0))
+        self.attack_stalled = False      # the last reset's attack stalled short of d_init and started there
         self.bucket_width = cfg["machine"]["bucket_width"]
         self.wheel_radius = cfg["machine"]["wheel_radius"]
         self.nonhomogeneous_probability = pc["nonhomogeneous_probability"]
@@ -340,12 +342,21 @@ class LhdSimulator:
                 f"MuJoCo found the state unstable during the attack drive and reset it (time {self.data.time:.4f} s"
                 f"{'' if now is None else f', expected {now:.4f} s'}; {self._warning_summary()}); expected a finite, "
                 "stable state: the pile, the conditions or the model's timestep are outside what the simulator handles")
+        self.attack_stalled = False
         if t > self.attack_timeout:
             if self.use_kernel:
                 self._sync_from_kernel()
-            raise AttackError(f"the bucket did not reach d_init = {p.d_init} m inside the pile within "
-                              f"{self.attack_timeout} s (tip at x = {self.data.site_xpos[self.sid_tip][0]:.3f} m)")
-        if self.use_kernel:     # the kernel's state accumulates in self._kst: read it once, after the drive
+            x_tip = float(self.data.site_xpos[self.sid_tip][0])
+            # the last chunk may reach d_init as the time runs out: not a stall
+            if x_tip < p.d_init:
+                if not 0.0 < self.attack_min_depth <= x_tip:
+                    raise AttackError(f"the bucket did not reach d_init = {p.d_init} m inside the pile within "
+                                      f"{self.attack_timeout} s (tip at x = {x_tip:.3f} m)")
+                # sim.attack_min_depth: the drive buried the tip this far and could push it no further (a
+                # steep pile of a strong material, a slow attack): the episode starts where the machine
+                # stands, as an operator arms the machine wherever the drive in stopped
+                self.attack_stalled = True
+        elif self.use_kernel:     # the kernel's state accumulates in self._kst: read it once, after the drive
             self._sync_from_kernel()
         if c.rest_start:
             self.come_to_rest()
@@ -358,7 +369,8 @@ class LhdSimulator:
         hitting the pile at the attack speed as the paper's episodes do. The first period after it
         then accelerates the machine from rest, bucket in the pile (the tyres may slip: the drift
         flags of a start from rest are physical, docs/modeling.md "A start from rest"). The tip
-        ends at or beyond d_init (the machine coasts a little). AttackError if it does not stand
+        ends at or beyond d_init (the machine coasts a little), or where a stalled drive left it
+        (sim.attack_min_depth). AttackError if it does not stand
         within REST_TIMEOUT."""
         zero = np.zeros(3)
         r = self.wheel_radius

@@ -112,6 +112,9 @@ def resistance_vs_slope(cfg: dict, slopes=WEDGE_SLOPES, insertion: float = INSER
     from .simulator import LhdSimulator
 
     hc = homogeneous_config(cfg)
+    # no pile of the (midpoint) material stands steeper than its friction angle (VoxelPile.generate refuses
+    # one): a file whose gravel is weaker than the 35 deg wedge leaves that slope out
+    slopes = [a for a in slopes if a <= hc["pile"]["phi_max_deg"] + 1e-9]
     sim = LhdSimulator(hc)
     w = hc["machine"]["bucket_width"]
     rows = {"equal_insertion": [], "fixed_depth": []}

@@ -108,3 +108,59 @@ def test_a_misspelt_reset_option_is_refused_with_the_known_ones():
         env.reset(seed=0, options={"slop_deg": 20.0})
     obs, _ = env.reset(seed=0, options={"slope_deg": 20.0, "material": "homogeneous"})
     assert obs.shape == (12,)
+
+
+def test_a_stalled_attack_starts_where_it_stalled_only_when_the_config_allows_it(cfg):
+    """sim.attack_min_depth: 0 (every file before it) keeps a stalled attack drive an AttackError; > 0
+    starts the episode where the drive stalled if the tip is that far inside the pile. A 0.15 s drive
+    from 1 cm before the toe at full speed stalls the tip about 4 cm in (the time limit stands in for a
+    pile that stops the machine)."""
+    import copy
+
+    from lhd_loading_ros.task.config import ConfigError, config_hash, validate
+    from lhd_sim_node.simulator import AttackError
+
+    from lhd_loading_ros.task.randomization import Conditions
+
+    opts = {"slope_deg": 20.0, "d_attack": 0.01, "attack_speed": 2.7}
+    c = copy.deepcopy(cfg)
+    c["sim"]["attack_timeout"] = 0.15
+    for depth in (0.0, 0.09):
+        c["sim"]["attack_min_depth"] = depth
+        env = LhdLoadingEnv("rld", validate(copy.deepcopy(c)))
+        with pytest.raises(AttackError, match=r"did not reach d_init = 0.1 m .* \(tip at x = 0.0\d\d m\)"):
+            env.reset(seed=3, options=opts)
+        assert not env.sim.attack_stalled
+    c["sim"]["attack_min_depth"] = 0.01
+    env = LhdLoadingEnv("rld", validate(copy.deepcopy(c)))
+    obs, info = env.reset(seed=3, options=opts)
+    tip = float(env.sim.data.site_xpos[env.sim.sid_tip][0])
+    assert env.sim.attack_stalled and info["attack_stalled"] and 0.01 <= tip < 0.1
+    assert np.all(np.isfinite(obs))
+    _, r, te, tr, _ = env.step(np.array([1.0, -1.0, 1.0], dtype=np.float32))
+    assert np.isfinite(r) and not tr
+    # a start from rest after a stalled drive: the machine stands where it stalled
+    obs, info = env.reset(seed=3, options={**opts, "conditions": Conditions(rest_start=True)})
+    assert info["attack_stalled"] and abs(env.state.v_x) < 0.02
+    assert 0.01 <= float(env.sim.data.site_xpos[env.sim.sid_tip][0]) < 0.1
+    # the same simulator's next drive forgets the stall: asked for more depth than it gets, it raises unmarked
+    env.sim.attack_min_depth = 0.09
+    with pytest.raises(AttackError):
+        env.reset(seed=3, options=opts)
+    assert not env.sim.attack_stalled
+    # and a drive that reaches d_init is never marked
+    c2 = copy.deepcopy(cfg)
+    c2["sim"]["attack_min_depth"] = 0.01
+    env2 = LhdLoadingEnv("rld", validate(c2))
+    obs, info = env2.reset(seed=3, options=opts)
+    assert not info["attack_stalled"] and float(env2.sim.data.site_xpos[env2.sim.sid_tip][0]) >= 0.1
+    # off (0) the key leaves the hash every file had; on it is part of the simulator's identity
+    base = copy.deepcopy(cfg)
+    without = copy.deepcopy(cfg)
+    without["sim"].pop("attack_min_depth")
+    assert config_hash(base) == config_hash(validate(without))
+    base["sim"]["attack_min_depth"] = 0.05
+    assert config_hash(base) != config_hash(validate(without))
+    base["sim"]["attack_min_depth"] = 0.2
+    with pytest.raises(ConfigError, match=r"sim.attack_min_depth <= paper.episode.d_init"):
+        validate(base)

@@ -80,6 +80,41 @@ def test_generated_piles_rocks_and_per_voxel_parameters(cfg):
                   np.zeros((7, 60, 10)), 0.0, 0.0)
 
 
+def test_no_pile_stands_steeper_than_its_friction_angle(cfg):
+    """A cohesionless face stands at most at its friction angle: each pile's gravel draws phi from
+    [max(phi_min, alpha), phi_max]; a slope above phi_max is refused, naming both angles."""
+    from dataclasses import replace
+    soil = replace(SoilRanges.from_config(cfg), phi=(r(34.0), r(45.0)))
+    gravel = lambda p: math.degrees(float(p.phi[p.klass == 0].flat[0]))  # noqa: E731
+    for alpha, lo in ((20.0, 34.0), (34.0, 34.0), (40.0, 40.0), (44.0, 44.0), (45.0, 45.0)):
+        drawn = [gravel(VoxelPile.generate(np.random.default_rng(s), r(alpha), 0.68, 0.4, 30, 3, 5, soil))
+                 for s in range(40)]
+        assert min(drawn) >= lo - 1e-9 and max(drawn) <= 45.0 + 1e-9
+        if alpha < 44.0:  # a draw, not a constant: spread over the allowed interval
+            assert max(drawn) - min(drawn) > 0.5 * (45.0 - lo)
+    # the same generator state gives the same pile below phi_min (shallow piles unchanged by the rule)
+    a = VoxelPile.generate(np.random.default_rng(7), r(20), 0.68, 0.4, 30, 3, 5, soil)
+    rng = np.random.default_rng(7)
+    rng.uniform(*soil.density)
+    assert gravel(a) == pytest.approx(math.degrees(rng.uniform(r(34.0), r(45.0))))
+    with pytest.raises(ValueError, match=r"a pile of 46.0 deg is steeper than its material's largest friction "
+                                         r"angle \(45.0 deg\)"):
+        VoxelPile.generate(np.random.default_rng(0), r(46.0), 0.68, 0.4, 30, 3, 5, soil)
+
+
+def test_a_config_whose_randomised_material_cannot_stand_at_its_steepest_slope_is_refused(cfg):
+    import copy
+    from lhd_loading_ros.task.config import validate
+    c = copy.deepcopy(cfg)
+    c["paper"]["episode"]["alpha_max_deg"] = 36.0
+    c["pile"]["phi_max_deg"] = 40.0
+    c["randomization"]["phi_max_deg"] = 35.0
+    with pytest.raises(ValueError, match=r"alpha_max_deg <= randomization.phi_max_deg"):
+        validate(c)
+    c["randomization"]["phi_max_deg"] = 41.0
+    validate(c)
+
+
 def test_pile_depth():
     assert pile_depth(r(15), 0.68) == pytest.approx(2.5378, abs=1e-3)
 
@@ -124,3 +159,17 @@ def test_a_rough_surface_has_the_relief_it_was_asked_for():
     for bad in ((-0.01, corr), (float("nan"), corr), (0.03, 0.0)):
         with pytest.raises(ValueError, match="surface relief needs sd >= 0 and corr > 0"):
             z.roughen(g, *bad)
+
+
+def test_validate_physics_leaves_out_a_wedge_steeper_than_the_files_gravel(cfg):
+    """`lhd validate physics` builds its homogeneous piles at the midpoint friction angle: a file whose
+    gravel (31-37 deg, midpoint 34) is weaker than the 35 deg wedge leaves that slope out instead of
+    failing on a pile that cannot stand (a review, 2026-11-29)."""
+    import copy
+
+    from lhd_sim_node.validate import resistance_vs_slope
+    c = copy.deepcopy(cfg)
+    c["pile"]["phi_min_deg"], c["pile"]["phi_max_deg"] = 31.0, 37.0
+    rows = resistance_vs_slope(c, slopes=(30.0, 35.0), flat=False)
+    assert [r["slope_deg"] for r in rows["equal_insertion"]] == [30.0]
+    assert [r["slope_deg"] for r in rows["fixed_depth"]] == [30.0]

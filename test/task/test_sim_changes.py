@@ -21,10 +21,12 @@ def cfg():
 def _raw(c):
     """The hash by its definition, written out here (randomisation off, margin 3 kept, tilt off,
     the tilt penalty's training schedule, training.twin_critics and the slope curriculum never in it,
-    machine.rear_differential only when 1)."""
+    machine.rear_differential only when 1, sim.attack_min_depth only when > 0)."""
     c = {k: v for k, v in c.items() if k != "randomization"}
     if c["machine"].get("rear_differential", 0) == 0:
         c["machine"] = {k: v for k, v in c["machine"].items() if k != "rear_differential"}
+    if c["sim"].get("attack_min_depth", 0.0) == 0.0:      # a stalled drive an error (2026-11-29): out at 0
+        c["sim"] = {k: v for k, v in c["sim"].items() if k != "attack_min_depth"}
     c["task"] = {k: v for k, v in c["task"].items() if k not in ("r_tilt_per_deg", "r_tilt_free_deg",
                                                                  "r_tilt_ramp_after_success", "r_tilt_ramp_steps",
                                                                  "r_tilt_ramp_pitch_margin", "midgoal_from_pile",

@@ -117,7 +117,7 @@ SCHEMA: dict[str, Any] = {
         "reconnect_backoff_min": _f(0.001, 10.0), "reconnect_backoff_max": _f(0.001, 60.0),
     },
     "sim": {"timestep": _f(1e-4, 0.05), "fee_every": _i(1, 1000), "attack_timeout": _f(0.1, 100.0),
-            "attack_speed_min_fraction": _f(0.05, 1.0)},
+            "attack_speed_min_fraction": _f(0.05, 1.0), "attack_min_depth": _f(0.0, 1.0)},
     "bucket_body": {"enabled": _i(0, 1), "k_uplift": _f(0.0, 3.0)},  # the whole bucket in the pile (bucket_body.py)
     "randomization": {  # issue 14, task/randomization.py
         "enabled": _i(0, 1), "slope_error_max_deg": _f(0.0, 45.0), "slope_noise_deg": _f(0.0, 10.0),
@@ -181,6 +181,12 @@ _RELATIONS = [
     ("paper.episode.alpha_max_deg <= pile.phi_max_deg (a pile's face stands at most at its angle of repose, "
      "the friction angle of a cohesionless pile)",
      lambda c: c["paper"]["episode"]["alpha_max_deg"] <= c["pile"]["phi_max_deg"]),
+    ("paper.episode.alpha_max_deg <= randomization.phi_max_deg (a randomised pile's material must stand at the "
+     "steepest slope too; each pile draws its friction angle from [max(phi_min, slope), phi_max])",
+     lambda c: c["paper"]["episode"]["alpha_max_deg"] <= c["randomization"]["phi_max_deg"]),
+    ("sim.attack_min_depth <= paper.episode.d_init (0: the attack must reach d_init; else the least depth a "
+     "stalled attack may start from)",
+     lambda c: c["sim"]["attack_min_depth"] <= c["paper"]["episode"]["d_init"]),
     ("paper.episode.d_attack_min <= paper.episode.d_attack_max",
      lambda c: c["paper"]["episode"]["d_attack_min"] <= c["paper"]["episode"]["d_attack_max"]),
     ("hardware.reconnect_backoff_min <= hardware.reconnect_backoff_max",
@@ -305,6 +311,10 @@ OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curric
                      # (twelfth session) drew them; run seeds 1-3 then shared their first ~115 piles with the
                      # evaluation seeds 1,000,000 / 2,000,000 / 3,000,000 (learning/train.episode_seed)
                      ("training", "episode_seed_offset"): 0,
+                     # 0: an attack drive that stalls short of d_init is an AttackError (every file before
+                     # 2026-11-29, fifteenth session); > 0: it starts the episode where it stalled, if the tip is this
+                     # far inside the pile (lhd_sim_node/simulator.py reset; docs/modeling.md "Piles steeper than gravel")
+                     ("sim", "attack_min_depth"): 0.0,
                      # the demonstrations read the told zones and stop in the end zone (learning/demonstrations.py)
                      ("training", "demo_told_zones"): 0, ("training", "demo_end_zone_stop"): 0.0,
                      # actuator gains drawn per episode (task/randomization.py); 1 = the simulator's actuators
@@ -474,6 +484,9 @@ def config_hash(cfg: dict) -> str:
         cfg = {**cfg, "training": {k: v for k, v in cfg["training"].items() if k not in TRAINING_SCHEDULE_KEYS}}
     if "task" in cfg and any(k in cfg["task"] for k in TILT_SCHEDULE_KEYS):
         cfg = {**cfg, "task": {k: v for k, v in cfg["task"].items() if k not in TILT_SCHEDULE_KEYS}}
+    if "sim" in cfg and float(cfg["sim"].get("attack_min_depth", 0.0)) == 0.0:
+        # a stalled attack drive an error, as before the key (2026-11-29): the hash every file had
+        cfg = {**cfg, "sim": {k: v for k, v in cfg["sim"].items() if k != "attack_min_depth"}}
     if "machine" in cfg and int(cfg["machine"].get("rear_differential", 0)) == 0:
         # the drive before the rear differential (SIM_CHANGES): the hash it always had
         cfg = {**cfg, "machine": {k: v for k, v in cfg["machine"].items() if k != "rear_differential"}}

@@ -106,10 +106,23 @@ class VoxelPile:
         cohesion vary by +-voxel_spread (relative) around it; if nonhomogeneous, rocks of
         rock_size are placed inside the wedge (the voxels whose centres fall in a rock take the
         rock parameters). Friction angles are per material class (gravel, rock): the FEE's
-        failure-angle search is then shared by all voxels of a class."""
+        failure-angle search is then shared by all voxels of a class.
+
+        A cohesionless face stands at most at its friction angle (a dumped pile at its angle of
+        repose), so the pile's friction angle is drawn from [max(phi_min, alpha), phi_max]: a 35 deg
+        pile of 34-37 deg gravel is of 35-37 deg gravel, a 40 deg pile is of a material that stands
+        at 40 deg (docs/modeling.md "Piles steeper than gravel"). Below phi_min nothing changes. A
+        slope above phi_max is refused: no pile of that material stands so steep."""
         shape = (n_y, n_x, n_z)
+        phi_lo, phi_hi = soil.phi
+        if not alpha <= phi_hi + 1e-9:
+            raise ValueError(
+                f"a pile of {math.degrees(alpha):.1f} deg is steeper than its material's largest friction angle "
+                f"({math.degrees(phi_hi):.1f} deg): a cohesionless face stands at most at its friction angle. "
+                "Expected a slope up to that angle, or a material that stands steeper "
+                "(pile.phi_max_deg, randomization.phi_max_deg)")
         base_rho = rng.uniform(*soil.density)
-        base_phi = rng.uniform(*soil.phi)
+        base_phi = rng.uniform(max(phi_lo, alpha), phi_hi)
         base_delta = rng.uniform(*soil.delta)
         base_c = rng.uniform(*soil.cohesion)
         q = rng.uniform(*soil.surcharge)

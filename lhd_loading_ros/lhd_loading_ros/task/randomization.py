@@ -227,7 +227,8 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
                passes alone; together they cost rld_twin 12 % of its attempts (a review, 2026-11-28:
                dense shallow piles leave loads 1-4 kg above the 20 kg, and an attempt off the
                pile's axis loses those kg; docs/training.md "Combined departures"), so the pair is named
-    rest       every attempt starts from rest with the tip d_init in the pile (LhdSimulator.come_to_rest), as
+    rest       every attempt starts from rest with the tip d_init in the pile (LhdSimulator.come_to_rest; where a
+               stalled drive left it with sim.attack_min_depth), as
                an attempt on the machine and in the digital twin does (the supervisor arms a machine that
                stands in the attack pose), not at the attack speed of the paper's episodes; nothing else
                changes. The tyres may slip while the machine accelerates with its bucket in the pile, and
