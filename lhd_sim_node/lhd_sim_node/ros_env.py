@@ -70,6 +70,9 @@ def names(namespace: str | None) -> tuple[str, str]:
     return ns, f"{ns}/{NODE_NAME}"
 
 
+UNKNOWN_NODE_NAME = "_NODE_NAME_UNKNOWN_"   # rmw's node name for an endpoint whose node is not yet known
+
+
 class _SimNodeLink:
     """One lockstep sim node seen from the learner's node."""
 
@@ -235,8 +238,18 @@ class SimNodePool:
         # (another environment of this same process is let through: gymnasium's check_env makes a
         # second one only to close it; one that steps is still caught by the command check)
         mine = f"lhd_ros_env_{os.getpid()}_"
-        others = [f"{i.node_namespace.rstrip('/')}/{i.node_name}"
-                  for i in self.node.get_publishers_info_by_topic(f"{link.prefix}/cmd") if not i.node_name.startswith(mine)]
+        # a publisher's endpoint may arrive before its node's name (rmw reports _NODE_NAME_UNKNOWN_ until the
+        # participant's node list does): wait up to 2 s more for the names, so the refusal names the node and
+        # another environment of this process is told apart (a CI run, 2026-11-29, refused an unnamed one)
+        t_names = min(t_end, time.monotonic() + 2.0)
+        while True:
+            infos = self.node.get_publishers_info_by_topic(f"{link.prefix}/cmd")
+            if not any(i.node_name == UNKNOWN_NODE_NAME for i in infos) or time.monotonic() >= t_names:
+                break
+            self.executor.spin_once(timeout_sec=0.05)
+        others = [f"{i.node_namespace.rstrip('/')}/{i.node_name}" if i.node_name != UNKNOWN_NODE_NAME
+                  else "a node whose name DDS has not reported yet"
+                  for i in infos if not i.node_name.startswith(mine)]
         if others:
             raise RuntimeError(f"sim node {link.fqn} already has other publishers on {link.prefix}/cmd ({', '.join(others)}: "
                                "another learner, a policy node or teleop): one sim node serves one learner; start "
