@@ -42,6 +42,7 @@ slopes_deg, material, auto_reset, reset_delay and cmd_timeout may change at run 
 from __future__ import annotations
 
 import math
+import threading
 import time
 
 import mujoco
@@ -74,6 +75,7 @@ from .simulator import MATERIALS, AttackError, SimulationError
 CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 MODES = ("realtime", "lockstep")
 LOCKSTEP_ACK_WAIT_S = 1.0    # lockstep auto-reset: how long an ended episode waits for the controller's answer
+EXIT_DELAY_S = 1.0           # exit_when_done: how long the last ended state stays published before the node exits
 JOINTS = ("boom", "bucket", "articulation", "wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr")
 
 
@@ -84,8 +86,9 @@ def ns_time(t_ns: int):
 
 
 class SimNode(Node):
-    def __init__(self, **node_kwargs):
+    def __init__(self, stop: threading.Event | None = None, **node_kwargs):
         super().__init__("lhd_sim", **node_kwargs)
+        self._stop = stop    # set by exit_when_done once every episode is done (run_node then returns 0)
         # the parameter file first: it gives the defaults and ranges of the others
         cfg = load_config(Params(self, [Param("config", "", "lhd_params.yaml to use; empty: found automatically "
                                                 "(LHD_CONFIG, then the package's)")])["config"] or None)
@@ -105,6 +108,9 @@ class SimNode(Node):
             Param("material", "random", "pile material (random: drawn per episode); a change applies from the next "
                   "episode", choices=(*MATERIALS, "random"), on_change=self._set_material),
             Param("episodes", 0, "episodes to run before stopping auto-reset (0: no limit)", lo=0, hi=10**9),
+            Param("exit_when_done", False, f"exit (status 0) {EXIT_DELAY_S:g} s after the last of `episodes` ended, "
+                  "its state and result published: sim_loading.launch.py then ends the launch, as `lhd up sim` "
+                  "ends after --episodes; needs episodes > 0"),
             Param("auto_reset", True, "start the next episode by itself (after reset_delay in realtime mode)",
                   on_change=self._set_auto_reset),
             Param("reset_delay", 1.0, "s between the end of an episode and the next one (realtime mode)",
@@ -131,6 +137,10 @@ class SimNode(Node):
         self.mode = gp("mode")
         self.seed = gp("seed")
         self.episodes_max = gp("episodes")
+        self.exit_when_done = gp("exit_when_done")
+        if self.exit_when_done and self.episodes_max == 0:
+            raise ValueError("parameter 'exit_when_done' = true needs episodes > 0 (the node would never exit); "
+                             "expected episodes:=N with N >= 1, or exit_when_done:=false")
         self.material = None if gp("material") == "random" else gp("material")
         self.cmd_timeout = gp("cmd_timeout")
         self.reset_delay = gp("reset_delay")
@@ -334,7 +344,19 @@ class SimNode(Node):
         if self.auto_reset and not self._finished_all():
             self._awaiting_ack = True
 
+    def _exit_if_done(self, now: float) -> bool:
+        """exit_when_done: once every episode is done and the last ended state has been out for
+        EXIT_DELAY_S, ask run_node to stop (the node then exits 0). True when it asked."""
+        if (self.exit_when_done and self._finished_all() and self._ended_at is not None
+                and now - self._ended_at >= EXIT_DELAY_S and self._stop is not None and not self._stop.is_set()):
+            self.get_logger().info(f"all {self.episodes_max} episode(s) done: exiting (exit_when_done)")
+            self._stop.set()
+            return True
+        return False
+
     def _repeat_state(self) -> None:
+        if self._exit_if_done(time.monotonic()):
+            return
         if (self._awaiting_ack and self._ended_at is not None
                 and time.monotonic() - self._ended_at >= LOCKSTEP_ACK_WAIT_S):
             self._new_episode()      # a controller that does not answer an ended state
@@ -352,6 +374,8 @@ class SimNode(Node):
             self.overruns += 1
         self._last_tick = now
         if self.outcome != "running":
+            if self._exit_if_done(now):
+                return
             if (self.auto_reset and not self._finished_all() and self._ended_at is not None
                     and now - self._ended_at >= self.reset_delay):
                 self._new_episode()
@@ -538,7 +562,8 @@ class SimNode(Node):
 
 
 def main(args=None) -> int:
-    return run_node(SimNode, "lhd_sim", args)
+    stop = threading.Event()
+    return run_node(lambda: SimNode(stop=stop), "lhd_sim", args, stop=stop)
 
 
 if __name__ == "__main__":

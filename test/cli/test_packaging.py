@@ -37,6 +37,9 @@ def test_launch_file_describes_both_nodes():
     ld = mod.generate_launch_description()
     execs = {getattr(e, "node_executable", None) for e in ld.entities}
     assert {"sim_node", "policy_node"} <= execs
+    # the launch ends when the sim node exits (its episodes done: exit_when_done)
+    from launch.actions import RegisterEventHandler
+    assert any(isinstance(e, RegisterEventHandler) for e in ld.entities)
 
 
 def test_sim_nodes_launch_file_declares_its_arguments():

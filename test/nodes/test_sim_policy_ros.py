@@ -41,7 +41,8 @@ def kv(msg):
 
 def test_sim_node_rejects_bad_parameters(tmp_path):
     for params, name in (({"mode": "fast"}, "mode"), ({"slope_deg": 45.0}, "slope_deg"),
-                         ({"material": "sand"}, "material"), ({"slopes_deg": "15,x"}, "slopes_deg")):
+                         ({"material": "sand"}, "material"), ({"slopes_deg": "15,x"}, "slopes_deg"),
+                         ({"exit_when_done": "true"}, "exit_when_done")):    # with episodes 0: never
         p = RosProcess("lhd_sim_node.sim_node", params, tmp_path / f"{name}.log")
         assert p.proc.wait(60) == 2
         assert f"parameter '{name}'" in p.log()
@@ -184,9 +185,11 @@ def env_episode(env, pol, seed, slope, material):
         seen.append(obs)
 
 
-def run_lockstep_episode(ros, tmp_path, policy_dir, slope, material, seed, episodes=1):
+def run_lockstep_episode(ros, tmp_path, policy_dir, slope, material, seed, episodes=1, exit_when_done=False):
     """`episodes` episodes in lockstep (more than one: auto_reset, as `lhd demo` runs them); the
-    policy node's observations of all of them in order, and the last /lhd/episode status."""
+    policy node's observations of all of them in order, and the last /lhd/episode status. With
+    exit_when_done the sim node must exit by itself, status 0, within a few seconds of the last end
+    (what ends `ros2 launch lhd_sim_node sim_loading.launch.py episodes:=N`)."""
     obs_log, statuses = [], []
     subs = [ros.create_subscription(Float32MultiArray, "/lhd/observation", lambda m: obs_log.append(np.array(m.data, dtype=np.float32)), REL),
             ros.create_subscription(DiagnosticStatus, "/lhd/episode", lambda m: statuses.append(kv(m)), STATUS)]
@@ -197,10 +200,19 @@ def run_lockstep_episode(ros, tmp_path, policy_dir, slope, material, seed, episo
     spin_until(ros, lambda: False, 0.5)
     sim = RosProcess("lhd_sim_node.sim_node", {"mode": "lockstep", "slope_deg": slope, "material": material,
                                                "seed": seed, "episodes": episodes,
-                                               "auto_reset": "true" if episodes > 1 else "false"}, tmp_path / "sim.log")
+                                               "auto_reset": "true" if episodes > 1 else "false",
+                                               "exit_when_done": "true" if exit_when_done else "false"},
+                     tmp_path / "sim.log")
     try:
         assert spin_until(ros, lambda: statuses and statuses[-1]["state"] != "running"
                           and statuses[-1]["episode"] == str(episodes - 1), 120), sim.log() + pol.log()
+        if exit_when_done:
+            # it exits by itself (EXIT_DELAY_S after the end, seen by a 0.5 s timer), not at once: the last
+            # ended state was out and its status stays the last one published
+            ended = time.monotonic()
+            assert spin_until(ros, lambda: not sim.alive(), 15), sim.log()[-2000:]
+            assert time.monotonic() - ended > 0.3, "exited before the last ended state had been out a while"
+            assert sim.proc.returncode == 0 and "done: exiting (exit_when_done)" in sim.log(), sim.log()[-2000:]
         spin_until(ros, lambda: False, 0.5)
     finally:
         rc_pol, rc_sim = pol.stop(), sim.stop()
@@ -247,7 +259,9 @@ def test_lockstep_auto_reset_runs_every_episode_as_the_environment(ros, tmp_path
     slope, material, seed = 15.0, "homogeneous", 5
     env = LhdLoadingEnv("rld")
     per_episode, refs = zip(*(env_episode(env, pol, seed + k, slope, material) for k in range(2)))
-    node_obs, final = run_lockstep_episode(ros, tmp_path, policy_dir, slope, material, seed, episodes=2)
+    # and the sim node exits by itself after the asked episodes (exit_when_done, as the launch file sets it)
+    node_obs, final = run_lockstep_episode(ros, tmp_path, policy_dir, slope, material, seed, episodes=2,
+                                           exit_when_done=True)
     n0 = refs[0].steps
     assert len(node_obs) == n0 + refs[1].steps, (len(node_obs), [r.steps for r in refs])
     for k, (node, ref) in enumerate(((node_obs[:n0], per_episode[0]), (node_obs[n0:], per_episode[1]))):
