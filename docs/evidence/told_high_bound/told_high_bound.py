@@ -10,12 +10,17 @@ parameter file of policies/rld_told_teacher, homogeneous piles, seeds 0-4:
    speed, stopped within 0.2 m of the told x_max below z_min): lift points 0.50-0.70 m, crowd 0 / 0.3 / 0.625 (lift also on the first drift);
    success, payload, and the material over the bucket's opening when the lift starts (the bucket body's m_over:
    voxel mass between the plate and the surface before the lip cut it);
-3. the same maneuvers told the truth (15 deg), and the best lift point, for the no-error load.
+3. the same maneuvers told the truth (15 deg), and the best lift point, for the no-error load;
+4. a pre-curled push (found by a review with a fresh context, 2026-11-30): wheels full, boom still, the bucket
+   curled to 0.30 rad from x = 0.40 m (the attack pose's capacity, 22 kg, grows to about 31 kg at 10 deg of curl
+   and the push no longer stalls at 0.65-0.77 m), lift and curl from 0.05 m short of the told x_max (or on a
+   stall or drift) with the wheels full, the wheels stopped once x > x_max - (0.45 (z_min - z) + 0.04).
 
 The hand calculation beside it is the wedge's material over the plate when the tip is at x on a pile of slope
 alpha: the plate runs from x - 0.30 m to x (bucket_tip_ahead_of_hinge), 0.39 m wide (the bucket's inside; the
 pile's voxels span 0.40 m), its top about 1.5 cm over the floor in the attack pose; surface z = x tan(alpha):
-m = rho w (tan(alpha) (x^2 - (x - 0.30)^2) / 2 - 0.015 x 0.30).
+m = rho w (tan(alpha) (x^2 - (x - 0.30)^2) / 2 - 0.015 x 0.30). It bounds what a bucket lifted where it stands
+carries out, not what a bucket that keeps cutting while it rises can load (item 4).
 """
 import math
 from dataclasses import replace
@@ -111,3 +116,27 @@ for told in (30.0, 15.0):
     ok = [r.loaded for r in res if r.success]
     print(f"   the `teacher` controller (lift at the told x_min, crowd and pre-curl of the parameter file): "
           f"{len(ok)}/5, {np.mean(ok) if ok else float('nan'):.1f} kg over the successes")
+
+
+def precurled(env, z, mem={}):
+    s = env.measured_state
+    if env.steps == 0:
+        mem.clear()
+    if not mem.get("lift"):
+        if s.x_shovel >= z.x_max - 0.05 or (env.steps > 5 and s.v_x < 0.02 and s.x_shovel > 0.2) or s.drift:
+            mem["lift"] = True
+    bucket = 1.0 if (s.x_shovel >= 0.40 and s.phi_shovel < 0.30) else -1.0
+    if not mem.get("lift"):
+        return np.array([1.0, 1.0, bucket])
+    wheels = 1.0
+    if s.z_shovel < z.z_min and s.x_shovel > z.x_max - (0.45 * (z.z_min - s.z_shovel) + 0.04):
+        wheels = -1.0
+    return np.array([wheels, -1.0, 1.0])
+
+
+print("\n4. a pre-curled push (0.30 rad from 0.40 m), lift 0.05 m short of the told x_max, wheels full")
+for told in (30.0, 15.0):
+    res = [attempt(seed, told, precurled)[0] for seed in range(5)]
+    ok = [r.loaded for r in res if r.success]
+    print(f"   told {told:g} deg: {len(ok)}/5 succeed, {np.mean(ok) if ok else float('nan'):.1f} kg over the successes "
+          f"({', '.join(f'{r.loaded:.1f}' for r in res)} kg)")
