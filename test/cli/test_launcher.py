@@ -196,7 +196,8 @@ def test_demo_runs_the_teacher_through_the_nodes(tmp_path):
 
     seed, slope = 7, 20.0
     env = LhdLoadingEnv("rld")
-    crowd, pre_curl, _, stop = teacher_setting(env.cfg)
+    crowd, pre_curl, _, stop, push_curl, late = teacher_setting(env.cfg)
+    assert push_curl == late == 0.0     # the shipped file's teacher: the level push
     refs = []
     for k in range(2):
         env.reset(seed=seed + k, options={"slope_deg": slope, "material": "homogeneous"})

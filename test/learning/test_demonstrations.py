@@ -229,6 +229,16 @@ def test_the_told_teacher_keys(cfg):
     d = DemoConfig.from_training(validate(c)["training"])
     assert (d.told_zones, d.end_zone_stop) == (True, 0.2)
     assert config_hash(validate(c)) == base_hash
+    # the push-curl teacher's keys: 0 by default (the level push), read into DemoConfig, out of the hash
+    assert (d.push_curl, d.late_lift) == (0.0, 0.0)
+    c["training"].update({"demo_push_curl": 0.3, "demo_late_lift": 0.85})
+    d = DemoConfig.from_training(validate(c)["training"])
+    assert (d.push_curl, d.late_lift) == (0.3, 0.85)
+    assert config_hash(validate(c)) == base_hash
+    c["training"]["demo_late_lift"] = 1.2
+    with pytest.raises(ConfigError, match="demo_late_lift"):
+        validate(c)
+    c["training"]["demo_late_lift"] = 0.85
     c["training"]["demo_end_zone_stop"] = 1.5
     with pytest.raises(ConfigError, match="demo_end_zone_stop"):
         validate(c)
@@ -250,7 +260,45 @@ def test_the_card_names_the_told_teacher(cfg, tmp_path):
     assert tw["demo_told_zones"] == 1 and tw["demo_end_zone_stop"] == 0.2     # beside demo_bc, as demo_until_step
     note = _recipe_note(tw)
     assert "reading the zones built from the told slope" in note and "within 0.2 m of its far side" in note
-    c["training"].update({"demo_told_zones": 0, "demo_end_zone_stop": 0.0})
+    c["training"].update({"demo_push_curl": 0.3, "demo_late_lift": 0.85})
+    export_actor(tmp_path / "c", FlatMlp([12, 8, 3], out_act="tanh"), c, {"variant": "rld", "seed": 0, "steps": 0})
+    tw = load_policy(tmp_path / "c").meta["trained_with"]
+    assert tw["demo_push_curl"] == 0.3 and tw["demo_late_lift"] == 0.85
+    assert "pushing with the bucket curled to 0.3 rad and lifting, unstalled, at 0.85" in _recipe_note(tw)
+    c["training"].update({"demo_told_zones": 0, "demo_end_zone_stop": 0.0, "demo_push_curl": 0.0, "demo_late_lift": 0.0})
     export_actor(tmp_path / "b", FlatMlp([12, 8, 3], out_act="tanh"), c, {"variant": "rld", "seed": 0, "steps": 0})
     tw = load_policy(tmp_path / "b").meta["trained_with"]
     assert "demo_told_zones" not in tw and "demo_end_zone_stop" not in tw and "told slope" not in _recipe_note(tw)
+    assert "demo_push_curl" not in tw and "demo_late_lift" not in tw
+
+
+def test_the_push_curl_teacher_keeps_the_load_when_told_too_steep(cfg):
+    """A 15 deg pile told 30 deg, zones from the told slope (x_max 0.88 m; the pile's own 1.29 m), seed 5.
+    The level-push teacher is full at its attack-pose capacity (about 22 kg) before it can lift and
+    comes out with about 27 kg; the push-curl teacher (demo_push_curl 0.3, demo_late_lift 0.85) curls
+    while it pushes, lifts late and loads more than 30 kg (35.1), at least 80 % of what it loads on the
+    same pile told the truth (41.8: 84 % on this pile, the edge of issue 14's 85 %; over five seeds
+    85-91 %, docs/evidence/told_high_bound/)."""
+    from lhd_sim_node.env import LhdLoadingEnv
+
+    from lhd_loading_ros.task.randomization import Conditions
+
+    env = LhdLoadingEnv("rld", cfg, zones_from_estimate=True)
+
+    def attempt(error_deg, push_curl, late):
+        env.reset(seed=5, options={"slope_deg": 15.0, "material": "homogeneous",
+                                   "conditions": Conditions(slope_error_deg=error_deg)})
+        while True:
+            _, _, term, trunc, info = env.step(demo_action(env, 0.625, 0.3, True, 0.2, push_curl, late))
+            if term or trunc:
+                return info["episode_result"]
+
+    level = attempt(15.0, 0.0, 0.0)
+    told_high = attempt(15.0, 0.3, 0.85)
+    truth = attempt(0.0, 0.3, 0.85)
+    assert env.zones.x_max > 1.2                                        # the last attempt was told the truth
+    assert level.success and level.loaded < 29.0
+    assert told_high.success and told_high.reached_end_zone and not told_high.failed
+    assert told_high.loaded > 30.0 and told_high.loaded > level.loaded + 3.0
+    assert truth.success and told_high.loaded >= 0.80 * truth.loaded, (told_high.loaded, truth.loaded)
+    assert math.degrees(told_high.phi_final) > 40.0

@@ -126,7 +126,7 @@ def test_the_teacher_is_the_demonstrations_maneuver(cfg):
     from lhd_sim_node.env import LhdLoadingEnv
     from lhd_sim_node.scripted import scripted_action
 
-    assert ex.teacher_setting(cfg) == (0.625, 0.3, True, 0.2)
+    assert ex.teacher_setting(cfg) == (0.625, 0.3, True, 0.2, 0.0, 0.0)
     ex._setup(None, {})
     job = ex.Job("controllers", "teacher", 15.0, 15.0, "homogeneous", 3_150_000)   # the first pile of the 15 deg cell
     row = ex.run_job(job)

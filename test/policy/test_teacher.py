@@ -33,7 +33,7 @@ def test_the_setting_is_the_trainings():
     assert s == TeacherSetting(0.625, 0.3, True, 0.2)
     # a file without the told-teacher keys: the stop is off
     old = {k: v for k, v in t.items() if k not in ("demo_told_zones", "demo_end_zone_stop")}
-    assert TeacherSetting.from_config({"training": old}).as_tuple() == (0.625, 0.3, False, 0.0)
+    assert TeacherSetting.from_config({"training": old}).as_tuple() == (0.625, 0.3, False, 0.0, 0.0, 0.0)
 
 
 @pytest.mark.parametrize("key,value,expected", [
@@ -42,6 +42,8 @@ def test_the_setting_is_the_trainings():
     ("demo_pre_curl", float("nan"), "training.demo_pre_curl = nan"),
     ("demo_pre_curl", 2.0, "training.demo_pre_curl = 2.0"),
     ("demo_end_zone_stop", -0.1, "training.demo_end_zone_stop = -0.1"),
+    ("demo_push_curl", 1.5, "training.demo_push_curl = 1.5"),
+    ("demo_late_lift", float("nan"), "training.demo_late_lift = nan"),
 ])
 def test_a_bad_setting_names_the_key(cfg, key, value, expected):
     """A mapping built by hand (load_config refuses such a parameter file before this is reached)."""
@@ -170,3 +172,85 @@ def test_in_the_simulator_it_is_the_training_teacher(cfg):
     assert env.zones.x_max == pytest.approx(0.88, abs=0.02)
     assert "stage lift and curl in place" in stages
     assert res.success and res.reached_end_zone and res.loaded > 20.0
+
+
+def test_the_push_curl_maneuver_by_hand(cfg):
+    """maneuver.push_curl_action state by state, end zone x_min 0.54, x_max 0.88, z_min 0.35 (a 15
+    deg pile told 30 deg), push_curl 0.3 rad, late_lift 0.85 (x_lift = 0.54 + 0.85 x 0.34 = 0.829 m),
+    crowd 0.6, pre-curl 0.3, end-zone stop 0.2 m."""
+    from dataclasses import replace
+
+    from lhd_loading_ros.policy.maneuver import LATE_STOP_0, LATE_STOP_K, PUSH_CURL_LEAD, push_curl_action
+    from lhd_loading_ros.task.state import LhdState
+
+    s0 = LhdState(x_shovel=0.2, y_shovel=0.0, z_shovel=0.02, phi_shovel=0.0, v_x=0.3, drift=False, phi_boom=0.0,
+                  dphi_boom=0.0, phi_bucket=0.0, dphi_bucket=0.0)
+    x_min, x_max, z_min, crowd = 0.54, 0.88, 0.35, 0.6
+
+    def act(s, mem):
+        return push_curl_action(s, x_min, x_max, z_min, mem, 0.3, 0.85, crowd, 0.3, 0.2)
+
+    assert PUSH_CURL_LEAD == 0.15
+    mem = {}
+    np.testing.assert_array_equal(act(s0, mem), [1.0, 1.0, -1.0])                        # level push
+    np.testing.assert_array_equal(act(replace(s0, x_shovel=0.40), mem), [1.0, 1.0, 1.0])   # 0.54 - 0.15: curl, boom still
+    np.testing.assert_array_equal(act(replace(s0, x_shovel=0.60, phi_shovel=0.305), mem), [1.0, 1.0, -1.0])  # curled
+    assert mem == {}                                                                      # no lift yet
+    # the tip reaches x_lift = 0.829 without a stall: a late lift, lift and curl; the wheels stop once
+    # x > x_max - (0.04 + 0.45 (z_min - z)): near the floor (z 0.02) 0.88 - 0.1885 = 0.6915, so at 0.83 in place
+    late = replace(s0, x_shovel=0.83, phi_shovel=0.31)
+    np.testing.assert_array_equal(act(late, mem), [-1.0, -1.0, 1.0])
+    assert mem == {"lift": True, "late": True}
+    np.testing.assert_array_equal(act(replace(late, x_shovel=0.68), mem), [1.0, -1.0, 1.0])   # short of it: full
+    # the band narrows as the tip rises: at z = 0.15, 0.88 - 0.13 = 0.75
+    margin = LATE_STOP_0 + LATE_STOP_K * (z_min - 0.15)
+    assert margin == pytest.approx(0.13)
+    np.testing.assert_array_equal(act(replace(late, x_shovel=0.74, z_shovel=0.15), mem), [1.0, -1.0, 1.0])
+    np.testing.assert_array_equal(act(replace(late, x_shovel=0.76, z_shovel=0.15), mem), [-1.0, -1.0, 1.0])
+    np.testing.assert_array_equal(act(replace(late, x_shovel=0.87, z_shovel=0.36), mem), [1.0, -1.0, 1.0])  # above z_min
+    # the memory holds: a later state short of x_lift still lifts
+    np.testing.assert_array_equal(act(replace(late, x_shovel=0.70, z_shovel=0.10), mem), [1.0, -1.0, 1.0])
+    # a stall (drift) starts the lift as before: crowd, the 0.2 m end-zone stop, pre-curl first
+    mem2 = {}
+    stall = replace(s0, x_shovel=0.45, phi_shovel=0.1, drift=True)
+    np.testing.assert_array_equal(act(stall, mem2), [2 * crowd - 1, 1.0, 1.0])            # curl to pre_curl first
+    assert mem2 == {"lift": True, "late": False}
+    lifting = replace(stall, drift=False, phi_shovel=0.35)
+    np.testing.assert_array_equal(act(replace(lifting, x_shovel=0.60, z_shovel=0.1), mem2), [2 * crowd - 1, -1.0, 1.0])
+    np.testing.assert_array_equal(act(replace(lifting, x_shovel=0.69, z_shovel=0.1), mem2), [-1.0, -1.0, 1.0])  # 0.88 - 0.2
+    # the pitch passing push_curl + 0.02 starts the lift too (a bucket that curled on)
+    mem3 = {}
+    act(replace(s0, x_shovel=0.5, phi_shovel=0.33), mem3)
+    assert mem3 == {"lift": True, "late": False}
+
+
+def test_the_teacher_setting_picks_the_maneuver(cfg, params):
+    """The level push (demo_push_curl = demo_late_lift = 0, every shipped file) is scripted_action
+    exactly; with either set, push_curl_action, which refuses to run without the attempt's memory.
+    The policy node's core keeps that memory per attempt and empties it at each reset."""
+    from dataclasses import replace
+
+    from lhd_loading_ros.policy.maneuver import scripted_action
+    from lhd_loading_ros.policy.teacher import teacher_action
+    from lhd_loading_ros.task.state import LhdState
+
+    s = LhdState(x_shovel=0.6, y_shovel=0.0, z_shovel=0.02, phi_shovel=0.0, v_x=0.3, drift=False, phi_boom=0.0,
+                 dphi_boom=0.0, phi_bucket=0.0, dphi_bucket=0.0)
+    level = TeacherSetting(0.625, 0.3, True, 0.2)
+    assert not level.pushes_curled
+    np.testing.assert_array_equal(teacher_action(s, ZONE, level),
+                                  scripted_action(s, ZONE[0], crowd=0.625, pre_curl=0.3, lift_on_drift=True,
+                                                  end_zone=(ZONE[1], ZONE[2]), end_zone_stop=0.2))
+    curled = replace(level, push_curl=0.3, late_lift=0.85)
+    with pytest.raises(ValueError, match="needs the attempt's memory"):
+        teacher_action(s, ZONE, curled)
+    mem = {}     # 0.6 m: past x_min - 0.15 = 0.37, short of x_lift = 0.52 + 0.85 x 0.33 = 0.80: curl while pushing
+    np.testing.assert_array_equal(teacher_action(s, ZONE, curled, mem), [1.0, 1.0, 1.0])
+    assert mem == {}
+    t = dict(yaml.safe_load((ROOT / "config" / "lhd_params.yaml").read_text())["training"],
+             demo_push_curl=0.3, demo_late_lift=0.85)
+    assert TeacherSetting.from_config({"training": t}) == curled
+    core = TeacherCore(curled, params, ArmKinematics.from_config(cfg))
+    core.memory["lift"] = True
+    core.reset()
+    assert core.memory == {}

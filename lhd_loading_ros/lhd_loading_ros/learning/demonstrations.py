@@ -46,6 +46,8 @@ class DemoConfig:
     until_step: int       # no demonstration starts at or after this step (demo_until_step, 0: noise_decay_steps)
     told_zones: bool = False      # read the told zones (env.zones), not the pile's own (demo_told_zones)
     end_zone_stop: float = 0.0    # m: wheels stop while lifting below z_min within this of x_max (0: off)
+    push_curl: float = 0.0        # rad: curl while pushing (demo_push_curl; maneuver.push_curl_action)
+    late_lift: float = 0.0        # share of the end zone where an unstalled push lifts (demo_late_lift)
 
     @classmethod
     def from_training(cls, t: dict) -> "DemoConfig | None":
@@ -60,8 +62,10 @@ class DemoConfig:
         stop = float(t.get("demo_end_zone_stop", 0.0))
         if not (0.0 <= stop <= 1.0):
             raise ValueError(f"training.demo_end_zone_stop = {stop:g}: expected 0 (off) to 1 m")
+        from lhd_loading_ros.policy.teacher import TeacherSetting
+        ts = TeacherSetting.from_config({"training": {**t, "demo_crowd_min": lo, "demo_crowd_max": hi}})
         return cls(share, lo, hi, float(t.get("demo_pre_curl", 0.3)), until,
-                   bool(int(t.get("demo_told_zones", 0))), stop)
+                   bool(int(t.get("demo_told_zones", 0))), stop, ts.push_curl, ts.late_lift)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -77,20 +81,30 @@ class DemoConfig:
         return float(rng.uniform(self.crowd_min, self.crowd_max))
 
     def action(self, env, crowd: float) -> np.ndarray:
-        return demo_action(env, crowd, self.pre_curl, self.told_zones, self.end_zone_stop)
+        return demo_action(env, crowd, self.pre_curl, self.told_zones, self.end_zone_stop,
+                           push_curl=self.push_curl, late_lift=self.late_lift)
 
 
 def demo_action(env, crowd: float, pre_curl: float, told_zones: bool = False,
-                end_zone_stop: float = 0.0, measured: bool = False) -> np.ndarray:
+                end_zone_stop: float = 0.0, push_curl: float = 0.0, late_lift: float = 0.0,
+                measured: bool = False) -> np.ndarray:
     """The scripted maneuver's normalised action for env's current state: arm still and wheels
     full until the tip passes x_min (the pile's own, or with told_zones the told one) or a wheel
     drifts, then curl to pre_curl and lift and curl at full rate with the wheels at `crowd` of full
     speed; with end_zone_stop > 0 the wheels stop while the tip is below z_min within that distance
     of x_max (of the same zones). measured: from the state the machine's sensors give (env.measured_state,
     the arm's angle-sensor offsets in it), as the teacher runs on the machine (lhd experiment paper); the
-    training's demonstrations read the true state (the simulator's teacher, an oracle like the pile's zones)."""
+    training's demonstrations read the true state (the simulator's teacher, an oracle like the pile's zones).
+    push_curl / late_lift: the push-curl maneuver (policy/maneuver.push_curl_action), whose memory of the
+    attempt lives on env (`_teacher_memory`) and is emptied at each episode's first step."""
     from lhd_loading_ros.policy.teacher import TeacherSetting, teacher_action
 
     z = env.zones if told_zones else env.sim.zones
+    setting = TeacherSetting(crowd, pre_curl, told_zones, end_zone_stop, push_curl, late_lift)
+    memory = None
+    if setting.pushes_curled:
+        memory = getattr(env, "_teacher_memory", None)
+        if memory is None or env.steps == 0:
+            memory = env._teacher_memory = {}
     return teacher_action(env.measured_state if measured else env.state, (z.x_min, z.x_max, z.z_min),
-                          TeacherSetting(crowd, pre_curl, told_zones, end_zone_stop))
+                          setting, memory)

@@ -150,11 +150,11 @@ def told_observation(obs: np.ndarray, told_rad: float, p) -> np.ndarray:
     return out
 
 
-def teacher_setting(cfg: dict) -> tuple[float, float, bool, float]:
-    """(crowd, pre_curl, told_zones, end_zone_stop) of the `teacher` controller: the middle of the
-    demonstrations' crowd range, their pre-curl, the zones they read and where they stop the
-    wheels (config training.demo_*; policy/teacher.TeacherSetting, which the policy node's
-    controller:=teacher reads too)."""
+def teacher_setting(cfg: dict) -> tuple[float, float, bool, float, float, float]:
+    """(crowd, pre_curl, told_zones, end_zone_stop, push_curl, late_lift) of the `teacher` controller:
+    the middle of the demonstrations' crowd range, their pre-curl, the zones they read, where they stop
+    the wheels and the push-curl maneuver's two settings (config training.demo_*;
+    policy/teacher.TeacherSetting, which the policy node's controller:=teacher reads too)."""
     from lhd_loading_ros.policy.teacher import TeacherSetting
 
     return TeacherSetting.from_config(cfg).as_tuple()

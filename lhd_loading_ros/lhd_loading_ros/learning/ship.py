@@ -163,6 +163,11 @@ def _recipe_note(tw: dict) -> str:
             parts.append("the demonstrations reading the zones built from the told slope, as the actor does"
                          + (f", and stopping their wheels while they lift below the end zone within {stop:g} m of its "
                             "far side" if stop > 0 else ""))
+        push_curl, late = float(tw.get("demo_push_curl", 0.0) or 0.0), float(tw.get("demo_late_lift", 0.0) or 0.0)
+        if push_curl > 0 or late > 0:
+            parts.append("the demonstrations pushing with the bucket curled"
+                         + (f" to {push_curl:g} rad" if push_curl > 0 else " (no curl)")
+                         + (f" and lifting, unstalled, at {late:g} of the end zone's length" if late > 0 else ""))
     if int(tw.get("midgoal_from_pile", 0) or 0):
         parts.append("the mid goal x_midgoal at the start of the pile's end zone (`task.midgoal_from_pile`, a "
                      "departure from the paper's reward)")

@@ -25,7 +25,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from lhd_loading_ros.policy.core import Decision, DecisionCore, Inputs
-from lhd_loading_ros.policy.maneuver import scripted_action
+from lhd_loading_ros.policy.maneuver import push_curl_action, scripted_action
 from lhd_loading_ros.task.actions import rld_filter, to_actuator
 from lhd_loading_ros.task.kinematics import ArmKinematics, state_from_measurements
 from lhd_loading_ros.task.params import TaskParams
@@ -38,6 +38,8 @@ class TeacherSetting:
     pre_curl: float        # rad: bucket curl before the lift
     told_zones: bool       # the simulator's teacher reads the told zones (on the machine: always)
     end_zone_stop: float   # m: wheels stop below z_min within this of x_max (0: off)
+    push_curl: float = 0.0  # rad: the bucket curls this far while it pushes (0: level push; maneuver.push_curl_action)
+    late_lift: float = 0.0  # share of [x_min, x_max] where a push that has not stalled starts a late lift (0: at x_min)
 
     @classmethod
     def from_config(cls, cfg: dict) -> "TeacherSetting":
@@ -56,16 +58,35 @@ class TeacherSetting:
         stop = float(t.get("demo_end_zone_stop", 0.0))
         if not (0.0 <= stop <= 1.0):
             raise ValueError(f"training.demo_end_zone_stop = {stop:g}: expected 0 (off) to 1 m")
-        return cls(0.5 * (lo + hi), pre_curl, bool(int(t.get("demo_told_zones", 0))), stop)
+        push_curl = float(t.get("demo_push_curl", 0.0))
+        if not (math.isfinite(push_curl) and 0.0 <= push_curl <= 1.4):
+            raise ValueError(f"training.demo_push_curl = {push_curl!r}: expected an angle in [0, 1.4] rad (0: off)")
+        late = float(t.get("demo_late_lift", 0.0))
+        if not (math.isfinite(late) and 0.0 <= late <= 1.0):
+            raise ValueError(f"training.demo_late_lift = {late!r}: expected a share of the end zone in [0, 1] (0: off)")
+        return cls(0.5 * (lo + hi), pre_curl, bool(int(t.get("demo_told_zones", 0))), stop, push_curl, late)
 
-    def as_tuple(self) -> tuple[float, float, bool, float]:
-        return (self.crowd, self.pre_curl, self.told_zones, self.end_zone_stop)
+    @property
+    def pushes_curled(self) -> bool:
+        """The maneuver of maneuver.push_curl_action (it keeps memory over an attempt)."""
+        return self.push_curl > 0.0 or self.late_lift > 0.0
+
+    def as_tuple(self) -> tuple[float, float, bool, float, float, float]:
+        return (self.crowd, self.pre_curl, self.told_zones, self.end_zone_stop, self.push_curl, self.late_lift)
 
 
-def teacher_action(s: LhdState, end_zone, setting: TeacherSetting) -> np.ndarray:
+def teacher_action(s: LhdState, end_zone, setting: TeacherSetting, memory: dict | None = None) -> np.ndarray:
     """The teacher's normalised action for state s and end zone (x_min, x_max, z_min): the
-    demonstrations' maneuver (learning.demonstrations.demo_action with these zones)."""
+    demonstrations' maneuver (learning.demonstrations.demo_action with these zones). With
+    demo_push_curl or demo_late_lift set, maneuver.push_curl_action, which needs `memory` (a dict
+    for the attempt, empty at its start)."""
     x_min, x_max, z_min = end_zone
+    if setting.pushes_curled:
+        if memory is None:
+            raise ValueError("the push-curl teacher (training.demo_push_curl / demo_late_lift) needs the attempt's "
+                             "memory: pass a dict, empty at the attempt's start")
+        return push_curl_action(s, x_min, x_max, z_min, memory, setting.push_curl, setting.late_lift, setting.crowd,
+                                setting.pre_curl, setting.end_zone_stop)
     return scripted_action(s, x_min, crowd=setting.crowd, pre_curl=setting.pre_curl, lift_on_drift=True,
                            end_zone=(x_max, z_min), end_zone_stop=setting.end_zone_stop)
 
@@ -98,6 +119,7 @@ class TeacherCore(DecisionCore):
 
     def reset(self) -> None:
         self.stage = "approach"
+        self.memory = {}            # the push-curl maneuver's: whether and how the lift started
         self.drift_run = 0          # consecutive decisions with a fresh drift sample and a flag up
         self._drift_arrival = None  # arrival times of the drift samples the last decision used
 
@@ -134,7 +156,7 @@ class TeacherCore(DecisionCore):
         if len(zone) != 3 or not all(math.isfinite(v) for v in zone):
             raise ValueError(f"end zone {list(zone)}: expected 3 finite values [x_min, x_max, z_min]")
         arrival = (inp.arrival.get("drift_front"), inp.arrival.get("drift_rear"))
-        a = teacher_action(self.confirmed(s, arrival), zone, self.setting)
+        a = teacher_action(self.confirmed(s, arrival), zone, self.setting, self.memory)
         if a[1] < 1.0 or a[2] > -1.0:
             move = "pre-curl" if a[1] >= 1.0 else "lift and curl"
             self.stage = f"{move} in place" if a[0] <= -1.0 else move
