@@ -110,7 +110,7 @@ class SimNode(Node):
             Param("episodes", 0, "episodes to run before stopping auto-reset (0: no limit)", lo=0, hi=10**9),
             Param("exit_when_done", False, f"exit (status 0) {EXIT_DELAY_S:g} s after the last of `episodes` ended, "
                   "its state and result published: sim_loading.launch.py then ends the launch, as `lhd up sim` "
-                  "ends after --episodes; needs episodes > 0"),
+                  "ends after --episodes; with auto_reset false also after an aborted episode; needs episodes > 0"),
             Param("auto_reset", True, "start the next episode by itself (after reset_delay in realtime mode)",
                   on_change=self._set_auto_reset),
             Param("reset_delay", 1.0, "s between the end of an episode and the next one (realtime mode)",
@@ -347,9 +347,12 @@ class SimNode(Node):
     def _exit_if_done(self, now: float) -> bool:
         """exit_when_done: once every episode is done and the last ended state has been out for
         EXIT_DELAY_S, ask run_node to stop (the node then exits 0). True when it asked."""
-        if (self.exit_when_done and self._finished_all() and self._ended_at is not None
+        # with auto_reset off an aborted episode (not counted) is followed by nothing either: exit then too
+        done = self._finished_all() or (not self.auto_reset and self.outcome == "aborted")
+        if (self.exit_when_done and done and self._ended_at is not None
                 and now - self._ended_at >= EXIT_DELAY_S and self._stop is not None and not self._stop.is_set()):
-            self.get_logger().info(f"all {self.episodes_max} episode(s) done: exiting (exit_when_done)")
+            self.get_logger().info(f"all {self.episodes_max} episode(s) done: exiting (exit_when_done)" if self._finished_all()
+                                   else f"episode {self.episode} aborted and auto_reset is off: exiting (exit_when_done)")
             self._stop.set()
             return True
         return False

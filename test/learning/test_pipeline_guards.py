@@ -244,12 +244,22 @@ def test_a_plain_resume_under_another_schedule_is_refused(cfg, tmp_path):
     with pytest.raises(ValueError, match="another training schedule: training.critic_huber 0.0 -> 1.0; .*--branch-from"):
         train("rld", 0, run, steps=4, config=other, **quiet)
     assert train("rld", 0, run, steps=4, config=cfg, **quiet)["step"] == 4      # the schedule it had: goes on
+    # a checkpoint that predates a schedule key (2026-11-30: demo_push_curl / demo_late_lift) had its default:
+    # the same schedule, resumed (a review found every run from before the keys refused)
+    import torch
+    st = torch.load(run / "checkpoint.pt", weights_only=False)
+    sched = json.loads(st["schedule"])
+    assert "training.critic_huber" in sched
+    del sched["training.critic_huber"]                    # its default 0.0 is what cfg has
+    st["schedule"] = json.dumps(sched)
+    torch.save(st, run / "checkpoint.pt")
+    assert train("rld", 0, run, steps=6, config=cfg, **quiet)["step"] == 6
     # 11b: a truncated or empty checkpoint: one message saying what to do, no traceback of torch's
     good = (run / "checkpoint.pt").read_bytes()
     for broken in (good[: len(good) // 2], b""):
         (run / "checkpoint.pt").write_bytes(broken)
         with pytest.raises(ValueError, match="checkpoint.pt unreadable \\(.*\\): remove it or use --no-resume"):
-            train("rld", 0, run, steps=6, config=cfg, **quiet)
+            train("rld", 0, run, steps=8, config=cfg, **quiet)
 
 
 # --- 11a. an actor of the wrong input or output size --------------------------------------------------------------

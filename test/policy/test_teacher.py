@@ -196,6 +196,12 @@ def test_the_push_curl_maneuver_by_hand(cfg):
     np.testing.assert_array_equal(act(replace(s0, x_shovel=0.40), mem), [1.0, 1.0, 1.0])   # 0.54 - 0.15: curl, boom still
     np.testing.assert_array_equal(act(replace(s0, x_shovel=0.60, phi_shovel=0.305), mem), [1.0, 1.0, -1.0])  # curled
     assert mem == {}                                                                      # no lift yet
+    # half a control period ahead (LATE_LOOKAHEAD_S 0.05 s): at 0.815 m and 0.3 m/s the tip reaches 0.83 > x_lift
+    ahead = {}
+    act(replace(s0, x_shovel=0.815, phi_shovel=0.31, v_x=0.3), ahead)
+    assert ahead == {"lift": True, "late": True}
+    act(replace(s0, x_shovel=0.815, phi_shovel=0.31, v_x=0.0), mem)                       # standing: not yet
+    assert mem == {}
     # the tip reaches x_lift = 0.829 without a stall: a late lift, lift and curl; the wheels stop once
     # x > x_max - (0.04 + 0.45 (z_min - z)): near the floor (z 0.02) 0.88 - 0.1885 = 0.6915, so at 0.83 in place
     late = replace(s0, x_shovel=0.83, phi_shovel=0.31)

@@ -6,7 +6,10 @@
 # or for rlc (the one-recipe study's RLC file with the same three changes)
 #   lhd train --variant rlc --seeds 0-4 --jobs 5 --randomize \
 #       --config docs/evidence/steep_piles/lhd_params_steep_rlc.yaml --out runs/steep_rlc
-# (RLC with the deployment filter, as the nodes run it)
+# (RLC with the deployment filter, as the nodes run it), or rlc_to_end (2026-11-30: the same RLC file with the
+# demonstrations to the last step)
+#   lhd train --variant rlc --seeds 0-4 --jobs 5 --randomize \
+#       --config docs/evidence/steep_piles/lhd_params_steep_rlc_to_end.yaml --out runs/steep_rlc_to_end
 # Every seed's final actor (no best checkpoint, no best seed):
 #  - lhd report: 120 held-out episodes (seed 2,000,000) per condition, the 5 seeds' mean +- sd and IQM;
 #    dense and light gravel and rocky piles are conditions of the same command;
@@ -14,19 +17,20 @@
 #    20 attempts a cell, and table (b) the slope-error sweep on 15 and 30 deg piles (zones built from the told
 #    slope, as on the machine).
 set -euo pipefail
-V=${1:-rld}
-case $V in rld) F=steep ;; rlc) F=steep_rlc ;; *) echo "usage: evaluate.sh [rld|rlc]" >&2; exit 2 ;; esac
+S=${1:-rld}
+case $S in rld) F=steep; V=rld ;; rlc) F=steep_rlc; V=rlc ;; rlc_to_end) F=steep_rlc_to_end; V=rlc ;;
+  *) echo "usage: evaluate.sh [rld|rlc|rlc_to_end]" >&2; exit 2 ;; esac
 E=docs/evidence/steep_piles
 CFG=$E/lhd_params_$F.yaml
 NOM=$E/lhd_params_${F}_nominal_eval.yaml
-RUNS=runs/steep_$V
+RUNS=runs/steep_$S
 .venv/bin/lhd report $RUNS --held-out nominal,randomized,placement,sensors,delay,light,dense,rocky --config $CFG \
-    --jobs 2 --json > $E/steep_${V}_report.json 2> $E/steep_${V}_report.log
+    --jobs 2 --json > $E/steep_${S}_report.json 2> $E/steep_${S}_report.log
 for s in 0 1 2 3 4; do
   .venv/bin/lhd experiment paper --controllers $V --$V $RUNS/seed_$s/final --config $NOM \
       --slopes 10,15,20,25,30,35,40 --errors=-15,-10,-5,0,5,10,15 --episodes 20 --jobs 2 \
-      --out /tmp/steep_${V}_seed$s > /dev/null 2>&1
-  mkdir -p $E/steep_${V}_seed$s
-  cp /tmp/steep_${V}_seed$s/table_controllers.md /tmp/steep_${V}_seed$s/table_controllers.csv \
-     /tmp/steep_${V}_seed$s/table_slope_error.md /tmp/steep_${V}_seed$s/table_slope_error.csv $E/steep_${V}_seed$s/
+      --out /tmp/steep_${S}_seed$s > /dev/null 2>&1
+  mkdir -p $E/steep_${S}_seed$s
+  cp /tmp/steep_${S}_seed$s/table_controllers.md /tmp/steep_${S}_seed$s/table_controllers.csv \
+     /tmp/steep_${S}_seed$s/table_slope_error.md /tmp/steep_${S}_seed$s/table_slope_error.csv $E/steep_${S}_seed$s/
 done

@@ -63,7 +63,8 @@ class DemoConfig:
         if not (0.0 <= stop <= 1.0):
             raise ValueError(f"training.demo_end_zone_stop = {stop:g}: expected 0 (off) to 1 m")
         from lhd_loading_ros.policy.teacher import TeacherSetting
-        ts = TeacherSetting.from_config({"training": {**t, "demo_crowd_min": lo, "demo_crowd_max": hi}})
+        ts = TeacherSetting.from_config({"training": {**t, "demo_crowd_min": lo, "demo_crowd_max": hi,
+                                                      "demo_pre_curl": t.get("demo_pre_curl", 0.3)}})
         return cls(share, lo, hi, float(t.get("demo_pre_curl", 0.3)), until,
                    bool(int(t.get("demo_told_zones", 0))), stop, ts.push_curl, ts.late_lift)
 

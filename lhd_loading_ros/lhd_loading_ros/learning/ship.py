@@ -165,9 +165,9 @@ def _recipe_note(tw: dict) -> str:
                             "far side" if stop > 0 else ""))
         push_curl, late = float(tw.get("demo_push_curl", 0.0) or 0.0), float(tw.get("demo_late_lift", 0.0) or 0.0)
         if push_curl > 0 or late > 0:
-            parts.append("the demonstrations pushing with the bucket curled"
-                         + (f" to {push_curl:g} rad" if push_curl > 0 else " (no curl)")
-                         + (f" and lifting, unstalled, at {late:g} of the end zone's length" if late > 0 else ""))
+            what = [f"pushing with the bucket curled to {push_curl:g} rad"] if push_curl > 0 else []
+            what += [f"lifting, unstalled, at {late:g} of the end zone's length"] if late > 0 else []
+            parts.append("the demonstrations " + " and ".join(what))
     if int(tw.get("midgoal_from_pile", 0) or 0):
         parts.append("the mid goal x_midgoal at the start of the pile's end zone (`task.midgoal_from_pile`, a "
                      "departure from the paper's reward)")

@@ -437,6 +437,9 @@ def _train(variant: str, seed: int, out, steps: int | None = None, config=None, 
         # after the checks above, whose messages say more of their own keys
         if branch_from is None and st.get("schedule"):      # (checkpoints before the key: not checked)
             was = json.loads(st["schedule"])
+            # a key the checkpoint predates had its default then (OPTIONAL_DEFAULTS): the same schedule
+            from lhd_loading_ros.task.config import OPTIONAL_DEFAULTS
+            was = {**{f"{sec}.{k}": v for (sec, k), v in OPTIONAL_DEFAULTS.items() if f"{sec}.{k}" in schedule}, **was}
             changed = [k for k in sorted(set(was) | set(schedule)) if was.get(k) != schedule.get(k)]
             if changed:     # else run.json and the actor's trained_with would claim the new schedule for the whole run
                 raise ValueError(
