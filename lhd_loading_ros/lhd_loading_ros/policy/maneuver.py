@@ -62,8 +62,8 @@ def push_curl_action(s: LhdState, x_min: float, x_max: float, z_min: float, memo
       stalls the push later);
     * the lift starts at the first drift (a stall: a steep pile), at the pitch ``push_curl`` + 0.02, or
       when the tip reaches x_lift = x_min + late_lift (x_max - x_min) without a stall (material
-      shallower than the end zone says; half a control period ahead, LATE_LOOKAHEAD_S). Lifted by a stall or the pitch: curl to ``pre_curl``, lift and
-      curl with the wheels at ``crowd`` of full speed, the wheels stopped below z_min within
+      shallower than the end zone says; half a control period ahead, LATE_LOOKAHEAD_S). Lifted by a
+      stall or the pitch: curl to ``pre_curl``, lift and curl with the wheels at ``crowd`` of full speed, the wheels stopped below z_min within
       ``end_zone_stop`` of x_max, as ``scripted_action``. Lifted at x_lift: the wheels stay full while
       x < x_max - (LATE_STOP_0 + LATE_STOP_K (z_min - z)) and stop past it, a band that narrows as the
       tip rises (near the floor about 0.19 m, at 0.3 m 0.06 m), so the tip enters the end zone before
@@ -71,9 +71,9 @@ def push_curl_action(s: LhdState, x_min: float, x_max: float, z_min: float, memo
       rises in place, full of what the pre-curled push cut.
 
     ``memory``: the caller's dict for one attempt (empty at its start): whether the lift started and
-    how. On a 15 deg pile told 30 deg it loads 34 kg where ``scripted_action`` loads 27, and within
-    11 % of its no-error load in every cell of -15..+15 deg on 15 and 30 deg piles the nodes accept
-    (docs/evidence/told_high_bound/)."""
+    how. On a 15 deg pile told 30 deg it loads 33.6 kg where ``scripted_action`` loads 26.3, and
+    within 12 % of its no-error load in every cell of -15..+15 deg on 15 and 30 deg piles the nodes
+    accept (docs/evidence/told_high_bound/teacher_push_curl/)."""
     x_lift = x_min + late_lift * (x_max - x_min)
     if not memory.get("lift"):
         at_x = late_lift > 0.0 and s.x_shovel + LATE_LOOKAHEAD_S * max(s.v_x, 0.0) >= x_lift
