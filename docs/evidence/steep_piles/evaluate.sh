@@ -18,19 +18,23 @@
 #    slope, as on the machine).
 set -euo pipefail
 S=${1:-rld}
-case $S in rld) F=steep; V=rld ;; rlc) F=steep_rlc; V=rlc ;; rlc_to_end) F=steep_rlc_to_end; V=rlc ;;
-  *) echo "usage: evaluate.sh [rld|rlc|rlc_to_end]" >&2; exit 2 ;; esac
 E=docs/evidence/steep_piles
+case $S in rld) F=steep; V=rld ;; rlc) F=steep_rlc; V=rlc ;; rlc_to_end) F=steep_rlc_to_end; V=rlc ;;
+  # 2026-11-30: the push-curl teacher's recipe (docs/evidence/told_high_bound), trained with
+  #   lhd train --variant rld --seeds 0-4 --jobs 5 --randomize \
+  #       --config docs/evidence/told_high_bound/lhd_params_steep_push_curl.yaml --out runs/push_curl_rld
+  push_curl_rld) F=steep_push_curl; V=rld; E=docs/evidence/told_high_bound ;;
+  *) echo "usage: evaluate.sh [rld|rlc|rlc_to_end|push_curl_rld]" >&2; exit 2 ;; esac
 CFG=$E/lhd_params_$F.yaml
 NOM=$E/lhd_params_${F}_nominal_eval.yaml
-RUNS=runs/steep_$S
+case $S in push_curl_rld) RUNS=runs/$S; P=$S ;; *) RUNS=runs/steep_$S; P=steep_$S ;; esac
 .venv/bin/lhd report $RUNS --held-out nominal,randomized,placement,sensors,delay,light,dense,rocky --config $CFG \
-    --jobs 2 --json > $E/steep_${S}_report.json 2> $E/steep_${S}_report.log
+    --jobs 2 --json > $E/${P}_report.json 2> $E/${P}_report.log
 for s in 0 1 2 3 4; do
   .venv/bin/lhd experiment paper --controllers $V --$V $RUNS/seed_$s/final --config $NOM \
       --slopes 10,15,20,25,30,35,40 --errors=-15,-10,-5,0,5,10,15 --episodes 20 --jobs 2 \
-      --out /tmp/steep_${S}_seed$s > /dev/null 2>&1
-  mkdir -p $E/steep_${S}_seed$s
-  cp /tmp/steep_${S}_seed$s/table_controllers.md /tmp/steep_${S}_seed$s/table_controllers.csv \
-     /tmp/steep_${S}_seed$s/table_slope_error.md /tmp/steep_${S}_seed$s/table_slope_error.csv $E/steep_${S}_seed$s/
+      --out /tmp/${P}_seed$s > /dev/null 2>&1
+  mkdir -p $E/${P}_seed$s
+  cp /tmp/${P}_seed$s/table_controllers.md /tmp/${P}_seed$s/table_controllers.csv \
+     /tmp/${P}_seed$s/table_slope_error.md /tmp/${P}_seed$s/table_slope_error.csv $E/${P}_seed$s/
 done
