@@ -30,7 +30,8 @@ def without_unit_gains(c):
     r = c.get("randomization")
     if r is not None and all(r.get(k, 1.0) == 1.0 for k in GAIN_KEYS):
         c = {**c, "randomization": {k: v for k, v in r.items() if k not in GAIN_KEYS}}
-    for key in ("rest_start_share", "surface_sd_max", "zones_at_nominal_density", "arm_offset_max_deg"):
+    for key in ("rest_start_share", "surface_sd_max", "zones_at_nominal_density", "arm_offset_max_deg",
+                "slope_error_high_share"):
         r = c.get("randomization")
         if r is not None and r.get(key, 0.0) == 0.0:
             c = {**c, "randomization": {k: v for k, v in r.items() if k != key}}
@@ -79,7 +80,7 @@ def test_the_shipped_section_is_off_and_a_disabled_section_leaves_the_hash_alone
     # angle-sensor offsets (2026-11-29) at 0
     before["randomization"] = {k: v for k, v in on["randomization"].items()
                                if k not in keys + ("rest_start_share", "surface_sd_max", "zones_at_nominal_density",
-                                                   "arm_offset_max_deg")}
+                                                   "arm_offset_max_deg", "slope_error_high_share")}
     assert all(on["randomization"][k] == 1.0 for k in keys) and on["randomization"]["rest_start_share"] == 0.0
     assert on["randomization"]["surface_sd_max"] == 0.0 and on["randomization"]["zones_at_nominal_density"] == 0
     assert on["randomization"]["arm_offset_max_deg"] == 0.0
@@ -145,6 +146,66 @@ def test_draws_cover_the_ranges_and_only_them(cfg):
     assert s.phi == pytest.approx((math.radians(r["phi_min_deg"]), math.radians(r["phi_max_deg"])))
     assert s.rocks[1] == r["rocks_max"] and s.cohesion[1] == r["cohesion_max"]
     assert s.density[0] < cfg["pile"]["density_min"] and s.density[1] > cfg["pile"]["density_max"]
+
+
+def test_a_share_told_too_steep_leaves_the_other_draws_alone(cfg):
+    """randomization.slope_error_high_share (2026-11-30): that share of the episodes is told the slope
+    U(max / 2, max) too steep, the rest U(-max, max); at 0 every draw is the one before the key (the same
+    generator stream, so earlier randomised evaluations replay); set, it is part of a randomised actor's
+    identity, and an actor trained without it runs on a file that has it."""
+    from lhd_loading_ros.task.config import hash_matches
+    on = copy.deepcopy(cfg)
+    on["randomization"]["enabled"] = 1
+    e = on["randomization"]["slope_error_max_deg"]
+    assert on["randomization"]["slope_error_high_share"] == 0.0
+    high = copy.deepcopy(on)
+    high["randomization"]["slope_error_high_share"] = 0.4
+    rng1 = np.random.default_rng(5)
+    rr = RandomizationRanges.from_config(high)
+    cs = [draw(rng1, rr) for _ in range(4000)]
+    err = np.array([c.slope_error_deg for c in cs])
+    assert err.min() >= -e and err.max() <= e
+    # by hand: P(err >= e/2) = 0.4 + 0.6 x 1/4 = 0.55; P(err < 0) = 0.6 x 1/2 = 0.30
+    assert np.mean(err >= 0.5 * e) == pytest.approx(0.55, abs=0.03)
+    assert np.mean(err < 0.0) == pytest.approx(0.30, abs=0.03)
+    # the other ranges drawn as before: the share's draws come after every other one
+    g_high, g_off = np.random.default_rng(9), np.random.default_rng(9)
+    one, ref = draw(g_high, rr), draw(g_off, RandomizationRanges.from_config(on))
+    assert (one.heading_deg, one.d_attack, one.tyre_friction) == (ref.heading_deg, ref.d_attack, ref.tyre_friction)
+    # at 0 it draws nothing (so a stream of episodes is the one before the key): the ranges of this file draw
+    # only uniforms and integers, and a generator that refuses random() is never asked for one
+    class NoRandom:
+        def __init__(self, g):
+            self.g, self.calls = g, []
+
+        def uniform(self, *a):
+            self.calls.append("uniform")
+            return self.g.uniform(*a)
+
+        def integers(self, *a):
+            self.calls.append("integers")
+            return self.g.integers(*a)
+
+        def random(self):
+            raise AssertionError("random() drawn with slope_error_high_share 0")
+
+    assert on["randomization"]["rest_start_share"] == 0.0
+    g = NoRandom(np.random.default_rng(3))
+    draw(g, RandomizationRanges.from_config(on))
+    # by hand, what one episode drew before the key: slope error, tyre friction, start distance, attack speed,
+    # heading and lateral offset (uniforms); v_x delay and the two actuator delays (integers)
+    assert sorted(g.calls) == ["integers"] * 3 + ["uniform"] * 6
+    with pytest.raises(AssertionError, match="random"):
+        draw(NoRandom(np.random.default_rng(3)), rr)
+    assert config_hash(high) != config_hash(on)
+    assert hash_matches(config_hash(on), high) and hash_matches(config_hash(high), high)
+    # its evaluation file (the section off, the share kept) takes it; a file without the share does not
+    assert hash_matches(config_hash(high), {**high, "randomization": {**high["randomization"], "enabled": 0}})
+    assert not hash_matches(config_hash(high), {**on, "randomization": {**on["randomization"], "enabled": 0}})
+    with pytest.raises(ConfigError, match="randomization.slope_error_high_share"):
+        bad = copy.deepcopy(high)
+        bad["randomization"]["slope_error_high_share"] = 1.5
+        validate(bad)
 
 
 def test_delay_chunks_refuses_what_the_simulator_cannot_do():

@@ -24,10 +24,12 @@ case $S in rld) F=steep; V=rld ;; rlc) F=steep_rlc; V=rlc ;; rlc_to_end) F=steep
   #   lhd train --variant rld --seeds 0-4 --jobs 5 --randomize \
   #       --config docs/evidence/told_high_bound/lhd_params_steep_push_curl.yaml --out runs/push_curl_rld
   push_curl_rld) F=steep_push_curl; V=rld; E=docs/evidence/told_high_bound ;;
-  *) echo "usage: evaluate.sh [rld|rlc|rlc_to_end|push_curl_rld]" >&2; exit 2 ;; esac
+  # not trained yet: the same with randomization.slope_error_high_share 0.3 (lhd_params_steep_push_curl_high.yaml)
+  push_curl_high_rld) F=steep_push_curl_high; V=rld; E=docs/evidence/told_high_bound ;;
+  *) echo "usage: evaluate.sh [rld|rlc|rlc_to_end|push_curl_rld|push_curl_high_rld]" >&2; exit 2 ;; esac
 CFG=$E/lhd_params_$F.yaml
 NOM=$E/lhd_params_${F}_nominal_eval.yaml
-case $S in push_curl_rld) RUNS=runs/$S; P=$S ;; *) RUNS=runs/steep_$S; P=steep_$S ;; esac
+case $S in push_curl_rld|push_curl_high_rld) RUNS=runs/$S; P=$S ;; *) RUNS=runs/steep_$S; P=steep_$S ;; esac
 .venv/bin/lhd report $RUNS --held-out nominal,randomized,placement,sensors,delay,light,dense,rocky --config $CFG \
     --jobs 2 --json > $E/${P}_report.json 2> $E/${P}_report.log
 for s in 0 1 2 3 4; do

@@ -3,7 +3,7 @@
 # the lift': the mean normalised wheel command (-1: stopped, 1: full) while the tip is past 0.4 m and the boom has
 # not started to lift; 'lift at x': the tip's x where the boom first rose 1 deg. Run from the repository root:
 #   .venv/bin/python docs/evidence/told_high_bound/push_curl_actors_push.py > docs/evidence/told_high_bound/push_curl_actors_push.txt
-import math, sys, numpy as np
+import math, numpy as np
 from dataclasses import replace
 from lhd_loading_ros.learning import experiment as ex
 from lhd_loading_ros.task.randomization import NOMINAL

@@ -209,6 +209,10 @@ def drawn_conditions(cfg: dict) -> str:
         parts.append(f"a rough face (relief sd up to {100.0 * float(r['surface_sd_max']):g} cm)")
     if float(r.get("arm_offset_max_deg", 0.0)) > 0.0:
         parts.append(f"boom and bucket angle sensors up to +-{float(r['arm_offset_max_deg']):g} deg off their zero")
+    if float(r.get("slope_error_high_share", 0.0)) > 0.0:
+        parts.append(f"the slope error of {100.0 * float(r['slope_error_high_share']):g} % of the attempts drawn "
+                     f"{0.5 * float(r['slope_error_max_deg']):g}-{float(r['slope_error_max_deg']):g} deg too steep "
+                     "(the others' from the whole range)")
     return ", ".join(parts)
 
 

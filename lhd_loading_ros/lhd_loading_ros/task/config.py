@@ -132,6 +132,7 @@ SCHEMA: dict[str, Any] = {
         "hydraulic_gain_min": _f(0.1, 2.0), "hydraulic_gain_max": _f(0.1, 2.0),
         "zones_from_slope_estimate": _i(0, 1), "rest_start_share": _f(0.0, 1.0),
         "surface_sd_max": _f(0.0, 0.2), "zones_at_nominal_density": _i(0, 1), "arm_offset_max_deg": _f(0.0, 10.0),
+        "slope_error_high_share": _f(0.0, 1.0),
     },
     "training": {
         "total_steps": _i(1, 100_000_000), "noise_decay_steps": _i(0, 100_000_000), "noise_final_scale": _f(0.0, 1.0),
@@ -334,7 +335,9 @@ OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curric
                      # end-zone node's wedge at the nominal density (task/end_zone.zones_at_nominal_density; 2026-11-29)
                      ("randomization", "zones_at_nominal_density"): 0,
                      # 0: the arm's angle sensors read the true angles in training (before the key, 2026-11-29)
-                     ("randomization", "arm_offset_max_deg"): 0.0}
+                     ("randomization", "arm_offset_max_deg"): 0.0,
+                     # 0: the slope error U(-max, max) in every episode (before the key, 2026-11-30)
+                     ("randomization", "slope_error_high_share"): 0.0}
 ACTUATOR_GAIN_KEYS = ("drive_gain_min", "drive_gain_max", "hydraulic_gain_min", "hydraulic_gain_max")
 
 
@@ -510,6 +513,8 @@ def config_hash(cfg: dict) -> str:
             drop.add("zones_at_nominal_density")       # likewise: the pile's own zones in training (before the key)
         if float(cfg["randomization"].get("arm_offset_max_deg", 0.0)) == 0.0:
             drop.add("arm_offset_max_deg")             # likewise: true arm angles in training (before the key)
+        if float(cfg["randomization"].get("slope_error_high_share", 0.0)) == 0.0:
+            drop.add("slope_error_high_share")         # likewise: the error U(-max, max) in every episode (before the key)
         if drop:
             cfg = {**cfg, "randomization": {k: v for k, v in cfg["randomization"].items() if k not in drop}}
     if "task" in cfg and float(cfg["task"].get("r_success_pitch_margin_deg", 0.0)) == 0.0:
@@ -531,7 +536,9 @@ def training_variants(cfg: dict, trained_margin_deg: float | None = None,
     config's share of them (randomization.rest_start_share 0 or this config's), and plane piles or this
     config's relief (randomization.surface_sd_max 0 or this config's), and the pile's own zones or the
     end-zone node's at the nominal density (randomization.zones_at_nominal_density 0 or this config's), and true arm
-    angles or this config's angle-sensor offsets (randomization.arm_offset_max_deg 0 or this config's). Every other range of
+    angles or this config's angle-sensor offsets (randomization.arm_offset_max_deg 0 or this config's), and the
+    slope error drawn alike in every episode or this config's share told too steep
+    (randomization.slope_error_high_share 0 or this config's). Every other range of
     the randomisation section is part of a randomised actor's identity: such an actor runs on its own
     parameter file (lhd ship copies it)."""
     rands = [0, 1] if "randomization" in cfg else [None]
@@ -547,6 +554,7 @@ def training_variants(cfg: dict, trained_margin_deg: float | None = None,
     relief = {0.0, float(cfg.get("randomization", {}).get("surface_sd_max", 0.0))}
     nominal = {0, int(cfg.get("randomization", {}).get("zones_at_nominal_density", 0))}
     arm = {0.0, float(cfg.get("randomization", {}).get("arm_offset_max_deg", 0.0))}
+    high = {0.0, float(cfg.get("randomization", {}).get("slope_error_high_share", 0.0))}
     out = []
     cs = []
     for rand in rands:
@@ -554,11 +562,12 @@ def training_variants(cfg: dict, trained_margin_deg: float | None = None,
         # where a slope-estimate error went while it trained (randomised only: alpha alone before 2026-11-28),
         # whether some episodes started from rest and whether piles were rough (neither before 2026-11-29)
         cs += [c] if rand != 1 else [
-            _with(_with(_with(_with(_with(c, "randomization", "zones_from_slope_estimate", z), "randomization",
+            _with(_with(_with(_with(_with(_with(c, "randomization", "zones_from_slope_estimate", z), "randomization",
                                     "rest_start_share", r), "randomization", "surface_sd_max", sd),
-                        "randomization", "zones_at_nominal_density", nd), "randomization", "arm_offset_max_deg", ao)
+                        "randomization", "zones_at_nominal_density", nd), "randomization", "arm_offset_max_deg", ao),
+                  "randomization", "slope_error_high_share", hs)
             for z in sorted(zfe) for r in sorted(rest) for sd in sorted(relief) for nd in sorted(nominal)
-            for ao in sorted(arm)]
+            for ao in sorted(arm) for hs in sorted(high)]
     for c in cs:
         for m in sorted(margins):
             cm = _with(c, "task", "r_success_pitch_margin_deg", m)

@@ -92,6 +92,7 @@ class RandomizationRanges:
     surface_sd_max: float = 0.0         # m, each pile's relief sd U(0, this) about its plane (Conditions.surface_sd)
     zones_at_nominal_density: bool = False   # the zones built as the end-zone node does (task/end_zone.py)
     arm_offset_max_deg: float = 0.0     # each episode's boom and bucket angle-sensor offsets, each U(-this, this)
+    slope_error_high_share: float = 0.0  # this share of the episodes told too steep: error U(max / 2, max)
 
     @classmethod
     def from_config(cls, cfg: dict) -> "RandomizationRanges":
@@ -118,6 +119,7 @@ class RandomizationRanges:
             surface_sd_max=float(r.get("surface_sd_max", 0.0)),
             zones_at_nominal_density=bool(r.get("zones_at_nominal_density", 0)),
             arm_offset_max_deg=float(r.get("arm_offset_max_deg", 0.0)),
+            slope_error_high_share=float(r.get("slope_error_high_share", 0.0)),
         )
 
 
@@ -152,6 +154,11 @@ def draw(rng: np.random.Generator, rr: RandomizationRanges) -> Conditions:
     if rr.arm_offset_max_deg > 0.0:     # likewise: the arm's angle sensors zeroed off the attack pose
         gains["boom_offset_deg"] = float(u(-rr.arm_offset_max_deg, rr.arm_offset_max_deg))
         gains["bucket_offset_deg"] = float(u(-rr.arm_offset_max_deg, rr.arm_offset_max_deg))
+    if rr.slope_error_high_share > 0.0 and rng.random() < rr.slope_error_high_share:
+        # likewise: a LiDAR slope told too steep by half the range or more, where the uniform draw gives one
+        # episode in four; the case the actors fail most (a shallow pile's end zone told short: docs/training.md
+        # "How much a slope told too high can give")
+        gains["slope_error_deg"] = float(u(0.5 * rr.slope_error_max_deg, rr.slope_error_max_deg))
     return replace(c, **gains) if gains else c
 
 
