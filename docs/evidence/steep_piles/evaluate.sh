@@ -24,7 +24,7 @@ case $S in rld) F=steep; V=rld ;; rlc) F=steep_rlc; V=rlc ;; rlc_to_end) F=steep
   #   lhd train --variant rld --seeds 0-4 --jobs 5 --randomize \
   #       --config docs/evidence/told_high_bound/lhd_params_steep_push_curl.yaml --out runs/push_curl_rld
   push_curl_rld) F=steep_push_curl; V=rld; E=docs/evidence/told_high_bound ;;
-  # not trained yet: the same with randomization.slope_error_high_share 0.3 (lhd_params_steep_push_curl_high.yaml)
+  # a two-seed pilot only (docs/evidence/told_high_bound/push_curl_high_pilot/): the same with randomization.slope_error_high_share 0.3 (lhd_params_steep_push_curl_high.yaml)
   push_curl_high_rld) F=steep_push_curl_high; V=rld; E=docs/evidence/told_high_bound ;;
   *) echo "usage: evaluate.sh [rld|rlc|rlc_to_end|push_curl_rld|push_curl_high_rld]" >&2; exit 2 ;; esac
 CFG=$E/lhd_params_$F.yaml
