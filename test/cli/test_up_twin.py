@@ -109,9 +109,13 @@ def test_one_twin_attempt_end_to_end(tmp_path):
     assert rec["outcome"] != "lost_input", (rec, node_logs(run_dir))
     assert rec["vx_n"] >= 10 and math.isfinite(rec["vx_rms"]), rec
     assert rec["vx_rms"] <= VX_BOUND, rec
-    # how old the odometry was when it arrived (image stamp to here): measured, and within the
-    # supervisor's 0.5 s input timeout, which would have ended the attempt otherwise
-    assert 0.0 < rec["odom_age_p50_ms"] <= rec["odom_age_max_ms"] < 500.0, rec
+    # how old the odometry was when it arrived (image stamp to this observing process): measured,
+    # its median within the supervisor's 0.5 s input timeout. The supervisor's own bound is the
+    # outcome above (an input older than 0.5 s there ends the attempt as lost_input); the maximum
+    # here also holds this process's own scheduling delays, which a loaded 2-core machine makes
+    # reach 0.7-0.8 s (CI, 2026-11-30) while the supervisor kept its inputs, so it is not bounded
+    assert 0.0 < rec["odom_age_p50_ms"] < 500.0, rec
+    assert rec["odom_age_p50_ms"] <= rec["odom_age_max_ms"] and math.isfinite(rec["odom_age_max_ms"]), rec
     # split with the twin's camera lag per image: the stack's part is positive and at most the whole
     assert rec["twin_camera_lag_p50_ms"] is not None and rec["twin_camera_lag_p50_ms"] >= 0.0, rec
     assert 0.0 < rec["stack_age_p50_ms"] <= rec["odom_age_max_ms"], rec
