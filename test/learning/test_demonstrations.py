@@ -44,6 +44,69 @@ def test_the_share_of_demonstrations():
     assert abs(hits - 0.2 * n) < 4 * sd
 
 
+def test_the_told_high_draw_by_hand():
+    """training.demo_told_high: an episode told at least that many deg too steep is a demonstration, its
+    crowd from the second stream of its seed; less steep, past until_step, off, or a NaN error: none."""
+    d = DemoConfig(0.0, 0.5, 0.75, 0.3, 1000, told_high=10.0)
+    for k in range(20):
+        expect = 0.5 + 0.25 * np.random.default_rng([k, DEMO_STREAM, 1]).random()
+        assert d.told_high_crowd(k, 0, 10.0) == pytest.approx(expect, abs=1e-12)
+        assert d.told_high_crowd(k, 999, 14.9) == d.told_high_crowd(k, 0, 10.0)
+        assert d.told_high_crowd(k, 0, 9.99) is None
+        assert d.told_high_crowd(k, 0, -12.0) is None          # told too shallow
+        assert d.told_high_crowd(k, 1000, 12.0) is None        # none starts at or after until_step
+        assert d.told_high_crowd(k, 0, float("nan")) is None
+        assert demo_cfg().told_high_crowd(k, 0, 15.0) is None  # off by default
+    # the crowds are uniform over [lo, hi], not the share's stream
+    crowds = [d.told_high_crowd(k, 0, 12.0) for k in range(2000)]
+    assert min(crowds) >= 0.5 and max(crowds) <= 0.75 and abs(np.mean(crowds) - 0.625) < 0.01
+
+
+def test_a_short_run_makes_every_told_high_episode_a_demonstration(cfg, tmp_path):
+    """A real run with slope errors drawn and demo_told_high 7.5: each episode whose slope (as the
+    environment draws it again from the episode's seed, here) is told 7.5 deg or more too steep is
+    driven by the teacher, and the others only where demo_share draws them."""
+    from lhd_sim_node.env import LhdLoadingEnv
+    from lhd_loading_ros.learning.train import episode_seed, train
+
+    c = small(cfg, 0.05)
+    c["training"]["demo_told_high"] = 7.5
+    c["randomization"].update({"enabled": 1, "slope_error_high_share": 0.5})
+    c = validate(c)
+    train("rld", 5, tmp_path, steps=700, config=c, resume=False, progress=False)
+    rows = list(csv.DictReader(open(tmp_path / "episodes.csv")))
+    d = DemoConfig.from_training(c["training"])
+    assert d.told_high == 7.5
+    env = LhdLoadingEnv("rld", c)
+    seen_high = seen_other = 0
+    for r in rows:
+        k = episode_seed(5, int(r["episode"]), c["training"]["episode_seed_offset"])
+        env.reset(seed=k)
+        if abs(math.degrees(env.sim.pile.alpha) - float(r["alpha_deg"])) > 0.006:   # the log rounds to 0.01
+            continue                                   # its attack stalled and the run drew the pile again
+        err = env.told_slope_deg - math.degrees(env.sim.pile.alpha)
+        want = d.draw(k, 0)
+        if want is None and err >= 7.5:
+            want = d.told_high_crowd(k, 0, err)
+            seen_high += 1
+        elif err < 7.5:
+            seen_other += 1
+        assert (want is None) == (r["driver"] == "actor"), (r, err)
+        if want is not None:
+            assert float(r["driver"].split()[-1]) == pytest.approx(want, abs=5e-4)
+    assert seen_high >= 1 and seen_other >= 1, (seen_high, seen_other)
+    # the card records it; the hash does not
+    from lhd_loading_ros.policy.actor_file import load_policy
+
+    tw = load_policy(tmp_path / "final").meta["trained_with"]
+    assert tw["demo_told_high"] == 7.5
+    from lhd_loading_ros.learning.ship import _recipe_note
+    assert "every episode told the slope 7.5 deg or more too steep a demonstration" in _recipe_note(tw)
+    c0 = copy.deepcopy(c)
+    c0["training"]["demo_told_high"] = 0.0
+    assert config_hash(c0) == config_hash(c)
+
+
 def test_off_by_default_and_validated(cfg):
     assert DemoConfig.from_training(cfg["training"]) is None        # the shipped config: no demonstrations
     c = copy.deepcopy(cfg)
@@ -239,6 +302,16 @@ def test_the_told_teacher_keys(cfg):
     with pytest.raises(ConfigError, match="demo_late_lift"):
         validate(c)
     c["training"]["demo_late_lift"] = 0.85
+    # every episode told too steep a demonstration: 0 by default, read, out of the hash, bounded
+    assert d.told_high == 0.0
+    c["training"]["demo_told_high"] = 10.0
+    assert DemoConfig.from_training(validate(c)["training"]).told_high == 10.0
+    assert config_hash(validate(c)) == base_hash
+    for bad in (50.0, -1.0, float("nan")):
+        c["training"]["demo_told_high"] = bad
+        with pytest.raises(ConfigError, match="demo_told_high"):
+            validate(c)
+    c["training"]["demo_told_high"] = 0.0
     c["training"]["demo_end_zone_stop"] = 1.5
     with pytest.raises(ConfigError, match="demo_end_zone_stop"):
         validate(c)

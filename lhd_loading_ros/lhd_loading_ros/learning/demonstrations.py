@@ -17,7 +17,11 @@ training only, and no actor depends on it at run time.
 
 Which episodes are demonstrations and their crowd follow from the episode's seed alone (a stream
 of its own), so a run without demonstrations draws exactly what it drew before, and a resumed run
-the same as an uninterrupted one.
+the same as an uninterrupted one. With training.demo_told_high = d > 0 every episode whose slope is
+told at least d deg too steep (known once the environment has drawn its conditions) is one as well,
+its crowd from a second stream of the same seed (`told_high_crowd`): the case every trained actor
+fails most, where the teacher's late lift loads what the actors' early one loses (docs/training.md
+"How much a slope told too high can give").
 
 With training.demo_told_zones = 1 the demonstration reads the zones the actor is told (env.zones:
 with a slope-estimate error, those the end-zone node builds from the estimate) instead of the
@@ -48,6 +52,7 @@ class DemoConfig:
     end_zone_stop: float = 0.0    # m: wheels stop while lifting below z_min within this of x_max (0: off)
     push_curl: float = 0.0        # rad: curl while pushing (demo_push_curl; maneuver.push_curl_action)
     late_lift: float = 0.0        # share of the end zone where an unstalled push lifts (demo_late_lift)
+    told_high: float = 0.0        # deg: every episode told at least this much too steep is a demonstration (0: off)
 
     @classmethod
     def from_training(cls, t: dict) -> "DemoConfig | None":
@@ -65,8 +70,11 @@ class DemoConfig:
         from lhd_loading_ros.policy.teacher import TeacherSetting
         ts = TeacherSetting.from_config({"training": {**t, "demo_crowd_min": lo, "demo_crowd_max": hi,
                                                       "demo_pre_curl": t.get("demo_pre_curl", 0.3)}})
+        told_high = float(t.get("demo_told_high", 0.0))
+        if not (0.0 <= told_high <= 45.0):      # NaN fails too
+            raise ValueError(f"training.demo_told_high = {told_high!r}: expected a slope error in [0, 45] deg (0: off)")
         return cls(share, lo, hi, float(t.get("demo_pre_curl", 0.3)), until,
-                   bool(int(t.get("demo_told_zones", 0))), stop, ts.push_curl, ts.late_lift)
+                   bool(int(t.get("demo_told_zones", 0))), stop, ts.push_curl, ts.late_lift, told_high)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -79,6 +87,15 @@ class DemoConfig:
         rng = np.random.default_rng([int(seed_k), DEMO_STREAM])
         if rng.random() >= self.share:
             return None
+        return float(rng.uniform(self.crowd_min, self.crowd_max))
+
+    def told_high_crowd(self, seed_k: int, step: int, told_error_deg: float) -> float | None:
+        """The crowd of the demonstration that episode `seed_k` (starting at `step`, its slope told
+        `told_error_deg` too steep: the told slope minus the pile's) is because it is told too steep
+        (demo_told_high), or None: off, past until_step, or told less than demo_told_high too steep."""
+        if self.told_high <= 0.0 or step >= self.until_step or not told_error_deg >= self.told_high:
+            return None
+        rng = np.random.default_rng([int(seed_k), DEMO_STREAM, 1])
         return float(rng.uniform(self.crowd_min, self.crowd_max))
 
     def action(self, env, crowd: float) -> np.ndarray:

@@ -55,7 +55,7 @@ def export_actor(directory, actor: FlatMlp, cfg: dict, meta: dict):
                              **({"demo_end_zone_stop": float(cfg["training"]["demo_end_zone_stop"])}
                                 if float(cfg["training"].get("demo_end_zone_stop", 0.0)) > 0 else {}),
                              # the push-curl teacher (policy/maneuver.push_curl_action)
-                             **{k: float(cfg["training"][k]) for k in ("demo_push_curl", "demo_late_lift")
+                             **{k: float(cfg["training"][k]) for k in ("demo_push_curl", "demo_late_lift", "demo_told_high")
                                 if float(cfg["training"].get(k, 0.0)) > 0}}
                             if float(cfg.get("training", {}).get("demo_share", 0.0)) > 0 else {}),
                          "r_success_pitch_margin_deg": float(cfg["task"].get("r_success_pitch_margin_deg", 0.0)),

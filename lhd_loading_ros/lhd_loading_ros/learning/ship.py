@@ -168,6 +168,9 @@ def _recipe_note(tw: dict) -> str:
             what = [f"pushing with the bucket curled to {push_curl:g} rad"] if push_curl > 0 else []
             what += [f"lifting, unstalled, at {late:g} of the end zone's length"] if late > 0 else []
             parts.append("the demonstrations " + " and ".join(what))
+        told_high = float(tw.get("demo_told_high", 0.0) or 0.0)
+        if told_high > 0:
+            parts.append(f"every episode told the slope {told_high:g} deg or more too steep a demonstration")
     if int(tw.get("midgoal_from_pile", 0) or 0):
         parts.append("the mid goal x_midgoal at the start of the pile's end zone (`task.midgoal_from_pile`, a "
                      "departure from the paper's reward)")

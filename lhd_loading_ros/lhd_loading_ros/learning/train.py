@@ -375,7 +375,13 @@ def _train(variant: str, seed: int, out, steps: int | None = None, config=None, 
             # the redraw of a pile whose attack stalls lives with the environment (the sim node's too)
             from lhd_sim_node.env import reset_or_redraw
 
-            return reset_or_redraw(env, seed_k, opts, log)
+            out_ = reset_or_redraw(env, seed_k, opts, log)
+            if crowd is None and demos is not None:
+                # training.demo_told_high: an episode told too steep is a demonstration as well
+                told_high = demos.told_high_crowd(seed_k, step, env.told_slope_deg - math.degrees(env.sim.pile.alpha))
+                if told_high is not None:
+                    demo_crowd[i] = told_high
+            return out_
 
         from lhd_sim_node.simulator import SimulationError
 

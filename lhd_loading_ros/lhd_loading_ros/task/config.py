@@ -146,7 +146,7 @@ SCHEMA: dict[str, Any] = {
         "demo_pre_curl": _f(0.0, 1.4), "demo_bc": _f(0.0, 100.0), "demo_until_step": _i(0, 100_000_000),
         "critic_huber": _f(0.0, 1e6), "noise_after_decay": _f(0.0, 1.0), "demo_bc_return_filter": _i(0, 1),
         "demo_told_zones": _i(0, 1), "demo_end_zone_stop": _f(0.0, 1.0),
-        "demo_push_curl": _f(0.0, 1.4), "demo_late_lift": _f(0.0, 1.0),
+        "demo_push_curl": _f(0.0, 1.4), "demo_late_lift": _f(0.0, 1.0), "demo_told_high": _f(0.0, 45.0),
         "episode_seed_offset": _i(0, 2**31 - 2),
     },
 }
@@ -321,6 +321,8 @@ OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curric
                      ("training", "demo_told_zones"): 0, ("training", "demo_end_zone_stop"): 0.0,
                      # the push-curl teacher (policy/maneuver.push_curl_action, 2026-11-30); 0: the level push
                      ("training", "demo_push_curl"): 0.0, ("training", "demo_late_lift"): 0.0,
+                     # every episode told this many deg too steep a demonstration (2026-11-30); 0: demo_share's only
+                     ("training", "demo_told_high"): 0.0,
                      # actuator gains drawn per episode (task/randomization.py); 1 = the simulator's actuators
                      ("randomization", "drive_gain_min"): 1.0, ("randomization", "drive_gain_max"): 1.0,
                      ("randomization", "hydraulic_gain_min"): 1.0, ("randomization", "hydraulic_gain_max"): 1.0,
@@ -465,6 +467,8 @@ TRAINING_SCHEDULE_KEYS = ("twin_critics", "slope_curriculum", "slope_curriculum_
                           "demo_bc", "demo_until_step", "demo_bc_return_filter",
                           # what the demonstrations read and where they stop the wheels
                           "demo_told_zones", "demo_end_zone_stop", "demo_push_curl", "demo_late_lift",
+                          # which episodes are demonstrations beyond demo_share: those told too steep
+                          "demo_told_high",
                           # where the training's episode seeds start (which piles it practised on)
                           "episode_seed_offset",
                           # the critics' Huber loss (learning/ddpg.py)
