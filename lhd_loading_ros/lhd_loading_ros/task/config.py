@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import difflib
 import hashlib
+import itertools
 import json
 import os
 from pathlib import Path
@@ -326,20 +327,35 @@ OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curric
                      # actuator gains drawn per episode (task/randomization.py); 1 = the simulator's actuators
                      ("randomization", "drive_gain_min"): 1.0, ("randomization", "drive_gain_max"): 1.0,
                      ("randomization", "hydraulic_gain_min"): 1.0, ("randomization", "hydraulic_gain_max"): 1.0,
-                     # 0: a slope-estimate error reached the observed alpha only, not the zones built from it
-                     # (before 2026-11-28; task/zones.zones_for_slope_estimate)
-                     ("randomization", "zones_from_slope_estimate"): 0,
-                     # 0: every episode starts at the attack speed (the paper's), none from rest (2026-11-29)
-                     ("randomization", "rest_start_share"): 0.0,
-                     # 0: every pile's surface a plane in training (before the key existed, 2026-11-29)
-                     ("randomization", "surface_sd_max"): 0.0,
-                     # 0: the zones of the pile in front of the machine (its own density and rocks); 1: the
-                     # end-zone node's wedge at the nominal density (task/end_zone.zones_at_nominal_density; 2026-11-29)
-                     ("randomization", "zones_at_nominal_density"): 0,
-                     # 0: the arm's angle sensors read the true angles in training (before the key, 2026-11-29)
-                     ("randomization", "arm_offset_max_deg"): 0.0,
-                     # 0: the slope error U(-max, max) in every episode (before the key, 2026-11-30)
-                     ("randomization", "slope_error_high_share"): 0.0}
+                     }
+# Randomisation keys added after randomised actors were trained, each with the value that does what training
+# did before the key existed. At that value the key is left out of the config hash (those actors keep theirs),
+# and training_variants tries both it and a config's own value (an actor trained either way runs on the config).
+# One table for OPTIONAL_DEFAULTS, config_hash and training_variants: a new such key goes here only.
+RANDOMIZATION_LATER_KEYS = (
+    # 0: a slope-estimate error reached the observed alpha only, not the zones built from it
+    # (before 2026-11-28; task/zones.zones_for_slope_estimate)
+    ("zones_from_slope_estimate", 0),
+    # 0: every episode starts at the attack speed (the paper's), none from rest (2026-11-29)
+    ("rest_start_share", 0.0),
+    # 0: every pile's surface a plane in training (before the key existed, 2026-11-29)
+    ("surface_sd_max", 0.0),
+    # 0: the zones of the pile in front of the machine (its own density and rocks); 1: the
+    # end-zone node's wedge at the nominal density (task/end_zone.zones_at_nominal_density; 2026-11-29)
+    ("zones_at_nominal_density", 0),
+    # 0: the arm's angle sensors read the true angles in training (before the key, 2026-11-29)
+    ("arm_offset_max_deg", 0.0),
+    # 0: the slope error U(-max, max) in every episode (before the key, 2026-11-30)
+    ("slope_error_high_share", 0.0),
+)
+OPTIONAL_DEFAULTS.update({("randomization", k): v for k, v in RANDOMIZATION_LATER_KEYS})
+
+
+def _same(value, default) -> bool:
+    """Whether a config value is a RANDOMIZATION_LATER_KEYS default (compared as the default's type)."""
+    return type(default)(value) == default
+
+
 ACTUATOR_GAIN_KEYS = ("drive_gain_min", "drive_gain_max", "hydraulic_gain_min", "hydraulic_gain_max")
 
 
@@ -507,18 +523,9 @@ def config_hash(cfg: dict) -> str:
         if all(float(cfg["randomization"].get(k, 1.0)) == 1.0 for k in ACTUATOR_GAIN_KEYS):
             # actuator gains at 1 (off): the hash randomised actors had before the keys existed (2026-11-28)
             drop.update(ACTUATOR_GAIN_KEYS)
-        if int(cfg["randomization"].get("zones_from_slope_estimate", 0)) == 0:
-            drop.add("zones_from_slope_estimate")      # likewise: the slope error in the observed alpha only
-        if float(cfg["randomization"].get("rest_start_share", 0.0)) == 0.0:
-            drop.add("rest_start_share")               # likewise: no start from rest (before 2026-11-29)
-        if float(cfg["randomization"].get("surface_sd_max", 0.0)) == 0.0:
-            drop.add("surface_sd_max")                 # likewise: plane piles in training (before the key, 2026-11-29)
-        if int(cfg["randomization"].get("zones_at_nominal_density", 0)) == 0:
-            drop.add("zones_at_nominal_density")       # likewise: the pile's own zones in training (before the key)
-        if float(cfg["randomization"].get("arm_offset_max_deg", 0.0)) == 0.0:
-            drop.add("arm_offset_max_deg")             # likewise: true arm angles in training (before the key)
-        if float(cfg["randomization"].get("slope_error_high_share", 0.0)) == 0.0:
-            drop.add("slope_error_high_share")         # likewise: the error U(-max, max) in every episode (before the key)
+        # likewise each key added later, at the value that trains as before it existed
+        drop.update(k for k, default in RANDOMIZATION_LATER_KEYS
+                    if _same(cfg["randomization"].get(k, default), default))
         if drop:
             cfg = {**cfg, "randomization": {k: v for k, v in cfg["randomization"].items() if k not in drop}}
     if "task" in cfg and float(cfg["task"].get("r_success_pitch_margin_deg", 0.0)) == 0.0:
@@ -553,25 +560,23 @@ def training_variants(cfg: dict, trained_margin_deg: float | None = None,
     tilts = {(0.0, 0.0), (float(task.get("r_tilt_per_deg", 0.0)), float(task.get("r_tilt_free_deg", 0.0)))}
     if trained_tilt is not None:
         tilts.add((float(trained_tilt[0]), float(trained_tilt[1])))
-    zfe = {0, int(cfg.get("randomization", {}).get("zones_from_slope_estimate", 0))}
-    rest = {0.0, float(cfg.get("randomization", {}).get("rest_start_share", 0.0))}
-    relief = {0.0, float(cfg.get("randomization", {}).get("surface_sd_max", 0.0))}
-    nominal = {0, int(cfg.get("randomization", {}).get("zones_at_nominal_density", 0))}
-    arm = {0.0, float(cfg.get("randomization", {}).get("arm_offset_max_deg", 0.0))}
-    high = {0.0, float(cfg.get("randomization", {}).get("slope_error_high_share", 0.0))}
+    r_cfg = cfg.get("randomization", {})
+    # each key added later: as before it existed, or this config's value (RANDOMIZATION_LATER_KEYS)
+    later = [(k, sorted({default, type(default)(r_cfg.get(k, default))})) for k, default in RANDOMIZATION_LATER_KEYS]
     out = []
     cs = []
     for rand in rands:
         c = cfg if rand is None else _with(cfg, "randomization", "enabled", rand)
-        # where a slope-estimate error went while it trained (randomised only: alpha alone before 2026-11-28),
-        # whether some episodes started from rest and whether piles were rough (neither before 2026-11-29)
-        cs += [c] if rand != 1 else [
-            _with(_with(_with(_with(_with(_with(c, "randomization", "zones_from_slope_estimate", z), "randomization",
-                                    "rest_start_share", r), "randomization", "surface_sd_max", sd),
-                        "randomization", "zones_at_nominal_density", nd), "randomization", "arm_offset_max_deg", ao),
-                  "randomization", "slope_error_high_share", hs)
-            for z in sorted(zfe) for r in sorted(rest) for sd in sorted(relief) for nd in sorted(nominal)
-            for ao in sorted(arm) for hs in sorted(high)]
+        if rand != 1:
+            cs.append(c)
+            continue
+        # randomised: where a slope-estimate error went while it trained (alpha alone before 2026-11-28), whether
+        # some episodes started from rest, whether piles were rough (neither before 2026-11-29), ...
+        for values in itertools.product(*(v for _, v in later)):
+            cv = c
+            for (k, _), v in zip(later, values):
+                cv = _with(cv, "randomization", k, v)
+            cs.append(cv)
     for c in cs:
         for m in sorted(margins):
             cm = _with(c, "task", "r_success_pitch_margin_deg", m)
