@@ -54,7 +54,7 @@ def test_the_shipped_section_is_off_and_a_disabled_section_leaves_the_hash_alone
     assert cfg["randomization"]["enabled"] == 0
     without = without_stall_start({k: v for k, v in cfg.items() if k != "randomization"})
     # the tilt penalty is off too: its keys stay out (test_tilt_reward.py)
-    without["task"] = {k: v for k, v in cfg["task"].items() if k not in ("r_tilt_per_deg", "r_tilt_free_deg", "r_tilt_ramp_after_success", "r_tilt_ramp_steps", "r_tilt_ramp_pitch_margin", "midgoal_from_pile", "r_success_mass_margin_kg")}
+    without["task"] = {k: v for k, v in cfg["task"].items() if k not in ("r_tilt_per_deg", "r_tilt_free_deg", "r_tilt_ramp_after_success", "r_tilt_ramp_steps", "r_tilt_ramp_pitch_margin", "midgoal_from_pile", "reward_zones_from_pile", "r_success_mass_margin_kg")}
     without["training"] = {k: v for k, v in cfg["training"].items() if k not in NEVER_HASHED}
     import hashlib
     import json
@@ -272,7 +272,7 @@ def test_the_training_pitch_margin_is_a_training_only_setting(cfg):
     def raw(c):       # the hash by its definition, written out here (the tilt penalty off: its keys out)
         c = {k: v for k, v in c.items() if k != "randomization" or c["randomization"]["enabled"]}
         c = without_unit_gains(c)
-        c["task"] = {k: v for k, v in c["task"].items() if k not in ("r_tilt_per_deg", "r_tilt_free_deg", "r_tilt_ramp_after_success", "r_tilt_ramp_steps", "r_tilt_ramp_pitch_margin", "midgoal_from_pile", "r_success_mass_margin_kg")}
+        c["task"] = {k: v for k, v in c["task"].items() if k not in ("r_tilt_per_deg", "r_tilt_free_deg", "r_tilt_ramp_after_success", "r_tilt_ramp_steps", "r_tilt_ramp_pitch_margin", "midgoal_from_pile", "reward_zones_from_pile", "r_success_mass_margin_kg")}
         c["training"] = {k: v for k, v in c["training"].items() if k not in NEVER_HASHED}
         return hashlib.sha256(json.dumps(c, sort_keys=True).encode()).hexdigest()[:16]
     old = copy.deepcopy(cfg)
@@ -313,7 +313,7 @@ def test_which_cards_count_as_randomised_and_configs_without_the_sections(cfg):
         if "task" in c and not c["task"].get("r_success_pitch_margin_deg", 0.0):
             c = {**c, "task": {k: v for k, v in c["task"].items() if k != "r_success_pitch_margin_deg"}}
         if "task" in c:      # the tilt penalty off: its keys out
-            c = {**c, "task": {k: v for k, v in c["task"].items() if k not in ("r_tilt_per_deg", "r_tilt_free_deg", "r_tilt_ramp_after_success", "r_tilt_ramp_steps", "r_tilt_ramp_pitch_margin", "midgoal_from_pile", "r_success_mass_margin_kg")}}
+            c = {**c, "task": {k: v for k, v in c["task"].items() if k not in ("r_tilt_per_deg", "r_tilt_free_deg", "r_tilt_ramp_after_success", "r_tilt_ramp_steps", "r_tilt_ramp_pitch_margin", "midgoal_from_pile", "reward_zones_from_pile", "r_success_mass_margin_kg")}}
         if "training" in c:  # how the critic learned: never in it
             c = {**c, "training": {k: v for k, v in c["training"].items() if k not in NEVER_HASHED}}
         return hashlib.sha256(json.dumps(c, sort_keys=True).encode()).hexdigest()[:16]

@@ -30,7 +30,7 @@ def _raw(c):
     c["task"] = {k: v for k, v in c["task"].items() if k not in ("r_tilt_per_deg", "r_tilt_free_deg",
                                                                  "r_tilt_ramp_after_success", "r_tilt_ramp_steps",
                                                                  "r_tilt_ramp_pitch_margin", "midgoal_from_pile",
-                                                                 "r_success_mass_margin_kg")}
+                                                                 "reward_zones_from_pile", "r_success_mass_margin_kg")}
     c["training"] = {k: v for k, v in c["training"].items()
                      if k not in ("twin_critics", "slope_curriculum", "slope_curriculum_bins", "slope_curriculum_window",
                                   "slope_curriculum_uniform", "lr_final_scale", "lr_decay_from",

@@ -39,6 +39,7 @@ def export_actor(directory, actor: FlatMlp, cfg: dict, meta: dict):
                              "lr_decay_from": int(cfg["training"].get("lr_decay_from", 0))}
                             if float(cfg.get("training", {}).get("lr_final_scale", 1.0)) < 1.0 else {}),
                          **({"midgoal_from_pile": 1} if int(cfg["task"].get("midgoal_from_pile", 0)) else {}),
+                         **({"reward_zones_from_pile": 1} if int(cfg["task"].get("reward_zones_from_pile", 0)) else {}),
                          **({"demonstrations": {k: cfg["training"][k] for k in
                                                 ("demo_share", "demo_crowd_min", "demo_crowd_max", "demo_pre_curl")},
                              # the actor's Q-filtered behaviour cloning on them (training.demo_bc)

@@ -171,6 +171,9 @@ def _recipe_note(tw: dict) -> str:
         told_high = float(tw.get("demo_told_high", 0.0) or 0.0)
         if told_high > 0:
             parts.append(f"every episode told the slope {told_high:g} deg or more too steep a demonstration")
+    if int(tw.get("reward_zones_from_pile", 0) or 0):
+        parts.append("the reward's terms reading the pile's own zones where the slope was told wrong "
+                     "(`task.reward_zones_from_pile`; the observation and the episode's end the told ones)")
     if int(tw.get("midgoal_from_pile", 0) or 0):
         parts.append("the mid goal x_midgoal at the start of the pile's end zone (`task.midgoal_from_pile`, a "
                      "departure from the paper's reward)")

@@ -85,7 +85,7 @@ SCHEMA: dict[str, Any] = {
         "r_tilt_ramp_pitch_margin": _i(0, 1), "r_success_mass_margin_kg": _f(0.0, 20.0),
         "bottom_tolerance": _f(0.0, 0.5),
         "bucket_repose_deg": _f(5.0, 60.0), "normalisers_from_pile": _i(0, 1),  # H4: capacity, derived normalisers
-        "midgoal_from_pile": _i(0, 1),
+        "midgoal_from_pile": _i(0, 1), "reward_zones_from_pile": _i(0, 1),
     },
     "machine": {
         "total_mass": _f(1.0, 1e5), "chassis_mass": _f(0.1, 1e5), "rear_mass_fraction": _f(0.05, 0.95),
@@ -304,7 +304,8 @@ OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curric
                      ("training", "slope_curriculum_bins"): 6, ("training", "slope_curriculum_window"): 100,
                      ("training", "slope_curriculum_uniform"): 0.5, ("training", "lr_final_scale"): 1.0,
                      ("training", "lr_decay_from"): 0, ("machine", "rear_differential"): 0,
-                     ("task", "midgoal_from_pile"): 0, ("training", "demo_share"): 0.0,
+                     ("task", "midgoal_from_pile"): 0, ("task", "reward_zones_from_pile"): 0,
+                     ("training", "demo_share"): 0.0,
                      ("training", "demo_crowd_min"): 0.5, ("training", "demo_crowd_max"): 0.75,
                      ("training", "demo_pre_curl"): 0.3, ("training", "demo_bc"): 0.0,
                      ("training", "demo_until_step"): 0, ("training", "critic_huber"): 0.0,
@@ -472,7 +473,9 @@ TILT_SCHEDULE_KEYS = ("r_tilt_ramp_after_success", "r_tilt_ramp_steps", "r_tilt_
                       "r_success_mass_margin_kg",
                       # where r_midgoal / r_inact switch (the paper's constant x_midgoal, or the episode pile's
                       # x_min): reward shaping, not what the actor sees; the card's trained_with records it
-                      "midgoal_from_pile")
+                      "midgoal_from_pile",
+                      # the zones the reward's shaping terms read (the told ones, or the pile's own): likewise
+                      "reward_zones_from_pile")
 # how the learner learned (never in the hash; the card's trained_with records them): clipped double Q
 # and the slope curriculum (learning/curriculum.py), which draws training piles, never evaluation ones
 TRAINING_SCHEDULE_KEYS = ("twin_critics", "slope_curriculum", "slope_curriculum_bins", "slope_curriculum_window",

@@ -86,6 +86,7 @@ class TaskParams:
     r_tilt_per_deg: float = 0.0                 # training: r_tilt = -this x (|machine pitch| - r_tilt_free) per step, deg
     r_tilt_free: float = 0.0                    # rad; a machine pitch this small costs nothing
     midgoal_from_pile: int = 0                  # 1: r_midgoal / r_inact switch at the episode pile's x_min (for_pile)
+    reward_zones_from_pile: int = 0             # 1: the reward's terms read the pile's own zones, not the told ones (training)
 
     def for_pile(self, zones) -> "TaskParams":
         """These parameters for one episode's pile: with midgoal_from_pile, x_midgoal is the end zone's
@@ -131,4 +132,5 @@ class TaskParams:
             r_tilt_per_deg=t.get("r_tilt_per_deg", 0.0), r_tilt_free=rad(t.get("r_tilt_free_deg", 0.0)),
             bucket_repose=rad(t["bucket_repose_deg"]), normalisers_from_pile=t["normalisers_from_pile"],
             midgoal_from_pile=int(t.get("midgoal_from_pile", 0)),
+            reward_zones_from_pile=int(t.get("reward_zones_from_pile", 0)),
         )
