@@ -26,13 +26,23 @@ case $S in rld) F=steep; V=rld ;; rlc) F=steep_rlc; V=rlc ;; rlc_to_end) F=steep
   push_curl_rld) F=steep_push_curl; V=rld; E=docs/evidence/told_high_bound ;;
   # a two-seed pilot only (docs/evidence/told_high_bound/push_curl_high_pilot/): the same with randomization.slope_error_high_share 0.3 (lhd_params_steep_push_curl_high.yaml)
   push_curl_high_rld) F=steep_push_curl_high; V=rld; E=docs/evidence/told_high_bound ;;
-  *) echo "usage: evaluate.sh [rld|rlc|rlc_to_end|push_curl_rld|push_curl_high_rld]" >&2; exit 2 ;; esac
+  # 2026-11-30, eighteenth session: the push-curl file with training.demo_told_high 7.5 (every episode told 7.5 deg
+  # or more too steep a demonstration), or with task.reward_zones_from_pile 1 (the reward's terms on the pile's own
+  # zones); neither key is in the hash, so both run on the push-curl file's nominal evaluation file
+  told_high_demos_rld) F=steep_push_curl_told_high_demos; V=rld; E=docs/evidence/told_high_bound ;;
+  reward_pile_zones_rld) F=steep_push_curl_reward_pile_zones; V=rld; E=docs/evidence/told_high_bound ;;
+  *) echo "usage: evaluate.sh [rld|rlc|rlc_to_end|push_curl_rld|push_curl_high_rld|told_high_demos_rld|reward_pile_zones_rld]" >&2
+     exit 2 ;; esac
 CFG=$E/lhd_params_$F.yaml
 NOM=$E/lhd_params_${F}_nominal_eval.yaml
-case $S in push_curl_rld|push_curl_high_rld) RUNS=runs/$S; P=$S ;; *) RUNS=runs/steep_$S; P=steep_$S ;; esac
+case $S in told_high_demos_rld|reward_pile_zones_rld) NOM=$E/lhd_params_steep_push_curl_nominal_eval.yaml ;; esac
+case $S in push_curl_rld|push_curl_high_rld|told_high_demos_rld|reward_pile_zones_rld) RUNS=runs/$S; P=$S ;;
+  *) RUNS=runs/steep_$S; P=steep_$S ;; esac
+# every seed the run has (five for a study, two for a pilot)
+SEEDS=$(ls -d $RUNS/seed_* | sed 's/.*seed_//' | sort -n)
 .venv/bin/lhd report $RUNS --held-out nominal,randomized,placement,sensors,delay,light,dense,rocky --config $CFG \
     --jobs 2 --json > $E/${P}_report.json 2> $E/${P}_report.log
-for s in 0 1 2 3 4; do
+for s in $SEEDS; do
   .venv/bin/lhd experiment paper --controllers $V --$V $RUNS/seed_$s/final --config $NOM \
       --slopes 10,15,20,25,30,35,40 --errors=-15,-10,-5,0,5,10,15 --episodes 20 --jobs 2 \
       --out /tmp/${P}_seed$s > /dev/null 2>&1

@@ -3,16 +3,19 @@
 # the lift': the mean normalised wheel command (-1: stopped, 1: full) while the tip is past 0.4 m and the boom has
 # not started to lift; 'lift at x': the tip's x where the boom first rose 1 deg. Run from the repository root:
 #   .venv/bin/python docs/evidence/told_high_bound/push_curl_actors_push.py > docs/evidence/told_high_bound/push_curl_actors_push.txt
-import math, numpy as np
+# Another run: push_curl_actors_push.py RUNS_DIR EVAL_CONFIG SEEDS (e.g. runs/told_high_demos_rld
+#   docs/evidence/told_high_bound/lhd_params_steep_push_curl_nominal_eval.yaml 0,1).
+import math, sys, numpy as np
 from dataclasses import replace
 from lhd_loading_ros.learning import experiment as ex
 from lhd_loading_ros.task.randomization import NOMINAL
 from lhd_loading_ros.learning.demonstrations import demo_action
-cfg="docs/evidence/told_high_bound/lhd_params_steep_push_curl_nominal_eval.yaml"
-ex._setup(cfg, {f"s{s}": f"runs/push_curl_rld/seed_{s}/final" for s in range(5)})
+runs, cfg, seeds = (sys.argv[1], sys.argv[2], [int(s) for s in sys.argv[3].split(",")]) if len(sys.argv) > 1 else \
+    ("runs/push_curl_rld", "docs/evidence/told_high_bound/lhd_params_steep_push_curl_nominal_eval.yaml", list(range(5)))
+ex._setup(cfg, {f"s{s}": f"{runs}/seed_{s}/final" for s in seeds})
 env=ex._env("rld")
 for told in (15.0, 30.0):
-    for ctl in ["teacher"]+[f"s{s}" for s in range(5)]:
+    for ctl in ["teacher"]+[f"s{s}" for s in seeds]:
         W=[]; X=[]; M=[]; S=0
         for ep in range(5):
             opts={"slope_deg":15.0,"material":"homogeneous"}
