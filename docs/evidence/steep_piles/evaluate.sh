@@ -39,7 +39,7 @@ case $S in told_high_demos_rld|reward_pile_zones_rld) NOM=$E/lhd_params_steep_pu
 case $S in push_curl_rld|push_curl_high_rld|told_high_demos_rld|reward_pile_zones_rld) RUNS=runs/$S; P=$S ;;
   *) RUNS=runs/steep_$S; P=steep_$S ;; esac
 # every seed the run has (five for a study, two for a pilot)
-SEEDS=$(ls -d $RUNS/seed_* | sed 's/.*seed_//' | sort -n)
+SEEDS=$(ls -d $RUNS/seed_*/ | sed "s#.*seed_##; s#/##" | sort -n)
 .venv/bin/lhd report $RUNS --held-out nominal,randomized,placement,sensors,delay,light,dense,rocky --config $CFG \
     --jobs 2 --json > $E/${P}_report.json 2> $E/${P}_report.log
 for s in $SEEDS; do
