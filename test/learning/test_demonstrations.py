@@ -311,6 +311,11 @@ def test_the_told_teacher_keys(cfg):
         c["training"]["demo_told_high"] = bad
         with pytest.raises(ConfigError, match="demo_told_high"):
             validate(c)
+    # without demonstrations it would do nothing: refused, saying so
+    c["training"].update({"demo_told_high": 7.5, "demo_share": 0.0, "demo_bc": 0.0, "demo_bc_return_filter": 0})
+    with pytest.raises(ConfigError, match="demo_told_high > 0 only with training.demo_share > 0"):
+        validate(c)
+    c["training"]["demo_share"] = 0.3
     c["training"]["demo_told_high"] = 0.0
     c["training"]["demo_end_zone_stop"] = 1.5
     with pytest.raises(ConfigError, match="demo_end_zone_stop"):

@@ -172,6 +172,10 @@ _RELATIONS = [
      lambda c: not _whole(_physics_steps(c)) or round(_physics_steps(c)) % c["sim"]["fee_every"] == 0),
     ("training.demo_bc_return_filter = 1 only with training.demo_bc > 0 (it chooses which demonstration rows are "
      "cloned)", lambda c: not c["training"]["demo_bc_return_filter"] or c["training"]["demo_bc"] > 0.0),
+    # without demo_share there are no demonstrations at all (DemoConfig is off): the key would do nothing, silently
+    ("training.demo_told_high > 0 only with training.demo_share > 0 (it makes told-high episodes demonstrations; "
+     "the demonstrations are off at demo_share 0)",
+     lambda c: not c["training"]["demo_told_high"] > 0.0 or c["training"]["demo_share"] > 0.0),
     ("training.demo_crowd_min <= training.demo_crowd_max",
      lambda c: c["training"]["demo_crowd_min"] <= c["training"]["demo_crowd_max"]),
     ("paper.end_zone.m_min < paper.end_zone.m_max", lambda c: c["paper"]["end_zone"]["m_min"] < c["paper"]["end_zone"]["m_max"]),
