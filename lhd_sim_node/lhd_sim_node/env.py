@@ -200,9 +200,10 @@ class LhdLoadingEnv(gym.Env):
         self.zones, self.zones_from = self._task_zones(c_obs)
         s = self.sim.state()
         # the zones the reward reads: those the episode is observed and ended with, or (task.reward_zones_from_pile, a
-        # training setting) the pile's own, where a slope told wrong moves the told ones: the rail, the mid goal and
-        # r_inact then shape the maneuver that suits the pile in front of the machine, while the observation, the
-        # end of the episode and so when r_success is paid stay with the told zones, as on the machine
+        # training setting) the pile's own, where a slope told wrong (or the nominal density) moves the told ones:
+        # the rail, and with task.midgoal_from_pile the mid goal and r_inact, then shape the maneuver that suits the
+        # pile in front of the machine, while the observation, the end of the episode and so when r_success is paid
+        # stay with the told zones, as on the machine
         self.reward_zones = self.sim.zones if self.p.reward_zones_from_pile else self.zones
         # the reward's x_midgoal: the paper's constant, or this pile's x_min (task.midgoal_from_pile)
         self.tracker = RewardTracker(self.p.for_pile(self.reward_zones), self.reward_zones, self.p.h_pile)

@@ -316,6 +316,12 @@ def test_the_told_teacher_keys(cfg):
     with pytest.raises(ConfigError, match="demo_told_high > 0 only with training.demo_share > 0"):
         validate(c)
     c["training"]["demo_share"] = 0.3
+    # above the largest slope error drawn no episode is told that much too steep: refused, saying so
+    c["randomization"]["slope_error_max_deg"] = 7.0
+    with pytest.raises(ConfigError, match=r"demo_told_high <= randomization.slope_error_max_deg"):
+        validate(c)
+    c["randomization"]["slope_error_max_deg"] = 7.5
+    assert validate(c)["training"]["demo_told_high"] == 7.5
     c["training"]["demo_told_high"] = 0.0
     c["training"]["demo_end_zone_stop"] = 1.5
     with pytest.raises(ConfigError, match="demo_end_zone_stop"):

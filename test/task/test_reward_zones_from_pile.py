@@ -76,3 +76,27 @@ def test_off_by_default_out_of_the_hash_and_on_the_card(cfg, tmp_path):
     bad["task"]["reward_zones_from_pile"] = 2
     with pytest.raises(Exception, match="reward_zones_from_pile"):
         validate(bad)
+
+
+def test_refused_where_it_would_do_nothing(cfg, tmp_path):
+    """Where no told slope moves the zones the reward reads the same zones either way: the configuration refuses
+    the key without zones from the slope estimate or at the nominal density, and training refuses it (and
+    demo_told_high) without domain randomisation, before anything is written."""
+    from lhd_loading_ros.learning.train import train
+    from lhd_loading_ros.task.config import ConfigError
+
+    c = copy.deepcopy(cfg)
+    c["task"]["reward_zones_from_pile"] = 1
+    c["randomization"].update({"zones_from_slope_estimate": 0, "zones_at_nominal_density": 0})
+    with pytest.raises(ConfigError, match="reward_zones_from_pile = 1 only with randomization.zones_from_slope_estimate"):
+        validate(c)
+    c["randomization"]["zones_at_nominal_density"] = 1
+    assert validate(c)["task"]["reward_zones_from_pile"] == 1
+    c["randomization"].update({"zones_from_slope_estimate": 1, "zones_at_nominal_density": 0, "enabled": 0})
+    c = validate(c)
+    with pytest.raises(ValueError, match=r"task.reward_zones_from_pile act only .* --randomize"):
+        train("rld", 0, tmp_path / "run", steps=10, config=c, resume=False, progress=False)
+    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == [".train.lock"]   # nothing of a run written
+    c["training"].update({"demo_share": 0.3, "demo_told_high": 7.5})
+    with pytest.raises(ValueError, match=r"training.demo_told_high and task.reward_zones_from_pile act only"):
+        train("rld", 0, tmp_path / "run", steps=10, config=validate(c), resume=False, progress=False)

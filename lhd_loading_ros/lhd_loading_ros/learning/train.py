@@ -271,6 +271,14 @@ def _train(variant: str, seed: int, out, steps: int | None = None, config=None, 
     cfg = config if isinstance(config, dict) else load_config(config)
     if randomize:
         cfg = {**cfg, "randomization": {**cfg["randomization"], "enabled": 1}}
+    if not cfg["randomization"]["enabled"]:
+        # without randomisation every episode is told the true slope: these keys would do nothing, silently
+        on = [k for k, v in (("training.demo_told_high", cfg["training"].get("demo_told_high", 0.0) > 0.0),
+                             ("task.reward_zones_from_pile", cfg["task"].get("reward_zones_from_pile", 0))) if v]
+        if on:
+            raise ValueError(f"{' and '.join(on)} act only on episodes whose slope is told wrong, and without domain "
+                             "randomisation no episode is: train with --randomize (or randomization.enabled: 1), "
+                             "or set them to 0")
     dc = DdpgConfig.from_config(cfg)
     seed_offset = int(cfg["training"].get("episode_seed_offset", 0))   # where the episode seeds start (episode_seed)
     over = {k: v for k, v in (("total_steps", steps), ("eval_episodes", eval_episodes),

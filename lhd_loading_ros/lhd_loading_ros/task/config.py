@@ -176,6 +176,15 @@ _RELATIONS = [
     ("training.demo_told_high > 0 only with training.demo_share > 0 (it makes told-high episodes demonstrations; "
      "the demonstrations are off at demo_share 0)",
      lambda c: not c["training"]["demo_told_high"] > 0.0 or c["training"]["demo_share"] > 0.0),
+    # a told error of at least demo_told_high is never drawn where the slope error stays below it: silent again
+    ("training.demo_told_high <= randomization.slope_error_max_deg (no episode is told more than slope_error_max_deg "
+     "too steep, so none would be a told-high demonstration)",
+     lambda c: c["training"]["demo_told_high"] <= c["randomization"]["slope_error_max_deg"]),
+    # with neither, the told zones are the pile's own and the reward reads the same zones either way
+    ("task.reward_zones_from_pile = 1 only with randomization.zones_from_slope_estimate = 1 or "
+     "randomization.zones_at_nominal_density = 1 (otherwise the told zones are the pile's own and the key does nothing)",
+     lambda c: not c["task"]["reward_zones_from_pile"] or c["randomization"]["zones_from_slope_estimate"]
+     or c["randomization"]["zones_at_nominal_density"]),
     ("training.demo_crowd_min <= training.demo_crowd_max",
      lambda c: c["training"]["demo_crowd_min"] <= c["training"]["demo_crowd_max"]),
     ("paper.end_zone.m_min < paper.end_zone.m_max", lambda c: c["paper"]["end_zone"]["m_min"] < c["paper"]["end_zone"]["m_max"]),
