@@ -41,7 +41,7 @@ import numpy as np
 
 from lhd_loading_ros.task import transition as tr
 from lhd_loading_ros.task.actions import apply_variant_filter, to_actuator, validate_action
-from lhd_loading_ros.task.config import config_hash, load_config
+from lhd_loading_ros.task.config import config_hash, load_config, task_hash
 from lhd_loading_ros.task.metrics import result_from_status
 from lhd_loading_ros.task.observation import OBS_HIGH, OBS_LOW
 from lhd_loading_ros.task.params import TaskParams
@@ -153,6 +153,7 @@ class SimNodePool:
         self.cfg = config if isinstance(config, dict) else load_config(config)
         self.p = TaskParams.from_config(self.cfg)
         self.hash = config_hash(self.cfg)
+        self.task_hash = task_hash(self.cfg)
         self.variant, self.deploy_filter, self.timeout = variant, deploy_filter, float(timeout)
         self.context = rclpy.Context()
         rclpy.init(context=self.context)
@@ -280,6 +281,17 @@ class SimNodePool:
         if theirs is None:
             raise RuntimeError(f"sim node {link.fqn} does not report its config hash in /episode (an older "
                                "lhd_sim_node?); update it")
+        theirs_task = kv.get("task_hash")
+        if theirs_task is None:
+            raise RuntimeError(f"sim node {link.fqn} does not report its task hash in /episode (an older "
+                               "lhd_sim_node?); update it")
+        if theirs_task != self.task_hash:
+            # config_hash leaves the reward's shaping keys out (they are not what the actor sees), but the sim node
+            # computes the rewards this learner trains on and its card records
+            raise RuntimeError(f"sim node {link.fqn} computes its reward from another task section (task hash "
+                               f"{theirs_task[:12]}) than this learner ({self.task_hash[:12]}): the same actor inputs, "
+                               "but other reward settings (e.g. midgoal_from_pile, reward_zones_from_pile, the tilt "
+                               "schedule); start both with the same --config / LHD_CONFIG")
 
     # the task -------------------------------------------------------------------------------
     def _check_open(self) -> None:

@@ -59,7 +59,7 @@ from std_srvs.srv import Trigger
 
 from lhd_loading_ros.task import transition
 from lhd_loading_ros.task.metrics import SL_BANDS
-from lhd_loading_ros.task.config import config_hash, load_config
+from lhd_loading_ros.task.config import config_hash, load_config, task_hash
 from lhd_loading_ros.ros.qos import COMMAND_QOS, LATCHED_QOS, MEASUREMENT_QOS, STATUS_QOS
 from lhd_loading_ros.ros.diagnostics import OK, WARN, Diagnostics
 from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
@@ -148,6 +148,7 @@ class SimNode(Node):
         self.frame_id, self.base_frame_id = gp("frame_id"), gp("base_frame_id")
         self.next_seed = gp("next_seed")
         self.config_hash = config_hash(cfg)
+        self.task_hash = task_hash(cfg)   # the reward's settings too (a learner checks both)
         ns = topic_prefix(self, gp("namespace_prefix"))
 
         # stepped with actuator commands (the variant is not used). It publishes the pile's own zones (the truth, as
@@ -484,7 +485,7 @@ class SimNode(Node):
         s = self.env.state
         vals = {
             "state": self.outcome, "episode": self.episode, "seed": self.episode_seed,
-            "config_hash": self.config_hash,
+            "config_hash": self.config_hash, "task_hash": self.task_hash,
             "step": self.env.steps, "stamp_ns": self.t_ns, "loaded_mass": f"{self.sim.loaded_mass:.4f}",
             "slope_deg": f"{math.degrees(self.sim.pile.alpha):.3f}", "material": self.sim.material,
             "x_shovel": f"{s.x_shovel:.4f}", "z_shovel": f"{s.z_shovel:.4f}",

@@ -19,6 +19,7 @@ import gymnasium as gym
 import lhd_sim_node  # noqa: F401  (registers the environments)
 from lhd_sim_node.env import LhdLoadingEnv
 from lhd_sim_node.ros_env import LhdLoadingRosEnv
+from lhd_loading_ros.task.config import config_hash, load_config, validate
 
 from rosutil import RosProcess, init_ros, shutdown_ros
 
@@ -136,14 +137,24 @@ def test_realtime_node_and_other_config_are_refused(sim_node, tmp_path):
     other.write_text(yaml.safe_dump(cfg))
     oc = RosProcess("lhd_sim_node.sim_node", {"mode": "lockstep", "config": str(other)}, tmp_path / "oc.log",
                     remaps={"__ns": "/envcfg"})
+    # the same config hash (a reward-shaping key is not in it) but another reward: refused too
+    shaped = yaml.safe_load((ROOT / "config" / "lhd_params.yaml").read_text())
+    shaped["task"]["midgoal_from_pile"] = 1 - int(shaped["task"]["midgoal_from_pile"])
+    assert config_hash(validate(shaped)) == config_hash(load_config())
+    (tmp_path / "shaped.yaml").write_text(yaml.safe_dump(shaped))
+    sc = RosProcess("lhd_sim_node.sim_node", {"mode": "lockstep", "config": str(tmp_path / "shaped.yaml")},
+                    tmp_path / "sc.log", remaps={"__ns": "/envshaped"})
     try:
         with pytest.raises(RuntimeError, match="realtime.*mode:=lockstep"):
             LhdLoadingRosEnv("rld", namespace="/envrt", timeout=30.0)
         with pytest.raises(RuntimeError, match="another parameter file"):
             LhdLoadingRosEnv("rld", namespace="/envcfg", timeout=30.0)
+        with pytest.raises(RuntimeError, match="another task section .* reward settings"):
+            LhdLoadingRosEnv("rld", namespace="/envshaped", timeout=30.0)
     finally:
         rt.stop()
         oc.stop()
+        sc.stop()
 
 
 def test_idempotent_parameter_calls_are_sent_again_until_answered():

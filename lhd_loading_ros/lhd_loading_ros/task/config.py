@@ -551,6 +551,14 @@ def config_hash(cfg: dict) -> str:
     return hashlib.sha256(json.dumps(cfg, sort_keys=True).encode()).hexdigest()[:16]
 
 
+def task_hash(cfg: dict) -> str:
+    """Short hash of the whole `task` section, shaping keys included (those config_hash leaves out: the tilt
+    schedule, midgoal_from_pile, reward_zones_from_pile, ...). Two processes that compute one run's rewards (a
+    learner and the sim nodes it trains from) must agree on it as well as on config_hash: the reward is not part
+    of what the actor sees, but it is what the card records the actor was trained with."""
+    return hashlib.sha256(json.dumps(cfg.get("task", {}), sort_keys=True).encode()).hexdigest()[:16]
+
+
 def training_variants(cfg: dict, trained_margin_deg: float | None = None,
                       trained_tilt: tuple[float, float] | None = None) -> list[dict]:
     """`cfg` with its TRAINING_ONLY settings at every value an actor that runs on it may have
