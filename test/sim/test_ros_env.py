@@ -108,7 +108,11 @@ def test_a_second_learner_or_a_stray_command_is_refused(sim_node):
             env2 = LhdLoadingRosEnv("rld", namespace="/envtest", timeout=30.0)
         assert env2 is None
         pub.publish(Float64MultiArray(data=[0.5, 0.0, 0.0]))
-        time.sleep(0.5)
+        # wait until the sim node has taken the stray step (its transition reached this learner), not a fixed
+        # time: on a loaded machine 0.5 s was once too short and our command went first
+        link = env.pool.links[0]
+        key = (link.episode, link.steps + 1)
+        env.pool._spin_until(lambda: link.transitions.get(key), "the stray command's step", link, timeout=20.0)
         with pytest.raises(RuntimeError, match="another node publishes on /envtest/cmd"):
             env.step(np.array([1.0, 0.0, 0.0]))
         node.destroy_node()
