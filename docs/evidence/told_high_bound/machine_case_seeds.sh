@@ -8,18 +8,13 @@
 # 120 held-out episodes each (seed 2,000,000), 15-30 deg piles; the nominal evaluation file both ship with.
 set -euo pipefail
 CFG=docs/evidence/told_high_bound/lhd_params_steep_push_curl_nominal_eval.yaml
-for run in told_high_demos_rld told_high_demos_pile_zones_rld; do
-  for s in 0 1 2 3 4; do
-    echo "== $run seed $s, --stress machine"
-    .venv/bin/lhd eval --policy runs/$run/seed_$s/final --config $CFG --stress machine --episodes 120 \
-        | grep -E "^ +(all|15 deg|20 deg)|^failures"
-  done
-done
-for run in told_high_demos_rld told_high_demos_pile_zones_rld; do
-  for s in 0 1 2 3 4; do
-    echo "== $run seed $s, --stress rest"
-    .venv/bin/lhd eval --policy runs/$run/seed_$s/final --config $CFG --stress rest --episodes 120 \
-        | grep -E "^ +(all|15 deg|20 deg)|^failures"
+for st in machine rest; do
+  for run in told_high_demos_rld told_high_demos_pile_zones_rld; do
+    for s in 0 1 2 3 4; do
+      echo "== $run seed $s, --stress $st"
+      .venv/bin/lhd eval --policy runs/$run/seed_$s/final --config $CFG --stress $st --episodes 120 \
+          | grep -E "^ +(all|15 deg|20 deg)|^failures"
+    done
   done
 done
 for s in 0 2; do
