@@ -340,6 +340,14 @@ class LhdLoadingEnv(gym.Env):
     def _obs(self, s):
         """The observation of the measured state s (_measured: computed once a step, for this and the end test)."""
         alpha = self.sim.pile.alpha
+        lag_max = self.conditions.drift_flag_lag_max_s
+        if lag_max > 0.0:
+            # the drift flag as the bridge gives it: over a control period ending 0..lag_max before now (the newest
+            # camera image's age, drawn each step on the chunk grain; LhdSimulator.drift_flag); the episode's drift
+            # figures and the reward keep the simulator's own window
+            n = int(math.floor(lag_max / self.sim.fee_dt + 1e-9))
+            front, rear = self.sim.drift_flag(int(self.np_random.integers(0, n + 1)))
+            s = replace(s, drift=front or rear, drift_front=front, drift_rear=rear)
         if self._sensors is not None:        # what the camera and the LiDAR tell the policy
             v_x, alpha = self._sensors.observe(s.v_x, alpha)
             s = replace(s, v_x=v_x)

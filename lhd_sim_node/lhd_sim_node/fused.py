@@ -122,6 +122,29 @@ def run_chunks(pm, pd, n_chunks, nstep, fee_on, kinematics, kargs, bargs):
 
 
 @njit(cache=True)
+def run_chunks_marked(pm, pd, n_chunks, nstep, fee_on, kinematics, kargs, bargs, time0, timestep, qpos, wheel_qs,
+                      marks):
+    """run_chunks, recording after each chunk the drift mark (time, x, wheel angles) in marks[k] (k: the
+    chunk): the machine's travel at the chunk grain, for a drift window that does not begin with the
+    control period (LhdSimulator.drift_flag). The same physics as run_chunks, step for step; the time is
+    MuJoCo's, accumulated as mj_step accumulates it."""
+    now = time0
+    for k in range(n_chunks):
+        if fee_on:
+            fee_update(*kargs)
+        bucket_body_update(*bargs)
+        for _ in range(nstep):
+            _mj_step(pm, pd)
+            now += timestep
+        marks[k, 0] = now
+        marks[k, 1] = qpos[0]
+        for w in range(wheel_qs.shape[0]):
+            marks[k, 2 + w] = qpos[wheel_qs[w]]
+    if kinematics:
+        _mj_kinematics(pm, pd)
+
+
+@njit(cache=True)
 def run_attack(pm, pd, nstep, fee_on, kargs, bargs, site_xpos, sid_tip, d_init, fee_dt, timeout, time0, timestep,
                qpos, wheel_qs, marks):
     """The attack drive of Simulator.reset: while the tip is short of d_init, record the drift mark

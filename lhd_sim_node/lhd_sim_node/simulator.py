@@ -34,7 +34,7 @@ from .fee_kernel import (OUT_SIZE, P_BID_BUCKET, P_BUCKET_MASS0, P_CA, P_DX, P_D
 from .mjcf import attack_geometry, build_mjcf
 from . import fused
 from .bucket_body import BucketBody, bucket_body_update
-from .fused import run_attack, run_chunks
+from .fused import run_attack, run_chunks, run_chunks_marked
 
 WHEELS = ("wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr")
 MATERIALS = ("homogeneous", "nonhomogeneous")
@@ -51,6 +51,8 @@ class AttackError(RuntimeError):
 
 REST_SPEED = 0.005     # m/s: the machine and every wheel rim slower than this stand still (a start from rest)
 REST_TIMEOUT = 3.0     # s: a machine still moving this long after its wheels were stopped is an AttackError
+DRIFT_LAG_LIMIT_S = 0.5   # s: the longest drift-window lag the chunk history serves (config schema's limit of
+                          # randomization.drift_flag_lag_max_s)
 
 
 @dataclass
@@ -152,6 +154,13 @@ class LhdSimulator:
         self._wheel_qs_arr = np.array(self._wheel_qs, dtype=np.int64)
         self._drift_marks: deque = deque(maxlen=max(1, self.n_phys // self.fee_every))
         self._drift_from: tuple = ()
+        # the marks at every chunk boundary of the last DRIFT_LAG_LIMIT_S + a control period, kept while the
+        # episode's conditions lag the observed drift window (conditions.drift_flag_lag_max_s; drift_flag)
+        n_chunks = max(1, self.n_phys // self.fee_every)
+        self._chunk_hist: deque = deque(maxlen=n_chunks + int(math.ceil(DRIFT_LAG_LIMIT_S / (self.fee_every * m.opt.timestep)
+                                                                          - 1e-9)) + 1)
+        self._hist_marks = np.zeros((n_chunks, 2 + len(WHEELS)))
+        self._keep_hist = False
         self.boom_q = m.jnt_qposadr[m.joint("boom").id]
         self.boom_v = m.jnt_dofadr[m.joint("boom").id]
         self.bucket_q = m.jnt_qposadr[m.joint("bucket").id]
@@ -270,6 +279,7 @@ class LhdSimulator:
         d.xfrc_applied[:] = 0.0
         self._drift_marks.clear()
         self._drift_from = self._drift_mark()  # drift window: none yet (wheel_drift)
+        self._chunk_hist.clear()
         self._bind_kernel()
         self._body_args = self.body.bind(m, d, self.pile, self._slices, self.bucket_mass0)
 
@@ -309,6 +319,10 @@ class LhdSimulator:
         if not (c.drive_gain > 0.0 and c.hydraulic_gain > 0.0):
             raise ValueError(f"actuator gains drive {c.drive_gain!r}, hydraulics {c.hydraulic_gain!r}: expected > 0")
         self._gains = (float(c.drive_gain), float(c.hydraulic_gain))
+        lag = float(c.drift_flag_lag_max_s)
+        if not (math.isfinite(lag) and 0.0 <= lag <= DRIFT_LAG_LIMIT_S + 1e-9):
+            raise ValueError(f"conditions.drift_flag_lag_max_s {lag!r} s: expected 0..{DRIFT_LAG_LIMIT_S:g} s")
+        self._keep_hist = lag > 0.0
         self.d_attack, self.attack_speed = float(d_attack), float(attack_speed)
         self.place_machine(self.d_attack, math.radians(c.heading_deg), c.lateral_offset)
         t = 0.0
@@ -328,14 +342,21 @@ class LhdSimulator:
                                       self._wheel_qs_arr, marks)
             for k in range(max(0, n - self._drift_marks.maxlen), n):
                 self._drift_marks.append(tuple(marks[k].tolist()))
+            if self._keep_hist:
+                for k in range(max(0, n - self._chunk_hist.maxlen), n):
+                    self._chunk_hist.append(tuple(marks[k].tolist()))
             if n:
                 self._drift_from = self._drift_marks[0]
             t = self.attack_timeout + 1.0 if timed_out else 0.0
         while t <= self.attack_timeout and tip[0] < p.d_init:
             self._drift_marks.append(self._drift_mark())
+            if self._keep_hist:
+                self._chunk_hist.append(self._drift_mark())
             self._drift_from = self._drift_marks[0]
             self._chunks(1)
             t += self.fee_dt
+        if self._keep_hist:
+            self._chunk_hist.append(self._drift_mark())    # the boundary after the drive's last chunk
         # an instability inside the drive: mj_step reset the data (its time to 0) and counted a warning
         if self._instability_count() != warnings0 or (now is not None and abs(now - self.data.time) > 1e-6):
             raise SimulationError(
@@ -360,6 +381,10 @@ class LhdSimulator:
             self._sync_from_kernel()
         if c.rest_start:
             self.come_to_rest()
+            # armed after the machine stood: the drift windows reaching before now see it stand (drift_flag)
+            self._chunk_hist.clear()
+            if self._keep_hist:
+                self._chunk_hist.append(self._drift_mark())
 
     def come_to_rest(self) -> None:
         """Every actuator commanded to zero, one FEE chunk at a time, until the machine and its
@@ -414,7 +439,7 @@ class LhdSimulator:
                                        prev[2] if k < dh else u[2]]))
             self._anti_windup()
             last = i == len(changes) - 1
-            self._chunks((chunks if last else changes[i + 1]) - k, kinematics=last)
+            self._chunks((chunks if last else changes[i + 1]) - k, kinematics=last, record=self._keep_hist)
         self._check_stable()
         if self.use_kernel:
             self._sync_from_kernel()
@@ -442,20 +467,31 @@ class LhdSimulator:
         self._anti_windup()
         self._drift_marks.append(self._drift_mark())
         self._drift_from = self._drift_marks[0]
-        self._chunks(1)
+        self._chunks(1, record=self._keep_hist)
         self._check_stable()
         if self.use_kernel:
             self._sync_from_kernel()
 
-    def _chunks(self, n: int, kinematics: bool = True) -> None:
+    def _chunks(self, n: int, kinematics: bool = True, record: bool = False) -> None:
         """n FEE chunks (each: _physics(fee_every)), then mj_kinematics if kinematics, in one
-        compiled call where it can (fused.py), else driven from Python: the same states."""
+        compiled call where it can (fused.py), else driven from Python: the same states. record:
+        the drift mark after each chunk goes to the chunk history (drift_flag)."""
         if self.fused and self.use_kernel:
+            if record:
+                marks = self._hist_marks
+                run_chunks_marked(self._pm, self._pd, n, self.fee_every, self.fee_enabled, kinematics, self._kargs,
+                                  self._body_args, self.data.time, self.model.opt.timestep, self._qpos,
+                                  self._wheel_qs_arr, marks)
+                for k in range(n):
+                    self._chunk_hist.append(tuple(marks[k].tolist()))
+                return
             run_chunks(self._pm, self._pd, n, self.fee_every, self.fee_enabled, kinematics, self._kargs,
                        self._body_args)
             return
         for _ in range(n):
             self._physics(self.fee_every)
+            if record:
+                self._chunk_hist.append(self._drift_mark())
         if kinematics:
             mujoco.mj_kinematics(self.model, self.data)
 
@@ -651,6 +687,38 @@ class LhdSimulator:
         slip = []
         for k, i in enumerate(self._wheel_qs):
             rim = (float(q[i]) - mark[2 + k]) * r
+            slip.append(abs(rim - dx) > max(tol_min, p.drift_slip_ratio * max(abs(rim), abs(dx))))
+        return slip[0] or slip[1], slip[2] or slip[3]
+
+    def drift_flag(self, lag_chunks: int) -> tuple[bool, bool]:
+        """(front, rear) by wheel_drift's rule over one control period that ends lag_chunks FEE chunks
+        before now, from the chunk history (kept while the episode's conditions.drift_flag_lag_max_s > 0):
+        the flag as the machine's bridge gives it, whose window ends at its newest camera image, older
+        than the instant the policy reads the flag, and so straddles a start from rest where the
+        simulator's own window, which begins with the command, does not (docs/modeling.md "A start from
+        rest"). Before the history (the machine armed after it stood, or placed before its drive in) the
+        machine stood at the history's first mark. lag_chunks 0 gives wheel_drift's flags."""
+        hist = self._chunk_hist
+        if not self._keep_hist:
+            raise RuntimeError("drift_flag: no chunk history this episode (conditions.drift_flag_lag_max_s is 0); "
+                               "wheel_drift gives the flags of the last control period")
+        n = max(1, self.n_phys // self.fee_every)
+        if not (isinstance(lag_chunks, (int, np.integer)) and 0 <= lag_chunks <= hist.maxlen - n - 1):
+            raise ValueError(f"drift_flag: lag_chunks {lag_chunks!r}: expected a whole number of chunks "
+                             f"0..{hist.maxlen - n - 1}")
+        e = len(hist) - 1 - int(lag_chunks)
+        if e <= 0:
+            return False, False            # the window ends while the machine stood
+        end = hist[e]
+        T = n * self.fee_dt
+        start = hist[e - n] if e >= n else (end[0] - T, *hist[0][1:])
+        p, r = self.p, self.wheel_radius
+        T = end[0] - start[0]
+        dx = end[1] - start[1]
+        tol_min = p.drift_min_speed * T
+        slip = []
+        for k in range(len(self._wheel_qs)):
+            rim = (end[2 + k] - start[2 + k]) * r
             slip.append(abs(rim - dx) > max(tol_min, p.drift_slip_ratio * max(abs(rim), abs(dx))))
         return slip[0] or slip[1], slip[2] or slip[3]
 

@@ -548,15 +548,16 @@ def test_the_cards_drawn_conditions_are_the_files_ranges():
     r = cfg["randomization"]
     assert f"+-{r['slope_error_max_deg']:g} deg" in text and f"cohesion up to {r['cohesion_max']:,.0f} Pa" in text
     assert "commanded" not in text and "from rest" not in text and "rough face" not in text   # all off
-    assert "too steep" not in text
+    assert "too steep" not in text and "drift flag" not in text
     other = copy.deepcopy(cfg)
     other["randomization"].update(slope_error_max_deg=7.0, cohesion_max=1500.0, drive_gain_min=0.75,
                                   drive_gain_max=1.1, rest_start_share=0.3, surface_sd_max=0.03,
-                                  actuator_delay_max_s=0.06, slope_error_high_share=0.25)
+                                  actuator_delay_max_s=0.06, slope_error_high_share=0.25, drift_flag_lag_max_s=0.14)
     text = drawn_conditions(other)
     for part in ("+-7 deg", "0-60 ms actuator dead time", "cohesion up to 1,500 Pa", "wheels at 0.75-1.1 of",
                  "30 % of the attempts from rest", "relief sd up to 3 cm",
-                 "the slope error of 25 % of the attempts drawn 3.5-7 deg too steep (the others' from the whole range)"):
+                 "the slope error of 25 % of the attempts drawn 3.5-7 deg too steep (the others' from the whole range)",
+                 "the drift flag over a control period ending up to 140 ms before the observation (the bridge's window)"):
         assert part in text, (part, text)
     assert "boom and bucket" not in text                 # its gains at 1: not drawn
 

@@ -31,7 +31,7 @@ def without_unit_gains(c):
     if r is not None and all(r.get(k, 1.0) == 1.0 for k in GAIN_KEYS):
         c = {**c, "randomization": {k: v for k, v in r.items() if k not in GAIN_KEYS}}
     for key in ("rest_start_share", "surface_sd_max", "zones_at_nominal_density", "arm_offset_max_deg",
-                "slope_error_high_share"):
+                "slope_error_high_share", "drift_flag_lag_max_s"):
         r = c.get("randomization")
         if r is not None and r.get(key, 0.0) == 0.0:
             c = {**c, "randomization": {k: v for k, v in r.items() if k != key}}
@@ -80,7 +80,8 @@ def test_the_shipped_section_is_off_and_a_disabled_section_leaves_the_hash_alone
     # angle-sensor offsets (2026-11-29) at 0
     before["randomization"] = {k: v for k, v in on["randomization"].items()
                                if k not in keys + ("rest_start_share", "surface_sd_max", "zones_at_nominal_density",
-                                                   "arm_offset_max_deg", "slope_error_high_share")}
+                                                   "arm_offset_max_deg", "slope_error_high_share",
+                                                   "drift_flag_lag_max_s")}
     assert all(on["randomization"][k] == 1.0 for k in keys) and on["randomization"]["rest_start_share"] == 0.0
     assert on["randomization"]["surface_sd_max"] == 0.0 and on["randomization"]["zones_at_nominal_density"] == 0
     assert on["randomization"]["arm_offset_max_deg"] == 0.0

@@ -579,7 +579,10 @@ def _main(argv=None) -> int:
                              "machine goes; calibration: the boom and bucket angle sensors +-2 deg off their zero, the "
                              "tip, its pitch and the end test from the measured angles; its four sign pairs take 32 "
                              "episodes, 32/32/32/24 of 120; arm_noise: the boom and bucket angles read with 0.1 deg of "
-                             "noise in 4,096 counts a turn, the rates the Due's differences of them over 0.1 s)")
+                             "noise in 4,096 counts a turn, the rates the Due's differences of them over 0.1 s; "
+                             "rest_bridge: rest with the drift flag the bridge gives, over a control period ending 0-140 "
+                             "ms before each observation (its window ends at the newest camera image); machine_bridge: "
+                             "machine with that flag)")
     p_eval.add_argument("--randomize", action="store_true",
                         help="actor: every episode under drawn conditions (config section randomization): how the "
                              "actor fares when the machine differs from the simulator")

@@ -133,7 +133,7 @@ SCHEMA: dict[str, Any] = {
         "hydraulic_gain_min": _f(0.1, 2.0), "hydraulic_gain_max": _f(0.1, 2.0),
         "zones_from_slope_estimate": _i(0, 1), "rest_start_share": _f(0.0, 1.0),
         "surface_sd_max": _f(0.0, 0.2), "zones_at_nominal_density": _i(0, 1), "arm_offset_max_deg": _f(0.0, 10.0),
-        "slope_error_high_share": _f(0.0, 1.0),
+        "slope_error_high_share": _f(0.0, 1.0), "drift_flag_lag_max_s": _f(0.0, 0.5),
     },
     "training": {
         "total_steps": _i(1, 100_000_000), "noise_decay_steps": _i(0, 100_000_000), "noise_final_scale": _f(0.0, 1.0),
@@ -361,6 +361,9 @@ RANDOMIZATION_LATER_KEYS = (
     ("arm_offset_max_deg", 0.0),
     # 0: the slope error U(-max, max) in every episode (before the key, 2026-11-30)
     ("slope_error_high_share", 0.0),
+    # 0: the observed drift flag over the control period since the last command, the simulator's own
+    # window (before the key, 2026-11-30; LhdSimulator.drift_flag)
+    ("drift_flag_lag_max_s", 0.0),
 )
 OPTIONAL_DEFAULTS.update({("randomization", k): v for k, v in RANDOMIZATION_LATER_KEYS})
 

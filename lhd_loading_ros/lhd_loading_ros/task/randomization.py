@@ -56,6 +56,10 @@ class Conditions:
     arm_encoder_counts: int = 0         # ADC), and the counts per turn they are read in (an encoder's; 0: exact). Either
                                         # set: the rates are the Due's, differences of the samples over its rate window
                                         # (task/arm_sensors.py), not the joints' velocities
+    drift_flag_lag_max_s: float = 0.0   # the observed drift flag is over a control period that ends 0..this (U on the
+                                        # FEE chunk grain, each step) before the observation: the bridge's window ends at
+                                        # its newest camera image (LhdSimulator.drift_flag); 0: the period since the last
+                                        # command, the simulator's own (wheel_drift)
 
     def summary(self) -> dict:
         """A flat dict of the drawn values (for info and CSVs)."""
@@ -93,6 +97,7 @@ class RandomizationRanges:
     zones_at_nominal_density: bool = False   # the zones built as the end-zone node does (task/end_zone.py)
     arm_offset_max_deg: float = 0.0     # each episode's boom and bucket angle-sensor offsets, each U(-this, this)
     slope_error_high_share: float = 0.0  # this share of the episodes told too steep: error U(max / 2, max)
+    drift_flag_lag_max_s: float = 0.0   # s: the observed drift window's lag, up to this (Conditions.drift_flag_lag_max_s)
 
     @classmethod
     def from_config(cls, cfg: dict) -> "RandomizationRanges":
@@ -120,6 +125,7 @@ class RandomizationRanges:
             zones_at_nominal_density=bool(r.get("zones_at_nominal_density", 0)),
             arm_offset_max_deg=float(r.get("arm_offset_max_deg", 0.0)),
             slope_error_high_share=float(r.get("slope_error_high_share", 0.0)),
+            drift_flag_lag_max_s=float(r.get("drift_flag_lag_max_s", 0.0)),
         )
 
 
@@ -159,6 +165,8 @@ def draw(rng: np.random.Generator, rr: RandomizationRanges) -> Conditions:
         # episode in four; the case the actors fail most (a shallow pile's end zone told short: docs/training.md
         # "How much a slope told too high can give")
         gains["slope_error_deg"] = float(u(0.5 * rr.slope_error_max_deg, rr.slope_error_max_deg))
+    if rr.drift_flag_lag_max_s > 0.0:   # no draw here: the lag is drawn each step (the environment's _obs)
+        gains["drift_flag_lag_max_s"] = rr.drift_flag_lag_max_s
     return replace(c, **gains) if gains else c
 
 
@@ -255,6 +263,11 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
                ARM_NOISE_DEG (0.1 deg) of noise, in ARM_ENCODER_COUNTS (4,096) counts per turn, and the rates the
                firmware's differences of those samples over its rate window (task/arm_sensors.py, 0.1 s), not the
                joints' velocities. The tip and its pitch follow the measured angles, as in `calibration`
+    rest_bridge  every attempt from rest (as `rest`) with the drift flags the machine's bridge gives: over a control
+               period ending 0..DRIFT_FLAG_LAG_S before each observation (Conditions.drift_flag_lag_max_s), as its window
+               ends at the newest camera image, so that a window straddles the start where the simulator's own
+               (the period since the last command) never does (docs/modeling.md "A start from rest")
+    machine_bridge  `machine` with the bridge's drift flags of `rest_bridge`
     rough      the pile's surface not a plane: a random relief of sd ROUGH_SD (3 cm) and correlation
                length ROUGH_CORR (15 cm) about it (VoxelPile.roughen). A pile dumped by a feeder or by
                hand has bumps of about the size of its largest pieces (the paper's 8-15 cm rocks in 2-5
@@ -284,6 +297,10 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
     if name == "machine":
         return replace(stress_conditions("placement", i, cfg), rest_start=True, surface_sd=ROUGH_SD,
                        surface_corr=ROUGH_CORR)
+    if name == "machine_bridge":
+        return replace(stress_conditions("machine", i, cfg), drift_flag_lag_max_s=DRIFT_FLAG_LAG_S)
+    if name == "rest_bridge":
+        return Conditions(rest_start=True, drift_flag_lag_max_s=DRIFT_FLAG_LAG_S)
     if name == "rocky":
         n = int(r["rocks_max"])
         return Conditions(soil=replace(SoilRanges.from_config(cfg), rocks=(n, n)))
@@ -306,7 +323,10 @@ def stress_conditions(name: str, i: int, cfg: dict) -> Conditions:
 
 
 STRESS_CASES = ("placement", "sensors", "delay", "light", "dense", "rocky", "rough", "slow_drive", "slow_hydraulics",
-                "cohesive", "dense_placement", "rest", "machine", "calibration", "arm_noise")
+                "cohesive", "dense_placement", "rest", "machine", "calibration", "arm_noise", "rest_bridge", "machine_bridge")
+DRIFT_FLAG_LAG_S = 0.14     # s: the bridge's drift window ends at its newest camera image, which the ArUco node's
+                            # odometry delivers 20-110 ms after the exposure (the twin's; bridge_core.DRIFT_ODOM_MAX_AGE),
+                            # read by the policy up to a 20 ms sensor frame later: 0.02-0.13 s, and 0 included
 SLOW_DRIVE_GAIN = 0.8       # the wheels at 80 % of the commanded speed: a battery near its cut-off (a DC motor's
                             # speed follows its voltage; about -20 % from full charge) or a speed loop 20 % off
 SLOW_HYDRAULIC_GAIN = 0.75  # boom and bucket at 75 % of the commanded rate: less pump flow (a sagging battery

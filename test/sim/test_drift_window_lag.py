@@ -1,0 +1,161 @@
+"""The drift flag as the machine's bridge gives it (randomization.drift_flag_lag_max_s, LhdSimulator.drift_flag,
+`lhd eval --stress rest_bridge`): the paper's rule (wheel rim travel against machine travel over one control
+period) over a period that ends some 20 ms chunks before the observation, as the bridge's window ends at its
+newest camera image. The expectations come from the machine's coordinates recorded here chunk by chunk
+(LhdSimulator.advance, one chunk per call) and the rule written out again, not from the simulator's own drift code."""
+import copy
+import math
+
+import numpy as np
+import pytest
+
+from lhd_loading_ros.task.randomization import NOMINAL, Conditions
+from lhd_sim_node.env import LhdLoadingEnv
+from lhd_sim_node.simulator import LhdSimulator
+
+
+@pytest.fixture(scope="module")
+def cfg():
+    from lhd_loading_ros.task.config import load_config
+    return load_config()
+
+
+FIXED = dict(alpha=math.radians(15.0), material="homogeneous", d_attack=0.15, attack_speed=2.7)
+
+
+def _by_hand(sim, a, b):
+    """(front, rear) by the paper's rule between two recorded coordinate rows (time, x, wheel angles fl, fr, rl, rr):
+    a wheel drifts when |r dtheta - dx| > max(v_min T, ratio x the larger of the two)."""
+    T, dx = b[0] - a[0], b[1] - a[1]
+    r, v_min, ratio = sim.wheel_radius, sim.p.drift_min_speed, sim.p.drift_slip_ratio
+    slip = [abs(r * (b[2 + k] - a[2 + k]) - dx) > max(v_min * T, ratio * max(abs(r * (b[2 + k] - a[2 + k])), abs(dx)))
+            for k in range(4)]
+    return slip[0] or slip[1], slip[2] or slip[3]
+
+
+def _coords(sim):
+    q = sim.data.qpos
+    return (float(sim.data.time), float(q[0]), *[float(q[i]) for i in sim._wheel_qs])
+
+
+@pytest.mark.parametrize("fused", [True, False])
+def test_lagged_windows_against_the_rule_by_hand_on_a_start_from_rest(cfg, fused):
+    """A start from rest on a 15 deg pile, full wheels, chunk by chunk (advance: the twin's grain). Every lag's flag
+    is the rule by hand over the recorded coordinates of the period ending that many chunks back; a window that
+    reaches before the arming sees the machine stand there. Lag 0 at a period's end is the simulator's own window.
+    And the point of it: at the first observation, windows that straddle the start flag drift (the wheels spin up
+    ahead of the machine), while the simulator's own window, the whole first period, does not."""
+    sim = LhdSimulator(cfg)
+    sim.fused = fused and sim.fused
+    sim.reset(np.random.default_rng(4), conditions=Conditions(rest_start=True, drift_flag_lag_max_s=0.14), **FIXED)
+    n = sim.n_phys // sim.fee_every
+    assert n == 5 and abs(sim.fee_dt - 0.02) < 1e-12
+    rec = [_coords(sim)]
+    armed = rec[0]
+    u = np.array([sim.p.wheels_max, 0.0, 0.0])
+    straddling, own = [], []
+    for chunk in range(1, 3 * n + 1):
+        sim.advance(u)
+        rec.append(_coords(sim))
+        for lag in range(0, 8):
+            e = len(rec) - 1 - lag
+            if e <= 0:
+                want = (False, False)
+            else:
+                start = rec[e - n] if e >= n else (rec[e][0] - n * sim.fee_dt, *armed[1:])
+                want = _by_hand(sim, start, rec[e])
+            assert sim.drift_flag(lag) == want, (chunk, lag)
+            if chunk % n == 0 and lag == 0:
+                assert sim.drift_flag(0) == sim.wheel_drift()
+            if chunk == n and 1 <= lag < n:        # windows that end inside the first period
+                straddling.append(any(want))
+        if chunk == n:
+            own.append(any(sim.wheel_drift()))
+    assert any(straddling) and own == [False], (straddling, own)
+
+
+def test_the_history_leaves_the_physics_alone_and_lag_zero_is_the_simulators_window(cfg):
+    """Recording the chunk history (the marked compiled loop) runs the same physics, bit for bit, through
+    dead-time splits of the period too; at lag 0 the flag is wheel_drift's at every step's end."""
+    a, b = LhdSimulator(cfg), LhdSimulator(cfg)
+    delay = dict(drive_delay_s=0.04, hydraulic_delay_s=0.06)
+    a.reset(np.random.default_rng(7), conditions=Conditions(**delay), **FIXED)
+    b.reset(np.random.default_rng(7), conditions=Conditions(**delay, drift_flag_lag_max_s=0.1), **FIXED)
+    rng = np.random.default_rng(1)
+    for _ in range(15):
+        u = np.array([rng.uniform(0.0, 2.7), rng.uniform(-0.2, 0.2), rng.uniform(-0.2, 0.3)])
+        a.step(u)
+        b.step(u)
+        np.testing.assert_array_equal(a.data.qpos, b.data.qpos)
+        np.testing.assert_array_equal(a.data.qvel, b.data.qvel)
+        assert b.drift_flag(0) == b.wheel_drift() == a.wheel_drift()
+
+
+def test_bad_lags_are_refused(cfg):
+    sim = LhdSimulator(cfg)
+    sim.reset(np.random.default_rng(4), **FIXED)
+    with pytest.raises(RuntimeError, match="drift_flag_lag_max_s is 0"):
+        sim.drift_flag(0)
+    sim.reset(np.random.default_rng(4), conditions=Conditions(drift_flag_lag_max_s=0.1), **FIXED)
+    for bad in (-1, 26, 1.5, True and 0.5):
+        with pytest.raises(ValueError, match="lag_chunks"):
+            sim.drift_flag(bad)
+    for bad in (0.6, float("nan"), -0.02):
+        with pytest.raises(ValueError, match="drift_flag_lag_max_s"):
+            sim.reset(np.random.default_rng(4), conditions=Conditions(drift_flag_lag_max_s=bad), **FIXED)
+
+
+def test_the_environment_observes_the_lagged_flag_and_scores_its_own(cfg):
+    """In the environment the observation's drift entry is the flag of the window that ends the drawn number of
+    chunks back (0..7 at 0.14 s: the environment's only draw of the step under these conditions, reproduced here
+    from a copy of its generator), the episode's drift figures the simulator's own window: the sensor's error
+    reaches the observation only. Some steps of these starts from rest observe a flag the own window does not."""
+    env = LhdLoadingEnv("rld", cfg, slope_deg=15.0)
+    lags, differ = set(), 0
+    for seed in range(6):
+        obs, _ = env.reset(seed=seed, options={"conditions": Conditions(rest_start=True, drift_flag_lag_max_s=0.14)})
+        for k in range(4):
+            g = copy.deepcopy(env.np_random)
+            obs, _, term, trunc, info = env.step(np.array([1.0, 0.0, 0.0], dtype=np.float32))
+            lag = int(g.integers(0, 8))
+            lags.add(lag)
+            assert bool(obs[5]) == any(env.sim.drift_flag(lag)), (seed, k, lag)
+            assert (info["drift_front"], info["drift_rear"]) == env.sim.wheel_drift()
+            differ += int(bool(obs[5]) != any(env.sim.wheel_drift()))
+    assert differ > 0 and len(lags) >= 5, (differ, lags)
+    # without the key the observation carries the simulator's own window
+    obs, _ = env.reset(seed=0, options={"conditions": Conditions(rest_start=True)})
+    for _ in range(3):
+        obs, _, _, _, info = env.step(np.array([1.0, 0.0, 0.0], dtype=np.float32))
+        assert bool(obs[5]) == (info["drift_front"] or info["drift_rear"])
+
+
+def test_the_key_is_drawn_without_a_number_out_of_the_hash_at_zero_and_the_stress_cases(cfg):
+    from dataclasses import replace
+
+    from lhd_loading_ros.task.config import ConfigError, config_hash, hash_matches, validate
+    from lhd_loading_ros.task.randomization import (DRIFT_FLAG_LAG_S, RandomizationRanges, draw,
+                                                    stress_conditions)
+
+    on = copy.deepcopy(cfg)
+    on["randomization"].update(enabled=1, drift_flag_lag_max_s=0.14)
+    off = copy.deepcopy(cfg)
+    off["randomization"]["enabled"] = 1
+    assert cfg["randomization"]["drift_flag_lag_max_s"] == 0.0
+    ra, rb = np.random.default_rng(9), np.random.default_rng(9)
+    c_on, c_off = draw(ra, RandomizationRanges.from_config(on)), draw(rb, RandomizationRanges.from_config(off))
+    assert c_on.drift_flag_lag_max_s == 0.14 and replace(c_on, drift_flag_lag_max_s=0.0) == c_off
+    assert ra.bit_generator.state == rb.bit_generator.state       # no number drawn for it
+    assert config_hash(off) == config_hash({**off, "randomization": {k: v for k, v in off["randomization"].items()
+                                                                      if k != "drift_flag_lag_max_s"}})
+    assert config_hash(on) != config_hash(off)
+    assert hash_matches(config_hash(off), on)                   # an actor trained before the key runs on a file with it
+    bad = copy.deepcopy(cfg)
+    bad["randomization"]["drift_flag_lag_max_s"] = 0.7
+    with pytest.raises(ConfigError, match="drift_flag_lag_max_s"):
+        validate(bad)
+    assert stress_conditions("rest_bridge", 3, cfg) == Conditions(rest_start=True, drift_flag_lag_max_s=DRIFT_FLAG_LAG_S)
+    for i in (0, 8, 16, 24):
+        assert stress_conditions("machine_bridge", i, cfg) == replace(stress_conditions("machine", i, cfg),
+                                                                       drift_flag_lag_max_s=DRIFT_FLAG_LAG_S)
+    assert NOMINAL.drift_flag_lag_max_s == 0.0
