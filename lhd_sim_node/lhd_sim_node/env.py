@@ -112,6 +112,7 @@ class LhdLoadingEnv(gym.Env):
         self.zones_from = "pile"
         self.told_slope_deg, self.slope_refusal = None, ""     # set at reset
         self.conditions = NOMINAL
+        self._lag_rng = None                  # the bridge's drift-window lag (reset)
         self.observation_space = gym.spaces.Box(OBS_LOW, OBS_HIGH, dtype=np.float32)
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
         self._done = True
@@ -215,6 +216,11 @@ class LhdLoadingEnv(gym.Env):
         self._done = False
         self._state = s
         self._arm_rates = arm_rates
+        # the bridge's drift window (conditions.drift_flag_lag_max_s): its lag drawn from a stream of its own, a jump
+        # ahead of the episode's generator, which it leaves as it is: the sensor noise of an episode is the same with
+        # and without it (`--stress machine` against `machine_bridge` are paired)
+        self._lag_rng = (np.random.Generator(self.np_random.bit_generator.jumped())
+                         if c.drift_flag_lag_max_s > 0.0 else None)
         self._m = self._measured(s)
         info = self._info(s, "running", {})
         info["told_slope_deg"], info["slope_refusal"] = self.told_slope_deg, self.slope_refusal
@@ -290,7 +296,20 @@ class LhdLoadingEnv(gym.Env):
             return zones, "pile, estimate out of range"
 
     def _measured(self, s):
-        """The state as the machine's sensors give it: with the arm's angle sensors zeroed off the attack pose
+        """The state as the machine's sensors give it (_arm_measured), with the drift flags the bridge gives where the
+        episode's conditions lag its window (drift_flag_lag_max_s: over a control period ending U{0..lag_max} chunks
+        before now, drawn each step; LhdSimulator.drift_flag): the observation and the scripted controllers of
+        `lhd experiment paper` (env.measured_state) read them; the reward, the episode's drift figures and the
+        training's demonstrations (the true state) keep the simulator's own window."""
+        m = self._arm_measured(s)
+        if self._lag_rng is None:
+            return m
+        n = int(round(self.conditions.drift_flag_lag_max_s / self.sim.fee_dt))
+        front, rear = self.sim.drift_flag(int(self._lag_rng.integers(0, n + 1)))
+        return replace(m, drift=front or rear, drift_front=front, drift_rear=rear)
+
+    def _arm_measured(self, s):
+        """The state as the machine's arm sensors give it: with the arm's angle sensors zeroed off the attack pose
         (conditions.boom_offset_deg, bucket_offset_deg) and, where the episode samples them (conditions.arm_angle_noise_deg,
         arm_encoder_counts: _arm_rates), read with noise and in counts, the rates then the firmware's differences of the
         samples over its rate window (task/arm_sensors.py; the window is the control period, so the sample one step back);
@@ -340,14 +359,6 @@ class LhdLoadingEnv(gym.Env):
     def _obs(self, s):
         """The observation of the measured state s (_measured: computed once a step, for this and the end test)."""
         alpha = self.sim.pile.alpha
-        lag_max = self.conditions.drift_flag_lag_max_s
-        if lag_max > 0.0:
-            # the drift flag as the bridge gives it: over a control period ending 0..lag_max before now (the newest
-            # camera image's age, drawn each step on the chunk grain; LhdSimulator.drift_flag); the episode's drift
-            # figures and the reward keep the simulator's own window
-            n = int(math.floor(lag_max / self.sim.fee_dt + 1e-9))
-            front, rear = self.sim.drift_flag(int(self.np_random.integers(0, n + 1)))
-            s = replace(s, drift=front or rear, drift_front=front, drift_rear=rear)
         if self._sensors is not None:        # what the camera and the LiDAR tell the policy
             v_x, alpha = self._sensors.observe(s.v_x, alpha)
             s = replace(s, v_x=v_x)

@@ -301,6 +301,12 @@ class LhdSimulator:
         the simulator drew before conditions existed."""
         p = self.p
         c = NOMINAL if conditions is None else conditions
+        lag = c.drift_flag_lag_max_s
+        n_lag = round(lag / self.fee_dt) if isinstance(lag, (int, float)) and math.isfinite(lag) else -1
+        if not (0 <= n_lag * self.fee_dt <= DRIFT_LAG_LIMIT_S + 1e-9 and abs(n_lag * self.fee_dt - lag) <= 1e-9):
+            raise ValueError(f"conditions.drift_flag_lag_max_s {lag!r} s: expected a multiple of the {self.fee_dt:g} s "
+                             f"chunk in 0..{DRIFT_LAG_LIMIT_S:g} s (randomization.drift_flag_lag_max_s)")
+        self._keep_hist = lag > 0.0
         self.conditions = c
         self.new_pile(rng, alpha, material, soil=c.soil, surface_sd=c.surface_sd, surface_corr=c.surface_corr)
         if d_attack is None:
@@ -319,10 +325,6 @@ class LhdSimulator:
         if not (c.drive_gain > 0.0 and c.hydraulic_gain > 0.0):
             raise ValueError(f"actuator gains drive {c.drive_gain!r}, hydraulics {c.hydraulic_gain!r}: expected > 0")
         self._gains = (float(c.drive_gain), float(c.hydraulic_gain))
-        lag = float(c.drift_flag_lag_max_s)
-        if not (math.isfinite(lag) and 0.0 <= lag <= DRIFT_LAG_LIMIT_S + 1e-9):
-            raise ValueError(f"conditions.drift_flag_lag_max_s {lag!r} s: expected 0..{DRIFT_LAG_LIMIT_S:g} s")
-        self._keep_hist = lag > 0.0
         self.d_attack, self.attack_speed = float(d_attack), float(attack_speed)
         self.place_machine(self.d_attack, math.radians(c.heading_deg), c.lateral_offset)
         t = 0.0
@@ -479,6 +481,8 @@ class LhdSimulator:
         if self.fused and self.use_kernel:
             if record:
                 marks = self._hist_marks
+                if n > marks.shape[0]:      # the compiled loop writes marks[0..n-1]: never past the array
+                    raise ValueError(f"_chunks: {n} chunks recorded at once, at most {marks.shape[0]} (a control period)")
                 run_chunks_marked(self._pm, self._pd, n, self.fee_every, self.fee_enabled, kinematics, self._kargs,
                                   self._body_args, self.data.time, self.model.opt.timestep, self._qpos,
                                   self._wheel_qs_arr, marks)
@@ -690,6 +694,25 @@ class LhdSimulator:
             slip.append(abs(rim - dx) > max(tol_min, p.drift_slip_ratio * max(abs(rim), abs(dx))))
         return slip[0] or slip[1], slip[2] or slip[3]
 
+    def drift_window(self, lag_chunks: int) -> tuple[tuple, tuple] | None:
+        """The (start, end) marks (time, x, wheel angles fl, fr, rl, rr) of drift_flag's window: one control period
+        ending lag_chunks chunks before now; a start before the history is the first mark's coordinates a period
+        before the end (the machine stood); None where the window ends at or before the history's first mark."""
+        hist = self._chunk_hist
+        if not self._keep_hist:
+            raise RuntimeError("drift_flag: no chunk history this episode (conditions.drift_flag_lag_max_s is 0); "
+                               "wheel_drift gives the flags of the last control period")
+        n = max(1, self.n_phys // self.fee_every)
+        if not (isinstance(lag_chunks, (int, np.integer)) and not isinstance(lag_chunks, (bool, np.bool_))
+                and 0 <= lag_chunks <= hist.maxlen - n - 1):
+            raise ValueError(f"drift_flag: lag_chunks {lag_chunks!r}: expected a whole number of chunks "
+                             f"0..{hist.maxlen - n - 1}")
+        e = len(hist) - 1 - int(lag_chunks)
+        if e <= 0:
+            return None
+        end = hist[e]
+        return (hist[e - n] if e >= n else (end[0] - n * self.fee_dt, *hist[0][1:])), end
+
     def drift_flag(self, lag_chunks: int) -> tuple[bool, bool]:
         """(front, rear) by wheel_drift's rule over one control period that ends lag_chunks FEE chunks
         before now, from the chunk history (kept while the episode's conditions.drift_flag_lag_max_s > 0):
@@ -697,21 +720,14 @@ class LhdSimulator:
         than the instant the policy reads the flag, and so straddles a start from rest where the
         simulator's own window, which begins with the command, does not (docs/modeling.md "A start from
         rest"). Before the history (the machine armed after it stood, or placed before its drive in) the
-        machine stood at the history's first mark. lag_chunks 0 gives wheel_drift's flags."""
-        hist = self._chunk_hist
-        if not self._keep_hist:
-            raise RuntimeError("drift_flag: no chunk history this episode (conditions.drift_flag_lag_max_s is 0); "
-                               "wheel_drift gives the flags of the last control period")
-        n = max(1, self.n_phys // self.fee_every)
-        if not (isinstance(lag_chunks, (int, np.integer)) and 0 <= lag_chunks <= hist.maxlen - n - 1):
-            raise ValueError(f"drift_flag: lag_chunks {lag_chunks!r}: expected a whole number of chunks "
-                             f"0..{hist.maxlen - n - 1}")
-        e = len(hist) - 1 - int(lag_chunks)
-        if e <= 0:
+        machine stood at the history's first mark. lag_chunks 0 gives wheel_drift's flags at the end of every
+        step and advance; at the first observation of a start from rest it gives none, where wheel_drift
+        covers the last chunks of come_to_rest (a braking wheel may slip there): the machine stood before it
+        was armed."""
+        window = self.drift_window(lag_chunks)
+        if window is None:
             return False, False            # the window ends while the machine stood
-        end = hist[e]
-        T = n * self.fee_dt
-        start = hist[e - n] if e >= n else (end[0] - T, *hist[0][1:])
+        start, end = window
         p, r = self.p, self.wheel_radius
         T = end[0] - start[0]
         dx = end[1] - start[1]

@@ -38,13 +38,23 @@ def _coords(sim):
     return (float(sim.data.time), float(q[0]), *[float(q[i]) for i in sim._wheel_qs])
 
 
+def _expected_window(rec, armed, lag, n, chunk_s):
+    """The window by hand over the recorded boundary rows: the period ending `lag` rows back, its start n rows
+    before that, or, reaching before the arming, the armed coordinates a period before the end."""
+    e = len(rec) - 1 - lag
+    if e <= 0:
+        return None
+    return (rec[e - n] if e >= n else (rec[e][0] - n * chunk_s, *armed[1:])), rec[e]
+
+
 @pytest.mark.parametrize("fused", [True, False])
 def test_lagged_windows_against_the_rule_by_hand_on_a_start_from_rest(cfg, fused):
-    """A start from rest on a 15 deg pile, full wheels, chunk by chunk (advance: the twin's grain). Every lag's flag
-    is the rule by hand over the recorded coordinates of the period ending that many chunks back; a window that
-    reaches before the arming sees the machine stand there. Lag 0 at a period's end is the simulator's own window.
-    And the point of it: at the first observation, windows that straddle the start flag drift (the wheels spin up
-    ahead of the machine), while the simulator's own window, the whole first period, does not."""
+    """A start from rest on a 15 deg pile, full wheels, chunk by chunk (advance: the twin's grain). Every lag's window
+    is exactly the recorded rows of the period ending that many chunks back (start and end, times included), and
+    its flag the rule by hand over them; a window that reaches before the arming sees the machine stand there. Lag
+    0 at a period's end is the simulator's own window. And the point of it: at the first observation, windows that
+    straddle the start flag drift (the wheels spin up ahead of the machine), while the simulator's own window, the
+    whole first period, does not."""
     sim = LhdSimulator(cfg)
     sim.fused = fused and sim.fused
     sim.reset(np.random.default_rng(4), conditions=Conditions(rest_start=True, drift_flag_lag_max_s=0.14), **FIXED)
@@ -58,12 +68,9 @@ def test_lagged_windows_against_the_rule_by_hand_on_a_start_from_rest(cfg, fused
         sim.advance(u)
         rec.append(_coords(sim))
         for lag in range(0, 8):
-            e = len(rec) - 1 - lag
-            if e <= 0:
-                want = (False, False)
-            else:
-                start = rec[e - n] if e >= n else (rec[e][0] - n * sim.fee_dt, *armed[1:])
-                want = _by_hand(sim, start, rec[e])
+            window = _expected_window(rec, armed, lag, n, sim.fee_dt)
+            assert sim.drift_window(lag) == window, (chunk, lag)
+            want = (False, False) if window is None else _by_hand(sim, *window)
             assert sim.drift_flag(lag) == want, (chunk, lag)
             if chunk % n == 0 and lag == 0:
                 assert sim.drift_flag(0) == sim.wheel_drift()
@@ -72,6 +79,44 @@ def test_lagged_windows_against_the_rule_by_hand_on_a_start_from_rest(cfg, fused
         if chunk == n:
             own.append(any(sim.wheel_drift()))
     assert any(straddling) and own == [False], (straddling, own)
+
+
+@pytest.mark.parametrize("slope", [15.0, 25.0, 35.0])
+def test_lagged_windows_by_hand_under_random_commands_through_step(cfg, slope):
+    """Random commands, a dead time on the hydraulics (step runs a period in two calls), starts at the attack speed
+    and from rest. The coordinates are recorded here after every physics chunk by a wrapper around the Python path's
+    chunk (LhdSimulator._physics), not by the history's code: after every step the history ends at MuJoCo's time,
+    and every lag's window is exactly the recorded rows. The compiled path keeps the same history, bit for bit."""
+    for rest in (False, True):
+        a, c = LhdSimulator(cfg), LhdSimulator(cfg)
+        a.fused = False
+        rec = []
+        physics = a._physics
+
+        def chunk_and_record(nstep):
+            physics(nstep)
+            rec.append(_coords(a))
+
+        fixed = dict(FIXED, alpha=math.radians(slope))
+        cond = Conditions(rest_start=rest, hydraulic_delay_s=0.04, drift_flag_lag_max_s=0.14)
+        a.reset(np.random.default_rng(11), conditions=cond, **fixed)
+        c.reset(np.random.default_rng(11), conditions=cond, **fixed)
+        a._physics = chunk_and_record
+        rec[:] = [_coords(a)]                  # from the arming (or the attack drive's end) on
+        armed = rec[0]
+        n = a.n_phys // a.fee_every
+        rng = np.random.default_rng(int(slope) + rest)
+        for step in range(12):
+            u = np.array([rng.uniform(0.0, 2.7), rng.choice([-0.19, 0.0, 0.19]), rng.choice([-0.2, 0.0, 0.3])])
+            a.step(u)
+            c.step(u)
+            assert len(rec) == 1 + n * (step + 1)
+            assert a._chunk_hist[-1] == rec[-1] and rec[-1][0] == a.data.time
+            assert list(c._chunk_hist) == list(a._chunk_hist)
+            for lag in range(0, 8):
+                if not rest and len(rec) - 1 - lag - n < 0:
+                    continue                   # at the attack speed the history before the arming is the drive's
+                assert a.drift_window(lag) == _expected_window(rec, armed, lag, n, a.fee_dt), (rest, step, lag)
 
 
 def test_the_history_leaves_the_physics_alone_and_lag_zero_is_the_simulators_window(cfg):
@@ -97,30 +142,38 @@ def test_bad_lags_are_refused(cfg):
     with pytest.raises(RuntimeError, match="drift_flag_lag_max_s is 0"):
         sim.drift_flag(0)
     sim.reset(np.random.default_rng(4), conditions=Conditions(drift_flag_lag_max_s=0.1), **FIXED)
-    for bad in (-1, 26, 1.5, True and 0.5):
+    for bad in (-1, 26, 1.5, True, np.bool_(True)):
         with pytest.raises(ValueError, match="lag_chunks"):
             sim.drift_flag(bad)
-    for bad in (0.6, float("nan"), -0.02):
-        with pytest.raises(ValueError, match="drift_flag_lag_max_s"):
+    for bad in (0.6, float("nan"), -0.02, 0.15, 0.01):     # outside 0..0.5 s, or not a whole number of 20 ms chunks
+        with pytest.raises(ValueError, match="drift_flag_lag_max_s .* expected a multiple of the 0.02 s chunk"):
             sim.reset(np.random.default_rng(4), conditions=Conditions(drift_flag_lag_max_s=bad), **FIXED)
+    # the schema's limit is the history's
+    from lhd_loading_ros.task.config import SCHEMA
+    from lhd_sim_node.simulator import DRIFT_LAG_LIMIT_S
+    assert SCHEMA["randomization"]["drift_flag_lag_max_s"] == ("float", 0.0, DRIFT_LAG_LIMIT_S)
 
 
 def test_the_environment_observes_the_lagged_flag_and_scores_its_own(cfg):
-    """In the environment the observation's drift entry is the flag of the window that ends the drawn number of
-    chunks back (0..7 at 0.14 s: the environment's only draw of the step under these conditions, reproduced here
-    from a copy of its generator), the episode's drift figures the simulator's own window: the sensor's error
-    reaches the observation only. Some steps of these starts from rest observe a flag the own window does not."""
+    """In the environment the observation's drift entry, and the measured state the scripted controllers read, carry
+    the flag of the window that ends the drawn number of chunks back (0..7 at 0.14 s, from the lag's own stream,
+    reproduced here from a copy of it), the episode's drift figures the simulator's own window: the sensor's error
+    reaches what the sensors give only. Some steps of these starts from rest observe a flag the own window does not."""
     env = LhdLoadingEnv("rld", cfg, slope_deg=15.0)
     lags, differ = set(), 0
     for seed in range(6):
         obs, _ = env.reset(seed=seed, options={"conditions": Conditions(rest_start=True, drift_flag_lag_max_s=0.14)})
         for k in range(4):
-            g = copy.deepcopy(env.np_random)
+            g = copy.deepcopy(env._lag_rng)
             obs, _, term, trunc, info = env.step(np.array([1.0, 0.0, 0.0], dtype=np.float32))
             lag = int(g.integers(0, 8))
             lags.add(lag)
-            assert bool(obs[5]) == any(env.sim.drift_flag(lag)), (seed, k, lag)
+            want = env.sim.drift_flag(lag)
+            assert bool(obs[5]) == any(want), (seed, k, lag)
+            m = env.measured_state
+            assert (m.drift_front, m.drift_rear, m.drift) == (*want, any(want))
             assert (info["drift_front"], info["drift_rear"]) == env.sim.wheel_drift()
+            assert (env.state.drift_front, env.state.drift_rear) == env.sim.wheel_drift()
             differ += int(bool(obs[5]) != any(env.sim.wheel_drift()))
     assert differ > 0 and len(lags) >= 5, (differ, lags)
     # without the key the observation carries the simulator's own window
@@ -128,6 +181,32 @@ def test_the_environment_observes_the_lagged_flag_and_scores_its_own(cfg):
     for _ in range(3):
         obs, _, _, _, info = env.step(np.array([1.0, 0.0, 0.0], dtype=np.float32))
         assert bool(obs[5]) == (info["drift_front"] or info["drift_rear"])
+
+
+def test_the_lag_leaves_the_sensor_noise_of_an_episode_alone(cfg):
+    """`--stress machine` against `machine_bridge`: the same episode seed gives the same machine, the same camera
+    noise and dropouts, the same arm-sensor noise; only the drift entry of the observation may differ."""
+    from dataclasses import replace
+
+    from lhd_loading_ros.task.randomization import stress_conditions
+
+    base = replace(stress_conditions("machine", 0, cfg), arm_angle_noise_deg=0.1, arm_encoder_counts=4096)
+    a = LhdLoadingEnv("rld", cfg, slope_deg=20.0)
+    b = LhdLoadingEnv("rld", cfg, slope_deg=20.0)
+    oa, _ = a.reset(seed=5, options={"conditions": base})
+    ob, _ = b.reset(seed=5, options={"conditions": replace(base, drift_flag_lag_max_s=0.14)})
+    rng = np.random.default_rng(2)
+    for _ in range(15):
+        mask = np.arange(12) != 5
+        np.testing.assert_array_equal(oa[mask], ob[mask])
+        act = rng.uniform(-1.0, 1.0, 3).astype(np.float32)
+        oa, _, ta, tra, _ = a.step(act)
+        ob, _, tb, trb, _ = b.step(act)
+        np.testing.assert_array_equal(a.sim.data.qpos, b.sim.data.qpos)
+        if ta or tra:
+            assert (ta, tra) == (tb, trb)
+            break
+
 
 
 def test_the_key_is_drawn_without_a_number_out_of_the_hash_at_zero_and_the_stress_cases(cfg):

@@ -607,7 +607,9 @@ def _main(argv=None) -> int:
     p_paper.add_argument("--stress", choices=list(STRESS_CASES), default=None,
                          help="every attempt of every controller under a named stress case of lhd eval --stress "
                               "(light: dry, loose gravel, the density the bucket's 30 kg rating implies); the "
-                              "controllers meet the same piles and conditions; sensor noise reaches the RL actors only")
+                              "controllers meet the same piles and conditions; the camera's and LiDAR's noise reaches the RL "
+                              "actors only, the arm sensors' errors and the bridge's drift flags (rest_bridge, "
+                              "machine_bridge) every controller")
     p_paper.add_argument("--zones", choices=list(EVAL_ZONES), default="pile", help=ZONES_HELP)
     p_paper.add_argument("--zones-density", type=float, default=None, metavar="KG_M3", help=ZONES_DENSITY_HELP)
     p_paper.add_argument("--config", default=None)
