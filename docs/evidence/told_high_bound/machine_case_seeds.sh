@@ -7,10 +7,11 @@
 #   runs/told_high_demos_pile_zones_rld (lhd_params_steep_push_curl_told_high_demos_pile_zones.yaml)
 # 120 held-out episodes each (seed 2,000,000), 15-30 deg piles; the nominal evaluation file both ship with.
 set -euo pipefail
-# machine_case_seeds_rest.sh runs the first loop alone for another recipe (RUNS, CFG and EXTRA=0 from it).
+# machine_case_seeds_rest.sh runs the first loop alone for another recipe (RUNS, CFG and EXTRA=0 from it), and
+# docs/evidence/drift_lag/seeds_bridge.sh with other stress cases (STRESS).
 CFG=${CFG:-docs/evidence/told_high_bound/lhd_params_steep_push_curl_nominal_eval.yaml}
 RUNS=${RUNS:-"told_high_demos_rld told_high_demos_pile_zones_rld"}
-for st in machine rest; do
+for st in ${STRESS:-machine rest}; do
   for run in $RUNS; do
     for s in 0 1 2 3 4; do
       echo "== $run seed $s, --stress $st"
