@@ -229,10 +229,11 @@ def test_the_key_is_drawn_without_a_number_out_of_the_hash_at_zero_and_the_stres
                                                                       if k != "drift_flag_lag_max_s"}})
     assert config_hash(on) != config_hash(off)
     assert hash_matches(config_hash(off), on)                   # an actor trained before the key runs on a file with it
-    bad = copy.deepcopy(cfg)
-    bad["randomization"]["drift_flag_lag_max_s"] = 0.7
-    with pytest.raises(ConfigError, match="drift_flag_lag_max_s"):
-        validate(bad)
+    for value in (0.7, 0.15):            # past the history's 0.5 s; not a whole number of 20 ms chunks
+        bad = copy.deepcopy(cfg)
+        bad["randomization"]["drift_flag_lag_max_s"] = value
+        with pytest.raises(ConfigError, match="drift_flag_lag_max_s"):
+            validate(bad)
     assert stress_conditions("rest_bridge", 3, cfg) == Conditions(rest_start=True, drift_flag_lag_max_s=DRIFT_FLAG_LAG_S)
     for i in (0, 8, 16, 24):
         assert stress_conditions("machine_bridge", i, cfg) == replace(stress_conditions("machine", i, cfg),

@@ -30,6 +30,11 @@ def _i(lo=-INF, hi=INF):
     return ("int", lo, hi)
 
 
+def _whole_chunks(value: float, chunk: float) -> bool:
+    """Whether a duration is a whole number of chunks (within 1e-9 s)."""
+    return abs(round(value / chunk) * chunk - value) <= 1e-9
+
+
 def _ilist(lo=-INF, hi=INF, min_len=1, max_len=16):
     return ("intlist", lo, hi, min_len, max_len)
 
@@ -236,6 +241,8 @@ _RELATIONS = [
      lambda c: c["randomization"]["drive_gain_min"] <= c["randomization"]["drive_gain_max"]),
     ("randomization.hydraulic_gain_min <= randomization.hydraulic_gain_max",
      lambda c: c["randomization"]["hydraulic_gain_min"] <= c["randomization"]["hydraulic_gain_max"]),
+    ("randomization.drift_flag_lag_max_s is a whole number of FEE chunks (sim.timestep x sim.fee_every, 0.02 s shipped)",
+     lambda c: _whole_chunks(c["randomization"].get("drift_flag_lag_max_s", 0.0), c["sim"]["timestep"] * c["sim"]["fee_every"])),
     ("paper.episode.d_attack_min <= randomization.d_attack_max",
      lambda c: c["paper"]["episode"]["d_attack_min"] <= c["randomization"]["d_attack_max"]),
     ("randomization.rocks_max >= pile.rocks_min", lambda c: c["randomization"]["rocks_max"] >= c["pile"]["rocks_min"]),
