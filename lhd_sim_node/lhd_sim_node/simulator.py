@@ -684,13 +684,18 @@ class LhdSimulator:
         mark = self._drift_from
         if not mark:
             return False, False
-        p, q, r = self.p, self._qpos, self.wheel_radius
-        T = self.data.time - mark[0]
-        dx = float(q[0]) - mark[1]
+        return self._drift_rule(mark, self._drift_mark())
+
+    def _drift_rule(self, start: tuple, end: tuple) -> tuple[bool, bool]:
+        """(front, rear) between two marks (time, x, wheel angles fl, fr, rl, rr): a wheel drifts when its rim
+        travel and the machine's travel differ by more than max(drift_min_speed * T, drift_slip_ratio x the larger)."""
+        p, r = self.p, self.wheel_radius
+        T = end[0] - start[0]
+        dx = end[1] - start[1]
         tol_min = p.drift_min_speed * T
         slip = []
-        for k, i in enumerate(self._wheel_qs):
-            rim = (float(q[i]) - mark[2 + k]) * r
+        for k in range(len(self._wheel_qs)):
+            rim = (end[2 + k] - start[2 + k]) * r
             slip.append(abs(rim - dx) > max(tol_min, p.drift_slip_ratio * max(abs(rim), abs(dx))))
         return slip[0] or slip[1], slip[2] or slip[3]
 
@@ -727,16 +732,7 @@ class LhdSimulator:
         window = self.drift_window(lag_chunks)
         if window is None:
             return False, False            # the window ends while the machine stood
-        start, end = window
-        p, r = self.p, self.wheel_radius
-        T = end[0] - start[0]
-        dx = end[1] - start[1]
-        tol_min = p.drift_min_speed * T
-        slip = []
-        for k in range(len(self._wheel_qs)):
-            rim = (end[2 + k] - start[2 + k]) * r
-            slip.append(abs(rim - dx) > max(tol_min, p.drift_slip_ratio * max(abs(rim), abs(dx))))
-        return slip[0] or slip[1], slip[2] or slip[3]
+        return self._drift_rule(*window)
 
     def state(self) -> LhdState:
         x_tip, y_tip, z_tip = self._site_xpos[self.sid_tip].tolist()
