@@ -130,11 +130,8 @@ def run_chunks_marked(pm, pd, n_chunks, nstep, fee_on, kinematics, kargs, bargs,
     MuJoCo's, accumulated as mj_step accumulates it."""
     now = time0
     for k in range(n_chunks):
-        if fee_on:
-            fee_update(*kargs)
-        bucket_body_update(*bargs)
+        run_chunks(pm, pd, 1, nstep, fee_on, False, kargs, bargs)
         for _ in range(nstep):
-            _mj_step(pm, pd)
             now += timestep
         marks[k, 0] = now
         marks[k, 1] = qpos[0]
