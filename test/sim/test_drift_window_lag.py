@@ -163,10 +163,12 @@ def test_the_environment_observes_the_lagged_flag_and_scores_its_own(cfg):
     lags, differ = set(), 0
     for seed in range(6):
         obs, _ = env.reset(seed=seed, options={"conditions": Conditions(rest_start=True, drift_flag_lag_max_s=0.14)})
+        g, prev = copy.deepcopy(env._lag_rng), env._lag_prev     # the lag's stream, and the first observation's lag
+        assert 0 <= prev <= 7
         for k in range(4):
-            g = copy.deepcopy(env._lag_rng)
             obs, _, term, trunc, info = env.step(np.array([1.0, 0.0, 0.0], dtype=np.float32))
-            lag = int(g.integers(0, 8))
+            lag = min(int(g.integers(0, 8)), prev + 5)     # never ending before the last window ended
+            prev = lag
             lags.add(lag)
             want = env.sim.drift_flag(lag)
             assert bool(obs[5]) == any(want), (seed, k, lag)
@@ -239,3 +241,31 @@ def test_the_key_is_drawn_without_a_number_out_of_the_hash_at_zero_and_the_stres
         assert stress_conditions("machine_bridge", i, cfg) == replace(stress_conditions("machine", i, cfg),
                                                                        drift_flag_lag_max_s=DRIFT_FLAG_LAG_S)
     assert NOMINAL.drift_flag_lag_max_s == 0.0
+
+
+def test_the_windows_end_never_goes_back():
+    """drift_lag_chunks by hand: one integer of U{0..n} per observation, taken as it is unless the window would end
+    before the last one ended (end = k periods - lag); over many draws the ends never go back, the cap bites in the
+    share of pairs counted by hand (lag_k+1 > lag_k + 5 with both U{0..7}: 3 of 64 pairs), and the first observation's
+    lag is the raw draw."""
+    from lhd_sim_node.env import drift_lag_chunks
+
+    g, h = np.random.default_rng(11), np.random.default_rng(11)
+    prev, ends, capped = None, [], 0
+    for k in range(20000):
+        lag = drift_lag_chunks(g, 0.14, 0.02, prev, 0.1)
+        raw = int(h.integers(0, 8))
+        assert 0 <= lag <= 7
+        if prev is None:
+            assert lag == raw
+        else:
+            assert lag == min(raw, prev + 5)
+            capped += int(lag != raw)
+        ends.append(5 * k - lag)
+        prev = lag
+    assert all(b >= a for a, b in zip(ends, ends[1:]))
+    # the cap's share: P(raw > prev + 5) with prev itself capped; by hand with the uncapped chain it is 3/64 = 4.7 %,
+    # the capped chain's prev is a little lower, so the share a little higher
+    assert 0.04 < capped / 19999 < 0.06, capped / 19999
+    with pytest.raises(ValueError, match="lag_max_s"):
+        drift_lag_chunks(np.random.default_rng(0), -0.02, 0.02, None, 0.1)

@@ -328,9 +328,8 @@ DRIFT_FLAG_LAG_S = 0.14     # s: the bridge's drift window ends at its newest ca
                             # odometry delivers 20-110 ms after the exposure (measured in the twin; the comment on
                             # bridge_core.DRIFT_ODOM_MAX_AGE), read by the policy up to a 20 ms sensor frame later:
                             # 0.02-0.13 s, and 0 included. Not modelled: a window older still while the camera drops
-                            # images (the bridge takes one up to DRIFT_ODOM_MAX_AGE, 0.3 s, old), and the window's end
-                            # never going back on the machine (drawn each step here, it goes back by up to 40 ms in
-                            # about 5 % of the step pairs)
+                            # images (the bridge takes one up to DRIFT_ODOM_MAX_AGE, 0.3 s, old). Drawn each step,
+                            # capped so that the window's end never goes back, as on the machine (env.drift_lag_chunks)
 SLOW_DRIVE_GAIN = 0.8       # the wheels at 80 % of the commanded speed: a battery near its cut-off (a DC motor's
                             # speed follows its voltage; about -20 % from full charge) or a speed loop 20 % off
 SLOW_HYDRAULIC_GAIN = 0.75  # boom and bucket at 75 % of the commanded rate: less pump flow (a sagging battery
