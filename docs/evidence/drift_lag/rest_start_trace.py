@@ -1,8 +1,10 @@
 """What the five seeds trained with the bridge's drift window do at a start from rest on a 15 deg pile: the first
 six observations (drift flag, v_x, tip x and z, normalised) and the actions (wheels, boom, bucket), for the
 held-out evaluation's first four 15 deg episodes (seed 2,000,000 + 0, 4, 8, 12), under `--stress rest` (the
-simulator's drift window) and `rest_bridge` (the bridge's). Run from the repository root after the training of
-docs/training.md "The bridge's drift window in training":
+simulator's drift window) and `rest_bridge` (the bridge's); then the first two actions of episode 0 from rest for
+these seeds and for the same recipe's seeds trained without the lag (runs/told_high_demos_pile_zones_rest_rld, on
+its own evaluation file). Run from the repository root after the trainings of docs/training.md "The bridge's drift
+window in training" and "Both settings with a quarter of the episodes from rest":
     .venv/bin/python docs/evidence/drift_lag/rest_start_trace.py runs/told_high_demos_pile_zones_rest_driftlag_rld \
         docs/evidence/told_high_bound/lhd_params_steep_push_curl_told_high_demos_pile_zones_rest_driftlag_nominal_eval.yaml \
         > docs/evidence/drift_lag/rest_start_trace.txt"""
@@ -36,3 +38,21 @@ for seed in range(5):
             res = info["episode_result"]
             print(f"seed {seed} {stress:11s} episode {i:2d} {opts['material']:14s} success {int(res.success)} "
                   f"{res.loaded:5.1f} kg {res.steps:3d} steps | " + " | ".join(rows[:6]))
+
+print("\nfirst two actions (wheels, boom, bucket) from rest, 15 deg, episode 0:")
+E = "docs/evidence/told_high_bound"
+for other, file in ((run, sys.argv[2]),
+                    ("runs/told_high_demos_pile_zones_rest_rld",
+                     f"{E}/lhd_params_steep_push_curl_told_high_demos_pile_zones_rest_nominal_eval.yaml")):
+    c = load_config(file)
+    e = LhdLoadingEnv("rld", c, randomize=False, zones_from_estimate=True)
+    for seed in range(5):
+        actor = load_policy(f"{other}/seed_{seed}/final").actor
+        s, opts = episode_conditions(0, 2_000_000)
+        opts["conditions"] = stress_conditions("rest", 0, c)
+        obs, _ = e.reset(seed=s, options=opts)
+        a0 = np.clip(actor(obs), -1.0, 1.0)
+        obs, *_ = e.step(a0)
+        a1 = np.clip(actor(obs), -1.0, 1.0)
+        print(f"{other} seed {seed}: step 0 ({a0[0]:+.2f} {a0[1]:+.2f} {a0[2]:+.2f}), "
+              f"step 1 ({a1[0]:+.2f} {a1[1]:+.2f} {a1[2]:+.2f})")
