@@ -1,7 +1,7 @@
 """What the five seeds trained with the bridge's drift window do at a start from rest on a 15 deg pile: the first
 six observations (drift flag, v_x, tip x and z, normalised) and the actions (wheels, boom, bucket), for the
 held-out evaluation's first four 15 deg episodes (seed 2,000,000 + 0, 4, 8, 12), under `--stress rest` (the
-simulator's drift window) and `rest_bridge` (the bridge's); then the first two actions of episode 0 from rest for
+simulator's drift window) and `rest_bridge` (the bridge's); then the first two actions of episode 0 from rest, and the first at the attack speed, for
 these seeds and for the same recipe's seeds trained without the lag (runs/told_high_demos_pile_zones_rest_rld, on
 its own evaluation file). Run from the repository root after the trainings of docs/training.md "The bridge's drift
 window in training" and "Both settings with a quarter of the episodes from rest":
@@ -39,7 +39,7 @@ for seed in range(5):
             print(f"seed {seed} {stress:11s} episode {i:2d} {opts['material']:14s} success {int(res.success)} "
                   f"{res.loaded:5.1f} kg {res.steps:3d} steps | " + " | ".join(rows[:6]))
 
-print("\nfirst two actions (wheels, boom, bucket) from rest, 15 deg, episode 0:")
+print("\nfirst two actions (wheels, boom, bucket) from rest and the first at the attack speed, 15 deg, episode 0:")
 E = "docs/evidence/told_high_bound"
 for other, file in ((run, sys.argv[2]),
                     ("runs/told_high_demos_pile_zones_rest_rld",
@@ -54,5 +54,8 @@ for other, file in ((run, sys.argv[2]),
         a0 = np.clip(actor(obs), -1.0, 1.0)
         obs, *_ = e.step(a0)
         a1 = np.clip(actor(obs), -1.0, 1.0)
-        print(f"{other} seed {seed}: step 0 ({a0[0]:+.2f} {a0[1]:+.2f} {a0[2]:+.2f}), "
-              f"step 1 ({a1[0]:+.2f} {a1[1]:+.2f} {a1[2]:+.2f})")
+        obs, _ = e.reset(seed=s, options={k: v for k, v in opts.items() if k != "conditions"})
+        an = np.clip(actor(obs), -1.0, 1.0)       # the same pile at the attack speed (nominal start)
+        print(f"{other} seed {seed}: from rest step 0 ({a0[0]:+.2f} {a0[1]:+.2f} {a0[2]:+.2f}), "
+              f"step 1 ({a1[0]:+.2f} {a1[1]:+.2f} {a1[2]:+.2f}); at the attack speed (v_x {obs[4]:+.2f}) step 0 "
+              f"({an[0]:+.2f} {an[1]:+.2f} {an[2]:+.2f})")
