@@ -8,14 +8,15 @@
 # 120 held-out episodes each (seed 2,000,000), 15-30 deg piles; the nominal evaluation file both ship with.
 set -euo pipefail
 # machine_case_seeds_rest.sh runs the first loop alone for another recipe (RUNS, CFG and EXTRA=0 from it), and
-# docs/evidence/drift_lag/seeds_bridge.sh with other stress cases (STRESS).
+# docs/evidence/drift_lag/seeds_bridge.sh with other stress cases (STRESS); EVAL_ARGS=--deploy-filter for RLC runs
+# (as the nodes run them).
 CFG=${CFG:-docs/evidence/told_high_bound/lhd_params_steep_push_curl_nominal_eval.yaml}
 RUNS=${RUNS:-"told_high_demos_rld told_high_demos_pile_zones_rld"}
 for st in ${STRESS:-machine rest}; do
   for run in $RUNS; do
     for s in 0 1 2 3 4; do
       echo "== $run seed $s, --stress $st"
-      .venv/bin/lhd eval --policy runs/$run/seed_$s/final --config $CFG --stress $st --episodes 120 \
+      .venv/bin/lhd eval --policy runs/$run/seed_$s/final --config $CFG --stress $st --episodes 120 ${EVAL_ARGS:-} \
           | grep -E "^ +(all|15 deg|20 deg)|^failures"
     done
   done
