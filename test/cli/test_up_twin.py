@@ -71,15 +71,18 @@ def test_one_twin_attempt_end_to_end(tmp_path):
     out, wall = twin_attempt(run_dir)
     # one attempt ran (piles on which none ran, refused_piles, are not attempts: the twin makes the next)
     assert len(out["attempts"]) == 1, (out.get("refused_piles"), node_logs(run_dir))
-    if out["attempts"][0]["outcome"] == "lost_input" and _CORES < MIN_CORES:
-        # On fewer cores than the twin needs, a process of the eleven may not run for the bridge's
-        # 0.3 s cmd_timeout (one in 10-25 runs right after the suite, 2026-11-28/29). The stack ends
-        # that attempt as it must: a bridge that stalls past the firmware's 0.25 s watchdog has let the
-        # machine stop (reproduced by stopping the bridge process 0.36 s at arming: the same outcome and
-        # reason). The logs say which process it was; a second attempt must pass every check below.
-        print("first attempt lost_input on", _CORES, "cores:", out["attempts"][0].get("reason"))
+    # On fewer cores than the twin needs, a process of the eleven may not run for the bridge's 0.3 s cmd_timeout
+    # (one in 10-25 runs right after the suite, 2026-11-28/29; twice in a row once, CI 2026-11-30, a slow day, the
+    # bridge's serial writes timing out at 0.1 s). The stack ends that attempt as it must: a bridge that stalls past
+    # the firmware's 0.25 s watchdog has let the machine stop (reproduced by stopping the bridge process 0.36 s at
+    # arming: the same outcome and reason). The logs say which process it was; up to two more attempts, and the
+    # last must pass every check below.
+    for again in range(2):
+        if not (out["attempts"][0]["outcome"] == "lost_input" and _CORES < MIN_CORES):
+            break
+        print(f"attempt {again + 1} lost_input on", _CORES, "cores:", out["attempts"][0].get("reason"))
         print(node_logs(run_dir))
-        run_dir = tmp_path / "run_again"
+        run_dir = tmp_path / f"run_again{again}"
         out, wall = twin_attempt(run_dir)
     assert len(out["attempts"]) == 1
     # the machine it was: the twin's default has the IMU (50 Hz), no tilt limit asked for

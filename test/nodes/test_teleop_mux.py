@@ -343,7 +343,10 @@ def test_bad_commands_and_malformed_joy(rig):
     rig.episode("idle")
     # a Joy message with too few axes while the operator drives: a zero, then ignored
     rig.stream(0.4, deadman=False)
-    rig.stream(0.3, deadman=True, rt=-1.0)
+    t_last = rig.stream(0.3, deadman=True, rt=-1.0)
+    # the drive stream's last command arrives before the bad message is stamped (on a loaded 2-core machine it
+    # came after it once, CI 2026-11-30); well inside the 0.5 s joy_timeout, which would send a zero of its own
+    rig.wait(lambda: any(ts > t_last for ts, _ in rig.got["teleop"]), 0.3)
     t_bad = rig.joy(axes=[0.0, 0.0, 1.0, 0.0], buttons=[0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0])
     rig.stream(0.5, axes=[0.0, 0.0, 1.0, 0.0], buttons=[0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0])
     assert [c for _, c in rig.after("teleop", t_bad)] == [ZERO]
