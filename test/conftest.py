@@ -70,8 +70,9 @@ _ros_modules: dict = {}
 
 def _talks_to_processes(module) -> bool:
     """The module starts node processes or talks over DDS (rclpy, rosutil, subprocess): its tests
-    depend on timing and run in `make test`'s second pass (one file per worker) or, with
-    SERIAL = True, alone in its third; the others run in the first, on several workers.
+    depend on timing and run in `make test`'s second pass (one file per worker); the others run in
+    the first, on several workers. A module with SERIAL = True runs in `make test-stack`, alone
+    (pytest_collection_modifyitems).
     A module that starts processes but whose results do not depend on timing (lockstep sim nodes,
     command-line runs that only compute) says so with `PARALLEL_SAFE = True` at its top level and
     runs with the pure tests (each xdist worker has its own DDS domain, test/rosutil.py)."""
@@ -95,9 +96,10 @@ def pytest_configure(config):
         os.environ["ROS_LOG_DIR"] = os.path.join(tempfile.gettempdir(), "lhd_test_ros_logs")
     config.addinivalue_line("markers", "ros: starts node processes or talks over DDS (depends on timing: `make test` "
                                        "runs these on TEST_JOBS workers, one test file per worker)")
-    config.addinivalue_line("markers", "serial: a whole stack in real time (twin, real-machine launcher, sensor "
-                                       "streams at their rates): on 2 cores it starves beside another such test, so "
-                                       "`make test` runs these alone, after the others (module-level SERIAL = True)")
+    config.addinivalue_line("markers", "serial: a whole stack or pipeline end to end (twin, `lhd up sim` / `lhd up "
+                                       "real`, sensor streams at their rates, training over ROS, a Ray sweep): on 2 "
+                                       "cores two of them starve each other, so `make test-stack` runs them alone, "
+                                       "not in the default `make test` (module-level SERIAL = True)")
     config.addinivalue_line("markers", "parallel_safe: starts processes, but its results do not depend on timing "
                                        "(lockstep, generous waits): runs with the pure tests")
 
@@ -105,7 +107,8 @@ def pytest_configure(config):
 def pytest_collection_modifyitems(config, items):
     for item in items:
         module = getattr(item, "module", None)
-        if module is not None and _talks_to_processes(module) and item.get_closest_marker("parallel_safe") is None:
+        if module is not None and getattr(module, "SERIAL", False) is True:
+            item.add_marker(pytest.mark.ros)             # the stack pass, whatever PARALLEL_SAFE says
+            item.add_marker(pytest.mark.serial)
+        elif module is not None and _talks_to_processes(module) and item.get_closest_marker("parallel_safe") is None:
             item.add_marker(pytest.mark.ros)
-            if getattr(module, "SERIAL", False) is True:
-                item.add_marker(pytest.mark.serial)

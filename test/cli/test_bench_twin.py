@@ -11,7 +11,7 @@ import pytest
 from lhd_loading_ros.cli.bench_twin import WHEEL_SCALE, match_decisions, summary, wheel_key
 from rosutil import unique_domain_id
 
-# a whole stack in real time: alone, after the other process tests (test/conftest.py, `make test`)
+# a whole stack in real time: alone, in `make test-stack` (test/conftest.py)
 SERIAL = True
 
 KEYS = ("latency_p50_ms", "latency_p99_ms", "latency_max_ms", "camera_to_decision_p50_ms", "camera_to_decision_p99_ms",

@@ -1,6 +1,7 @@
 """`lhd up sim` and `lhd demo` start real node processes; they must finish the asked episodes,
 stop cleanly on Ctrl-C or SIGTERM (also in a script's background), and leave no process and no
 temporary folder behind. `lhd echo` prints a live topic (test_echo.py has the rest)."""
+SERIAL = True          # whole stacks in real time (sim, policy, supervisor nodes): `make test-stack`, alone
 import json
 import os
 import signal

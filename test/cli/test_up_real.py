@@ -45,7 +45,7 @@ from lhd_loading_ros.task.kinematics import ArmKinematics, state_from_measuremen
 
 from rosutil import init_ros, shutdown_ros, spin_until
 
-# a whole stack in real time: alone, after the other process tests (test/conftest.py, `make test`)
+# a whole stack in real time: alone, in `make test-stack` (test/conftest.py)
 SERIAL = True
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -28,7 +28,7 @@ pytest.importorskip("rclpy")
 
 from rosutil import unique_domain_id  # noqa: E402
 
-# a whole stack in real time: alone, after the other process tests (test/conftest.py, `make test`)
+# a whole stack in real time: alone, in `make test-stack` (test/conftest.py)
 SERIAL = True
 
 ALPHA_BOUND_DEG = 1.5

@@ -2,6 +2,7 @@
 run folders `lhd report` reads and records its progress; the same study with more steps resumes
 both trials from their checkpoints (what happens after a crash), and a last run skips what is done."""
 PARALLEL_SAFE = True   # Ray tasks that train: no timing in the results (test/conftest.py)
+SERIAL = True          # but a whole pipeline end to end (27 s, a Ray cluster): `make test-stack`
 
 import json
 import subprocess

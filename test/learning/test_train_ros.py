@@ -2,6 +2,7 @@
 (separate processes over DDS). Both nodes contribute transitions, the run folder is a normal run
 folder, and the exported actor runs in the policy node (`lhd up sim --policy ...`)."""
 PARALLEL_SAFE = True   # lockstep sim nodes: the results do not depend on timing (test/conftest.py)
+SERIAL = True          # but a whole pipeline end to end (38 s): `make test-stack`, not the default suite
 
 import csv
 import json

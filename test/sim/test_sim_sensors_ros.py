@@ -39,7 +39,7 @@ from lhd_sim_node.twin_markers import marker_array
 
 from rosutil import RosProcess, init_ros, shutdown_ros, spin_until
 
-# a whole stack in real time: alone, after the other process tests (test/conftest.py, `make test`)
+# a whole stack in real time: alone, in `make test-stack` (test/conftest.py)
 SERIAL = True
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -27,7 +27,7 @@ from lhd_loading_ros.ros.qos import LATCHED_QOS, MEASUREMENT_QOS, STATUS_QOS  # 
 from lhd_loading_ros.task.zones import Zones  # noqa: E402
 from rosutil import RosProcess, init_ros, shutdown_ros, spin_until  # noqa: E402
 
-# a whole stack in real time: alone, after the other process tests (test/conftest.py, `make test`)
+# a whole stack in real time: alone, in `make test-stack` (test/conftest.py)
 SERIAL = True
 
 WHEEL_RADIUS = 0.137        # m, config machine.wheel_radius
