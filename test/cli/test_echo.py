@@ -23,9 +23,10 @@ ECHO = [sys.executable, "-m", "lhd_loading_ros.cli.main", "echo"]
 
 
 def test_writes_to_file_descriptor_1_go_to_stderr_and_messages_to_stdout():
-    """The mechanism, on its own: what native code writes to fd 1 after the switch reaches stderr;
-    what Python prints reaches the real stdout."""
-    code = ("import os; from lhd_loading_ros.cli import echo; echo._messages_own_stdout(); "
+    """The mechanism (cli/clean_stdout.py, also under `lhd up sim` / `lhd demo` / `lhd up twin` /
+    `lhd bench twin --json`), on its own: what native code writes to fd 1 after the switch reaches
+    stderr; what Python prints reaches the real stdout."""
+    code = ("import os; from lhd_loading_ros.cli.clean_stdout import reserve_stdout; reserve_stdout(); "
             "os.write(1, b'[RTPS_TRANSPORT_SHM Error] native\\n'); print('data: 1.0', flush=True)")
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert p.returncode == 0, p.stderr

@@ -291,6 +291,10 @@ def main(argv=None) -> int:
     ap.add_argument("--verbose", action="store_true", help="node logs on this terminal")
     ap.add_argument("--json", action="store_true", help="last line: the figures as one JSON object")
     args = ap.parse_args(argv)
+    if args.json:             # the JSON line alone on stdout (cli/clean_stdout.py)
+        from lhd_loading_ros.cli.clean_stdout import reserve_stdout
+
+        reserve_stdout()
     if not (math.isfinite(args.duration) and args.duration > 0):
         ap.error(f"--duration must be a positive number of seconds, got {args.duration}")
     if args.timeout and not (math.isfinite(args.timeout) and args.timeout > 0):

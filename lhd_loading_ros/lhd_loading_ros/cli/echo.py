@@ -7,10 +7,7 @@ before we started still arrives), else reliable and volatile.
 Stops cleanly: Ctrl-C, SIGTERM or a closed pipe (`lhd echo T | head -1`) end it with status 0
 and no traceback; the signals only set a flag (ros/run.py's run_node).
 
-Only the messages reach stdout: Fast DDS writes its own log lines (e.g. "[RTPS_TRANSPORT_SHM Error]
-... open_and_lock_file failed" when two processes start at once) to the process's standard output
-from C++, where `lhd echo T | head -n 1` would take them for the first message (CI failed on it,
-2026-11-30). They go to stderr, as a diagnostic should."""
+Only the messages reach stdout; the middleware's own log lines go to stderr (cli/clean_stdout.py)."""
 from __future__ import annotations
 
 import argparse
@@ -21,6 +18,7 @@ import threading
 import time
 
 from lhd_loading_ros.cli.argtypes import nonneg_int
+from lhd_loading_ros.cli.clean_stdout import reserve_stdout
 
 
 class EchoError(Exception):
@@ -77,16 +75,6 @@ def _stdout_closed() -> None:
     os.close(devnull)
 
 
-def _messages_own_stdout() -> None:
-    """Point file descriptor 1 (where C++ code in this process writes: Fast DDS's log) at stderr,
-    and give Python's sys.stdout a private copy of the real standard output for the messages."""
-    sys.stdout.flush()
-    out_fd = os.dup(1)
-    os.dup2(2, 1)
-    sys.stdout = os.fdopen(out_fd, "w", encoding=sys.stdout.encoding or "utf-8", errors="replace",
-                           closefd=True)
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="lhd echo", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -100,7 +88,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     # a relative name resolves in the root namespace, as `ros2 topic echo lhd/odom` does (a review)
     args.topic = args.topic if args.topic.startswith("/") else "/" + args.topic
-    _messages_own_stdout()          # before the middleware starts
+    reserve_stdout()          # before the middleware starts: its log lines go to stderr
     import rclpy
 
     from lhd_loading_ros.ros.run import SPIN_PERIOD_S, run_node

@@ -409,6 +409,10 @@ def main(argv=None, demo: bool = False) -> int:
                     "the scripted maneuver on the simulator instead of the nodes (no ROS); honours --slope/--slopes, "
                     "--episodes, --material, --seed, --config and --json, refuses the nodes' flags")
     args = ap.parse_args(argv)
+    if args.json:             # the JSON alone on stdout (cli/clean_stdout.py)
+        from lhd_loading_ros.cli.clean_stdout import reserve_stdout
+
+        reserve_stdout()
     if demo and args.scripted:
         from lhd_loading_ros.cli.demo import scripted_demo
 

@@ -923,6 +923,10 @@ def main(argv=None) -> int:
                                                         "one JSON object")
     ap.add_argument("--verbose", action="store_true", help="node logs on this terminal")
     args = ap.parse_args(argv)
+    if args.json:             # the JSON alone on stdout (cli/clean_stdout.py)
+        from lhd_loading_ros.cli.clean_stdout import reserve_stdout
+
+        reserve_stdout()
     if args.episodes < 1:
         ap.error(f"--episodes must be >= 1 (attempts per slope), got {args.episodes}")
     if args.reset_delay < 1.5:
