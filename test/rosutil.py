@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -22,6 +23,22 @@ def unique_domain_id() -> int:
         blocks = 100 // n
         return 1 + n * (os.getppid() % blocks) + int(worker[2:]) % n
     return 1 + 2 * (os.getpid() % 50)
+
+
+# Fast DDS logs its own errors from C++ to a process's stdout, e.g. "[RTPS_TRANSPORT_SHM Error] Failed
+# init_port fastrtps_port7001: open_and_lock_file failed" when two processes start the shared-memory
+# transport at once on a busy machine (it falls back to UDP; the messages arrive). CI failed on such a line
+# taken for a process's first line (2026-11-29, -30). The commands whose stdout is read put them on stderr
+# (lhd_loading_ros/cli/clean_stdout.py); a test that reads a process's own first line skips them.
+FASTDDS_LOG = re.compile(r"^(\x1b\[[0-9;]*m)*\d{4}-\d\d-\d\d \d\d:\d\d:\d\d\.\d+ .*\[.*RTPS_[A-Z_]+.*(Error|Warning)")
+
+
+def readline_past_middleware(stream) -> str:
+    """The next line of a process's stdout that is not a Fast DDS log line ('' at its end)."""
+    while True:
+        line = stream.readline()
+        if not line or not FASTDDS_LOG.match(line):
+            return line
 
 
 _STARTED: list = []      # every RosProcess of this test session, for the leftover check in conftest.py

@@ -34,6 +34,19 @@ def test_writes_to_file_descriptor_1_go_to_stderr_and_messages_to_stdout():
     assert "[RTPS_TRANSPORT_SHM Error] native" in p.stderr
 
 
+def test_a_caller_that_captures_stdout_keeps_it(capsys):
+    """Called in a process whose sys.stdout a caller replaced (pytest's capsys; `lhd demo --json`
+    run in-process by test_demo_flags.py, where the switch once took the output away from the
+    test, CI 2026-11-30), the switch changes nothing."""
+    from lhd_loading_ros.cli.clean_stdout import reserve_stdout
+
+    fd1 = os.fstat(1)
+    assert reserve_stdout() is False
+    print("data: 2.0")
+    assert capsys.readouterr().out == "data: 2.0\n"
+    assert (os.fstat(1).st_ino, os.fstat(1).st_dev) == (fd1.st_ino, fd1.st_dev)
+
+
 @pytest.fixture(scope="module")
 def node():
     init_ros()      # sets this process's ROS_DOMAIN_ID; the echo processes inherit it

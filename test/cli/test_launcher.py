@@ -18,7 +18,7 @@ from std_msgs.msg import Float64MultiArray
 
 from lhd_loading_ros.ros.qos import STATUS_QOS
 
-from rosutil import RosProcess, init_ros, shutdown_ros, spin_until, unique_domain_id
+from rosutil import RosProcess, init_ros, readline_past_middleware, shutdown_ros, spin_until, unique_domain_id
 
 
 REPO = Path(__file__).resolve().parents[2]
@@ -370,7 +370,7 @@ def test_up_sim_refuses_a_domain_where_a_simulator_already_runs():
                            stderr=subprocess.STDOUT, text=True, start_new_session=True,
                            env=dict(env, RCUTILS_LOGGING_BUFFERED_STREAM="0"))
     try:
-        assert "sim node up" in sim.stdout.readline()    # publishing from here on
+        assert "sim node up" in readline_past_middleware(sim.stdout)    # publishing from here on
         seen = subprocess.run([sys.executable, "-m", "lhd_loading_ros.cli.main", "echo", "/lhd/joint_states", "--count",
                                "1", "--wait", "30"], capture_output=True, text=True, timeout=60, env=env)
         assert seen.returncode == 0, seen.stderr                # another process sees it on the graph

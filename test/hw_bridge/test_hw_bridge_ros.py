@@ -41,7 +41,7 @@ def rig(ros, tmp_path):
     pub = node.create_publisher(Float64MultiArray, "/lhd/cmd", 1)
     ok = spin_until(node, lambda: len(got["js"]) > 5, timeout=20.0)
     assert ok, "no joint states from the bridge:\n" + bridge.log()
-    drive(node, pub, [0.0, 0.0, 0.0], 0.2)     # the fresh start the bridge waits for (the mux's idle zeros)
+    fresh_start(node, pub, got)                # the fresh start the bridge waits for (the mux's idle zeros)
     yield dev, bridge, node, pub, got
     node.destroy_node()
     rc = bridge.stop()
@@ -54,6 +54,22 @@ def drive(node, pub, data, seconds):
     while time.monotonic() < t_end:
         pub.publish(Float64MultiArray(data=data))
         spin_until(node, lambda: False, timeout=0.05)
+
+
+def fresh_start(node, pub, got, timeout: float = 10.0) -> None:
+    """The all-zero command the bridge awaits after a fault (the mux's idle zeros, a released trigger), sent
+    until its diagnostics say it awaits none. Zeros for a fixed 0.2 s were not always enough on a busy 2-core
+    machine (CI, 2026-11-30: the machine stayed stopped after them): the command subscription keeps only the
+    newest message (COMMAND_QOS), so a bridge that does not spin for the whole burst takes the next motion
+    command instead, and stays stopped (the safe side) until zeros come again."""
+    t_end = time.monotonic() + timeout
+    while time.monotonic() < t_end:
+        n = len(got["diag"])
+        drive(node, pub, [0.0, 0.0, 0.0], 0.1)
+        if spin_until(node, lambda: any(s.name.endswith("device") and status_values(s).get("awaiting_zero_command")
+                                        == "False" for d in got["diag"][n:] for s in d.status), timeout=0.5):
+            return
+    pytest.fail(f"the bridge still awaits an all-zero command after {timeout:g} s of them: {device_status(got)}")
 
 
 def test_round_trip_commands_to_valves_and_sensors_to_joint_states(rig):
@@ -141,7 +157,7 @@ def test_a_silent_device_is_sent_stops_and_bytes_without_frames_are_named(rig):
     assert st["level"] == DiagnosticStatus.ERROR and "but make no valid frame" in st["message"] and \
         "wrong baud rate (115200)" in st["message"], st
     dev.silent = False
-    drive(node, pub, [0.0, 0.0, 0.0], 0.2)          # frames again, and the fresh start a silence needs: motion again
+    fresh_start(node, pub, got)                     # frames again, and the fresh start a silence needs: motion again
     drive(node, pub, [2.0, -0.191, 0.2], 0.5)
     assert dev.last_commands()[-1][1] == CommandFrame(2.0, 1, 1, True)
 
@@ -181,7 +197,7 @@ def test_unplug_and_replug_reconnects_and_sends_stop_first(rig):
     # the stream that went on through the unplug does not restart the machine (2026-11-30): stops only,
     # until an all-zero command (the mux's idle zeros, a released trigger), then fresh commands move it
     assert all(m.is_stop for m in after), after[-3:]
-    drive(node, pub, [0.0, 0.0, 0.0], 0.2)
+    fresh_start(node, pub, got)
     drive(node, pub, [2.0, -0.191, 0.2], 0.3)
     assert dev.last_commands()[-1][1] == CommandFrame(2.0, 1, 1, True)
     assert bridge.alive()
@@ -563,7 +579,7 @@ def test_estop_currents_and_valve_states_are_published(rig):
         drive(node, pub, cmd, 0.2)
         drive(node, pub, [1.0, -0.191, 0.2], 0.3)
         assert all(m.is_stop for _, m in dev.last_commands()[-5:]), cmd
-    drive(node, pub, [0.0, 0.0, 0.0], 0.2)                  # the fresh start (a released trigger, the mux's zeros)
+    fresh_start(node, pub, got)                             # the fresh start (a released trigger, the mux's zeros)
     drive(node, pub, [1.0, -0.191, 0.2], 0.5)
     assert hw[-1].level == DiagnosticStatus.OK and status_values(hw[-1])["valve_boom"] == "1"
     assert dev.last_commands()[-1][1] == CommandFrame(1.0, 1, 1, True)
@@ -638,7 +654,7 @@ def test_a_device_reset_while_running_holds_the_machine_and_reports_error(rig):
     assert not dev.held                              # the first stop frame cleared the device's hold
     drive(node, pub, [1.0, -0.191, 0.2], 1.0)        # past the 1 s hold, the same stream: still stopped
     assert all(m.is_stop for _, m in dev.last_commands()[-10:])
-    drive(node, pub, [0.0, 0.0, 0.0], 0.2)           # the fresh start
+    fresh_start(node, pub, got)                      # the fresh start
     drive(node, pub, [1.0, -0.191, 0.2], 0.3)
     assert dev.last_commands()[-1][1] == CommandFrame(1.0, 1, 1, True)
     assert hw[-1].level == DiagnosticStatus.OK, hw[-1].message
@@ -664,7 +680,7 @@ def test_an_arm_sensor_fault_publishes_no_joint_state_and_stops(rig):
     drive(node, pub, [1.0, -0.191, 0.2], 0.6)
     assert len(got["js"]) > n_js + 10 and all(math.isfinite(x) for x in got["js"][-1].position)
     assert all(m.is_stop for _, m in dev.last_commands()[-10:])       # no restart without a fresh start
-    drive(node, pub, [0.0, 0.0, 0.0], 0.2)
+    fresh_start(node, pub, got)
     drive(node, pub, [1.0, -0.191, 0.2], 0.3)
     assert dev.last_commands()[-1][1] == CommandFrame(1.0, 1, 1, True)
 
@@ -687,6 +703,8 @@ def test_a_silent_device_needs_the_fresh_start_when_its_frames_come_back(rig):
     dev.silent = False
     drive(node, pub, [1.0, -0.191, 0.2], 0.6)
     assert all(m.is_stop for _, m in dev.last_commands()[-10:])
-    drive(node, pub, [0.0, 0.0, 0.0], 0.2)
+    fresh_start(node, pub, got)
     drive(node, pub, [1.0, -0.191, 0.2], 0.3)
-    assert dev.last_commands()[-1][1] == CommandFrame(1.0, 1, 1, True)
+    # (CI failed here once, 2026-11-30, a stop frame last, on a busy 2-core machine; not seen in 8 runs beside two
+    # busy loops: the bridge's log says which reason held it)
+    assert dev.last_commands()[-1][1] == CommandFrame(1.0, 1, 1, True), (dev.last_commands()[-5:], bridge.log()[-3000:])

@@ -12,7 +12,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64, Float64MultiArray
 
-from rosutil import RosProcess, init_ros, shutdown_ros, spin_until
+from rosutil import RosProcess, init_ros, readline_past_middleware, shutdown_ros, spin_until
 
 POLICY = "lhd_loading_ros.nodes.policy_node"
 REL = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
@@ -343,7 +343,7 @@ def _stand_in(key):
 
     proc = subprocess.Popen([sys.executable, str(Path(__file__).with_name("stand_in_supervisor.py")), key],
                             start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    assert proc.stdout.readline().strip() == "publishing"
+    assert readline_past_middleware(proc.stdout).strip() == "publishing"
     return proc
 
 

@@ -22,7 +22,7 @@ from std_msgs.msg import Bool, Float64MultiArray, String
 from lhd_hw_bridge.fake_due import FakeDue
 from lhd_loading_ros.ros.qos import COMMAND_QOS, LATCHED_QOS, STATUS_QOS
 
-from rosutil import RosProcess, init_ros, shutdown_ros
+from rosutil import RosProcess, init_ros, readline_past_middleware, shutdown_ros
 
 ZERO = (0.0, 0.0, 0.0)
 FULL = (2.7, 0.0, 0.0)                  # RT fully pressed: 2.7 rad/s (xbox.yaml, task range)
@@ -479,7 +479,7 @@ def test_a_killed_supervisor_ends_the_attempt_in_the_mux(rig, tmp_path):
     sup = subprocess.Popen([sys.executable, str(script), "77"], start_new_session=True,
                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
-        assert sup.stdout.readline().strip() == "publishing"
+        assert readline_past_middleware(sup.stdout).strip() == "publishing"
         t0 = time.monotonic()
         while not any(c == tuple(AUTO) for _, c in rig.after("cmd", t0)):   # until the mux has heard it
             assert time.monotonic() - t0 < 20.0, rig.logs()

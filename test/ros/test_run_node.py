@@ -8,7 +8,7 @@ import sys
 import textwrap
 import time
 
-from rosutil import unique_domain_id
+from rosutil import readline_past_middleware, unique_domain_id
 
 SCRIPT = textwrap.dedent("""
     import sys, time
@@ -35,7 +35,7 @@ def run(cleanup_s: float):
     env = dict(os.environ, ROS_DOMAIN_ID=str(unique_domain_id()), PYTHONUNBUFFERED="1")
     p = subprocess.Popen([sys.executable, "-c", SCRIPT, str(cleanup_s)], stdout=subprocess.PIPE,
                          stderr=subprocess.STDOUT, text=True, env=env)
-    assert p.stdout.readline().strip() == "up"
+    assert readline_past_middleware(p.stdout).strip() == "up"
     p.send_signal(signal.SIGTERM)
     t0 = time.monotonic()
     try:
