@@ -400,7 +400,6 @@ def test_a_supervisor_that_dies_or_hangs_mid_attempt_stops_the_controller(ros, t
         os.killpg(pol.proc.pid, signal.SIGSTOP)
         time.sleep(2.0)
         os.killpg(pol.proc.pid, signal.SIGCONT)
-        t_cont = time.monotonic()
         rig.watch(0.4)
         rig.status_every = 5
         rig.send(rig.status_msg)
