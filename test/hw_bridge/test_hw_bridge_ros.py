@@ -58,10 +58,11 @@ def drive(node, pub, data, seconds):
 
 def fresh_start(node, pub, got, timeout: float = 10.0) -> None:
     """The all-zero command the bridge awaits after a fault (the mux's idle zeros, a released trigger), sent
-    until its diagnostics say it awaits none. Zeros for a fixed 0.2 s were not always enough on a busy 2-core
-    machine (CI, 2026-11-30: the machine stayed stopped after them): the command subscription keeps only the
-    newest message (COMMAND_QOS), so a bridge that does not spin for the whole burst takes the next motion
-    command instead, and stays stopped (the safe side) until zeros come again."""
+    until its diagnostics say it awaits none. Zeros for a fixed 0.2 s, then 0.3 s of motion, twice ended with a
+    stop frame last on a busy 2-core machine (CI, 2026-11-30). Not pinned down; two candidates: the bridge's
+    command subscription keeps only the newest message (COMMAND_QOS), so a bridge that does not spin for the
+    whole burst takes the next motion command instead; and the device's emulator, a thread of this test
+    process, reads its pty late when the process is starved. Both are on the safe side (stopped)."""
     t_end = time.monotonic() + timeout
     while time.monotonic() < t_end:
         n = len(got["diag"])
@@ -70,6 +71,18 @@ def fresh_start(node, pub, got, timeout: float = 10.0) -> None:
                                         == "False" for d in got["diag"][n:] for s in d.status), timeout=0.5):
             return
     pytest.fail(f"the bridge still awaits an all-zero command after {timeout:g} s of them: {device_status(got)}")
+
+
+def drive_until_moving(node, pub, dev, bridge, data, frame, timeout: float = 3.0) -> None:
+    """After a fresh start: `data` until the device's newest command frame is `frame` (motion), within
+    `timeout` (see fresh_start: a fixed 0.3 s was not always enough on a busy machine)."""
+    t_end = time.monotonic() + timeout
+    while time.monotonic() < t_end:
+        drive(node, pub, data, 0.1)
+        if dev.last_commands() and dev.last_commands()[-1][1] == frame:
+            return
+    pytest.fail(f"no {frame} within {timeout:g} s of {data} after the fresh start; the device's last frames "
+                f"{dev.last_commands()[-5:]}\n{bridge.log()[-3000:]}")
 
 
 def test_round_trip_commands_to_valves_and_sensors_to_joint_states(rig):
@@ -158,8 +171,7 @@ def test_a_silent_device_is_sent_stops_and_bytes_without_frames_are_named(rig):
         "wrong baud rate (115200)" in st["message"], st
     dev.silent = False
     fresh_start(node, pub, got)                     # frames again, and the fresh start a silence needs: motion again
-    drive(node, pub, [2.0, -0.191, 0.2], 0.5)
-    assert dev.last_commands()[-1][1] == CommandFrame(2.0, 1, 1, True)
+    drive_until_moving(node, pub, dev, bridge, [2.0, -0.191, 0.2], CommandFrame(2.0, 1, 1, True))
 
 
 def stop_delay(dev, node, pub, wait=0.8) -> float:
@@ -198,8 +210,7 @@ def test_unplug_and_replug_reconnects_and_sends_stop_first(rig):
     # until an all-zero command (the mux's idle zeros, a released trigger), then fresh commands move it
     assert all(m.is_stop for m in after), after[-3:]
     fresh_start(node, pub, got)
-    drive(node, pub, [2.0, -0.191, 0.2], 0.3)
-    assert dev.last_commands()[-1][1] == CommandFrame(2.0, 1, 1, True)
+    drive_until_moving(node, pub, dev, bridge, [2.0, -0.191, 0.2], CommandFrame(2.0, 1, 1, True))
     assert bridge.alive()
     n_js = len(got["js"])
     spin_until(node, lambda: len(got["js"]) > n_js + 10, timeout=2.0)
@@ -580,9 +591,9 @@ def test_estop_currents_and_valve_states_are_published(rig):
         drive(node, pub, [1.0, -0.191, 0.2], 0.3)
         assert all(m.is_stop for _, m in dev.last_commands()[-5:]), cmd
     fresh_start(node, pub, got)                             # the fresh start (a released trigger, the mux's zeros)
-    drive(node, pub, [1.0, -0.191, 0.2], 0.5)
+    drive_until_moving(node, pub, dev, bridge, [1.0, -0.191, 0.2], CommandFrame(1.0, 1, 1, True))
+    drive(node, pub, [1.0, -0.191, 0.2], 0.3)
     assert hw[-1].level == DiagnosticStatus.OK and status_values(hw[-1])["valve_boom"] == "1"
-    assert dev.last_commands()[-1][1] == CommandFrame(1.0, 1, 1, True)
 
 
 def test_a_burst_of_late_frames_keeps_each_frames_measurement_instant(ros, tmp_path):
@@ -655,8 +666,7 @@ def test_a_device_reset_while_running_holds_the_machine_and_reports_error(rig):
     drive(node, pub, [1.0, -0.191, 0.2], 1.0)        # past the 1 s hold, the same stream: still stopped
     assert all(m.is_stop for _, m in dev.last_commands()[-10:])
     fresh_start(node, pub, got)                      # the fresh start
-    drive(node, pub, [1.0, -0.191, 0.2], 0.3)
-    assert dev.last_commands()[-1][1] == CommandFrame(1.0, 1, 1, True)
+    drive_until_moving(node, pub, dev, bridge, [1.0, -0.191, 0.2], CommandFrame(1.0, 1, 1, True))
     assert hw[-1].level == DiagnosticStatus.OK, hw[-1].message
 
 
@@ -681,8 +691,7 @@ def test_an_arm_sensor_fault_publishes_no_joint_state_and_stops(rig):
     assert len(got["js"]) > n_js + 10 and all(math.isfinite(x) for x in got["js"][-1].position)
     assert all(m.is_stop for _, m in dev.last_commands()[-10:])       # no restart without a fresh start
     fresh_start(node, pub, got)
-    drive(node, pub, [1.0, -0.191, 0.2], 0.3)
-    assert dev.last_commands()[-1][1] == CommandFrame(1.0, 1, 1, True)
+    drive_until_moving(node, pub, dev, bridge, [1.0, -0.191, 0.2], CommandFrame(1.0, 1, 1, True))
 
 
 def test_a_silent_device_needs_the_fresh_start_when_its_frames_come_back(rig):
@@ -704,7 +713,4 @@ def test_a_silent_device_needs_the_fresh_start_when_its_frames_come_back(rig):
     drive(node, pub, [1.0, -0.191, 0.2], 0.6)
     assert all(m.is_stop for _, m in dev.last_commands()[-10:])
     fresh_start(node, pub, got)
-    drive(node, pub, [1.0, -0.191, 0.2], 0.3)
-    # (CI failed here once, 2026-11-30, a stop frame last, on a busy 2-core machine; not seen in 8 runs beside two
-    # busy loops: the bridge's log says which reason held it)
-    assert dev.last_commands()[-1][1] == CommandFrame(1.0, 1, 1, True), (dev.last_commands()[-5:], bridge.log()[-3000:])
+    drive_until_moving(node, pub, dev, bridge, [1.0, -0.191, 0.2], CommandFrame(1.0, 1, 1, True))
