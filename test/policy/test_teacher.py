@@ -3,6 +3,7 @@ keys, the shared decision path, and the controller driving the real simulator fr
 (odometry, joint angles, drift flags, the end zone) exactly as the training's demonstrations drive
 it from the environment's own state, on a pile told the truth and on a 15 deg pile told 30 deg."""
 import copy
+import dataclasses
 import math
 from pathlib import Path
 
@@ -260,3 +261,29 @@ def test_the_teacher_setting_picks_the_maneuver(cfg, params):
     core.memory["lift"] = True
     core.reset()
     assert core.memory == {}
+
+
+def test_confirm_drift_by_hand():
+    """policy/teacher.confirm_drift, the count the node's teacher and the training's demonstrations share:
+    flags up, up, down, up, up, up with confirm 3 pass only the last; a sample already counted (fresh False)
+    does not count again; confirm 1 passes every flag; a non-whole or < 1 confirm is refused."""
+    from lhd_loading_ros.policy.teacher import confirm_drift
+    from lhd_loading_ros.task.state import LhdState
+
+    base = LhdState(x_shovel=0.5, y_shovel=0.0, z_shovel=0.05, phi_shovel=0.0, v_x=0.3, drift=False, phi_boom=0.0,
+                    dphi_boom=0.0, phi_bucket=0.0, dphi_bucket=0.0)
+    run, passed, runs = 0, [], []
+    for up in (True, True, False, True, True, True):
+        s = base if not up else dataclasses.replace(base, drift=True, drift_front=True)
+        out, run = confirm_drift(s, run, 3)
+        passed.append(out.drift)
+        runs.append(run)
+        if not out.drift:
+            assert not out.drift_front and not out.drift_rear
+    assert passed == [False, False, False, False, False, True] and runs == [1, 2, 0, 1, 2, 3]
+    up = dataclasses.replace(base, drift=True, drift_rear=True)
+    assert confirm_drift(up, 2, 3, fresh=False) == (dataclasses.replace(up, drift=False, drift_rear=False), 2)
+    assert confirm_drift(up, 0, 1) == (up, 1)
+    for bad in (0, 1.5, True):
+        with pytest.raises(ValueError, match="drift_confirm"):
+            confirm_drift(up, 0, bad)

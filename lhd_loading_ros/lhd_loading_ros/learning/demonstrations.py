@@ -34,7 +34,7 @@ teacher loads none at +10 and +15 (docs/training.md "A teacher that knows what t
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -53,6 +53,7 @@ class DemoConfig:
     push_curl: float = 0.0        # rad: curl while pushing (demo_push_curl; maneuver.push_curl_action)
     late_lift: float = 0.0        # share of the end zone where an unstalled push lifts (demo_late_lift)
     told_high: float = 0.0        # deg: every episode told at least this much too steep is a demonstration (0: off)
+    drift_confirm: int = 1        # decisions a drift flag the actor sees must hold before the lift (demo_drift_confirm; 1: off)
 
     @classmethod
     def from_training(cls, t: dict) -> "DemoConfig | None":
@@ -73,8 +74,12 @@ class DemoConfig:
         told_high = float(t.get("demo_told_high", 0.0))
         if not (0.0 <= told_high <= 45.0):      # NaN fails too
             raise ValueError(f"training.demo_told_high = {told_high!r}: expected a slope error in [0, 45] deg (0: off)")
+        confirm = t.get("demo_drift_confirm", 1)
+        if isinstance(confirm, bool) or int(confirm) != confirm or not 1 <= int(confirm) <= 50:
+            raise ValueError(f"training.demo_drift_confirm = {confirm!r}: expected a whole number of decisions in "
+                             "[1, 50] (1: every drift flag the simulator's teacher reads lifts at once)")
         return cls(share, lo, hi, float(t.get("demo_pre_curl", 0.3)), until,
-                   bool(int(t.get("demo_told_zones", 0))), stop, ts.push_curl, ts.late_lift, told_high)
+                   bool(int(t.get("demo_told_zones", 0))), stop, ts.push_curl, ts.late_lift, told_high, int(confirm))
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -100,12 +105,12 @@ class DemoConfig:
 
     def action(self, env, crowd: float) -> np.ndarray:
         return demo_action(env, crowd, self.pre_curl, self.told_zones, self.end_zone_stop,
-                           push_curl=self.push_curl, late_lift=self.late_lift)
+                           push_curl=self.push_curl, late_lift=self.late_lift, drift_confirm=self.drift_confirm)
 
 
 def demo_action(env, crowd: float, pre_curl: float, told_zones: bool = False,
                 end_zone_stop: float = 0.0, push_curl: float = 0.0, late_lift: float = 0.0,
-                measured: bool = False) -> np.ndarray:
+                measured: bool = False, drift_confirm: int = 1) -> np.ndarray:
     """The scripted maneuver's normalised action for env's current state: arm still and wheels
     full until the tip passes x_min (the pile's own, or with told_zones the told one) or a wheel
     drifts, then curl to pre_curl and lift and curl at full rate with the wheels at `crowd` of full
@@ -114,8 +119,13 @@ def demo_action(env, crowd: float, pre_curl: float, told_zones: bool = False,
     the arm's angle-sensor offsets in it), as the teacher runs on the machine (lhd experiment paper); the
     training's demonstrations read the true state (the simulator's teacher, an oracle like the pile's zones).
     push_curl / late_lift: the push-curl maneuver (policy/maneuver.push_curl_action), whose memory of the
-    attempt lives on env (`_teacher_memory`) and is emptied at each episode's first step."""
-    from lhd_loading_ros.policy.teacher import TeacherSetting, teacher_action
+    attempt lives on env (`_teacher_memory`) and is emptied at each episode's first step.
+    drift_confirm > 1 (`training.demo_drift_confirm`): the teacher reads the drift flags the actor observes
+    (env.measured_state: the bridge's window where the episode lags it, randomization.drift_flag_lag_max_s) and
+    lifts on one only once it has been up for drift_confirm steps in a row (policy/teacher.confirm_drift, as
+    the machine's teacher does with teacher_drift_confirm); its count lives on env (`_teacher_drift_run`),
+    emptied at each episode's first step, so call this once a step. 1: the flags of the state read, at once."""
+    from lhd_loading_ros.policy.teacher import TeacherSetting, confirm_drift, teacher_action
 
     z = env.zones if told_zones else env.sim.zones
     setting = TeacherSetting(crowd, pre_curl, told_zones, end_zone_stop, push_curl, late_lift)
@@ -124,5 +134,10 @@ def demo_action(env, crowd: float, pre_curl: float, told_zones: bool = False,
         memory = getattr(env, "_teacher_memory", None)
         if memory is None or env.steps == 0:
             memory = env._teacher_memory = {}
-    return teacher_action(env.measured_state if measured else env.state, (z.x_min, z.x_max, z.z_min),
-                          setting, memory)
+    s = env.measured_state if measured else env.state
+    if drift_confirm > 1:
+        seen = env.measured_state
+        run = 0 if env.steps == 0 else getattr(env, "_teacher_drift_run", 0)
+        s, env._teacher_drift_run = confirm_drift(
+            replace(s, drift=seen.drift, drift_front=seen.drift_front, drift_rear=seen.drift_rear), run, drift_confirm)
+    return teacher_action(s, (z.x_min, z.x_max, z.z_min), setting, memory)

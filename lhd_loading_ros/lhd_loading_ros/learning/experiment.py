@@ -191,6 +191,8 @@ def run_job(job: Job) -> dict:
     if c == "teacher":
         from lhd_loading_ros.learning.demonstrations import demo_action
         teacher = teacher_setting(env.cfg)
+        # the training's drift confirmation (training.demo_drift_confirm; 1: every flag at once)
+        confirm = int(env.cfg["training"].get("demo_drift_confirm", 1))
     if c == "tampier":
         if ("tampier",) not in _WORKER:
             _WORKER[("tampier",)] = TampierController(load_tampier_config(), env.p)
@@ -212,7 +214,7 @@ def run_job(job: Job) -> dict:
         elif c == "scripted":
             obs, _, term, trunc, info = env.step(scripted_action(env.measured_state, env.p.x_midgoal, lift_on_drift=True))
         elif c == "teacher":
-            obs, _, term, trunc, info = env.step(demo_action(env, *teacher, measured=True))
+            obs, _, term, trunc, info = env.step(demo_action(env, *teacher, measured=True, drift_confirm=confirm))
         else:
             obs, _, term, trunc, info = env.step_actuator(np.asarray(ctl.step(env.measured_state, end_zone)))
         path.append((env.state.x_shovel, env.state.z_shovel))

@@ -57,7 +57,10 @@ def export_actor(directory, actor: FlatMlp, cfg: dict, meta: dict):
                                 if float(cfg["training"].get("demo_end_zone_stop", 0.0)) > 0 else {}),
                              # the push-curl teacher (policy/maneuver.push_curl_action)
                              **{k: float(cfg["training"][k]) for k in ("demo_push_curl", "demo_late_lift", "demo_told_high")
-                                if float(cfg["training"].get(k, 0.0)) > 0}}
+                                if float(cfg["training"].get(k, 0.0)) > 0},
+                             # the demonstrations read the actor's drift flags and confirm one over this many steps
+                             **({"demo_drift_confirm": int(cfg["training"]["demo_drift_confirm"])}
+                                if int(cfg["training"].get("demo_drift_confirm", 1)) > 1 else {})}
                             if float(cfg.get("training", {}).get("demo_share", 0.0)) > 0 else {}),
                          "r_success_pitch_margin_deg": float(cfg["task"].get("r_success_pitch_margin_deg", 0.0)),
                          **({"r_success_mass_margin_kg": float(cfg["task"]["r_success_mass_margin_kg"])}

@@ -171,6 +171,10 @@ def _recipe_note(tw: dict) -> str:
         told_high = float(tw.get("demo_told_high", 0.0) or 0.0)
         if told_high > 0:
             parts.append(f"every episode told the slope {told_high:g} deg or more too steep a demonstration")
+        confirm = int(tw.get("demo_drift_confirm", 1) or 1)
+        if confirm > 1:
+            parts.append(f"the demonstrations reading the drift flags the actor sees and lifting on one only after "
+                         f"{confirm} steps in a row")
     if int(tw.get("reward_zones_from_pile", 0) or 0):
         parts.append("the reward's terms reading the pile's own zones where the slope was told wrong "
                      "(`task.reward_zones_from_pile`; the observation and the episode's end the told ones)")

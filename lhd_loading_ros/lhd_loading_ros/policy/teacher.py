@@ -91,6 +91,24 @@ def teacher_action(s: LhdState, end_zone, setting: TeacherSetting, memory: dict 
                            end_zone=(x_max, z_min), end_zone_stop=setting.end_zone_stop)
 
 
+def confirm_drift(s: LhdState, run: int, confirm: int, fresh: bool = True) -> tuple[LhdState, int]:
+    """(s with its drift flags down unless they have been up for `confirm` decisions in a row, the new
+    count). `run`: the decisions in a row before this one with a flag up; a decision on a fresh drift
+    sample (`fresh`) with a flag up counts one more, one without a flag starts the count at 0, one on a
+    sample already counted leaves it. confirm 1: every flag counts at once (s unchanged). Pure: the
+    policy node's teacher (TeacherCore.confirmed) and the training's demonstrations
+    (learning/demonstrations.demo_action, `training.demo_drift_confirm`) share it."""
+    if isinstance(confirm, bool) or not isinstance(confirm, int) or confirm < 1:
+        raise ValueError(f"drift_confirm = {confirm!r}: expected a whole number of decisions >= 1")
+    if not s.drift:
+        return s, 0
+    if fresh:
+        run += 1
+    if confirm > 1 and run < confirm:
+        return replace(s, drift=False, drift_front=False, drift_rear=False), run
+    return s, run
+
+
 class TeacherCore(DecisionCore):
     """The policy node's decision path (input checks, timeouts, zero command on doubt: DecisionCore)
     with the demonstrations' teacher in place of the actor. Every command follows from the current
@@ -137,12 +155,7 @@ class TeacherCore(DecisionCore):
             return s
         fresh = arrival is None or arrival != self._drift_arrival
         self._drift_arrival = arrival
-        if not s.drift:
-            self.drift_run = 0
-        elif fresh:
-            self.drift_run += 1
-        if s.drift and self.drift_run < self.drift_confirm:
-            return replace(s, drift=False, drift_front=False, drift_rear=False)
+        s, self.drift_run = confirm_drift(s, self.drift_run, self.drift_confirm, fresh)
         return s
 
     def _act(self, inp: Inputs) -> Decision:
@@ -166,4 +179,4 @@ class TeacherCore(DecisionCore):
         return Decision(tuple(float(v) for v in u), None, a, "", note=f"stage {self.stage}")
 
 
-__all__ = ["TeacherSetting", "TeacherCore", "teacher_action"]
+__all__ = ["TeacherSetting", "TeacherCore", "teacher_action", "confirm_drift"]
