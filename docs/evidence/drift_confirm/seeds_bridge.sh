@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# Every seed's final actor of the drift-confirm recipe (runs/drift_confirm3_rld: the bridge's drift window recipe of
+# docs/evidence/told_high_bound/lhd_params_steep_push_curl_told_high_demos_pile_zones_rest_driftlag.yaml with
+# training.demo_drift_confirm 3; 2026-12-01, twenty-fourth session), from rest and as on the machine, with the
+# bridge's drift flags (--stress rest_bridge, machine_bridge) and the simulator's (rest, machine), as
+# docs/evidence/drift_lag/seeds_bridge.sh measured the two recipes before it. 120 held-out episodes each (seed
+# 2,000,000), 15-30 deg piles, on the recipe's nominal evaluation file. Run from the repository root after
+#   lhd train --variant rld --seeds 0-4 --jobs 5 --randomize \
+#       --config docs/evidence/drift_confirm/lhd_params_drift_confirm3.yaml --out runs/drift_confirm3_rld
+#   bash docs/evidence/drift_confirm/seeds_bridge.sh > docs/evidence/drift_confirm/seeds_bridge.txt
+set -euo pipefail
+STRESS="rest_bridge machine_bridge rest machine" RUNS=drift_confirm3_rld EXTRA=0 \
+  CFG=docs/evidence/drift_confirm/lhd_params_drift_confirm3_nominal_eval.yaml \
+  exec bash docs/evidence/told_high_bound/machine_case_seeds.sh
