@@ -5,8 +5,10 @@ with the deployment filter. From the repository root:
 
     .venv/bin/python docs/evidence/machine_case/slopes.py > docs/evidence/machine_case/slopes.txt
 
-`slopes.py rld_machine` runs only the named actors of policies/ (rows to add to the table).
+`slopes.py rld_machine` runs only the named actors of policies/ (rows to add to the table); with STRESS=machine_bridge
+in the environment, the machine case with the bridge's drift flags (docs/evidence/drift_confirm/, 2026-12-01).
 """
+import os
 import sys
 
 from lhd_sim_node.env import LhdLoadingEnv
@@ -17,7 +19,8 @@ from lhd_loading_ros.task.config import load_config
 from lhd_loading_ros.task.randomization import stress_conditions
 
 SLOPES = (10.0, 12.0, 13.0, 14.0, 15.0, 17.5, 22.5, 27.5, 32.5, 35.0)
-print("machine case, 30 episodes a slope: successes (mean load of all attempts, kg)")
+STRESS = os.environ.get("STRESS", "machine")
+print(f"{'machine case' if STRESS == 'machine' else STRESS}, 30 episodes a slope: successes (mean load of all attempts, kg)")
 print("| actor | " + " | ".join(f"{s:g} deg" for s in SLOPES) + " |")
 print("|---" * (len(SLOPES) + 1) + "|")
 for a in sys.argv[1:] or ("rld_gains", "rlc_gains"):
@@ -30,7 +33,7 @@ for a in sys.argv[1:] or ("rld_gains", "rlc_gains"):
         rs = []
         for i in range(0, 120, 4):
             opts = {"slope_deg": slope, "material": ("homogeneous", "nonhomogeneous")[(i // 4) % 2],
-                    "conditions": stress_conditions("machine", i, cfg)}
+                    "conditions": stress_conditions(STRESS, i, cfg)}
             rs.append(run_policy_episode(env, pol.actor, 2_000_000 + i, opts))
         cells.append(f"{sum(r.success for r in rs)}/{len(rs)} ({sum(r.loaded for r in rs) / len(rs):.1f})")
     print(f"| `{a}` | " + " | ".join(cells) + " |", flush=True)
