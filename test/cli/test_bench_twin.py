@@ -26,9 +26,9 @@ KEYS = ("latency_p50_ms", "latency_p99_ms", "latency_max_ms", "camera_to_decisio
     (["--duration", "inf"], "--duration must be a positive number of seconds"),
     (["--timeout", "-5"], "--timeout must be a positive number of seconds"),
     # the machine's RLD and its own file, as lhd up real runs them (cli/up_real.machine_actor)
-    (["--slopes", "100"], "--slopes 100: outside the pile range [10, 35] deg of "
+    (["--slopes", "100"], "--slopes 100: outside the pile range [10, 40] deg of "
                           + os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))),
-                                         "policies", "rld_machine", "lhd_params.yaml")),
+                                         "policies", "rld_drift_confirm", "lhd_params.yaml")),
     (["--slopes", "abc"], "--slopes 'abc': expected degrees, e.g. 20 or '15,30'"),
     (["--no-imu", "--imu", "100"], "not allowed with argument"),
 ])

@@ -262,14 +262,18 @@ def _json_default(o):
 # (`lhd demo`, `lhd up sim`) keeps policies/rld and policies/rlc, the paper's protocol, which load every
 # pile of the paper's protocol but keep 0.61 / 0.70 of the machine case (docs/real_machine.md "Which actor on the machine",
 # docs/evidence/machine_case/). Both ship their own parameter file (the 10-35 deg piles' normalisers).
-# RLD: rld_machine since 2026-11-29 (eighth session; rld_gains before): as good in the machine case (1.000)
-# and far better with a wrong LiDAR slope (docs/training.md "The machine recipe").
-MACHINE_ACTORS = {"rld": "rld_machine", "rlc": "rlc_gains"}
+# RLD: rld_drift_confirm since 2026-12-01 (twenty-fourth session): with the drift flags the bridge gives at a start
+# from rest it keeps 28-30 of 30 attempts on every slope of 10-35 deg where rld_machine (2026-11-29 to 2026-11-30;
+# rld_gains before it) keeps 14-23 on 10-15 deg piles, and 8 of 8 in the twin on 12 and 14 deg piles against
+# rld_machine's 5 (docs/real_machine.md "Which actor on the machine", docs/evidence/drift_confirm/).
+MACHINE_ACTORS = {"rld": "rld_drift_confirm", "rlc": "rlc_gains"}
 # The slopes each machine actor keeps >= 0.9 of the machine case on (30 episodes a slope,
-# docs/evidence/machine_case/slopes.txt): rld_machine 24/30 on 10 and 12 deg, 25/30 on 13, 28/30 on 14,
-# 29-30/30 from 15 to 35 (rld_gains alike); rlc_gains 30/30 on 10-14 deg, 27/30 on 32.5 and 35. The real stack passes them to the
-# supervisor (slope_limits_deg), which arms only inside both them and the card's 10-35 deg.
-MACHINE_SLOPE_LIMITS_DEG = {"rld": (14.0, 35.0), "rlc": (10.0, 35.0)}
+# docs/evidence/machine_case/slopes.txt, docs/evidence/drift_confirm/machine_case_slopes.txt): rld_drift_confirm
+# 28-30/30 on every slope of 10-35 deg, with the simulator's drift flags and the bridge's (rld_machine 24/30 on 10
+# and 12 deg: it was armed on 14-35); rlc_gains 30/30 on 10-14 deg, 27/30 on 32.5 and 35. The real stack passes them
+# to the supervisor (slope_limits_deg), which arms only inside both them and the card's range (rld_drift_confirm's
+# 10-40 deg: 35-40 deg piles are not in the machine case's table).
+MACHINE_SLOPE_LIMITS_DEG = {"rld": (10.0, 35.0), "rlc": (10.0, 35.0)}
 
 
 def own_config(policy_dir) -> Path | None:
