@@ -8,7 +8,12 @@
 #   lhd train --variant rld --seeds 0-4 --jobs 5 --randomize \
 #       --config docs/evidence/drift_confirm/lhd_params_drift_confirm3.yaml --out runs/drift_confirm3_rld
 #   bash docs/evidence/drift_confirm/seeds_bridge.sh > docs/evidence/drift_confirm/seeds_bridge.txt
+# The same recipe as RLC (2026-12-01, twenty-fifth session; runs/drift_confirm3_rlc), with the deployment filter as the
+# nodes run it:
+#   bash docs/evidence/drift_confirm/seeds_bridge.sh rlc > docs/evidence/drift_confirm/seeds_bridge_rlc.txt
 set -euo pipefail
-STRESS="rest_bridge machine_bridge rest machine" RUNS=drift_confirm3_rld EXTRA=0 \
+V=${1:-rld}
+case $V in rld) ARGS= ;; rlc) ARGS=--deploy-filter ;; *) echo "usage: seeds_bridge.sh [rld|rlc]" >&2; exit 2 ;; esac
+STRESS="rest_bridge machine_bridge rest machine" RUNS=drift_confirm3_$V EXTRA=0 EVAL_ARGS=$ARGS \
   CFG=docs/evidence/drift_confirm/lhd_params_drift_confirm3_nominal_eval.yaml \
   exec bash docs/evidence/told_high_bound/machine_case_seeds.sh
