@@ -118,7 +118,7 @@ def generate_launch_description():
         Node(package="lhd_loading_ros", executable="supervisor_node", name="lhd_supervisor", output="screen",
              parameters=[pf, {**config, "run_dir": text("run_dir"), "controller": text("controller"),
                               "policy_dir": ParameterValue(policy_dir, value_type=str), "material": text("material"),
-                              # a YAML list from the launch configuration, "[14.0, 35.0]"
+                              # a YAML list from the launch configuration, "[10.0, 35.0]"
                               "slope_limits_deg": LaunchConfiguration("slope_limits"),
                               "required_listeners": LaunchConfiguration("required_listeners"),
                               "attempt_timeout": ParameterValue(LaunchConfiguration("attempt_timeout"),

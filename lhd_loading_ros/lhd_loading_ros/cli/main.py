@@ -552,7 +552,7 @@ def _main(argv=None) -> int:
     p_eval.add_argument("--controller", choices=["actor", "tampier"], default="actor",
                         help="actor: an exported policy (--policy); tampier: the Tampier-style heuristic baseline")
     p_eval.add_argument("--policy", help="policy directory (actor.npz + policy.json); required for --controller actor. "
-                        "An actor shipped with its own lhd_params.yaml (ten of them: rld_machine, rld_gains, rlc_gains, rld_wide, the *_twin* ones...; policies/README.md) needs --config DIR/lhd_params.yaml")
+                        "An actor shipped with its own lhd_params.yaml (15 of them: rld_drift_confirm, rld_machine, rlc_gains, the *_twin*, *_steep, *_told_* ones...; policies/README.md) needs --config DIR/lhd_params.yaml")
     p_eval.add_argument("--slopes", default=None, help="tampier: pile slopes, degrees (default 15,20,25,30)")
     p_eval.add_argument("--material", choices=["both", "homogeneous", "nonhomogeneous"], default=None,
                         help="tampier: pile material (default both)")
