@@ -11,9 +11,12 @@
 # The same recipe as RLC (2026-12-01, twenty-fifth session; runs/drift_confirm3_rlc), with the deployment filter as the
 # nodes run it:
 #   bash docs/evidence/drift_confirm/seeds_bridge.sh rlc > docs/evidence/drift_confirm/seeds_bridge_rlc.txt
+# and with the level push (runs/drift_confirm3_level_push_rlc):
+#   bash docs/evidence/drift_confirm/seeds_bridge.sh level_push_rlc > docs/evidence/drift_confirm/seeds_bridge_level_push_rlc.txt
 set -euo pipefail
 V=${1:-rld}
-case $V in rld) ARGS= ;; rlc) ARGS=--deploy-filter ;; *) echo "usage: seeds_bridge.sh [rld|rlc]" >&2; exit 2 ;; esac
+case $V in rld) ARGS= ;; rlc|level_push_rlc) ARGS=--deploy-filter ;;
+  *) echo "usage: seeds_bridge.sh [rld|rlc|level_push_rlc]" >&2; exit 2 ;; esac
 STRESS="rest_bridge machine_bridge rest machine" RUNS=drift_confirm3_$V EXTRA=0 EVAL_ARGS=$ARGS \
   CFG=docs/evidence/drift_confirm/lhd_params_drift_confirm3_nominal_eval.yaml \
   exec bash docs/evidence/told_high_bound/machine_case_seeds.sh
