@@ -163,6 +163,11 @@ def test_a_short_run_draws_its_piles_from_the_curriculum_and_resumes_it(cfg, tmp
         assert r["success"] in ("0", "1")
         assert r["success"] == "0" or (r["outcome"] == "success" and float(r["loaded"]) >= 20.0), r
         ref.record(want, r["success"] == "1")
+        # r_success (the reward's success term) is paid only to attempts that pass the paper's test with the
+        # training margins: >= 20 kg + the mass margin, never to a failure
+        assert float(r["r_success"]) >= 0.0
+        if float(r["r_success"]) > 0.0:
+            assert r["success"] == "1" and float(r["loaded"]) >= 20.0 + c["task"]["r_success_mass_margin_kg"], r
     # with bin 0 alone failing, it held 0.2 / 3 + 0.8 = 0.87 of the first draws
     assert shallow >= 3
     # the checkpoint holds the state after the last finished episode (the run ended on it)
@@ -202,6 +207,30 @@ def test_the_sim_nodes_draw_their_own_piles_so_the_curriculum_is_refused_there(c
     with pytest.raises(ValueError, match="slope_curriculum = 1 .* in-process"):
         train("rld", 0, tmp_path / "r", steps=10, config=small(cfg), env_kind="ros", namespaces=["/sim0"],
               progress=False, log=lambda *a: None)
+
+
+def test_the_reward_test_counts_what_r_success_pays():
+    """training.slope_curriculum_reward_test: with it a bin whose attempts pass the paper's test without
+    earning r_success (a 10 deg pile ended with 21 kg under a 4 kg mass margin) still counts as failing,
+    and its share of the draw is that of a failing bin, by hand; its settings resume only with it."""
+    paper = CurriculumConfig(bins=2, window=4, uniform=0.5)
+    reward = CurriculumConfig(bins=2, window=4, uniform=0.5, reward_test=1)
+    assert CurriculumConfig.from_training({"slope_curriculum": 1, "slope_curriculum_bins": 2, "slope_curriculum_window": 4,
+                                           "slope_curriculum_reward_test": 1}) == reward
+    assert paper.to_dict() == {"bins": 2, "window": 4, "uniform": 0.5}          # as every run before it wrote
+    assert reward.to_dict() == {**paper.to_dict(), "reward_test": 1}
+    # (paper test passed, r_success paid): only both together are a success on the reward's test
+    assert [paper.counts_success(p, r) for p, r in ((True, 0.0), (True, 900.0), (False, 0.0))] == [True, True, False]
+    assert [reward.counts_success(p, r) for p, r in ((True, 0.0), (True, 900.0), (False, 0.0))] == [False, True, False]
+    for cfg_, want in ((paper, [0.5, 0.5]), (reward, [0.75, 0.25])):
+        c = SlopeCurriculum(10.0, 40.0, cfg_)
+        for _ in range(4):
+            c.record(12.0, cfg_.counts_success(True, 0.0))       # shallow: 21 kg, paper's test passed, no r_success
+            c.record(30.0, cfg_.counts_success(True, 1100.0))    # steep: both
+        # paper: no bin fails -> uniform; reward: f = (1, 0) -> 0.5 / 2 + 0.5 = 0.75 on the shallow bin
+        assert c.probabilities() == pytest.approx(want)
+    with pytest.raises(ValueError, match="resume with the same"):
+        SlopeCurriculum(10.0, 40.0, reward).load_state_dict(SlopeCurriculum(10.0, 40.0, paper).state_dict())
 
 
 def test_the_class_defaults_are_the_config_defaults():

@@ -14,6 +14,14 @@ with none yet), u: the uniform share, B: the bins. Within a bin the slope is uni
 the idea of prioritised level replay (Jiang et al. 2021) with the failure rate as the score. The
 evaluations (and everything after training) keep the uniform draw: the curriculum only decides
 which piles the learner practises on, not what its figures are measured on.
+
+What counts as a success (training.slope_curriculum_reward_test): 0, the paper's test (SL >= 1:
+>= 20 kg and a final pitch > 40 deg); 1, the reward's own test, an attempt that earned r_success
+(the paper's test with the training margins, task.r_success_mass_margin_kg and
+r_success_pitch_margin_deg). With the margins, an actor that ends a 10 deg pile with 20-23 kg
+passes the paper's test, so its bin counts as learned and is drawn no more often, while the
+reward still pays it nothing for success there (docs/training.md "The curriculum on the reward's
+test").
 """
 from __future__ import annotations
 
@@ -28,6 +36,7 @@ class CurriculumConfig:
     bins: int = 6
     window: int = 100
     uniform: float = 0.5
+    reward_test: int = 0
 
     @classmethod
     def from_training(cls, t: dict) -> "CurriculumConfig | None":
@@ -36,10 +45,18 @@ class CurriculumConfig:
             return None
         return cls(bins=int(t.get("slope_curriculum_bins", cls.bins)),
                    window=int(t.get("slope_curriculum_window", cls.window)),
-                   uniform=float(t.get("slope_curriculum_uniform", cls.uniform)))
+                   uniform=float(t.get("slope_curriculum_uniform", cls.uniform)),
+                   reward_test=int(t.get("slope_curriculum_reward_test", cls.reward_test)))
 
     def to_dict(self) -> dict:
-        return {"bins": self.bins, "window": self.window, "uniform": self.uniform}
+        """The settings; reward_test only when on, so that runs written before it resume unchanged."""
+        d = {"bins": self.bins, "window": self.window, "uniform": self.uniform}
+        return {**d, "reward_test": 1} if self.reward_test else d
+
+    def counts_success(self, paper_success: bool, r_success: float) -> bool:
+        """Whether a training attempt counts as a success for the draw: the paper's test, or with
+        reward_test also the reward's (r_success, the terminal step's success term, paid)."""
+        return bool(paper_success) and (not self.reward_test or r_success > 0.0)
 
 
 class SlopeCurriculum:

@@ -190,7 +190,8 @@ def _recipe_note(tw: dict) -> str:
     if tw.get("lr_final_scale") is not None and float(tw["lr_final_scale"]) != 1.0:
         parts.append(f"learning rates falling to {float(tw['lr_final_scale']):g} of their start")
     if isinstance(tw.get("slope_curriculum"), dict) and int(tw["slope_curriculum"].get("bins", 0) or 0) > 0:
-        parts.append("a slope curriculum")
+        parts.append("a slope curriculum" + (" counting the reward's success (r_success paid), not the paper's test"
+                                              if int(tw["slope_curriculum"].get("reward_test", 0) or 0) else ""))
     return "".join(f", {p}" for p in parts)
 
 

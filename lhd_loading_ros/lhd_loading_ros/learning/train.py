@@ -49,8 +49,8 @@ EVAL_FIELDS = ("step", "ar", "aml", "aff", "asl", "success_rate", "end_zone_rate
                "front_drift_pct", "rear_drift_pct", "noise_scale", "critic_loss", "q_mean", "episodes_done",
                "wall_s", "eval_wall_s")
 EPISODE_FIELDS = ("episode", "step", "return", "loaded", "outcome", "steps", "alpha_deg", "material", "noise_scale",
-                  "source", "success", "driver")     # success: the paper's test (SL >= 1), what the slope curriculum
-# counts; driver: "actor", or "scripted crowd c" for a demonstration (training.demo_share, learning/demonstrations.py)
+                  "source", "success", "driver", "r_success")     # success: the paper's test (SL >= 1), what the slope
+# curriculum counts (with training.slope_curriculum_reward_test also r_success > 0: the reward's success term paid); driver: "actor", or "scripted crowd c" for a demonstration (training.demo_share, learning/demonstrations.py)
 ENV_KINDS = ("local", "ros")
 
 
@@ -622,17 +622,19 @@ def _train(variant: str, seed: int, out, steps: int | None = None, config=None, 
                 obs[i] = obs2
                 if term or trunc:
                     res = info["episode_result"]
+                    r_succ = float(info.get("terms", {}).get("success", 0.0)) if term else 0.0
                     demo = i in demo_crowd
                     if demo_rows.get(i):     # the demonstration's return from each of its rows, now known
                         replay.set_demo_return(demo_rows.pop(i), dc.gamma)
                     if curriculum is not None and not demo:      # the actor's failures, not the teacher's
-                        curriculum.record(res.alpha_deg, res.success)     # the paper's test (SL >= 1)
+                        curriculum.record(res.alpha_deg, cur_cfg.counts_success(res.success, r_succ))
                     _append_csv(out / "episodes.csv", EPISODE_FIELDS, {
                         "episode": slot_episode[i], "step": step, "return": f"{ep_ret[i]:.3f}",
                         "loaded": f"{res.loaded:.3f}", "outcome": info["outcome"] if term else "timeout",
                         "steps": res.steps, "alpha_deg": f"{res.alpha_deg:.2f}", "material": res.material,
                         "noise_scale": f"{scale:.4f}", "source": sources[i], "success": int(res.success),
-                        "driver": f"scripted crowd {demo_crowd[i]:.3f}" if demo else "actor"})
+                        "driver": f"scripted crowd {demo_crowd[i]:.3f}" if demo else "actor",
+                        "r_success": f"{r_succ:.3f}"})
                     episode += 1
                     ep_ret[i] = 0.0
                     noises[i].reset()

@@ -147,6 +147,7 @@ SCHEMA: dict[str, Any] = {
         "checkpoint_every": _i(1, 100_000_000), "torch_threads": _i(1, 256),
         "twin_critics": _i(0, 1), "slope_curriculum": _i(0, 1), "slope_curriculum_bins": _i(1, 100),
         "slope_curriculum_window": _i(1, 100_000), "slope_curriculum_uniform": _f(0.01, 1.0),
+        "slope_curriculum_reward_test": _i(0, 1),
         "lr_final_scale": _f(0.01, 1.0), "lr_decay_from": _i(0, 100_000_000),
         "demo_share": _f(0.0, 0.9), "demo_crowd_min": _f(0.05, 1.0), "demo_crowd_max": _f(0.05, 1.0),
         "demo_pre_curl": _f(0.0, 1.4), "demo_bc": _f(0.0, 100.0), "demo_until_step": _i(0, 100_000_000),
@@ -326,6 +327,7 @@ def _describe(spec) -> str:
 OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curriculum"): 0,
                      ("training", "slope_curriculum_bins"): 6, ("training", "slope_curriculum_window"): 100,
                      ("training", "slope_curriculum_uniform"): 0.5, ("training", "lr_final_scale"): 1.0,
+                     ("training", "slope_curriculum_reward_test"): 0,
                      ("training", "lr_decay_from"): 0, ("machine", "rear_differential"): 0,
                      ("task", "midgoal_from_pile"): 0, ("task", "reward_zones_from_pile"): 0,
                      ("training", "demo_share"): 0.0,
@@ -507,7 +509,7 @@ TILT_SCHEDULE_KEYS = ("r_tilt_ramp_after_success", "r_tilt_ramp_steps", "r_tilt_
 # how the learner learned (never in the hash; the card's trained_with records them): clipped double Q
 # and the slope curriculum (learning/curriculum.py), which draws training piles, never evaluation ones
 TRAINING_SCHEDULE_KEYS = ("twin_critics", "slope_curriculum", "slope_curriculum_bins", "slope_curriculum_window",
-                          "slope_curriculum_uniform", "lr_final_scale", "lr_decay_from",
+                          "slope_curriculum_uniform", "slope_curriculum_reward_test", "lr_final_scale", "lr_decay_from",
                           # scripted demonstrations in the replay (learning/demonstrations.py)
                           "demo_share", "demo_crowd_min", "demo_crowd_max", "demo_pre_curl",
                           # the actor's Q-filtered behaviour-cloning term on them (DDPGfD), and its filter
