@@ -54,14 +54,16 @@ case $S in rld) F=steep; V=rld ;; rlc) F=steep_rlc; V=rlc ;; rlc_to_end) F=steep
   # (training.slope_curriculum_reward_test 1: docs/evidence/curriculum_reward_test/lhd_params_steep_rlc_reward_test.yaml;
   # runs/steep_rlc_reward_test); not in the hash, so it runs on the steep RLC file's nominal evaluation file
   steep_rlc_reward_test) F=steep_rlc_reward_test; V=rlc; E=docs/evidence/curriculum_reward_test ;;
-  *) echo "usage: evaluate.sh [rld|rlc|rlc_to_end|push_curl_rld|push_curl_high_rld|told_high_demos_rld|reward_pile_zones_rld|told_high_demos_pile_zones_rld|told_high_demos_pile_zones_rlc|told_high_demos_pile_zones_rest_rld|told_high_demos_pile_zones_rest_rlc|told_high_demos_pile_zones_rest_driftlag_rld|drift_confirm3_rld|drift_confirm3_rlc|drift_confirm3_level_push_rlc|steep_rlc_reward_test]" >&2
+  # and its two-seed pilot (seeds 0 and 2) with a stronger curriculum (lhd_params_steep_rlc_reward_test_strong.yaml)
+  steep_rlc_reward_test_strong) F=steep_rlc_reward_test_strong; V=rlc; E=docs/evidence/curriculum_reward_test ;;
+  *) echo "usage: evaluate.sh [rld|rlc|rlc_to_end|push_curl_rld|push_curl_high_rld|told_high_demos_rld|reward_pile_zones_rld|told_high_demos_pile_zones_rld|told_high_demos_pile_zones_rlc|told_high_demos_pile_zones_rest_rld|told_high_demos_pile_zones_rest_rlc|told_high_demos_pile_zones_rest_driftlag_rld|drift_confirm3_rld|drift_confirm3_rlc|drift_confirm3_level_push_rlc|steep_rlc_reward_test|steep_rlc_reward_test_strong]" >&2
      exit 2 ;; esac
 CFG=$E/lhd_params_$F.yaml
 NOM=$E/lhd_params_${F}_nominal_eval.yaml
 case $S in told_high_demos_rld|reward_pile_zones_rld|told_high_demos_pile_zones_rl?) NOM=$E/lhd_params_steep_push_curl_nominal_eval.yaml ;;
   drift_confirm3_level_push_rlc) NOM=$E/lhd_params_drift_confirm3_nominal_eval.yaml ;;
-  steep_rlc_reward_test) NOM=docs/evidence/steep_piles/lhd_params_steep_rlc_nominal_eval.yaml ;; esac
-case $S in push_curl_rld|push_curl_high_rld|told_high_demos_rld|reward_pile_zones_rld|told_high_demos_pile_zones_rl?|told_high_demos_pile_zones_rest_rl?|told_high_demos_pile_zones_rest_driftlag_rld|drift_confirm3_rl?|drift_confirm3_level_push_rlc|steep_rlc_reward_test) RUNS=runs/$S; P=$S ;;
+  steep_rlc_reward_test|steep_rlc_reward_test_strong) NOM=docs/evidence/steep_piles/lhd_params_steep_rlc_nominal_eval.yaml ;; esac
+case $S in push_curl_rld|push_curl_high_rld|told_high_demos_rld|reward_pile_zones_rld|told_high_demos_pile_zones_rl?|told_high_demos_pile_zones_rest_rl?|told_high_demos_pile_zones_rest_driftlag_rld|drift_confirm3_rl?|drift_confirm3_level_push_rlc|steep_rlc_reward_test|steep_rlc_reward_test_strong) RUNS=runs/$S; P=$S ;;
   *) RUNS=runs/steep_$S; P=steep_$S ;; esac
 # every seed the run has (five for a study, two for a pilot)
 SEEDS=$(ls -d $RUNS/seed_*/ | sed "s#.*seed_##; s#/##" | sort -n)
