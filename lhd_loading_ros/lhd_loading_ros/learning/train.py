@@ -49,8 +49,10 @@ EVAL_FIELDS = ("step", "ar", "aml", "aff", "asl", "success_rate", "end_zone_rate
                "front_drift_pct", "rear_drift_pct", "noise_scale", "critic_loss", "q_mean", "episodes_done",
                "wall_s", "eval_wall_s")
 EPISODE_FIELDS = ("episode", "step", "return", "loaded", "outcome", "steps", "alpha_deg", "material", "noise_scale",
-                  "source", "success", "driver", "r_success")     # success: the paper's test (SL >= 1), what the slope
-# curriculum counts (with training.slope_curriculum_reward_test also r_success > 0: the reward's success term paid); driver: "actor", or "scripted crowd c" for a demonstration (training.demo_share, learning/demonstrations.py)
+                  "source", "success", "driver", "r_success")
+# success: the paper's test (SL >= 1), what the slope curriculum counts (with training.slope_curriculum_reward_test
+# only together with r_success > 0, the reward's success term at the last step); driver: "actor", or
+# "scripted crowd c" for a demonstration (training.demo_share, learning/demonstrations.py)
 ENV_KINDS = ("local", "ros")
 
 
