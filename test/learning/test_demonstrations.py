@@ -107,6 +107,125 @@ def test_a_short_run_makes_every_told_high_episode_a_demonstration(cfg, tmp_path
     assert config_hash(c0) == config_hash(c)
 
 
+def test_the_failing_draw_by_hand():
+    """training.demo_failing_share: an actor's episode on a bin failing at rate f is a demonstration when
+    the third stream's first draw u < share x f, its crowd the stream's next uniform over [lo, hi]; a bin
+    that never fails, a rate outside [0, 1] (NaN), past until_step or off: none."""
+    d = DemoConfig(0.0, 0.5, 0.75, 0.3, 1000, failing=0.6)
+    for k in range(40):
+        rng = np.random.default_rng([k, DEMO_STREAM, 2])
+        u, v = rng.random(), rng.random()
+        for f in (1.0, 0.5, 0.25):
+            got = d.failing_crowd(k, 0, f)
+            if u < 0.6 * f:
+                assert got == pytest.approx(0.5 + 0.25 * v, abs=1e-12)
+            else:
+                assert got is None
+            assert d.failing_crowd(k, 999, f) == got            # the step does not enter the draw ...
+            assert d.failing_crowd(k, 1000, f) is None          # ... but none starts at or after until_step
+        assert d.failing_crowd(k, 0, 0.0) is None
+        assert d.failing_crowd(k, 0, float("nan")) is None
+        assert d.failing_crowd(k, 0, 1.5) is None
+        assert demo_cfg().failing_crowd(k, 0, 1.0) is None       # off by default
+    # as a proportion: share x rate of the episodes (binomial, 4 sd)
+    n = 4000
+    for f in (1.0, 0.5):
+        hits = sum(d.failing_crowd(k, 0, f) is not None for k in range(n))
+        p_ = 0.6 * f
+        assert abs(hits - p_ * n) < 4 * math.sqrt(n * p_ * (1 - p_)), (f, hits)
+
+
+def test_the_failing_draw_reads_the_curriculum_s_bin():
+    """failing_crowd_on: the rate is that of the bin the pile's slope falls in, counted by hand here from
+    the attempts recorded into a real SlopeCurriculum (10-40 deg in three bins of 10 deg)."""
+    from lhd_loading_ros.learning.curriculum import CurriculumConfig, SlopeCurriculum
+
+    cur = SlopeCurriculum(10.0, 40.0, CurriculumConfig(bins=3, window=4))
+    for a, ok in ((12.0, 1), (15.0, 1), (19.9, 1), (11.0, 1),         # 10-20: 0 of 4 fail
+                  (20.0, 1), (25.0, 0), (29.0, 1), (21.0, 0)):        # 20-30: 2 of 4 fail; 30-40: none yet (1)
+        cur.record(a, bool(ok))
+    d = DemoConfig(0.0, 0.5, 0.75, 0.3, 1000, failing=0.8)
+    for k in range(60):
+        assert d.failing_crowd_on(cur, k, 0, 14.0) is None                       # rate 0
+        assert d.failing_crowd_on(cur, k, 0, 9.5) is None                        # below the range: the first bin
+        assert d.failing_crowd_on(cur, k, 0, 22.0) == d.failing_crowd(k, 0, 0.5)
+        assert d.failing_crowd_on(cur, k, 0, 40.0) == d.failing_crowd(k, 0, 1.0)  # the top edge: the last bin
+        assert d.failing_crowd_on(cur, k, 0, 41.0) == d.failing_crowd(k, 0, 1.0)
+        assert DemoConfig(0.0, 0.5, 0.75, 0.3, 1000).failing_crowd_on(cur, k, 0, 35.0) is None   # off
+    assert sum(d.failing_crowd_on(cur, k, 0, 22.0) is not None for k in range(60)) > 0
+
+
+def test_a_short_run_sends_the_teacher_where_the_actor_fails(cfg, tmp_path):
+    """A real run with the slope curriculum (two bins, a window of 4) and demo_failing_share 0.5: the
+    curriculum's counts are rebuilt here from episodes.csv alone (the actor's episodes, in order, by the
+    paper's test; none for a demonstration or an aborted episode), and each episode is a demonstration
+    exactly where demo_share draws it or, failing that, where the failing draw at its bin's rate then does."""
+    from collections import deque
+
+    from lhd_loading_ros.learning.train import episode_seed, train
+
+    c = small(cfg, 0.05)
+    c["training"].update({"slope_curriculum": 1, "slope_curriculum_bins": 2, "slope_curriculum_window": 4,
+                          "demo_failing_share": 0.5})
+    c = validate(c)
+    train("rld", 6, tmp_path, steps=1500, config=c, resume=False, progress=False)
+    rows = list(csv.DictReader(open(tmp_path / "episodes.csv")))
+    d = DemoConfig.from_training(c["training"])
+    assert d.failing == 0.5 and d.to_dict()["failing"] == 0.5
+    lo, hi = c["paper"]["episode"]["alpha_min_deg"], c["paper"]["episode"]["alpha_max_deg"]
+    mid = (lo + hi) / 2.0
+    recent = [deque(maxlen=4), deque(maxlen=4)]
+    by_failing = by_share = actor = checked = 0
+    for r in sorted(rows, key=lambda r: int(r["episode"])):
+        alpha = float(r["alpha_deg"])
+        b = 0 if alpha < mid else 1
+        rate = 1.0 - sum(recent[b]) / len(recent[b]) if recent[b] else 1.0
+        k = episode_seed(6, int(r["episode"]), c["training"]["episode_seed_offset"])
+        want = d.draw(k, 0)
+        if want is not None:
+            by_share += 1
+        elif abs(alpha - mid) > 0.006:                  # the log rounds the slope to 0.01 deg
+            want = d.failing_crowd(k, 0, rate)
+            by_failing += want is not None
+        else:
+            continue
+        checked += 1
+        assert (want is None) == (r["driver"] == "actor"), (r, rate)
+        if want is not None:
+            assert float(r["driver"].split()[-1]) == pytest.approx(want, abs=5e-4)
+        else:
+            actor += 1
+            if r["outcome"] != "aborted":
+                recent[b].append(int(r["success"]))
+    assert checked >= len(rows) - 1 and by_failing >= 3 and actor >= 1, (by_failing, by_share, actor)
+    # the card names it; the hash does not
+    from lhd_loading_ros.learning.ship import _recipe_note
+    from lhd_loading_ros.policy.actor_file import load_policy
+
+    tw = load_policy(tmp_path / "final").meta["trained_with"]
+    assert tw["demo_failing_share"] == 0.5
+    assert "a demonstration with probability 0.5 x the bin's failure rate" in _recipe_note(tw)
+    c0 = copy.deepcopy(c)
+    c0["training"]["demo_failing_share"] = 0.0
+    assert config_hash(c0) == config_hash(c)
+
+
+def test_the_failing_share_is_refused_without_what_it_reads(cfg):
+    c = copy.deepcopy(cfg)
+    c["training"].update({"demo_share": 0.2, "demo_failing_share": 0.5})
+    with pytest.raises(ConfigError, match="demo_failing_share > 0 only with training.demo_share > 0 and "
+                                          "training.slope_curriculum = 1"):
+        validate(c)                                     # the curriculum is off in the shipped file
+    c["training"].update({"slope_curriculum": 1, "demo_failing_share": 1.0})
+    with pytest.raises(ConfigError, match="demo_failing_share"):
+        validate(c)                                     # past 0.9
+    with pytest.raises(ValueError, match=r"demo_failing_share = 1\.0: expected a probability in \[0, 0\.9\]"):
+        DemoConfig.from_training({**c["training"], "noise_decay_steps": 10})
+    c["training"].update({"demo_failing_share": 0.5, "demo_share": 0.0})
+    with pytest.raises(ConfigError, match="demo_failing_share > 0 only with"):
+        validate(c)
+
+
 def test_off_by_default_and_validated(cfg):
     assert DemoConfig.from_training(cfg["training"]) is None        # the shipped config: no demonstrations
     c = copy.deepcopy(cfg)

@@ -31,6 +31,14 @@ no more of the pile than the actor does (the tip, the drift flags and the told z
 observation's alpha and d_end carry) and still loads piles shallower than it is told: 4 of 4
 attempts in every cell of a 15 deg pile told 0..+15 deg too steep, where the pile's-own-zones
 teacher loads none at +10 and +15 (docs/training.md "A teacher that knows what the actor knows").
+
+With training.demo_failing_share = s > 0 (and the slope curriculum on) an episode the actor would drive
+is a demonstration as well with probability s x f, f the failure rate the curriculum holds for the
+pile's slope bin (its recent actor episodes, by the curriculum's own test), drawn from a third stream
+of the episode's seed (`failing_crowd`): the teacher is sent where the actor still fails. On the 10-40
+deg RLC file the teacher earns r_success in 76-89 % of its 10-15 deg piles and the actors in 8-39 %,
+while on 20-40 deg piles the actors win (86-88 % against 33-38 %), so a flat demo_share spends most of
+its demonstrations where the teacher is worse (docs/training.md "Demonstrations where the actor fails").
 """
 from __future__ import annotations
 
@@ -54,6 +62,8 @@ class DemoConfig:
     late_lift: float = 0.0        # share of the end zone where an unstalled push lifts (demo_late_lift)
     told_high: float = 0.0        # deg: every episode told at least this much too steep is a demonstration (0: off)
     drift_confirm: int = 1        # decisions a drift flag the actor sees must hold before the lift (demo_drift_confirm; 1: off)
+    failing: float = 0.0          # an actor's episode on a slope bin failing at rate f is a demonstration with probability
+                                  # failing x f (demo_failing_share; needs the slope curriculum; 0: off)
 
     @classmethod
     def from_training(cls, t: dict) -> "DemoConfig | None":
@@ -78,11 +88,21 @@ class DemoConfig:
         if isinstance(confirm, bool) or int(confirm) != confirm or not 1 <= int(confirm) <= 50:
             raise ValueError(f"training.demo_drift_confirm = {confirm!r}: expected a whole number of decisions in "
                              "[1, 50] (1: every drift flag the simulator's teacher reads lifts at once)")
+        failing = float(t.get("demo_failing_share", 0.0))
+        if not (0.0 <= failing <= 0.9):         # NaN fails too; at 1 a bin that always fails (or has had no actor
+            # episode yet: its rate is 1) would be all demonstrations, and the actor never measured there again
+            raise ValueError(f"training.demo_failing_share = {failing!r}: expected a probability in [0, 0.9] (0: off; "
+                             "at 1 a bin failing every attempt would never see the actor again)")
         return cls(share, lo, hi, float(t.get("demo_pre_curl", 0.3)), until,
-                   bool(int(t.get("demo_told_zones", 0))), stop, ts.push_curl, ts.late_lift, told_high, int(confirm))
+                   bool(int(t.get("demo_told_zones", 0))), stop, ts.push_curl, ts.late_lift, told_high, int(confirm),
+                   failing)
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        """The settings (run.json); `failing` only when on, so that runs written before it read the same."""
+        d = asdict(self)
+        if not self.failing:
+            d.pop("failing")
+        return d
 
     def draw(self, seed_k: int, step: int) -> float | None:
         """The crowd of the demonstration that episode `seed_k` (starting at `step`) is, or None
@@ -102,6 +122,27 @@ class DemoConfig:
             return None
         rng = np.random.default_rng([int(seed_k), DEMO_STREAM, 1])
         return float(rng.uniform(self.crowd_min, self.crowd_max))
+
+    def failing_crowd(self, seed_k: int, step: int, failure_rate: float) -> float | None:
+        """The crowd of the demonstration that episode `seed_k` (starting at `step`, on a pile whose slope
+        bin the slope curriculum counts failing at `failure_rate` over its recent actor episodes) is because
+        its bin fails (demo_failing_share), or None: off, past until_step, or not drawn. One draw u from a
+        third stream of the episode's seed: a demonstration when u < failing x failure_rate, so a bin that
+        always fails gets `failing`, one that never fails none."""
+        if self.failing <= 0.0 or step >= self.until_step or not 0.0 <= failure_rate <= 1.0:
+            return None
+        rng = np.random.default_rng([int(seed_k), DEMO_STREAM, 2])
+        if rng.random() >= self.failing * failure_rate:
+            return None
+        return float(rng.uniform(self.crowd_min, self.crowd_max))
+
+    def failing_crowd_on(self, curriculum, seed_k: int, step: int, alpha_deg: float) -> float | None:
+        """failing_crowd at the failure rate `curriculum` (a learning.curriculum.SlopeCurriculum) holds now
+        for the bin of the pile's slope `alpha_deg` (held to the curriculum's range)."""
+        if self.failing <= 0.0:
+            return None
+        alpha = min(curriculum.hi, max(curriculum.lo, float(alpha_deg)))
+        return self.failing_crowd(seed_k, step, float(curriculum.failure_rates()[curriculum.bin_of(alpha)]))
 
     def action(self, env, crowd: float) -> np.ndarray:
         return demo_action(env, crowd, self.pre_curl, self.told_zones, self.end_zone_stop,

@@ -56,7 +56,8 @@ def export_actor(directory, actor: FlatMlp, cfg: dict, meta: dict):
                              **({"demo_end_zone_stop": float(cfg["training"]["demo_end_zone_stop"])}
                                 if float(cfg["training"].get("demo_end_zone_stop", 0.0)) > 0 else {}),
                              # the push-curl teacher (policy/maneuver.push_curl_action)
-                             **{k: float(cfg["training"][k]) for k in ("demo_push_curl", "demo_late_lift", "demo_told_high")
+                             **{k: float(cfg["training"][k]) for k in ("demo_push_curl", "demo_late_lift", "demo_told_high",
+                                                                      "demo_failing_share")
                                 if float(cfg["training"].get(k, 0.0)) > 0},
                              # the demonstrations read the actor's drift flags and confirm one over this many steps
                              **({"demo_drift_confirm": int(cfg["training"]["demo_drift_confirm"])}

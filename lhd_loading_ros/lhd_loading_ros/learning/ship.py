@@ -171,6 +171,10 @@ def _recipe_note(tw: dict) -> str:
         told_high = float(tw.get("demo_told_high", 0.0) or 0.0)
         if told_high > 0:
             parts.append(f"every episode told the slope {told_high:g} deg or more too steep a demonstration")
+        failing = float(tw.get("demo_failing_share", 0.0) or 0.0)
+        if failing > 0:
+            parts.append(f"an episode on a slope bin the actor still fails a demonstration with probability {failing:g} "
+                         "x the bin's failure rate")
         confirm = int(tw.get("demo_drift_confirm", 1) or 1)
         if confirm > 1:
             parts.append(f"the demonstrations reading the drift flags the actor sees and lifting on one only after "

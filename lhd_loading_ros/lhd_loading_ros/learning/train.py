@@ -391,6 +391,12 @@ def _train(variant: str, seed: int, out, steps: int | None = None, config=None, 
                 told_high = demos.told_high_crowd(seed_k, step, env.told_slope_deg - math.degrees(env.sim.pile.alpha))
                 if told_high is not None:
                     demo_crowd[i] = told_high
+            if i not in demo_crowd and demos is not None and demos.failing > 0.0 and curriculum is not None:
+                # training.demo_failing_share: an episode on a slope bin the actor still fails is a demonstration
+                # with probability demo_failing_share x the bin's failure rate (the curriculum's own counts)
+                failing = demos.failing_crowd_on(curriculum, seed_k, step, math.degrees(env.sim.pile.alpha))
+                if failing is not None:
+                    demo_crowd[i] = failing
             return out_
 
         from lhd_sim_node.simulator import SimulationError

@@ -154,7 +154,7 @@ SCHEMA: dict[str, Any] = {
         "critic_huber": _f(0.0, 1e6), "noise_after_decay": _f(0.0, 1.0), "demo_bc_return_filter": _i(0, 1),
         "demo_told_zones": _i(0, 1), "demo_end_zone_stop": _f(0.0, 1.0),
         "demo_push_curl": _f(0.0, 1.4), "demo_late_lift": _f(0.0, 1.0), "demo_told_high": _f(0.0, 45.0),
-        "demo_drift_confirm": _i(1, 50), "episode_seed_offset": _i(0, 2**31 - 2),
+        "demo_drift_confirm": _i(1, 50), "demo_failing_share": _f(0.0, 0.9), "episode_seed_offset": _i(0, 2**31 - 2),
     },
 }
 
@@ -182,6 +182,10 @@ _RELATIONS = [
     ("training.demo_told_high > 0 only with training.demo_share > 0 (it makes told-high episodes demonstrations; "
      "the demonstrations are off at demo_share 0)",
      lambda c: not c["training"]["demo_told_high"] > 0.0 or c["training"]["demo_share"] > 0.0),
+    ("training.demo_failing_share > 0 only with training.demo_share > 0 and training.slope_curriculum = 1 (it makes "
+     "episodes of the slope bins the curriculum counts failing demonstrations)",
+     lambda c: not c["training"]["demo_failing_share"] > 0.0
+     or (c["training"]["demo_share"] > 0.0 and int(c["training"]["slope_curriculum"]) == 1)),
     ("training.demo_drift_confirm > 1 only with training.demo_share > 0 (it sets how the demonstrations read a drift "
      "flag; the demonstrations are off at demo_share 0)",
      lambda c: c["training"]["demo_drift_confirm"] <= 1 or c["training"]["demo_share"] > 0.0),
@@ -352,6 +356,9 @@ OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curric
                      ("training", "demo_told_high"): 0.0,
                      # decisions a drift flag the actor sees holds before the demonstration lifts (2026-12-01); 1: at once
                      ("training", "demo_drift_confirm"): 1,
+                     # an actor's episode on a failing slope bin a demonstration with probability this x the bin's
+                     # failure rate (2026-12-01, twenty-seventh session); 0: demo_share's only
+                     ("training", "demo_failing_share"): 0.0,
                      # actuator gains drawn per episode (task/randomization.py); 1 = the simulator's actuators
                      ("randomization", "drive_gain_min"): 1.0, ("randomization", "drive_gain_max"): 1.0,
                      ("randomization", "hydraulic_gain_min"): 1.0, ("randomization", "hydraulic_gain_max"): 1.0,
@@ -516,8 +523,9 @@ TRAINING_SCHEDULE_KEYS = ("twin_critics", "slope_curriculum", "slope_curriculum_
                           "demo_bc", "demo_until_step", "demo_bc_return_filter",
                           # what the demonstrations read and where they stop the wheels
                           "demo_told_zones", "demo_end_zone_stop", "demo_push_curl", "demo_late_lift",
-                          # which episodes are demonstrations beyond demo_share: those told too steep
-                          "demo_told_high",
+                          # which episodes are demonstrations beyond demo_share: those told too steep, and those
+                          # on the slope bins the curriculum counts failing
+                          "demo_told_high", "demo_failing_share",
                           # the drift flags the demonstrations read (the actor's) and how long one must hold
                           "demo_drift_confirm",
                           # where the training's episode seeds start (which piles it practised on)
