@@ -60,14 +60,16 @@ case $S in rld) F=steep; V=rld ;; rlc) F=steep_rlc; V=rlc ;; rlc_to_end) F=steep
   # on a failing slope bin a demonstration with probability 0.5 x its failure rate: docs/evidence/demo_failing/
   # lhd_params_steep_rlc_demo_failing.yaml; runs/steep_rlc_demo_failing); not in the hash either
   steep_rlc_demo_failing) F=steep_rlc_demo_failing; V=rlc; E=docs/evidence/demo_failing ;;
-  *) echo "usage: evaluate.sh [rld|rlc|rlc_to_end|push_curl_rld|push_curl_high_rld|told_high_demos_rld|reward_pile_zones_rld|told_high_demos_pile_zones_rld|told_high_demos_pile_zones_rlc|told_high_demos_pile_zones_rest_rld|told_high_demos_pile_zones_rest_rlc|told_high_demos_pile_zones_rest_driftlag_rld|drift_confirm3_rld|drift_confirm3_rlc|drift_confirm3_level_push_rlc|steep_rlc_reward_test|steep_rlc_reward_test_strong|steep_rlc_demo_failing]" >&2
+  # and its two-seed pilot (seeds 1 and 3) with demo_failing_share 0.8 (lhd_params_steep_rlc_demo_failing08.yaml)
+  steep_rlc_demo_failing08) F=steep_rlc_demo_failing08; V=rlc; E=docs/evidence/demo_failing ;;
+  *) echo "usage: evaluate.sh [rld|rlc|rlc_to_end|push_curl_rld|push_curl_high_rld|told_high_demos_rld|reward_pile_zones_rld|told_high_demos_pile_zones_rld|told_high_demos_pile_zones_rlc|told_high_demos_pile_zones_rest_rld|told_high_demos_pile_zones_rest_rlc|told_high_demos_pile_zones_rest_driftlag_rld|drift_confirm3_rld|drift_confirm3_rlc|drift_confirm3_level_push_rlc|steep_rlc_reward_test|steep_rlc_reward_test_strong|steep_rlc_demo_failing|steep_rlc_demo_failing08]" >&2
      exit 2 ;; esac
 CFG=$E/lhd_params_$F.yaml
 NOM=$E/lhd_params_${F}_nominal_eval.yaml
 case $S in told_high_demos_rld|reward_pile_zones_rld|told_high_demos_pile_zones_rl?) NOM=$E/lhd_params_steep_push_curl_nominal_eval.yaml ;;
   drift_confirm3_level_push_rlc) NOM=$E/lhd_params_drift_confirm3_nominal_eval.yaml ;;
-  steep_rlc_reward_test|steep_rlc_reward_test_strong|steep_rlc_demo_failing) NOM=docs/evidence/steep_piles/lhd_params_steep_rlc_nominal_eval.yaml ;; esac
-case $S in push_curl_rld|push_curl_high_rld|told_high_demos_rld|reward_pile_zones_rld|told_high_demos_pile_zones_rl?|told_high_demos_pile_zones_rest_rl?|told_high_demos_pile_zones_rest_driftlag_rld|drift_confirm3_rl?|drift_confirm3_level_push_rlc|steep_rlc_reward_test|steep_rlc_reward_test_strong|steep_rlc_demo_failing) RUNS=runs/$S; P=$S ;;
+  steep_rlc_reward_test|steep_rlc_reward_test_strong|steep_rlc_demo_failing|steep_rlc_demo_failing08) NOM=docs/evidence/steep_piles/lhd_params_steep_rlc_nominal_eval.yaml ;; esac
+case $S in push_curl_rld|push_curl_high_rld|told_high_demos_rld|reward_pile_zones_rld|told_high_demos_pile_zones_rl?|told_high_demos_pile_zones_rest_rl?|told_high_demos_pile_zones_rest_driftlag_rld|drift_confirm3_rl?|drift_confirm3_level_push_rlc|steep_rlc_reward_test|steep_rlc_reward_test_strong|steep_rlc_demo_failing|steep_rlc_demo_failing08) RUNS=runs/$S; P=$S ;;
   *) RUNS=runs/steep_$S; P=steep_$S ;; esac
 # every seed the run has (five for a study, two for a pilot)
 SEEDS=$(ls -d $RUNS/seed_*/ | sed "s#.*seed_##; s#/##" | sort -n)
