@@ -31,6 +31,7 @@ Errors are TimeoutError / RuntimeError with what was expected and how to start a
 """
 from __future__ import annotations
 
+import json
 import math
 import os
 import time
@@ -93,6 +94,7 @@ class _SimNodeLink:
         node.create_subscription(Float64MultiArray, f"{self.prefix}/rl/transition", self._on_transition, MEASUREMENT_QOS)
         node.create_subscription(DiagnosticStatus, f"{self.prefix}/episode", self._on_status, STATUS_QOS)
         self.reset_client = node.create_client(Trigger, f"{self.fqn}/reset")
+        self.publishers_client = node.create_client(Trigger, f"{self.fqn}/cmd_publishers")
         self._trigger = Trigger
         self.params = AsyncParameterClient(node, self.fqn)
         self.transitions: dict[tuple[int, int], tr.Transition] = {}
@@ -239,18 +241,12 @@ class SimNodePool:
         # (another environment of this same process is let through: gymnasium's check_env makes a
         # second one only to close it; one that steps is still caught by the command check)
         mine = f"lhd_ros_env_{os.getpid()}_"
-        # a publisher's endpoint may arrive before its node's name (rmw reports _NODE_NAME_UNKNOWN_ until the
-        # participant's node list does): wait up to 2 s more for the names, so the refusal names the node and
-        # another environment of this process is told apart (a CI run, 2026-11-29, refused an unnamed one)
-        t_names = min(t_end, time.monotonic() + 2.0)
-        while True:
-            infos = self.node.get_publishers_info_by_topic(f"{link.prefix}/cmd")
-            if not any(i.node_name == UNKNOWN_NODE_NAME for i in infos) or time.monotonic() >= t_names:
-                break
-            self.executor.spin_once(timeout_sec=0.05)
-        others = [f"{i.node_namespace.rstrip('/')}/{i.node_name}" if i.node_name != UNKNOWN_NODE_NAME
-                  else "a node whose name DDS has not reported yet"
-                  for i in infos if not i.node_name.startswith(mine)]
+        others = self._cmd_publishers_in_own_graph(link, mine, wait_names_s=min(2.0, t_end - time.monotonic()))
+        # ... and as the sim node sees them: its participant has run longer than ours, which on a loaded
+        # machine may not have discovered another process's publisher within the wait above (a CI run,
+        # 2026-12-01, let a second learner through)
+        if not others:
+            others = self._cmd_publishers_seen_by_sim_node(link, mine)
         if others:
             raise RuntimeError(f"sim node {link.fqn} already has other publishers on {link.prefix}/cmd ({', '.join(others)}: "
                                "another learner, a policy node or teleop): one sim node serves one learner; start "
@@ -292,6 +288,62 @@ class SimNodePool:
                                f"{theirs_task[:12]}) than this learner ({self.task_hash[:12]}): the same actor inputs, "
                                "but other reward settings (e.g. midgoal_from_pile, reward_zones_from_pile, the tilt "
                                "schedule); start both with the same --config / LHD_CONFIG")
+
+    def _cmd_publishers_in_own_graph(self, link: _SimNodeLink, mine: str, wait_names_s: float) -> list[str]:
+        """The other publishers on the sim node's /cmd as this learner's participant knows them. A
+        publisher's endpoint may arrive before its node's name (rmw reports _NODE_NAME_UNKNOWN_ until the
+        participant's node list does): wait up to `wait_names_s` for the names, so the refusal names the
+        node and another environment of this process is told apart (a CI run, 2026-11-29, refused an
+        unnamed one)."""
+        t_names = time.monotonic() + wait_names_s
+        while True:
+            infos = self.node.get_publishers_info_by_topic(f"{link.prefix}/cmd")
+            if not any(i.node_name == UNKNOWN_NODE_NAME for i in infos) or time.monotonic() >= t_names:
+                break
+            self.executor.spin_once(timeout_sec=0.05)
+        return [f"{i.node_namespace.rstrip('/')}/{i.node_name}" if i.node_name != UNKNOWN_NODE_NAME
+                else "a node whose name DDS has not reported yet"
+                for i in infos if not i.node_name.startswith(mine)]
+
+    def _cmd_publishers_seen_by_sim_node(self, link: _SimNodeLink, mine: str) -> list[str]:
+        """The other publishers on the sim node's /cmd as its own participant knows them (its
+        ~/cmd_publishers service; ours are told apart by GID and by name). The sim node also remembers a
+        publisher whose process was killed until that participant's DDS lease runs out (Fast DDS: 20 s),
+        which a fresh participant never sees. So a publisher the sim node alone names is waited on, up to
+        the timeout, until this learner's participant sees it too (refused: a live one, found late) or the
+        sim node forgets it (let through: a dead one)."""
+        t_end = time.monotonic() + self.timeout
+        while not link.publishers_client.wait_for_service(timeout_sec=0.05):
+            self.executor.spin_once(timeout_sec=0.0)
+            if time.monotonic() > t_end:
+                raise TimeoutError(f"sim node {link.fqn} has no {link.fqn}/cmd_publishers service (an older "
+                                   "lhd_sim_node?); update it")
+        while True:
+            own = {bytes(i.endpoint_gid).hex() for i in self.node.get_publishers_info_by_topic(f"{link.prefix}/cmd")
+                   if i.node_name == self.node.get_name()}
+            res = self._call_idempotent(lambda: link.publishers_client.call_async(link._trigger.Request()),
+                                        f"its {link.prefix}/cmd publishers", link)
+            try:
+                seen = json.loads(res.message)
+                theirs = [e["node"] for e in seen if e["gid"] not in own
+                          and not (e["node"] or "").rsplit("/", 1)[-1].startswith(mine)]
+            except (ValueError, TypeError, KeyError, AttributeError) as exc:
+                raise RuntimeError(f"sim node {link.fqn}: its cmd_publishers answer {res.message[:200]!r} is not "
+                                   f"the expected JSON list of {{node, gid}} ({exc})") from None
+            if not theirs:
+                return []
+            ours_too = self._cmd_publishers_in_own_graph(link, mine, wait_names_s=0.5)
+            if ours_too:
+                return ours_too
+            if time.monotonic() >= t_end:
+                return [f"{n or 'a node whose name DDS has not reported yet'}, seen by the sim node only for "
+                        f"{self.timeout:g} s" for n in theirs]
+            self._spin_for(0.25)
+
+    def _spin_for(self, seconds: float) -> None:
+        t_end = time.monotonic() + seconds
+        while time.monotonic() < t_end:
+            self.executor.spin_once(timeout_sec=0.05)
 
     # the task -------------------------------------------------------------------------------
     def _check_open(self) -> None:

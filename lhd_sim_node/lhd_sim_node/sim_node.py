@@ -41,6 +41,7 @@ slopes_deg, material, auto_reset, reset_delay and cmd_timeout may change at run 
 """
 from __future__ import annotations
 
+import json
 import math
 import threading
 import time
@@ -184,7 +185,11 @@ class SimNode(Node):
         self.pub_transition = (self.create_publisher(Float64MultiArray, f"{ns}/rl/transition", MEASUREMENT_QOS)
                                if gp("publish_transitions") else None)
         self.create_subscription(Float64MultiArray, f"{ns}/cmd", self._on_cmd, COMMAND_QOS)
+        self._cmd_topic = f"{ns}/cmd"
         self.create_service(Trigger, "~/reset", self._on_reset)
+        # who publishes on /cmd, as this node's DDS participant knows it (a learner asks before it takes the
+        # node: a participant of its own, just started, may not have discovered the others yet)
+        self.create_service(Trigger, "~/cmd_publishers", self._on_cmd_publishers)
 
         self.t_ns = 0                    # sim time, never goes back (across episodes too)
         self.episode = -1
@@ -314,6 +319,18 @@ class SimNode(Node):
         self._new_episode()
         response.success = True
         response.message = f"episode {self.episode} started (seed {self.episode_seed})"
+        return response
+
+    def _on_cmd_publishers(self, request, response):
+        """Trigger: message = JSON list of {"node": "/ns/name" (null while DDS has not reported the
+        node's name), "gid": hex of the endpoint's GID}, one per publisher on this node's /cmd."""
+        out = []
+        for info in self.get_publishers_info_by_topic(self._cmd_topic):
+            named = info.node_name != "_NODE_NAME_UNKNOWN_"
+            out.append({"node": f"{info.node_namespace.rstrip('/')}/{info.node_name}" if named else None,
+                        "gid": bytes(info.endpoint_gid).hex()})
+        response.success = True
+        response.message = json.dumps(out)
         return response
 
     # ------------------------------------------------------------------ commands

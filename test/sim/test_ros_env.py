@@ -7,6 +7,10 @@
   message that says what is wrong and what is expected."""
 PARALLEL_SAFE = True   # a lockstep sim node: the transitions do not depend on timing (test/conftest.py)
 
+import json
+import signal
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -101,6 +105,15 @@ def test_a_second_learner_or_a_stray_command_is_refused(sim_node):
         t_end = time.monotonic() + 10.0
         while pub.get_subscription_count() < 1 and time.monotonic() < t_end:
             time.sleep(0.05)
+        # the sim node's own view (its ~/cmd_publishers service) names the stray publisher once its
+        # participant has discovered it: wait for that, so that the refusal below does not hang on how fast
+        # the new learner's participant discovers this process's (a CI run, 2026-12-01, let it through)
+        seen = _sim_node_cmd_publishers(node)
+        while not any(e["node"] == "/stray_commander" for e in seen) and time.monotonic() < t_end + 10:
+            time.sleep(0.1)
+            seen = _sim_node_cmd_publishers(node)
+        assert all(set(e) == {"node", "gid"} and len(e["gid"]) >= 32 for e in seen), seen
+        assert any(e["node"] == "/stray_commander" for e in seen) and len(seen) >= 2, seen   # and our learner
         # a learner in another process is refused while this publisher is there (the stray
         # publisher stands in for it: a node of another process on the sim node's /cmd)
         env2 = None
@@ -120,6 +133,66 @@ def test_a_second_learner_or_a_stray_command_is_refused(sim_node):
         env.close()
     with pytest.raises(RuntimeError, match="closed"):
         env.reset(seed=1)
+
+
+def _sim_node_cmd_publishers(node, ns="/envtest") -> list[dict]:
+    """The sim node's own answer to who publishes on its /cmd (its ~/cmd_publishers service)."""
+    import rclpy
+    from std_srvs.srv import Trigger
+
+    client = node.create_client(Trigger, f"{ns}/lhd_sim/cmd_publishers")
+    try:
+        assert client.wait_for_service(timeout_sec=10.0)
+        fut = client.call_async(Trigger.Request())
+        rclpy.spin_until_future_complete(node, fut, timeout_sec=5.0)
+        assert fut.done() and fut.result().success
+        return json.loads(fut.result().message)
+    finally:
+        node.destroy_client(client)
+
+
+def test_a_killed_publisher_does_not_lock_a_learner_out(sim_node):
+    """A publisher whose process was killed (no goodbye on DDS) stays in the sim node's view until its
+    lease runs out; a fresh learner does not see it. The learner waits for the sim node to forget it
+    and connects, instead of refusing a node that nobody else commands."""
+    import rclpy
+
+    script = ("import rclpy, time\n"
+              "from std_msgs.msg import Float64MultiArray\n"
+              "rclpy.init()\n"
+              "n = rclpy.create_node('killed_commander')\n"
+              "p = n.create_publisher(Float64MultiArray, '/envtest/cmd', 10)\n"
+              "while p.get_subscription_count() < 1: time.sleep(0.05)\n"
+              "print('ready', flush=True)\n"
+              "time.sleep(120)\n")
+    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    node = rclpy.create_node("killed_publisher_test")
+    try:
+        assert proc.stdout.readline().strip() == "ready"
+        t_end = time.monotonic() + 20.0
+        while not any(e["node"] == "/killed_commander" for e in _sim_node_cmd_publishers(node)):
+            assert time.monotonic() < t_end, "the sim node never saw the publisher"
+            time.sleep(0.2)
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=10)
+        assert any(e["node"] == "/killed_commander" for e in _sim_node_cmd_publishers(node)), \
+            "the sim node forgot a killed publisher at once: this test no longer tests the stale case"
+        t0 = time.monotonic()
+        env = LhdLoadingRosEnv("rld", namespace="/envtest", timeout=60.0)
+        waited = time.monotonic() - t0
+        try:
+            obs, _ = env.reset(seed=5)
+            obs2, *_ = env.step(np.array([1.0, 0.0, 0.0]))
+            assert np.all(np.isfinite(obs2))
+        finally:
+            env.close()
+        # it was let through once the sim node had forgotten the dead publisher, not before
+        assert not any(e["node"] == "/killed_commander" for e in _sim_node_cmd_publishers(node))
+        assert waited < 60.0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        node.destroy_node()
 
 
 def test_no_sim_node_is_a_clear_timeout(sim_node):
