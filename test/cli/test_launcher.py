@@ -58,6 +58,34 @@ def test_up_sim_runs_episodes_and_leaves_nothing_behind(tmp_path):
     assert leftovers(marker) == []
 
 
+def test_up_sim_that_misses_an_episode_end_fails_naming_it(tmp_path):
+    """The real stack, with the launcher's reading of episode 0's end status dropped (as when a starved
+    launcher finds it replaced on the keep-last-10 /episode): not an exit 0 with one result of two, but
+    status 1 naming episode 0, and the nodes' logs kept (they have its result)."""
+    script = ("import sys\n"
+              "from lhd_loading_ros.cli import launcher\n"
+              "orig = launcher.EpisodeWatcher.on_status\n"
+              "def lossy(self, kv):\n"
+              "    if kv.get('state', 'running') != 'running' and kv['episode'] == '0':\n"
+              "        return\n"
+              "    orig(self, kv)\n"
+              "launcher.EpisodeWatcher.on_status = lossy\n"
+              "from lhd_loading_ros.cli.main import main\n"
+              "sys.exit(main(['up', 'sim', '--mode', 'lockstep', '--slope', '25', '--episodes', '2', '--seed', "
+              "'434343', '--json']))\n")
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=240,
+                       env=dict(env_with_domain(), TMPDIR=str(tmp)))
+    assert p.returncode == 1, (p.stdout[-2000:], p.stderr[-3000:])
+    assert "ended 2 episodes but this launcher heard the end of 1 ([1])" in p.stderr, p.stderr
+    assert "not heard: episode(s) [0]" in p.stderr and "Traceback" not in p.stderr, p.stderr
+    kept = list(tmp.iterdir())
+    assert len(kept) == 1 and f"node logs kept in {kept[0]}" in p.stderr
+    assert "episode 0 " in (kept[0] / "sim_node.log").read_text()
+    assert p.stdout.strip() == ""          # no JSON of a partial run
+
+
 def wait_for(predicate, timeout: float, step: float = 0.2) -> bool:
     t_end = time.monotonic() + timeout
     while time.monotonic() < t_end:

@@ -190,6 +190,56 @@ def slope_range_problem(slopes, cfg: dict, flag: str, config_name: str) -> str:
             f"(paper.episode.alpha_min_deg / alpha_max_deg, the range its actors were trained on); expected slopes in it")
 
 
+class EpisodeWatcher:
+    """The launcher's reading of the sim node's /episode statuses: one result per ended episode.
+
+    The sim node publishes a status every control step on a keep-last-10 topic, so a watcher that is
+    starved for ten steps (a loaded machine: lockstep steps take milliseconds) loses an episode's end
+    to the next episode's running statuses. The last status (all episodes done) stays, and carries
+    `episodes_done`: check_complete compares, so a lost end is an error that names the episodes,
+    never a shorter list of results returned as if it were all of them (`lhd up sim --episodes 2`
+    once exited 0 with one)."""
+
+    def __init__(self, on_episode=None):
+        self.on_episode = on_episode
+        self.results: dict[int, EpisodeResult] = {}
+        self.aborted: set[int] = set()
+        self.done = {"all": False, "heard": False}
+        self.final: dict | None = None
+
+    def on_status(self, kv: dict) -> None:
+        self.done["heard"] = True
+        state = kv.get("state", "running")
+        if state == "running":
+            return
+        ep = int(kv["episode"])
+        if state == "aborted":
+            self.aborted.add(ep)        # no result: MuJoCo found the state unstable; not counted by the node
+        elif ep not in self.results:
+            self.results[ep] = result_from_status(kv)
+            if self.on_episode:
+                self.on_episode(ep, self.results[ep])
+        if kv.get("all_done") == "True":
+            self.done["all"] = True
+            self.final = kv
+
+    def check_complete(self) -> None:
+        """After the all-done status: raise RuntimeError when fewer ended episodes were heard than the
+        sim node counted, naming the episodes whose end was not heard."""
+        if self.final is None:
+            raise RuntimeError("check_complete before the sim node's all-done status")
+        counted = int(self.final["episodes_done"])
+        if len(self.results) >= counted:
+            return
+        last = int(self.final["episode"])
+        missing = sorted(set(range(last + 1)) - set(self.results) - self.aborted)
+        raise RuntimeError(f"the sim node ended {counted} episodes but this launcher heard the end of "
+                           f"{len(self.results)} ({sorted(self.results)}); not heard: episode(s) {missing} (the "
+                           "launcher's process was starved while the next episode's statuses replaced the end on "
+                           "/episode, which keeps the last 10). The episodes ran; their results are in the sim "
+                           "node's log. Rerun on a less loaded machine, or in realtime mode")
+
+
 def up_sim(policy: str | None, slopes: list[float] | None, episodes: int, material: str, mode: str, seed: int,
            config: str | None, quiet: bool = True, log_dir: Path | None = None, timeout_s: float = 0.0,
            on_episode=None, namespace: str | None = None, use_sim_time: bool = False,
@@ -220,21 +270,12 @@ def up_sim(policy: str | None, slopes: list[float] | None, episodes: int, materi
     elif policy:
         pol_params["policy_dir"] = str(Path(policy).resolve())
     stop = threading.Event()
-    seen: dict[int, EpisodeResult] = {}
-    done = {"all": False, "heard": False}
+    watcher = EpisodeWatcher(on_episode)
+    seen = watcher.results
+    done = watcher.done
 
     def on_status(msg):
-        kv = {k.key: k.value for k in msg.values}
-        done["heard"] = True
-        if kv.get("state", "running") == "running":
-            return
-        ep = int(kv["episode"])
-        if ep not in seen:
-            seen[ep] = result_from_status(kv)
-            if on_episode:
-                on_episode(ep, seen[ep])
-        if kv.get("all_done") == "True":
-            done["all"] = True
+        watcher.on_status({k.key: k.value for k in msg.values})
 
     def spin_checked(children, t0):
         rclpy.spin_once(node, timeout_sec=0.1)
@@ -277,6 +318,8 @@ def up_sim(policy: str | None, slopes: list[float] | None, episodes: int, materi
                                       ros_args))
             while not done["all"] and not stop.is_set():
                 spin_checked(children, t0)
+            if done["all"]:
+                watcher.check_complete()
             failed = False
         except (RuntimeError, TimeoutError) as exc:
             if children and quiet:
