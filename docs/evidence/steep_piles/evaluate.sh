@@ -60,7 +60,8 @@ case $S in rld) F=steep; V=rld ;; rlc) F=steep_rlc; V=rlc ;; rlc_to_end) F=steep
   # on a failing slope bin a demonstration with probability 0.5 x its failure rate: docs/evidence/demo_failing/
   # lhd_params_steep_rlc_demo_failing.yaml; runs/steep_rlc_demo_failing); not in the hash either
   steep_rlc_demo_failing) F=steep_rlc_demo_failing; V=rlc; E=docs/evidence/demo_failing ;;
-  # and its two-seed pilot (seeds 1 and 3) with demo_failing_share 0.8 (lhd_params_steep_rlc_demo_failing08.yaml)
+  # and the same with demo_failing_share 0.8 (lhd_params_steep_rlc_demo_failing08.yaml; seeds 1 and 3 first, 0, 2, 4 on
+  # 2026-12-01, twenty-eighth session)
   steep_rlc_demo_failing08) F=steep_rlc_demo_failing08; V=rlc; E=docs/evidence/demo_failing ;;
   *) echo "usage: evaluate.sh [rld|rlc|rlc_to_end|push_curl_rld|push_curl_high_rld|told_high_demos_rld|reward_pile_zones_rld|told_high_demos_pile_zones_rld|told_high_demos_pile_zones_rlc|told_high_demos_pile_zones_rest_rld|told_high_demos_pile_zones_rest_rlc|told_high_demos_pile_zones_rest_driftlag_rld|drift_confirm3_rld|drift_confirm3_rlc|drift_confirm3_level_push_rlc|steep_rlc_reward_test|steep_rlc_reward_test_strong|steep_rlc_demo_failing|steep_rlc_demo_failing08]" >&2
      exit 2 ;; esac
