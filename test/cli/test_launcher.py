@@ -58,6 +58,27 @@ def test_up_sim_runs_episodes_and_leaves_nothing_behind(tmp_path):
     assert leftovers(marker) == []
 
 
+def test_a_slow_launcher_hears_every_episode_end(tmp_path):
+    """A launcher whose process stalls (here: 1.5 s in its per-episode callback, while the nodes run on)
+    still hears the end of every episode: /episode carries a status per control step, and the
+    watcher's history holds what arrived while it was busy (with the topic's keep-last 10 it lost an
+    end in lockstep, where an episode is a few hundred milliseconds)."""
+    script = ("import sys, time, json\n"
+              "from lhd_loading_ros.cli.launcher import up_sim\n"
+              "heard = []\n"
+              "def slow(ep, r):\n"
+              "    heard.append(ep)\n"
+              "    time.sleep(1.5)\n"
+              "res = up_sim(None, [25.0], 4, 'homogeneous', 'lockstep', 454545, None, timeout_s=200)\n"
+              "print(json.dumps({'heard': heard, 'n': len(res)}))\n")
+    script = script.replace("None, timeout_s=200", "None, timeout_s=200, on_episode=slow")
+    p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=240,
+                       env=env_with_domain())
+    assert p.returncode == 0, p.stderr[-3000:]
+    out = json.loads(p.stdout.strip().splitlines()[-1])
+    assert out == {"heard": [0, 1, 2, 3], "n": 4}, out
+
+
 def test_up_sim_that_misses_an_episode_end_fails_naming_it(tmp_path):
     """The real stack, with the launcher's reading of episode 0's end status dropped (as when a starved
     launcher finds it replaced on the keep-last-10 /episode): not an exit 0 with one result of two, but

@@ -190,15 +190,17 @@ def slope_range_problem(slopes, cfg: dict, flag: str, config_name: str) -> str:
             f"(paper.episode.alpha_min_deg / alpha_max_deg, the range its actors were trained on); expected slopes in it")
 
 
+WATCH_DEPTH = 5000    # /episode statuses the launcher's reader holds while its process is busy (a few KiB each)
+
+
 class EpisodeWatcher:
     """The launcher's reading of the sim node's /episode statuses: one result per ended episode.
 
-    The sim node publishes a status every control step on a keep-last-10 topic, so a watcher that is
-    starved for ten steps (a loaded machine: lockstep steps take milliseconds) loses an episode's end
-    to the next episode's running statuses. The last status (all episodes done) stays, and carries
-    `episodes_done`: check_complete compares, so a lost end is an error that names the episodes,
-    never a shorter list of results returned as if it were all of them (`lhd up sim --episodes 2`
-    once exited 0 with one)."""
+    The sim node publishes a status every control step (keep-last 10 on its side). up_sim reads them
+    with a deep history (WATCH_DEPTH) so that a busy launcher still gets every end; should one still be
+    lost, the last status (all episodes done) carries `episodes_done`: check_complete compares, so a
+    lost end is an error that names the episodes, never a shorter list of results returned as if it
+    were all of them (`lhd up sim --episodes 2` once exited 0 with one, when the reader's history was 10)."""
 
     def __init__(self, on_episode=None):
         self.on_episode = on_episode
@@ -235,8 +237,8 @@ class EpisodeWatcher:
         missing = sorted(set(range(last + 1)) - set(self.results) - self.aborted)
         raise RuntimeError(f"the sim node ended {counted} episodes but this launcher heard the end of "
                            f"{len(self.results)} ({sorted(self.results)}); not heard: episode(s) {missing} (the "
-                           "launcher's process was starved while the next episode's statuses replaced the end on "
-                           "/episode, which keeps the last 10). The episodes ran; their results are in the sim "
+                           "launcher's process was starved longer than its reader's history of /episode, "
+                           f"{WATCH_DEPTH} statuses, lasts). The episodes ran; their results are in the sim "
                            "node's log. Rerun on a less loaded machine, or in realtime mode")
 
 
@@ -248,10 +250,14 @@ def up_sim(policy: str | None, slopes: list[float] | None, episodes: int, materi
     Logs go to `log_dir` (kept) or to a temporary folder, removed unless something failed."""
     import rclpy
     from diagnostic_msgs.msg import DiagnosticStatus
+    from rclpy.qos import QoSProfile
     from rclpy.signals import SignalHandlerOptions
 
     from lhd_loading_ros.ros.params import discovery_wait_s
     from lhd_loading_ros.ros.qos import STATUS_QOS
+
+    WATCH_QOS = QoSProfile(depth=WATCH_DEPTH, reliability=STATUS_QOS.reliability, history=STATUS_QOS.history,
+                           durability=STATUS_QOS.durability)
 
     keep_logs = log_dir is not None
     log_dir = Path(log_dir) if keep_logs else Path(tempfile.mkdtemp(prefix="lhd_up_"))
@@ -301,7 +307,10 @@ def up_sim(policy: str | None, slopes: list[float] | None, episodes: int, materi
                 raise RuntimeError(f"ROS_DOMAIN_ID={os.environ.get('ROS_DOMAIN_ID', '0')} already has publishers on "
                                    f"{busy}: another LHD simulator, bridge or policy is running there. Stop it, or set "
                                    "ROS_DOMAIN_ID to a free domain (or --namespace to a free namespace) for this run")
-            node.create_subscription(DiagnosticStatus, f"{prefix}/episode", on_status, STATUS_QOS)
+            # a deep history on this side: the sim node publishes a status every control step (keep-last 10 on
+            # its side), and while this process is busy (a slow on_episode, a loaded machine) the DDS thread keeps
+            # receiving; with 10 here an episode's end was replaced by the next one's statuses in lockstep
+            node.create_subscription(DiagnosticStatus, f"{prefix}/episode", on_status, WATCH_QOS)
             # the sim node first; the policy node once this watcher hears the sim's episode status,
             # so no episode can end before the watcher is matched (lockstep episodes take 0.1 s).
             # The sim's episode waits for the first command, so the policy's start-up is not
