@@ -190,14 +190,11 @@ def slope_range_problem(slopes, cfg: dict, flag: str, config_name: str) -> str:
             f"(paper.episode.alpha_min_deg / alpha_max_deg, the range its actors were trained on); expected slopes in it")
 
 
-WATCH_DEPTH = 5000    # /episode statuses the launcher's reader holds while its process is busy (a few KiB each)
-
-
 class EpisodeWatcher:
     """The launcher's reading of the sim node's /episode statuses: one result per ended episode.
 
     The sim node publishes a status every control step (keep-last 10 on its side). up_sim reads them
-    with a deep history (WATCH_DEPTH) so that a busy launcher still gets every end; should one still be
+    with a deep history (ros.qos.WATCH_QOS) so that a busy launcher still gets every end; should one still be
     lost, the last status (all episodes done) carries `episodes_done`: check_complete compares, so a
     lost end is an error that names the episodes, never a shorter list of results returned as if it
     were all of them (`lhd up sim --episodes 2` once exited 0 with one, when the reader's history was 10)."""
@@ -228,6 +225,8 @@ class EpisodeWatcher:
     def check_complete(self) -> None:
         """After the all-done status: raise RuntimeError when fewer ended episodes were heard than the
         sim node counted, naming the episodes whose end was not heard."""
+        from lhd_loading_ros.ros.qos import WATCH_QOS
+
         if self.final is None:
             raise RuntimeError("check_complete before the sim node's all-done status")
         counted = int(self.final["episodes_done"])
@@ -238,7 +237,7 @@ class EpisodeWatcher:
         raise RuntimeError(f"the sim node ended {counted} episodes but this launcher heard the end of "
                            f"{len(self.results)} ({sorted(self.results)}); not heard: episode(s) {missing} (the "
                            "launcher's process was starved longer than its reader's history of /episode, "
-                           f"{WATCH_DEPTH} statuses, lasts). The episodes ran; their results are in the sim "
+                           f"{WATCH_QOS.depth} statuses, lasts). The episodes ran; their results are in the sim "
                            "node's log. Rerun on a less loaded machine, or in realtime mode")
 
 
@@ -250,14 +249,10 @@ def up_sim(policy: str | None, slopes: list[float] | None, episodes: int, materi
     Logs go to `log_dir` (kept) or to a temporary folder, removed unless something failed."""
     import rclpy
     from diagnostic_msgs.msg import DiagnosticStatus
-    from rclpy.qos import QoSProfile
     from rclpy.signals import SignalHandlerOptions
 
     from lhd_loading_ros.ros.params import discovery_wait_s
-    from lhd_loading_ros.ros.qos import STATUS_QOS
-
-    WATCH_QOS = QoSProfile(depth=WATCH_DEPTH, reliability=STATUS_QOS.reliability, history=STATUS_QOS.history,
-                           durability=STATUS_QOS.durability)
+    from lhd_loading_ros.ros.qos import WATCH_QOS
 
     keep_logs = log_dir is not None
     log_dir = Path(log_dir) if keep_logs else Path(tempfile.mkdtemp(prefix="lhd_up_"))

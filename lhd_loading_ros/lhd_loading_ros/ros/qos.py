@@ -7,6 +7,12 @@ COMMAND_QOS      reliable, keep-last 1: only the newest command matters, and rec
                  out on arrival (0.3 s), so a silent link stops the machine.
 STATUS_QOS       reliable + transient local, keep-last 10: a late subscriber (a launcher,
                  lhd echo) still gets the current state of the episode.
+WATCH_QOS        STATUS_QOS with a history of 5,000 on the reading side, for a reader that must
+                 hear every episode's end (lhd up sim): the status comes every control step, and a
+                 launcher busy for ten of them (a slow callback, a loaded machine) lost an end from
+                 a history of 10. Only for readers that take every message in order and drain fast:
+                 one that acts on the latest status would act on a backlog (lhd up twin, up real
+                 keep STATUS_QOS). Matches STATUS_QOS publishers.
 LATCHED_QOS      reliable + transient local, keep-last 1: values that change once per attempt
                  (pile slope, toe, end zone); a subscriber that starts later gets the latest,
                  with its original stamp, and no older value.
@@ -17,5 +23,7 @@ MEASUREMENT_QOS = QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE, hi
 COMMAND_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+WATCH_QOS = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
 LATCHED_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
