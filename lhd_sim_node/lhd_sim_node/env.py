@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import time
 from dataclasses import replace
 from typing import Any
 
@@ -432,6 +433,27 @@ class LhdLoadingEnv(gym.Env):
         conditions applied: _measured, once a step); what a controller on the machine computes from the topics."""
         return self._m
 
+
+
+def warm_up(env, seed: int = 0, steps: int = 3) -> float:
+    """One reset (the attack drive into a pile) and `steps` control steps pushing into it with the arm
+    moving, so that the compiled physics (numba kernels, kept on disk after their first compilation and
+    compiled again after an install or a change of their sources) is compiled now. A node calls it before
+    its first status: on a fresh install the first step of an attempt otherwise took 3-17 s on a loaded
+    2-core host, during which a realtime sim node published nothing and the policy node ended the
+    attempt (status_timeout 1.5 s; `make demo`'s first attempt timed out, a review of 2026-12-01). The
+    environment is left mid-episode: the caller resets it. Best effort: a pile whose attack stalls is
+    left as it is (the caller's own reset says why). Returns the seconds it took."""
+    t0 = time.perf_counter()
+    try:
+        reset_or_redraw(env, seed, {}, log=lambda *_: None)
+        for _ in range(steps):
+            _, _, term, trunc, _ = env.step(np.ones(3))
+            if term or trunc:
+                break
+    except (AttackError, SimulationError):
+        pass
+    return time.perf_counter() - t0
 
 
 def reset_or_redraw(env, seed_k: int, options: dict, log=print):

@@ -66,7 +66,7 @@ from lhd_loading_ros.ros.diagnostics import OK, WARN, Diagnostics
 from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
 from lhd_loading_ros.ros.run import run_node
 
-from .env import ATTACK_REDRAWS, LhdLoadingEnv, reset_or_redraw
+from .env import ATTACK_REDRAWS, LhdLoadingEnv, reset_or_redraw, warm_up
 from .simulator import MATERIALS, AttackError, SimulationError
 
 # QoS (lhd_loading_ros.ros.qos, shared with the hardware bridge and the policy node): measurements
@@ -157,6 +157,11 @@ class SimNode(Node):
         # whatever randomization.zones_at_nominal_density says (`lhd train --env ros` refuses the key)
         self.env = LhdLoadingEnv("rld", cfg, zones_nominal_density=False)
         self.sim = self.env.sim
+        # the compiled physics before the first status (env.warm_up): a fresh install's first step compiled
+        # for seconds while the episode said running, and the policy node gave attempt 0 up
+        took = warm_up(self.env, self.seed)
+        if took > 1.0:
+            self.get_logger().info(f"physics compiled in {took:.1f} s (once per install: numba's cache)")
         self.dt = self.env.p.control_dt
         self.dt_ns = int(round(self.dt * 1e9))
         m = self.sim.model
