@@ -128,6 +128,34 @@ def test_other_numeric_type_starts_and_a_wrong_value_is_one_line_exit_2(tmp_path
     assert "parameter 'required_listeners' has no value" in p.log() and "write [''] for none" in p.log(), p.log()
 
 
+def test_a_misspelt_parameter_name_ends_the_node_naming_it(tmp_path):
+    """rclpy drops an override the node never declares; a misspelt name left the default in force without a
+    word (`-p controler:=tampier` ran the RLD actor; a review, 2026-12-01). Now the node ends with exit status 2
+    and a line naming the name and the nearest declared one, from the command line and from a parameter file."""
+    import yaml
+
+    p = RosProcess(POLICY, {"controler": "tampier"}, tmp_path / "pol.log")
+    assert p.proc.wait(60) == 2, p.log()
+    p.stop()
+    assert "unknown parameter 'controler' (did you mean 'controller'?)" in p.log() and "Traceback" not in p.log(), p.log()
+    assert "commanding" not in p.log()
+    doc = yaml.safe_load((Path(__file__).parents[2] / "config" / "sim_node.yaml").read_text())
+    section = doc["/**/lhd_sim"]["ros__parameters"]
+    section["slope_dge"] = section.pop("slope_deg")
+    f = tmp_path / "sim_typo.yaml"
+    f.write_text(yaml.safe_dump(doc))
+    p = RosProcess(SIM, {}, tmp_path / "sim.log", ros_args=["--params-file", str(f)])
+    assert p.proc.wait(120) == 2, p.log()
+    p.stop()
+    assert "unknown parameter 'slope_dge' (did you mean 'slope_deg'?)" in p.log() and "Traceback" not in p.log(), p.log()
+    # rclpy's own parameters are every node's: not refused
+    q = RosProcess(POLICY, {"use_sim_time": "false", "qos_overrides./lhd/cmd.publisher.depth": 10}, tmp_path / "ok.log")
+    try:
+        assert wait_log(q, "loaded RLD actor"), q.log()
+    finally:
+        assert q.stop() == 0, q.log()
+
+
 # ------------------------------------------------------------------ sim node: runtime parameters, hold, diagnostics
 def test_sim_node_runtime_parameters_hold_until_first_command_and_diagnostics(ros, tmp_path):
     statuses, js = [], []
@@ -448,5 +476,38 @@ def test_first_episode_time_is_not_inflated_by_a_slow_controller_start(ros, tmp_
         assert abs(round(elapsed / DT) - ref.steps) <= 3, (elapsed, ref.elapsed_s)
     finally:
         rc = (pol.stop() if pol else 0), sim.stop()
+        assert rc == (0, 0), rc
+        ros.destroy_subscription(sub)
+
+
+def test_a_fresh_install_compiles_the_physics_before_the_first_status(ros, tmp_path):
+    """numba's disk cache empty (NUMBA_CACHE_DIR an empty folder: a fresh install, or the kernels' sources
+    changed): the sim node compiles its physics before its first status (env.warm_up), so the policy node,
+    with its default status_timeout of 1.5 s, drives attempt 0 as any other. Before (a review of
+    2026-12-01) the first step of the attempt compiled for 3-17 s while the status said running and nothing
+    was published; the policy node gave attempt 0 up and `make demo`'s first attempt timed out."""
+    statuses = []         # (arrival, status)
+    sub = ros.create_subscription(DiagnosticStatus, "/lhd/episode",
+                                  lambda m: statuses.append((time.monotonic(), kv(m))), REL)
+    cache = tmp_path / "numba"
+    cache.mkdir()
+    sim = RosProcess(SIM, {"slope_deg": 20.0, "seed": 2, "material": "homogeneous", "episodes": 1},
+                     tmp_path / "sim.log", extra_env={"NUMBA_CACHE_DIR": str(cache)})
+    pol = RosProcess(POLICY, {}, tmp_path / "pol.log")
+    try:
+        assert spin_until(ros, lambda: statuses and statuses[-1][1]["state"] != "running", 240), sim.log() + pol.log()
+        assert any(cache.rglob("*.nbi")), "the sim node did not compile into the empty cache: the test tests nothing"
+        end = statuses[-1][1]
+        assert end["state"] != "timeout", (end, sim.log()[-2000:], pol.log()[-2000:])
+        assert "has ended for this node" not in pol.log(), pol.log()
+        assert int(end["step"]) > 5, end
+        assert "physics compiled in" in sim.log(), sim.log()
+        # realtime: a status every control period from the first on (before its first command the episode
+        # repeats its state at that rate), also across the first step (the policy node's timeout is 1.5 s)
+        running = [t for t, st in statuses if st["state"] == "running"]
+        gaps = np.diff(running)
+        assert len(running) > 5 and gaps.max() < 1.0, (gaps.max() if len(gaps) else None, len(running))
+    finally:
+        rc = pol.stop(), sim.stop()
         assert rc == (0, 0), rc
         ros.destroy_subscription(sub)

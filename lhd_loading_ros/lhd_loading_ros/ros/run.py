@@ -36,6 +36,34 @@ def one_line(exc: Exception) -> str:
     return " ".join(lines)
 
 
+def unknown_parameters(node) -> str | None:
+    """The parameters given to `node` (`-p name:=value`, or its section of a --params-file) that it never
+    declared, as one sentence naming each with the nearest declared name; None when there are none.
+    rclpy drops such overrides without a word, so a misspelt name (`-p controler:=tampier`) left the
+    default in force while the user believed otherwise (a review, 2026-12-01). rclpy's own parameters
+    (use_sim_time, start_type_description_service, qos_overrides.*) are not the node's to declare."""
+    import difflib
+
+    overrides = getattr(node, "_parameter_overrides", None) or {}     # rclpy keeps them here (no public getter)
+    unknown = sorted(n for n in overrides if not node.has_parameter(n) and not n.startswith("qos_overrides.")
+                     and n not in ROS_OWN_PARAMETERS)
+    if not unknown:
+        return None
+    declared = sorted(node._parameters)
+
+    def named(n):
+        near = difflib.get_close_matches(n, declared, n=1)
+        return f"'{n}'" + (f" (did you mean '{near[0]}'?)" if near else "")
+
+    return (f"unknown parameter{'s' if len(unknown) > 1 else ''} {', '.join(named(n) for n in unknown)}: this node "
+            f"declares {', '.join(d for d in declared if d not in ROS_OWN_PARAMETERS)} (their ranges: `describe_parameters`, "
+            "docs/ros_nodes.md); a misspelt name would leave the default in force")
+
+
+# what rclpy declares on every node itself
+ROS_OWN_PARAMETERS = ("use_sim_time", "start_type_description_service")
+
+
 def run_node(make_node: Callable, name: str, args=None, before_destroy: Callable | None = None,
              stop: threading.Event | None = None, shutdown_deadline_s: int = SHUTDOWN_DEADLINE_S) -> int:
     """Run one node until SIGINT/SIGTERM (or `stop` is set); returns the exit status:
@@ -58,6 +86,9 @@ def run_node(make_node: Callable, name: str, args=None, before_destroy: Callable
     rc = 0
     try:
         node = make_node()
+        unknown = unknown_parameters(node)
+        if unknown:
+            raise ValueError(unknown)
         executor.add_node(node)
         while not stop.is_set() and rclpy.ok():
             executor.spin_once(timeout_sec=SPIN_PERIOD_S)
