@@ -41,6 +41,9 @@ LHD = [sys.executable, "-m", "lhd_loading_ros.cli.main"]
      "--randomize and --stress are alternatives"),
     (["eval", "--controller", "tampier", "--zones", "end-zone-node"],
      "--randomize, --stress, --deploy-filter and --zones apply to --controller actor only"),
+    # a review (2026-12-01): the actor's folder was ignored without a word, and a file for a folder said "does not exist"
+    (["eval", "--controller", "tampier", "--policy", "policies/rld"],
+     "--policy policies/rld with --controller tampier: the heuristic runs no actor"),
     (["report", "policies", "--zones", "end-zone-node"], "--zones and --zones-density apply to --held-out only"),
     (["eval", "--policy", "policies/rld", "--zones-density", "1550"],
      "--zones-density 1550 is the end-zone node's density: it needs --zones end-zone-node"),
@@ -173,3 +176,12 @@ def test_a_topic_parameter_that_is_no_ros_name_or_a_mistyped_bool_is_one_line(mo
     assert len(lines) == 1, lines
     want = "expecting type 'BOOL'" if "use_sim_time" in param else "expected a ROS name"
     assert want in lines[0] and param.split(":=")[1] in lines[0]
+
+
+def test_a_file_given_as_the_policy_folder_is_named_as_a_file():
+    """A policy that cannot be loaded is an error of the run (exit 1, as a missing folder), not of the
+    arguments; a file given for the folder said "does not exist" (a review, 2026-12-01)."""
+    p = subprocess.run([*LHD, "eval", "--policy", "README.md", "--episodes", "1"], capture_output=True, text=True,
+                       timeout=120)
+    assert p.returncode == 1 and "Traceback" not in p.stderr, (p.returncode, p.stderr[-1500:])
+    assert "policy directory README.md is a file, not a directory; expected a directory with actor.npz" in p.stderr

@@ -108,6 +108,9 @@ def test_file_errors_name_the_file(tmp_path, cfg):
     p.write_text("paper: [1, 2\n")
     with pytest.raises(ConfigError, match="not valid YAML"):
         load_config(p)
+    p.write_text("# only a comment\n")      # a review: "'' must be a mapping of keys, got NoneType"
+    with pytest.raises(ConfigError, match="is empty \\(or only comments\\)"):
+        load_config(p)
 
 
 def test_machine_mass_and_wheel_radius_follow_the_paper(cfg):

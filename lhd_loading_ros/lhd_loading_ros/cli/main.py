@@ -199,6 +199,11 @@ def _eval(args) -> int:
     if args.controller == "tampier":
         from lhd_loading_ros.learning.baselines import run_cli
 
+        if args.policy is not None:
+            print(f"lhd eval: --policy {args.policy} with --controller tampier: the heuristic runs no actor (a review "
+                  "found the folder ignored without a word); drop --policy, or drop --controller tampier to evaluate "
+                  "the actor", file=sys.stderr)
+            return 2
         if args.randomize or args.stress or args.deploy_filter or args.zones != "pile" or args.zones_density is not None:
             print("lhd eval: --randomize, --stress, --deploy-filter and --zones apply to --controller actor only "
                   "(lhd experiment paper --controllers tampier --zones end-zone-node runs the heuristic with the "
@@ -552,14 +557,14 @@ def _main(argv=None) -> int:
     p_eval.add_argument("--controller", choices=["actor", "tampier"], default="actor",
                         help="actor: an exported policy (--policy); tampier: the Tampier-style heuristic baseline")
     p_eval.add_argument("--policy", help="policy directory (actor.npz + policy.json); required for --controller actor. "
-                        "An actor shipped with its own lhd_params.yaml (15 of them: rld_drift_confirm, rld_machine, rlc_gains, the *_twin*, *_steep, *_told_* ones...; policies/README.md) needs --config DIR/lhd_params.yaml")
+                        "An actor shipped with its own lhd_params.yaml (rld_drift_confirm, rld_machine, rlc_gains, the *_twin*, *_steep, *_told_* ones...: those with a lhd_params.yaml in their folder; policies/README.md) needs --config DIR/lhd_params.yaml")
     p_eval.add_argument("--slopes", default=None, help="tampier: pile slopes, degrees (default 15,20,25,30)")
     p_eval.add_argument("--material", choices=["both", "homogeneous", "nonhomogeneous"], default=None,
                         help="tampier: pile material (default both)")
     p_eval.add_argument("--time-limit", type=float, default=None,
                         help="tampier: s per attempt (default 10, the paper's real-world timeout; 0: the environment's)")
     p_eval.add_argument("--tampier-config", help="tampier: thresholds file (default config/tampier.yaml)")
-    p_eval.add_argument("--episodes", type=int, default=120)
+    p_eval.add_argument("--episodes", type=int, default=120, help="attempts (default 120, the paper's evaluation)")
     p_eval.add_argument("--seed", type=nonneg_int, default=2_000_000, help="evaluation seed (training evaluates on 1,000,000)")
     p_eval.add_argument("--deploy-filter", action="store_true", help="RLC: apply the deployment filter, as on the machine")
     p_eval.add_argument("--run-refused", action="store_true",

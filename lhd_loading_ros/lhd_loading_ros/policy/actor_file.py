@@ -301,7 +301,8 @@ def load_policy(directory) -> LoadedPolicy:
     """Load and check a policy directory. Raises PolicyFileError naming what is wrong."""
     d = Path(directory)
     if not d.is_dir():
-        raise PolicyFileError(f"policy directory {d} does not exist; expected a directory with {ACTOR_FILE} "
+        what = "is a file, not a directory" if d.exists() else "does not exist"
+        raise PolicyFileError(f"policy directory {d} {what}; expected a directory with {ACTOR_FILE} "
                               f"and {META_FILE} (see policies/README.md)")
     for name in (ACTOR_FILE, META_FILE):
         if not (d / name).is_file():

@@ -486,6 +486,9 @@ def load_config(path: str | os.PathLike | None = None) -> dict:
         cfg = yaml.safe_load(text)
     except yaml.YAMLError as exc:
         raise ConfigError(f"{p} is not valid YAML: {exc}") from exc
+    if cfg is None:
+        raise ConfigError(f"{p} is empty (or only comments); expected the parameter file's sections (paper, task, "
+                          f"...), as in {default_config_path()}")
     try:
         return validate(cfg)
     except ConfigError as exc:
