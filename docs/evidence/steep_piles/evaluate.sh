@@ -63,14 +63,24 @@ case $S in rld) F=steep; V=rld ;; rlc) F=steep_rlc; V=rlc ;; rlc_to_end) F=steep
   # and the same with demo_failing_share 0.8 (lhd_params_steep_rlc_demo_failing08.yaml; seeds 1 and 3 first, 0, 2, 4 on
   # 2026-12-01, twenty-eighth session)
   steep_rlc_demo_failing08) F=steep_rlc_demo_failing08; V=rlc; E=docs/evidence/demo_failing ;;
-  *) echo "usage: evaluate.sh [rld|rlc|rlc_to_end|push_curl_rld|push_curl_high_rld|told_high_demos_rld|reward_pile_zones_rld|told_high_demos_pile_zones_rld|told_high_demos_pile_zones_rlc|told_high_demos_pile_zones_rest_rld|told_high_demos_pile_zones_rest_rlc|told_high_demos_pile_zones_rest_driftlag_rld|drift_confirm3_rld|drift_confirm3_rlc|drift_confirm3_level_push_rlc|steep_rlc_reward_test|steep_rlc_reward_test_strong|steep_rlc_demo_failing|steep_rlc_demo_failing08]" >&2
+  # 2026-12-01, twenty-ninth session: those five seeds' final checkpoints each taken on for 60,000 steps with the
+  # learning rates falling to a tenth (docs/evidence/settle_stage/lhd_params_settle.yaml; runs/settle_rlc), and the same
+  # with the demonstrations to the last step (lhd_params_settle_teach.yaml; runs/settle_teach_rlc):
+  #   lhd train --variant rlc --seeds 0-4 --jobs 5 --randomize --steps 360000 --config <file> --out runs/<name> \
+  #       --branch-from 'runs/steep_rlc_demo_failing08/seed_{seed}/checkpoint.pt'
+  settle_rlc) F=settle; V=rlc; E=docs/evidence/settle_stage ;;
+  settle_teach_rlc) F=settle_teach; V=rlc; E=docs/evidence/settle_stage ;;
+  # and the settling stage for the five seeds of the dose 0.5 (lhd_params_settle05.yaml; --branch-from
+  # 'runs/steep_rlc_demo_failing/seed_{seed}/checkpoint.pt'; runs/settle05_rlc)
+  settle05_rlc) F=settle05; V=rlc; E=docs/evidence/settle_stage ;;
+  *) echo "usage: evaluate.sh [rld|rlc|rlc_to_end|push_curl_rld|push_curl_high_rld|told_high_demos_rld|reward_pile_zones_rld|told_high_demos_pile_zones_rld|told_high_demos_pile_zones_rlc|told_high_demos_pile_zones_rest_rld|told_high_demos_pile_zones_rest_rlc|told_high_demos_pile_zones_rest_driftlag_rld|drift_confirm3_rld|drift_confirm3_rlc|drift_confirm3_level_push_rlc|steep_rlc_reward_test|steep_rlc_reward_test_strong|steep_rlc_demo_failing|steep_rlc_demo_failing08|settle_rlc|settle_teach_rlc|settle05_rlc]" >&2
      exit 2 ;; esac
 CFG=$E/lhd_params_$F.yaml
 NOM=$E/lhd_params_${F}_nominal_eval.yaml
 case $S in told_high_demos_rld|reward_pile_zones_rld|told_high_demos_pile_zones_rl?) NOM=$E/lhd_params_steep_push_curl_nominal_eval.yaml ;;
   drift_confirm3_level_push_rlc) NOM=$E/lhd_params_drift_confirm3_nominal_eval.yaml ;;
-  steep_rlc_reward_test|steep_rlc_reward_test_strong|steep_rlc_demo_failing|steep_rlc_demo_failing08) NOM=docs/evidence/steep_piles/lhd_params_steep_rlc_nominal_eval.yaml ;; esac
-case $S in push_curl_rld|push_curl_high_rld|told_high_demos_rld|reward_pile_zones_rld|told_high_demos_pile_zones_rl?|told_high_demos_pile_zones_rest_rl?|told_high_demos_pile_zones_rest_driftlag_rld|drift_confirm3_rl?|drift_confirm3_level_push_rlc|steep_rlc_reward_test|steep_rlc_reward_test_strong|steep_rlc_demo_failing|steep_rlc_demo_failing08) RUNS=runs/$S; P=$S ;;
+  steep_rlc_reward_test|steep_rlc_reward_test_strong|steep_rlc_demo_failing|steep_rlc_demo_failing08|settle_rlc|settle_teach_rlc|settle05_rlc) NOM=docs/evidence/steep_piles/lhd_params_steep_rlc_nominal_eval.yaml ;; esac
+case $S in push_curl_rld|push_curl_high_rld|told_high_demos_rld|reward_pile_zones_rld|told_high_demos_pile_zones_rl?|told_high_demos_pile_zones_rest_rl?|told_high_demos_pile_zones_rest_driftlag_rld|drift_confirm3_rl?|drift_confirm3_level_push_rlc|steep_rlc_reward_test|steep_rlc_reward_test_strong|steep_rlc_demo_failing|steep_rlc_demo_failing08|settle_rlc|settle_teach_rlc|settle05_rlc) RUNS=runs/$S; P=$S ;;
   *) RUNS=runs/steep_$S; P=steep_$S ;; esac
 # every seed the run has (five for a study, two for a pilot)
 SEEDS=$(ls -d $RUNS/seed_*/ | sed "s#.*seed_##; s#/##" | sort -n)
