@@ -193,8 +193,11 @@ def test_wheel_command_drives_the_machine_and_the_command_timeout_stops_it(rig):
     # the truth is v_x of /odom interpolated at the IMU's stamps: where an odom sample is missing
     # (a gap of more than twice the usual period around a stamp), that interpolation across the
     # start's peak (several m/s^2 within 0.1 s), not the accelerometer, is wrong. So the samples whose
-    # two stamps both lie in usual odom intervals are compared (at least 3 in 4 of them and 15), their
-    # RMS within 2 sd of the 0.05 m/s^2 noise.
+    # two stamps both lie in usual odom intervals are compared (at least 15 of them), their RMS within 2 sd
+    # of the 0.05 m/s^2 noise. How many qualify is the host's doing (odometry this process missed or the
+    # twin sent late), not the accelerometer's: 35-39 samples, of which 16 (a slow hour, 2026-12-01), 29 (the
+    # stack pass right after a loaded hour, twenty-ninth session) and all (alone) qualified; the bound was
+    # also 3 in 4 of them until then, which failed both loaded runs before their RMS was checked
     gaps = np.diff(tt)
     usual = 2.0 * float(np.median(gaps))
     j = np.clip(np.searchsorted(tt, ti), 1, len(tt) - 1)
@@ -205,7 +208,7 @@ def test_wheel_command_drives_the_machine_and_the_command_timeout_stops_it(rig):
           f"(all: {math.sqrt(float(np.mean(err ** 2))):.3f}), peak {np.max(a_truth):.2f}, largest odom gap "
           f"{1e3 * float(np.max(gaps)):.0f} ms")
     diag = (a_imu.round(3).tolist(), a_truth.round(3).tolist(), f"odom gaps ms: {np.round(1e3 * gaps, 1).tolist()}")
-    assert valid.sum() >= max(15, 0.75 * len(err)), diag
+    assert valid.sum() >= 15, (f"{int(valid.sum())} of {len(err)} samples with a resolved truth", diag)
     assert rms < 0.1, diag
     steady = [s for s in g["odom"] if t0 + 0.8 <= s[0] <= t_last]
     vx = [m.twist.twist.linear.x for _, m in steady]
