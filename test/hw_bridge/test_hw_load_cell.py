@@ -23,7 +23,7 @@ from lhd_hw_bridge import protocol
 from lhd_hw_bridge.bridge_core import LoadCellMonitor, load_cell_problems
 from lhd_hw_bridge.fake_due import FakeDue
 from lhd_hw_bridge.protocol import (LC_CALIBRATED, LC_SATURATED, LC_STALE, LC_TARED, FrameParser, LoadCellFrame,
-                                    ProtocolError, SensorFrame, crc16, decode_packet, encode, frame_bytes)
+                                    ProtocolError, SensorFrame, encode, frame_bytes)
 
 ROOT = Path(__file__).resolve().parents[2]
 FIRMWARE = ROOT / "lhd_hw_bridge/lhd_hw_bridge/firmware/lhd_due/lhd_due.ino"

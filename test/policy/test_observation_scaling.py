@@ -14,7 +14,6 @@ import math
 import shutil
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from lhd_loading_ros.learning.export import export_actor
