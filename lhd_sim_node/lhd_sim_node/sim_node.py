@@ -67,6 +67,7 @@ from lhd_loading_ros.ros.params import Param, Params, steady_timer, topic_prefix
 from lhd_loading_ros.ros.run import run_node
 
 from .env import ATTACK_REDRAWS, LhdLoadingEnv, reset_or_redraw, warm_up
+from .ros_env import UNKNOWN_NODE_NAME
 from .simulator import MATERIALS, AttackError, SimulationError
 
 # QoS (lhd_loading_ros.ros.qos, shared with the hardware bridge and the policy node): measurements
@@ -161,7 +162,8 @@ class SimNode(Node):
         # for seconds while the episode said running, and the policy node gave attempt 0 up
         took = warm_up(self.env, self.seed)
         if took > 1.0:
-            self.get_logger().info(f"physics compiled in {took:.1f} s (once per install: numba's cache)")
+            self.get_logger().info(f"physics ready in {took:.1f} s (compiled on the first run after an install, "
+                                   "then loaded from numba's cache)")
         self.dt = self.env.p.control_dt
         self.dt_ns = int(round(self.dt * 1e9))
         m = self.sim.model
@@ -331,7 +333,7 @@ class SimNode(Node):
         node's name), "gid": hex of the endpoint's GID}, one per publisher on this node's /cmd."""
         out = []
         for info in self.get_publishers_info_by_topic(self._cmd_topic):
-            named = info.node_name != "_NODE_NAME_UNKNOWN_"
+            named = info.node_name != UNKNOWN_NODE_NAME
             out.append({"node": f"{info.node_namespace.rstrip('/')}/{info.node_name}" if named else None,
                         "gid": bytes(info.endpoint_gid).hex()})
         response.success = True

@@ -501,7 +501,7 @@ def test_a_fresh_install_compiles_the_physics_before_the_first_status(ros, tmp_p
         assert end["state"] != "timeout", (end, sim.log()[-2000:], pol.log()[-2000:])
         assert "has ended for this node" not in pol.log(), pol.log()
         assert int(end["step"]) > 5, end
-        assert "physics compiled in" in sim.log(), sim.log()
+        assert "physics ready in" in sim.log(), sim.log()
         # realtime: a status every control period from the first on (before its first command the episode
         # repeats its state at that rate), also across the first step (the policy node's timeout is 1.5 s)
         running = [t for t, st in statuses if st["state"] == "running"]
