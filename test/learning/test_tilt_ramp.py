@@ -182,6 +182,11 @@ def test_a_resume_keeps_the_mass_margin(cfg, tmp_path):
     cfg["task"]["r_success_mass_margin_kg"] = 0.0
     with pytest.raises(ValueError, match="r_success_mass_margin_kg = 4, this config has 0"):
         train("rld", 4, tmp_path / "r", steps=350, config=cfg, progress=False, log=lambda *a: None)
+    # a branch may change the schedule but not the margin: the replay's r_success cuts were made with it
+    cfg["task"]["r_success_mass_margin_kg"] = 8.0
+    with pytest.raises(ValueError, match="this config has 8: resume or branch with the same margin"):
+        train("rld", 4, tmp_path / "b", steps=350, config=cfg, progress=False, log=lambda *a: None,
+              branch_from=tmp_path / "r" / "checkpoint.pt")
     cfg["task"]["r_success_mass_margin_kg"] = 4.0
     logs = []
     train("rld", 4, tmp_path / "r", steps=350, config=cfg, progress=False, log=logs.append)

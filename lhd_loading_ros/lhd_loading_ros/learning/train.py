@@ -451,9 +451,13 @@ def _train(variant: str, seed: int, out, steps: int | None = None, config=None, 
             raise ValueError(f"{ckpt} was trained with training.slope_curriculum: resume with it on, or use another "
                              "--out")
         if "r_success_mass_margin_kg" in st and float(st["r_success_mass_margin_kg"]) != mass_margin:
+            # also refused for a branch: the replay keeps each transition's cut of r_success as the margin
+            # then in force made it (its success_margin_cut column), so a new margin would train on both
             raise ValueError(f"{ckpt} was trained with task.r_success_mass_margin_kg = "
-                             f"{float(st['r_success_mass_margin_kg']):g}, this config has {mass_margin:g}: resume with "
-                             "the same margin or use another --out")     # (checkpoints before the key: not checked)
+                             f"{float(st['r_success_mass_margin_kg']):g}, this config has {mass_margin:g}: resume "
+                             + ("or branch with the same margin (the replay's rewards were cut with it), or train "
+                                "another margin from the start into another --out" if branch_from is not None else
+                                "with the same margin or use another --out"))     # (checkpoints before the key: not checked)
         if ramp.enabled and st.get("tilt_ramp"):      # (the replay's columns already refused a ramp switched on/off)
             ramp.load_state_dict(json.loads(st["tilt_ramp"]))
         # after the checks above, whose messages say more of their own keys
