@@ -85,6 +85,7 @@ def test_older_cards_are_checked_by_their_trained_slope_range(cfg, tmp_path):
     assert "normalisers" not in meta["observation"]                        # exported before the record
     assert load_policy(d).observation_mismatch(cfg) is None
     meta["trained_ranges"] = {"slope_deg": [10.0, 35.0]}
+    meta.pop("card_sha256")                                                # cards of that time carry no seal
     (d / META_FILE).write_text(json.dumps(meta))                           # actor.npz (and its SHA) untouched
     why = load_policy(d).observation_mismatch(cfg)
     assert "trained on 10-35 deg piles" in why and "over 15-30 deg" in why
@@ -156,6 +157,7 @@ def test_the_actions_map_to_the_actuator_speeds_it_was_trained_with(cfg, wide_ac
     shutil.copytree(wide_actor, d)
     meta = json.loads((d / META_FILE).read_text())
     meta["action"]["actuator_high"] = [2.7, 0.0]
+    meta.pop("card_sha256", None)                  # unsealed: the record's own check, not the seal, is tested
     (d / META_FILE).write_text(json.dumps(meta))
     with pytest.raises(PolicyFileError, match=r"action.actuator_high = \[2.7, 0.0\]; expected 3 finite numbers"):
         load_policy(d).action_mismatch(c)

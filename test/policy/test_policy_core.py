@@ -149,7 +149,7 @@ def test_trained_range_from_the_card_or_its_training_config(cfg, tmp_path):
 
     from pathlib import Path
 
-    from lhd_loading_ros.policy.actor_file import META_FILE, PolicyFileError, load_policy
+    from lhd_loading_ros.policy.actor_file import META_FILE, PolicyFileError, load_policy, seal_card
 
     d = tmp_path / "rld"
     shutil.copytree(Path(__file__).resolve().parents[2] / "policies" / "rld", d)
@@ -159,6 +159,7 @@ def test_trained_range_from_the_card_or_its_training_config(cfg, tmp_path):
         m = {k: v for k, v in meta.items() if k != "trained_ranges"}
         m.update(changes)
         (d / META_FILE).write_text(json.dumps(m))     # actor.npz (and its SHA-256) untouched
+        seal_card(d)                                  # a card exported so (an unsealed edit is refused)
         return load_policy(d)
 
     lo, hi, src = with_meta(trained_ranges={"slope_deg": [17.5, 27.5]}).trained_slope_range_deg(cfg)

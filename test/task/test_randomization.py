@@ -342,7 +342,7 @@ def test_a_card_s_trained_with_margin_is_honoured_by_the_policy_loader(cfg, tmp_
     import shutil
     from pathlib import Path
 
-    from lhd_loading_ros.policy.actor_file import load_policy
+    from lhd_loading_ros.policy.actor_file import load_policy, seal_card
     m5 = copy.deepcopy(cfg)
     m5["task"]["r_success_pitch_margin_deg"] = 5.0
     d = tmp_path / "p"
@@ -356,4 +356,5 @@ def test_a_card_s_trained_with_margin_is_honoured_by_the_policy_loader(cfg, tmp_
         else:
             meta["trained_with"] = trained_with
         (d / "policy.json").write_text(json.dumps(meta))
+        seal_card(d)                                    # a card exported so, not one edited after export
         assert load_policy(d).config_matches(cfg) is expected, trained_with

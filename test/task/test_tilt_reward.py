@@ -74,7 +74,7 @@ def test_an_actor_trained_with_the_tilt_penalty_runs_on_the_shipped_config(cfg, 
 
     from lhd_loading_ros.learning.ddpg import DdpgAgent, DdpgConfig
     from lhd_loading_ros.learning.export import export_actor
-    from lhd_loading_ros.policy.actor_file import load_policy
+    from lhd_loading_ros.policy.actor_file import load_policy, seal_card
 
     on = with_tilt(cfg, 10.0, 3.0)
     agent = DdpgAgent(DdpgConfig.from_config(on), seed=0)
@@ -85,4 +85,5 @@ def test_an_actor_trained_with_the_tilt_penalty_runs_on_the_shipped_config(cfg, 
     meta = json.loads((d / "policy.json").read_text())
     del meta["trained_with"]["r_tilt_per_deg"]          # a card that does not say so: another config
     (d / "policy.json").write_text(json.dumps(meta))
+    seal_card(d)                                        # exported so (an unsealed edit is refused: test_policy_core)
     assert not load_policy(d).config_matches(cfg)

@@ -8,7 +8,11 @@ Layout of a policy directory (format ``lhd-actor/1``, docs/training.md says why)
   names and normalization, action names and actuator ranges, filter thresholds, the config
   hash, seed, steps, evaluation figures, the SHA-256 of ``actor.npz`` and ``trained_ranges``
   (``{"slope_deg": [lo, hi]}``: the slopes the actor was trained on; the policy node refuses
-  others).
+  others), and ``card_sha256``: the SHA-256 of the fields that decide how the actor is run
+  (:data:`SEALED_FIELDS`: its variant, scaling, actuator mapping, filters, trained ranges, config hash
+  and what it was trained with), so that a card edited by hand after export (its variant changed from
+  rld to rlc, a slope range widened) is refused instead of running the actor otherwise than it was
+  trained. Cards exported before the seal (2026-12-01) carry none and load as before.
 
 :class:`NumpyActor` runs the network in numpy (about 10 us per observation).
 """
@@ -224,6 +228,32 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
+# The fields of policy.json that decide how an actor is run (LoadedPolicy reads them: the action mapping and
+# its filter, the observation's scaling, the slopes it accepts, the parameter files it runs under); card_sha256
+# seals them. The rest (evaluation figures, seed, steps, DDPG settings) is the card's record, not its behaviour.
+SEALED_FIELDS = ("format", "variant", "architecture", "observation", "action", "filters", "trained_ranges",
+                 "config_hash", "trained_with", "actor_sha256")
+
+
+def card_digest(meta: dict) -> str:
+    """SHA-256 of the sealed fields of a card (canonical JSON: sorted keys, no spaces)."""
+    sealed = {k: meta[k] for k in SEALED_FIELDS if k in meta}
+    text = json.dumps(sealed, sort_keys=True, separators=(",", ":"), default=_json_default)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def seal_card(directory) -> str:
+    """Write card_sha256 into <directory>/policy.json for its present fields; return the digest. For a card
+    edited on purpose (the edit is then the author's to document); save_policy seals every card it writes."""
+    f = Path(directory) / META_FILE
+    meta = json.loads(f.read_text())
+    meta["card_sha256"] = card_digest(meta)
+    tmp = f.with_name(META_FILE + ".tmp")
+    tmp.write_text(json.dumps(meta, indent=2, sort_keys=True, default=_json_default) + "\n")
+    tmp.replace(f)
+    return meta["card_sha256"]
+
+
 def save_policy(directory, layers: list[tuple[np.ndarray, np.ndarray]], meta: dict) -> Path:
     """Write actor.npz and policy.json into `directory` (created); return the directory."""
     d = Path(directory)
@@ -242,6 +272,7 @@ def save_policy(directory, layers: list[tuple[np.ndarray, np.ndarray]], meta: di
                          "dtype": "float32", "layout": "y = x @ W.T + b per layer"},
         "actor_sha256": _sha256(d / ACTOR_FILE),
     })
+    full["card_sha256"] = card_digest(full)
     tmpj = d / (META_FILE + ".tmp")
     tmpj.write_text(json.dumps(full, indent=2, sort_keys=True, default=_json_default) + "\n")
     tmpj.replace(d / META_FILE)
@@ -319,6 +350,11 @@ def load_policy(directory) -> LoadedPolicy:
     if meta.get("actor_sha256") != digest:
         raise PolicyFileError(f"{d / ACTOR_FILE} does not match the SHA-256 recorded in {META_FILE} "
                               "(file replaced or corrupted)")
+    if "card_sha256" in meta and meta["card_sha256"] != card_digest(meta):
+        raise PolicyFileError(f"{d / META_FILE} was changed after export: its fields {', '.join(SEALED_FIELDS[1:])} "
+                              "no longer match the card_sha256 written with them, and the policy node would run the "
+                              "actor otherwise than it was trained (another action mapping, scaling or slope range); "
+                              "export it again (lhd ship / lhd train), or restore the card from the export")
     with np.load(d / ACTOR_FILE, allow_pickle=False) as z:
         n = len([k for k in z.files if k.startswith("W")])
         try:
