@@ -245,13 +245,18 @@ def card_digest(meta: dict) -> str:
 def seal_card(directory) -> str:
     """Write card_sha256 into <directory>/policy.json for its present fields; return the digest. For a card
     edited on purpose (the edit is then the author's to document); save_policy seals every card it writes."""
-    f = Path(directory) / META_FILE
-    meta = json.loads(f.read_text())
+    d = Path(directory)
+    meta = json.loads((d / META_FILE).read_text())
     meta["card_sha256"] = card_digest(meta)
-    tmp = f.with_name(META_FILE + ".tmp")
-    tmp.write_text(json.dumps(meta, indent=2, sort_keys=True, default=_json_default) + "\n")
-    tmp.replace(f)
+    _write_card(d, meta)
     return meta["card_sha256"]
+
+
+def _write_card(d: Path, meta: dict) -> None:
+    """policy.json, written whole or not at all (a temporary file, then a rename)."""
+    tmp = d / (META_FILE + ".tmp")
+    tmp.write_text(json.dumps(meta, indent=2, sort_keys=True, default=_json_default) + "\n")
+    tmp.replace(d / META_FILE)
 
 
 def save_policy(directory, layers: list[tuple[np.ndarray, np.ndarray]], meta: dict) -> Path:
@@ -273,9 +278,7 @@ def save_policy(directory, layers: list[tuple[np.ndarray, np.ndarray]], meta: di
         "actor_sha256": _sha256(d / ACTOR_FILE),
     })
     full["card_sha256"] = card_digest(full)
-    tmpj = d / (META_FILE + ".tmp")
-    tmpj.write_text(json.dumps(full, indent=2, sort_keys=True, default=_json_default) + "\n")
-    tmpj.replace(d / META_FILE)
+    _write_card(d, full)
     return d
 
 
