@@ -1,0 +1,28 @@
+"""Export the actor of a kept training checkpoint (lhd train --keep-checkpoint) to a policy directory, so that
+`lhd experiment paper` and `lhd eval` can run it beside the run's final actor. Run from the repository root:
+    .venv/bin/python docs/evidence/margin8/export_checkpoint.py runs/X/seed_0/checkpoint_step300000.pt CONFIG OUT_DIR
+The checkpoint's config hash must be the config's (the same check `lhd train --branch-from` makes)."""
+import sys
+
+import torch
+
+from lhd_loading_ros.learning.ddpg import DdpgConfig
+from lhd_loading_ros.learning.export import export_actor
+from lhd_loading_ros.learning.mlp import FlatMlp
+from lhd_loading_ros.task.config import config_hash, load_config
+
+ckpt_path, cfg_path, out = sys.argv[1:4]
+cfg = load_config(cfg_path)
+ck = torch.load(ckpt_path, map_location="cpu", weights_only=False)
+if ck["config_hash"] != config_hash(cfg):
+    sys.exit(f"{ckpt_path}: config hash {ck['config_hash']} is not {cfg_path}'s {config_hash(cfg)}")
+flat = ck["agent"]["actor"]
+sizes = [12, *DdpgConfig.from_config(cfg).hidden_sizes, 3]
+actor = FlatMlp(sizes, "tanh")
+if flat.shape != actor.flat.shape:
+    sys.exit(f"{ckpt_path}: the actor has {flat.numel()} parameters, {sizes} needs {actor.flat.numel()}")
+with torch.no_grad():
+    actor.flat.copy_(flat)
+export_actor(out, actor, cfg, {"variant": ck["variant"], "seed": ck["seed"], "config_hash": ck["config_hash"],
+                               "steps": int(ck["step"]), "evaluation": {}, "from_checkpoint": ckpt_path})
+print(f"{out}: actor of {ckpt_path} (step {int(ck['step'])})")
