@@ -11,6 +11,9 @@ from lhd_loading_ros.learning.export import export_actor
 from lhd_loading_ros.learning.mlp import FlatMlp
 from lhd_loading_ros.task.config import config_hash, load_config
 
+if len(sys.argv) != 4:
+    sys.exit("usage: export_checkpoint.py CHECKPOINT.pt PARAMETER_FILE.yaml OUT_DIR (the checkpoint of `lhd train "
+             "--keep-checkpoint`, the parameter file it was trained with, the policy directory to write)")
 ckpt_path, cfg_path, out = sys.argv[1:4]
 cfg = load_config(cfg_path)
 ck = torch.load(ckpt_path, map_location="cpu", weights_only=False)
