@@ -3,12 +3,14 @@
     .venv/bin/python docs/evidence/margin8/export_checkpoint.py runs/X/seed_0/checkpoint_step300000.pt CONFIG OUT_DIR
 The checkpoint's config hash must be the config's (the same check `lhd train --branch-from` makes)."""
 import sys
+from pathlib import Path
 
 import torch
 
 from lhd_loading_ros.learning.ddpg import DdpgConfig
 from lhd_loading_ros.learning.export import export_actor
 from lhd_loading_ros.learning.mlp import FlatMlp
+from lhd_loading_ros.learning.train import load_checkpoint
 from lhd_loading_ros.task.config import config_hash, load_config
 
 if len(sys.argv) != 4:
@@ -16,7 +18,10 @@ if len(sys.argv) != 4:
              "--keep-checkpoint`, the parameter file it was trained with, the policy directory to write)")
 ckpt_path, cfg_path, out = sys.argv[1:4]
 cfg = load_config(cfg_path)
-ck = torch.load(ckpt_path, map_location="cpu", weights_only=False)
+try:
+    ck = load_checkpoint(Path(ckpt_path))     # the trainer's own reader (weights only, a clear error)
+except ValueError as exc:
+    sys.exit(str(exc))
 if ck["config_hash"] != config_hash(cfg):
     sys.exit(f"{ckpt_path}: config hash {ck['config_hash']} is not {cfg_path}'s {config_hash(cfg)}")
 flat = ck["agent"]["actor"]
