@@ -11,7 +11,9 @@ from lhd_loading_ros.learning.ddpg import DdpgConfig
 from lhd_loading_ros.learning.export import export_actor
 from lhd_loading_ros.learning.mlp import FlatMlp
 from lhd_loading_ros.learning.train import load_checkpoint
+from lhd_loading_ros.task.actions import ACT_DIM
 from lhd_loading_ros.task.config import config_hash, load_config
+from lhd_loading_ros.task.observation import OBS_DIM
 
 if len(sys.argv) != 4:
     sys.exit("usage: export_checkpoint.py CHECKPOINT.pt PARAMETER_FILE.yaml OUT_DIR (the checkpoint of `lhd train "
@@ -25,7 +27,7 @@ except ValueError as exc:
 if ck["config_hash"] != config_hash(cfg):
     sys.exit(f"{ckpt_path}: config hash {ck['config_hash']} is not {cfg_path}'s {config_hash(cfg)}")
 flat = ck["agent"]["actor"]
-sizes = [12, *DdpgConfig.from_config(cfg).hidden_sizes, 3]
+sizes = [OBS_DIM, *DdpgConfig.from_config(cfg).hidden_sizes, ACT_DIM]     # as learning.ddpg.DdpgAgent builds it
 actor = FlatMlp(sizes, "tanh")
 if flat.shape != actor.flat.shape:
     sys.exit(f"{ckpt_path}: the actor has {flat.numel()} parameters, {sizes} needs {actor.flat.numel()}")
