@@ -190,25 +190,42 @@ def test_wheel_command_drives_the_machine_and_the_command_timeout_stops_it(rig):
     a_imu = np.array([fwd(m) for m in imu[1:]]) - bias_x
     assert len(imu) > 20 and np.max(a_truth) > 0.3, (len(imu), np.max(a_truth))
     err = a_imu - a_truth
-    # the truth is v_x of /odom interpolated at the IMU's stamps: where an odom sample is missing
-    # (a gap of more than twice the usual period around a stamp), that interpolation across the
-    # start's peak (several m/s^2 within 0.1 s), not the accelerometer, is wrong. So the samples whose
-    # two stamps both lie in usual odom intervals are compared (at least 15 of them), their RMS within 2 sd
-    # of the 0.05 m/s^2 noise. How many qualify is the host's doing (odometry this process missed or the
-    # twin sent late), not the accelerometer's: 35-39 samples, of which 16 (a slow hour, 2026-12-01), 29 (the
-    # stack pass right after a loaded hour, twenty-ninth session) and all (alone) qualified; the bound was
-    # also 3 in 4 of them until then, which failed both loaded runs before their RMS was checked
+    # the truth is v_x of /odom interpolated at the IMU's stamps, and that interpolation is itself wrong in two
+    # places, neither of them the accelerometer's doing:
+    # - where an odom sample is missing (a gap of more than twice the usual period around a stamp: odometry this
+    #   process missed or the twin sent late), the interpolation spans the start's peak (several m/s^2 within
+    #   0.1 s). Those samples are left out;
+    # - where the acceleration changes within an odom interval (the start, the tyres' rocking after it), a straight
+    #   line between two odom samples misses the speed by up to h |a2 - a1| / 4 (a step from a1 to a2 inside an
+    #   interval of length h; a1, a2 read from the odom intervals either side, whose own slopes the interval's lies
+    #   between). Divided by the IMU's interval (50 ms against odom's 20 ms), that is 0.3-0.4 m/s^2 at the start: the
+    #   two onset samples alone took the RMS over all samples to 0.103 against a bound of 0.1 in one CI run
+    #   (2026-12-02), the accelerometer within its noise everywhere else.
+    # So: every sample with a resolved interpolation is within 6 sd of the noise (0.3 m/s^2) plus the truth's own
+    # uncertainty there (the onset checked too: an accelerometer a sample late misses the 4 m/s^2 peak by far more),
+    # and over the samples where that uncertainty is under one sd (at least 15), the RMS is within 2 sd of the noise.
     gaps = np.diff(tt)
     usual = 2.0 * float(np.median(gaps))
     j = np.clip(np.searchsorted(tt, ti), 1, len(tt) - 1)
     known = (tt[j] - tt[j - 1]) <= usual                       # per IMU stamp: the truth is resolved there
     valid = known[1:] & known[:-1]                              # per sample: both ends of its interval
-    rms = math.sqrt(float(np.mean(err[valid] ** 2)))
-    print(f"\ntwin accelerometer: RMS {rms:.3f} m/s^2 against the truth over {int(valid.sum())} of {len(err)} samples "
-          f"(all: {math.sqrt(float(np.mean(err ** 2))):.3f}), peak {np.max(a_truth):.2f}, largest odom gap "
+    a_odom = np.diff(vv) / np.maximum(gaps, 1e-6)               # per odom interval: its mean acceleration
+    k = j - 1                                                   # the odom interval each IMU stamp lies in
+    a_here = a_odom[k]
+    a_prev = a_odom[np.maximum(k - 1, 0)]
+    a_next = a_odom[np.minimum(k + 1, len(a_odom) - 1)]
+    e_v = gaps[k] / 4.0 * (np.abs(a_here - a_prev) + np.abs(a_next - a_here))      # m/s, per IMU stamp
+    unc = (e_v[1:] + e_v[:-1]) / np.diff(ti)                    # m/s^2, per sample
+    resolved = valid & (unc < 0.05)
+    rms = math.sqrt(float(np.mean(err[resolved] ** 2))) if resolved.any() else math.inf
+    print(f"\ntwin accelerometer: RMS {rms:.3f} m/s^2 against the truth over {int(resolved.sum())} of {len(err)} samples "
+          f"(all: {math.sqrt(float(np.mean(err ** 2))):.3f}), largest |error| - truth's uncertainty "
+          f"{float(np.max((np.abs(err) - unc)[valid])):.3f}, peak {np.max(a_truth):.2f}, largest odom gap "
           f"{1e3 * float(np.max(gaps)):.0f} ms")
-    diag = (a_imu.round(3).tolist(), a_truth.round(3).tolist(), f"odom gaps ms: {np.round(1e3 * gaps, 1).tolist()}")
-    assert valid.sum() >= 15, (f"{int(valid.sum())} of {len(err)} samples with a resolved truth", diag)
+    diag = (a_imu.round(3).tolist(), a_truth.round(3).tolist(), unc.round(3).tolist(),
+            f"odom gaps ms: {np.round(1e3 * gaps, 1).tolist()}")
+    assert resolved.sum() >= 15, (f"{int(resolved.sum())} of {len(err)} samples with a resolved truth", diag)
+    assert np.all((np.abs(err) <= 0.3 + unc)[valid]), diag
     assert rms < 0.1, diag
     steady = [s for s in g["odom"] if t0 + 0.8 <= s[0] <= t_last]
     vx = [m.twist.twist.linear.x for _, m in steady]
