@@ -2,6 +2,7 @@
 episode draw, the per-step sensor errors. Expectations are computed here from the definitions
 (uniform ranges, Gaussian spread, hold and delay), not read back from the module."""
 import copy
+import re
 import math
 
 import numpy as np
@@ -32,7 +33,7 @@ def without_unit_gains(c):
     if r is not None and all(r.get(k, 1.0) == 1.0 for k in GAIN_KEYS):
         c = {**c, "randomization": {k: v for k, v in r.items() if k not in GAIN_KEYS}}
     for key in ("rest_start_share", "surface_sd_max", "zones_at_nominal_density", "arm_offset_max_deg",
-                "slope_error_high_share", "drift_flag_lag_max_s"):
+                "slope_error_high_share", "drift_flag_lag_max_s", "slope_error_small_share", "slope_error_small_max_deg"):
         r = c.get("randomization")
         if r is not None and r.get(key, 0.0) == 0.0:
             c = {**c, "randomization": {k: v for k, v in r.items() if k != key}}
@@ -82,7 +83,8 @@ def test_the_shipped_section_is_off_and_a_disabled_section_leaves_the_hash_alone
     before["randomization"] = {k: v for k, v in on["randomization"].items()
                                if k not in keys + ("rest_start_share", "surface_sd_max", "zones_at_nominal_density",
                                                    "arm_offset_max_deg", "slope_error_high_share",
-                                                   "drift_flag_lag_max_s")}
+                                                   "drift_flag_lag_max_s", "slope_error_small_share",
+                                                   "slope_error_small_max_deg")}
     assert all(on["randomization"][k] == 1.0 for k in keys) and on["randomization"]["rest_start_share"] == 0.0
     assert on["randomization"]["surface_sd_max"] == 0.0 and on["randomization"]["zones_at_nominal_density"] == 0
     assert on["randomization"]["arm_offset_max_deg"] == 0.0
@@ -208,6 +210,46 @@ def test_a_share_told_too_steep_leaves_the_other_draws_alone(cfg):
         bad = copy.deepcopy(high)
         bad["randomization"]["slope_error_high_share"] = 1.5
         validate(bad)
+
+
+def test_a_share_told_right_as_the_lidar_gives_it(cfg):
+    """randomization.slope_error_small_share / slope_error_small_max_deg (2026-12-02): that share of the episodes
+    draws the error U(-small, small), the LiDAR right; the others the whole range's. Counted by hand, with the
+    told-too-steep share under it: at 0 nothing is drawn for it (the stream is the one before the keys)."""
+    from lhd_loading_ros.task.config import hash_matches
+    on = copy.deepcopy(cfg)
+    on["randomization"]["enabled"] = 1
+    e = on["randomization"]["slope_error_max_deg"]
+    assert (on["randomization"]["slope_error_small_share"], on["randomization"]["slope_error_small_max_deg"]) == (0.0, 0.0)
+    small = copy.deepcopy(on)
+    small["randomization"].update(slope_error_small_share=0.5, slope_error_small_max_deg=1.0)
+    rr = RandomizationRanges.from_config(validate(copy.deepcopy(small)))
+    err = np.array([draw(np.random.default_rng(k), rr).slope_error_deg for k in range(4000)])
+    # by hand: P(|err| <= 1) = 0.5 + 0.5 x (2 / 2e); P(err >= e/2) = 0.5 x 1/4
+    assert np.mean(np.abs(err) <= 1.0) == pytest.approx(0.5 + 0.5 * 2.0 / (2.0 * e), abs=0.03)
+    assert np.mean(err >= 0.5 * e) == pytest.approx(0.125, abs=0.02)
+    assert err.min() >= -e and err.max() <= e
+    # with the told-too-steep share 0.4 as well: told too steep by e/2 or more in (1 - 0.5) x (0.4 + 0.6 / 4)
+    both = copy.deepcopy(small)
+    both["randomization"]["slope_error_high_share"] = 0.4
+    rb = RandomizationRanges.from_config(validate(copy.deepcopy(both)))
+    eb = np.array([draw(np.random.default_rng(k), rb).slope_error_deg for k in range(4000)])
+    assert np.mean(eb >= 0.5 * e) == pytest.approx(0.5 * 0.55, abs=0.03)
+    # every other draw as without it (drawn after them); at 0 the draws are exactly the earlier ones
+    one, ref = draw(np.random.default_rng(9), rr), draw(np.random.default_rng(9), RandomizationRanges.from_config(on))
+    assert (one.heading_deg, one.d_attack, one.tyre_friction) == (ref.heading_deg, ref.d_attack, ref.tyre_friction)
+    assert [draw(np.random.default_rng(k), RandomizationRanges.from_config(on)).slope_error_deg for k in range(50)] == \
+        [float(np.random.default_rng(k).uniform(-e, e)) for k in range(50)]
+    # part of the identity; the evaluation file without the keys refuses such an actor
+    assert config_hash(small) != config_hash(on)
+    assert hash_matches(config_hash(on), small) and hash_matches(config_hash(small), small)
+    assert not hash_matches(config_hash(small), on)
+    for bad_share, bad_max, what in ((0.5, 0.0, "> 0 where"), (0.5, e + 1.0, "<= randomization.slope_error_max_deg"),
+                                     (1.5, 1.0, "slope_error_small_share")):
+        bad = copy.deepcopy(on)
+        bad["randomization"].update(slope_error_small_share=bad_share, slope_error_small_max_deg=bad_max)
+        with pytest.raises(ConfigError, match=re.escape(what)):
+            validate(bad)
 
 
 def test_delay_chunks_refuses_what_the_simulator_cannot_do():

@@ -228,6 +228,9 @@ def drawn_conditions(cfg: dict) -> str:
         parts.append(f"the slope error of {100.0 * float(r['slope_error_high_share']):g} % of the attempts drawn "
                      f"{0.5 * float(r['slope_error_max_deg']):g}-{float(r['slope_error_max_deg']):g} deg too steep "
                      "(the others' from the whole range)")
+    if float(r.get("slope_error_small_share", 0.0)) > 0.0:
+        parts.append(f"the slope error of {100.0 * float(r['slope_error_small_share']):g} % of the attempts within "
+                     f"+-{float(r['slope_error_small_max_deg']):g} deg (the LiDAR right; the others' from the whole range)")
     if float(r.get("drift_flag_lag_max_s", 0.0)) > 0.0:
         parts.append(f"the drift flag over a control period ending up to {1000.0 * float(r['drift_flag_lag_max_s']):.0f} ms "
                      "before the observation (the bridge's window)")

@@ -139,6 +139,7 @@ SCHEMA: dict[str, Any] = {
         "zones_from_slope_estimate": _i(0, 1), "rest_start_share": _f(0.0, 1.0),
         "surface_sd_max": _f(0.0, 0.2), "zones_at_nominal_density": _i(0, 1), "arm_offset_max_deg": _f(0.0, 10.0),
         "slope_error_high_share": _f(0.0, 1.0), "drift_flag_lag_max_s": _f(0.0, 0.5),
+        "slope_error_small_share": _f(0.0, 1.0), "slope_error_small_max_deg": _f(0.0, 45.0),
     },
     "training": {
         "total_steps": _i(1, 100_000_000), "noise_decay_steps": _i(0, 100_000_000), "noise_final_scale": _f(0.0, 1.0),
@@ -193,6 +194,12 @@ _RELATIONS = [
     ("training.demo_told_high <= randomization.slope_error_max_deg (no episode is told more than slope_error_max_deg "
      "too steep, so none would be a told-high demonstration)",
      lambda c: c["training"]["demo_told_high"] <= c["randomization"]["slope_error_max_deg"]),
+    # the small error is the LiDAR's right estimate inside the whole range's; a share drawn from an empty range
+    # would only zero the error, which slope_error_small_max_deg 0 says nowhere
+    ("randomization.slope_error_small_max_deg <= randomization.slope_error_max_deg, and > 0 where "
+     "randomization.slope_error_small_share > 0 (the share draws its error U(-small_max, small_max))",
+     lambda c: c["randomization"]["slope_error_small_max_deg"] <= c["randomization"]["slope_error_max_deg"]
+     and (not c["randomization"]["slope_error_small_share"] > 0.0 or c["randomization"]["slope_error_small_max_deg"] > 0.0)),
     # with neither, the told zones are the pile's own and the reward reads the same zones either way
     ("task.reward_zones_from_pile = 1 only with randomization.zones_from_slope_estimate = 1 or "
      "randomization.zones_at_nominal_density = 1 (otherwise the told zones are the pile's own and the key does nothing)",
@@ -385,6 +392,10 @@ RANDOMIZATION_LATER_KEYS = (
     # 0: the observed drift flag over the control period since the last command, the simulator's own
     # window (before the key, 2026-11-30; LhdSimulator.drift_flag)
     ("drift_flag_lag_max_s", 0.0),
+    # 0: the slope error U(-max, max) in every episode, none drawn small as the LiDAR gives it (before the key,
+    # 2026-12-02); the small range is read only with the share on
+    ("slope_error_small_share", 0.0),
+    ("slope_error_small_max_deg", 0.0),
 )
 OPTIONAL_DEFAULTS.update({("randomization", k): v for k, v in RANDOMIZATION_LATER_KEYS})
 

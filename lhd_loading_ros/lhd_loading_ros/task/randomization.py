@@ -98,6 +98,8 @@ class RandomizationRanges:
     arm_offset_max_deg: float = 0.0     # each episode's boom and bucket angle-sensor offsets, each U(-this, this)
     slope_error_high_share: float = 0.0  # this share of the episodes told too steep: error U(max / 2, max)
     drift_flag_lag_max_s: float = 0.0   # s: the observed drift window's lag, up to this (Conditions.drift_flag_lag_max_s)
+    slope_error_small_share: float = 0.0   # this share of the episodes: error U(-small_max, small_max), the LiDAR right
+    slope_error_small_max_deg: float = 0.0
 
     @classmethod
     def from_config(cls, cfg: dict) -> "RandomizationRanges":
@@ -126,6 +128,8 @@ class RandomizationRanges:
             arm_offset_max_deg=float(r.get("arm_offset_max_deg", 0.0)),
             slope_error_high_share=float(r.get("slope_error_high_share", 0.0)),
             drift_flag_lag_max_s=float(r.get("drift_flag_lag_max_s", 0.0)),
+            slope_error_small_share=float(r.get("slope_error_small_share", 0.0)),
+            slope_error_small_max_deg=float(r.get("slope_error_small_max_deg", 0.0)),
         )
 
 
@@ -165,6 +169,11 @@ def draw(rng: np.random.Generator, rr: RandomizationRanges) -> Conditions:
         # episode in four; the case the actors fail most (a shallow pile's end zone told short: docs/training.md
         # "How much a slope told too high can give")
         gains["slope_error_deg"] = float(u(0.5 * rr.slope_error_max_deg, rr.slope_error_max_deg))
+    if rr.slope_error_small_share > 0.0 and rng.random() < rr.slope_error_small_share:
+        # likewise: the slope estimate as the LiDAR node gives it on the machine (within 0.28 deg; docs/perception.md),
+        # in this share of the episodes, the whole range's error in the others. It decides over the told-too-steep
+        # share above (a small error replaces a drawn large one), so the two shares multiply as documented in config/
+        gains["slope_error_deg"] = float(u(-rr.slope_error_small_max_deg, rr.slope_error_small_max_deg))
     if rr.drift_flag_lag_max_s > 0.0:   # no draw here: the lag is drawn each step (the environment's _obs)
         gains["drift_flag_lag_max_s"] = rr.drift_flag_lag_max_s
     return replace(c, **gains) if gains else c
