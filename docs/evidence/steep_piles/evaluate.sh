@@ -89,17 +89,20 @@ case $S in rld) F=steep; V=rld ;; rlc) F=steep_rlc; V=rlc ;; rlc_to_end) F=steep
   # from the pile's zones, settling in one run (lhd_params_steep_rlc_margin8_zones_settle.yaml; runs/steep_rlc_margin8_zones_settle)
   steep_rlc_margin8_zones_settle) F=steep_rlc_margin8_zones_settle; V=rlc; E=docs/evidence/margin8 ;;
   # the machine RLD's file as RLC with the teacher where the actor fails and the curriculum on the reward's test
-  # (lhd_params_drift_confirm3_margin8_failing_settle.yaml; runs/drift_confirm3_margin8_failing_settle_rlc)
+  # (lhd_params_drift_confirm3_margin8_failing_settle.yaml; runs/drift_confirm3_margin8_failing_settle_rlc|drift_confirm3_margin8_lidar_settle_rlc)
   drift_confirm3_margin8_failing_settle_rlc) F=drift_confirm3_margin8_failing_settle; V=rlc; E=docs/evidence/margin8 ;;
-  *) echo "usage: evaluate.sh [rld|rlc|rlc_to_end|push_curl_rld|push_curl_high_rld|told_high_demos_rld|reward_pile_zones_rld|told_high_demos_pile_zones_rld|told_high_demos_pile_zones_rlc|told_high_demos_pile_zones_rest_rld|told_high_demos_pile_zones_rest_rlc|told_high_demos_pile_zones_rest_driftlag_rld|drift_confirm3_rld|drift_confirm3_rlc|drift_confirm3_level_push_rlc|steep_rlc_reward_test|steep_rlc_reward_test_strong|steep_rlc_demo_failing|steep_rlc_demo_failing08|settle_rlc|settle_teach_rlc|settle05_rlc|steep_rlc_margin8|settle_margin8_rlc|drift_confirm3_margin8_rld|drift_confirm3_margin8_settle_rlc|steep_rlc_margin8_zones_settle|drift_confirm3_margin8_failing_settle_rlc]" >&2
+  # the same file with half the episodes told the slope within +-1 deg, the LiDAR right
+  # (lhd_params_drift_confirm3_margin8_lidar_settle.yaml; runs/drift_confirm3_margin8_lidar_settle_rlc)
+  drift_confirm3_margin8_lidar_settle_rlc) F=drift_confirm3_margin8_lidar_settle; V=rlc; E=docs/evidence/margin8 ;;
+  *) echo "usage: evaluate.sh [rld|rlc|rlc_to_end|push_curl_rld|push_curl_high_rld|told_high_demos_rld|reward_pile_zones_rld|told_high_demos_pile_zones_rld|told_high_demos_pile_zones_rlc|told_high_demos_pile_zones_rest_rld|told_high_demos_pile_zones_rest_rlc|told_high_demos_pile_zones_rest_driftlag_rld|drift_confirm3_rld|drift_confirm3_rlc|drift_confirm3_level_push_rlc|steep_rlc_reward_test|steep_rlc_reward_test_strong|steep_rlc_demo_failing|steep_rlc_demo_failing08|settle_rlc|settle_teach_rlc|settle05_rlc|steep_rlc_margin8|settle_margin8_rlc|drift_confirm3_margin8_rld|drift_confirm3_margin8_settle_rlc|steep_rlc_margin8_zones_settle|drift_confirm3_margin8_failing_settle_rlc|drift_confirm3_margin8_lidar_settle_rlc]" >&2
      exit 2 ;; esac
 CFG=$E/lhd_params_$F.yaml
 NOM=$E/lhd_params_${F}_nominal_eval.yaml
 case $S in told_high_demos_rld|reward_pile_zones_rld|told_high_demos_pile_zones_rl?) NOM=$E/lhd_params_steep_push_curl_nominal_eval.yaml ;;
   drift_confirm3_level_push_rlc) NOM=$E/lhd_params_drift_confirm3_nominal_eval.yaml ;;
-  drift_confirm3_margin8_rld|drift_confirm3_margin8_settle_rlc|drift_confirm3_margin8_failing_settle_rlc) NOM=docs/evidence/drift_confirm/lhd_params_drift_confirm3_nominal_eval.yaml ;;
+  drift_confirm3_margin8_rld|drift_confirm3_margin8_settle_rlc|drift_confirm3_margin8_failing_settle_rlc|drift_confirm3_margin8_lidar_settle_rlc) NOM=docs/evidence/drift_confirm/lhd_params_drift_confirm3_nominal_eval.yaml ;;
   steep_rlc_reward_test|steep_rlc_reward_test_strong|steep_rlc_demo_failing|steep_rlc_demo_failing08|settle_rlc|settle_teach_rlc|settle05_rlc|steep_rlc_margin8|settle_margin8_rlc|steep_rlc_margin8_zones_settle) NOM=docs/evidence/steep_piles/lhd_params_steep_rlc_nominal_eval.yaml ;; esac
-case $S in push_curl_rld|push_curl_high_rld|told_high_demos_rld|reward_pile_zones_rld|told_high_demos_pile_zones_rl?|told_high_demos_pile_zones_rest_rl?|told_high_demos_pile_zones_rest_driftlag_rld|drift_confirm3_rl?|drift_confirm3_level_push_rlc|steep_rlc_reward_test|steep_rlc_reward_test_strong|steep_rlc_demo_failing|steep_rlc_demo_failing08|settle_rlc|settle_teach_rlc|settle05_rlc|steep_rlc_margin8|settle_margin8_rlc|drift_confirm3_margin8_rld|drift_confirm3_margin8_settle_rlc|steep_rlc_margin8_zones_settle|drift_confirm3_margin8_failing_settle_rlc) RUNS=runs/$S; P=$S ;;
+case $S in push_curl_rld|push_curl_high_rld|told_high_demos_rld|reward_pile_zones_rld|told_high_demos_pile_zones_rl?|told_high_demos_pile_zones_rest_rl?|told_high_demos_pile_zones_rest_driftlag_rld|drift_confirm3_rl?|drift_confirm3_level_push_rlc|steep_rlc_reward_test|steep_rlc_reward_test_strong|steep_rlc_demo_failing|steep_rlc_demo_failing08|settle_rlc|settle_teach_rlc|settle05_rlc|steep_rlc_margin8|settle_margin8_rlc|drift_confirm3_margin8_rld|drift_confirm3_margin8_settle_rlc|steep_rlc_margin8_zones_settle|drift_confirm3_margin8_failing_settle_rlc|drift_confirm3_margin8_lidar_settle_rlc) RUNS=runs/$S; P=$S ;;
   *) RUNS=runs/steep_$S; P=steep_$S ;; esac
 # every seed the run has (five for a study, two for a pilot)
 SEEDS=$(ls -d $RUNS/seed_*/ | sed "s#.*seed_##; s#/##" | sort -n)
