@@ -7,6 +7,7 @@ PARALLEL_SAFE = True
 
 import copy
 import csv
+import json
 import math
 
 import numpy as np
@@ -208,6 +209,118 @@ def test_a_short_run_sends_the_teacher_where_the_actor_fails(cfg, tmp_path):
     c0 = copy.deepcopy(c)
     c0["training"]["demo_failing_share"] = 0.0
     assert config_hash(c0) == config_hash(c)
+
+
+def test_the_teacher_counted_apart_by_hand():
+    """SlopeCurriculum.teacher_wins (training.demo_where_teacher_wins): the demonstrations' recent success rate on the
+    bin at least the actor's, counted by hand from the attempts recorded (10-40 deg in three bins of 10 deg, a window
+    of 4); a bin with no demonstration yet is the teacher's, one with no actor episode the actor failing. The counts
+    travel with the checkpoint only where any demonstration was counted, and a state saved before the key loads."""
+    from lhd_loading_ros.learning.curriculum import CurriculumConfig, SlopeCurriculum
+
+    cur = SlopeCurriculum(10.0, 40.0, CurriculumConfig(bins=3, window=4))
+    assert cur.teacher_wins(15.0) and cur.teacher_wins(35.0)             # nothing counted: the teacher's
+    before = cur.state_dict()
+    assert "teacher_recent" not in before
+    for a, ok in ((12.0, 0), (15.0, 0), (19.0, 1), (11.0, 0),           # actor 10-20: 1 of 4
+                  (22.0, 1), (25.0, 1), (29.0, 1), (21.0, 0)):          # actor 20-30: 3 of 4; 30-40: none
+        cur.record(a, bool(ok))
+    for a, ok in ((14.0, 1), (16.0, 1), (18.0, 0),                      # teacher 10-20: 2 of 3
+                  (24.0, 1), (26.0, 0), (27.0, 0), (28.0, 1), (23.0, 1),  # teacher 20-30: the last 4, 2 of 4
+                  (35.0, 0)):                                           # teacher 30-40: 0 of 1
+        cur.record_teacher(a, bool(ok))
+    assert cur.teacher_wins(13.0) and cur.teacher_wins(9.0)             # 2/3 >= 1/4; below the range: the first bin
+    assert not cur.teacher_wins(25.0)                                   # 2/4 < 3/4
+    assert cur.teacher_wins(35.0) and cur.teacher_wins(41.0)            # 0 >= 0: no actor episode yet
+    cur.record(33.0, True)
+    assert not cur.teacher_wins(35.0)                                   # 0 < 1
+    cur.record_teacher(24.0, True)                                      # 20-30 window now 0, 1, 1, 1: 3/4 >= 3/4
+    assert cur.teacher_wins(25.0)
+    st = json.loads(json.dumps(cur.state_dict()))
+    assert st["teacher_recent"] == [[1, 1, 0], [0, 1, 1, 1], [0]]
+    again = SlopeCurriculum(10.0, 40.0, CurriculumConfig(bins=3, window=4))
+    again.load_state_dict(st)
+    assert [again.teacher_wins(a) for a in (13.0, 25.0, 35.0)] == [True, True, False]
+    old = SlopeCurriculum(10.0, 40.0, CurriculumConfig(bins=3, window=4))
+    old.record_teacher(15.0, False)
+    old.load_state_dict(before)                                         # saved before the key: no teacher counted
+    assert old.teacher_wins(15.0) and "teacher_recent" not in old.state_dict()
+
+
+def test_a_short_run_sends_the_teacher_only_where_it_wins(cfg, tmp_path):
+    """A real run with the slope curriculum (two bins, a window of 4), demo_share 0.5 and demo_where_teacher_wins 1,
+    resumed once from a checkpoint whose counts were set by hand to the actor winning both bins (an untrained actor
+    never beats the teacher in a short run): both counts are rebuilt here from episodes.csv alone (in order, by the
+    paper's test, aborted episodes not counted; from the edited counts after the resume), and an episode is a
+    demonstration exactly where demo_share draws it and the teacher's rate on its bin, as then counted, is at least
+    the actor's. The card names the key; the hash does not."""
+    from collections import deque
+
+    from lhd_loading_ros.learning.train import episode_seed, load_checkpoint, train
+
+    c = small(cfg, 0.5)
+    c["training"].update({"slope_curriculum": 1, "slope_curriculum_bins": 2, "slope_curriculum_window": 4,
+                          "demo_where_teacher_wins": 1})
+    c = validate(c)
+    train("rld", 6, tmp_path, steps=1200, config=c, resume=False, progress=False)
+    ckpt = tmp_path / "checkpoint.pt"
+    st = load_checkpoint(ckpt)
+    cur = json.loads(st["slope_curriculum"])
+    assert "teacher_recent" in cur                      # the demonstrations were counted, and saved
+    cur["recent"], cur["teacher_recent"] = [[1, 1, 1, 1], [1, 1, 1, 1]], [[0, 0, 0, 0], [0, 0, 0, 0]]
+    st["slope_curriculum"] = json.dumps(cur)
+    torch.save(st, ckpt)
+    train("rld", 6, tmp_path, steps=3000, config=c, resume=True, progress=False)
+    rows = list(csv.DictReader(open(tmp_path / "episodes.csv")))
+    d = DemoConfig.from_training(c["training"])
+    assert d.where_teacher_wins and d.to_dict()["where_teacher_wins"] is True
+    lo, hi = c["paper"]["episode"]["alpha_min_deg"], c["paper"]["episode"]["alpha_max_deg"]
+    mid = (lo + hi) / 2.0
+    actor, teacher = [deque(maxlen=4), deque(maxlen=4)], [deque(maxlen=4), deque(maxlen=4)]
+    gated = demos = checked = 0
+    resumed = False
+    for r in sorted(rows, key=lambda r: int(r["step"])):
+        if not resumed and int(r["step"]) > int(st["step"]):
+            resumed = True                              # the counts the resumed run started from
+            actor = [deque([1, 1, 1, 1], maxlen=4), deque([1, 1, 1, 1], maxlen=4)]
+            teacher = [deque([0, 0, 0, 0], maxlen=4), deque([0, 0, 0, 0], maxlen=4)]
+        alpha = float(r["alpha_deg"])
+        b = 0 if alpha < mid else 1
+        k = episode_seed(6, int(r["episode"]), c["training"]["episode_seed_offset"])
+        drawn = d.draw(k, 0)
+        if abs(alpha - mid) > 0.006:                    # the log rounds the slope to 0.01 deg
+            t_rate = sum(teacher[b]) / len(teacher[b]) if teacher[b] else None
+            a_rate = sum(actor[b]) / len(actor[b]) if actor[b] else 0.0
+            wins = t_rate is None or t_rate >= a_rate
+            assert (drawn is not None and wins) == (r["driver"] != "actor"), (r, t_rate, a_rate)
+            gated += drawn is not None and not wins
+            checked += 1
+        demos += r["driver"] != "actor"
+        if r["outcome"] != "aborted":
+            (teacher if r["driver"] != "actor" else actor)[b].append(int(r["success"]))
+    assert resumed and checked >= len(rows) - 2 and demos >= 3 and gated >= 1, (checked, demos, gated, len(rows))
+    from lhd_loading_ros.learning.ship import _recipe_note
+    from lhd_loading_ros.policy.actor_file import load_policy
+
+    tw = load_policy(tmp_path / "final").meta["trained_with"]
+    assert tw["demo_where_teacher_wins"] == 1
+    assert "only on the slope bins where the teacher's recent success rate is at least the actor's" in _recipe_note(tw)
+    c0 = copy.deepcopy(c)
+    c0["training"]["demo_where_teacher_wins"] = 0
+    assert config_hash(c0) == config_hash(c)
+
+
+def test_the_teacher_gate_is_refused_without_what_it_reads(cfg):
+    c = copy.deepcopy(cfg)
+    c["training"].update({"demo_share": 0.2, "demo_where_teacher_wins": 1})
+    with pytest.raises(ConfigError, match="demo_where_teacher_wins = 1 only with training.demo_share > 0 and "
+                                          "training.slope_curriculum = 1"):
+        validate(c)                                     # the curriculum is off in the shipped file
+    c["training"].update({"slope_curriculum": 1, "demo_where_teacher_wins": 2})
+    with pytest.raises(ConfigError, match="demo_where_teacher_wins"):
+        validate(c)
+    with pytest.raises(ValueError, match=r"demo_where_teacher_wins = 2: expected 0 \(off\) or 1"):
+        DemoConfig.from_training({**c["training"], "noise_decay_steps": 10})
 
 
 def test_the_failing_share_is_refused_without_what_it_reads(cfg):

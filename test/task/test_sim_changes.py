@@ -37,7 +37,7 @@ def _raw(c):
                                   "demo_share", "demo_crowd_min", "demo_crowd_max", "demo_pre_curl", "demo_bc",
                                   "demo_until_step", "critic_huber", "noise_after_decay", "demo_bc_return_filter",
                                   "demo_told_zones", "demo_end_zone_stop", "demo_push_curl", "demo_late_lift", "demo_told_high", "demo_failing_share",
-                                  "demo_drift_confirm",
+                                  "demo_drift_confirm", "demo_where_teacher_wins",
                                   "episode_seed_offset")}
     return hashlib.sha256(json.dumps(c, sort_keys=True).encode()).hexdigest()[:16]
 

@@ -71,6 +71,9 @@ class SlopeCurriculum:
         self.lo, self.hi, self.cfg = float(lo_deg), float(hi_deg), cfg
         self.edges = np.linspace(self.lo, self.hi, cfg.bins + 1)
         self.recent = [deque(maxlen=cfg.window) for _ in range(cfg.bins)]
+        # the demonstrations' own outcomes per bin, by the same test (training.demo_where_teacher_wins): kept only
+        # where that key records them, so a run without it saves and resumes what it did before
+        self.teacher_recent = [deque(maxlen=cfg.window) for _ in range(cfg.bins)]
 
     def bin_of(self, slope_deg: float) -> int:
         """The bin holding slope_deg (the top edge belongs to the last bin)."""
@@ -83,6 +86,20 @@ class SlopeCurriculum:
 
     def failure_rates(self) -> np.ndarray:
         return np.array([1.0 - float(np.mean(r)) if r else 1.0 for r in self.recent])
+
+    def record_teacher(self, slope_deg: float, success: bool) -> None:
+        """A demonstration's outcome (training.demo_where_teacher_wins), by the same test as record()."""
+        self.teacher_recent[self.bin_of(slope_deg)].append(bool(success))
+
+    def teacher_wins(self, slope_deg: float) -> bool:
+        """Whether the demonstrations' recent success rate in the bin of slope_deg (held to the range) is at least
+        the actor's: a bin with no demonstration yet counts as the teacher's (so that it is measured there), a bin
+        with no actor episode yet as the actor failing (as failure_rates does)."""
+        k = self.bin_of(min(self.hi, max(self.lo, float(slope_deg))))
+        t = self.teacher_recent[k]
+        if not t:
+            return True
+        return float(np.mean(t)) >= 1.0 - float(self.failure_rates()[k])
 
     def probabilities(self) -> np.ndarray:
         b, u = self.cfg.bins, self.cfg.uniform
@@ -97,8 +114,11 @@ class SlopeCurriculum:
         return float(rng.uniform(self.edges[k], self.edges[k + 1]))
 
     def state_dict(self) -> dict:
-        return {"config": self.cfg.to_dict(), "range_deg": [self.lo, self.hi],
-                "recent": [[int(x) for x in r] for r in self.recent]}
+        st = {"config": self.cfg.to_dict(), "range_deg": [self.lo, self.hi],
+              "recent": [[int(x) for x in r] for r in self.recent]}
+        if any(self.teacher_recent):        # only where demo_where_teacher_wins recorded any
+            st["teacher_recent"] = [[int(x) for x in r] for r in self.teacher_recent]
+        return st
 
     def load_state_dict(self, st: dict) -> None:
         if st["config"] != self.cfg.to_dict() or [float(x) for x in st["range_deg"]] != [self.lo, self.hi]:
@@ -106,5 +126,8 @@ class SlopeCurriculum:
                              f"this config's {self.cfg.to_dict()} over {[self.lo, self.hi]} deg: resume with the same "
                              "training.slope_curriculum_* settings, or use another --out")
         for r, xs in zip(self.recent, st["recent"]):
+            r.clear()
+            r.extend(bool(x) for x in xs)
+        for r, xs in zip(self.teacher_recent, st.get("teacher_recent", [[] for _ in self.teacher_recent])):
             r.clear()
             r.extend(bool(x) for x in xs)

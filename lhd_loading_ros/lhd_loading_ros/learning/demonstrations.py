@@ -32,6 +32,12 @@ observation's alpha and d_end carry) and still loads piles shallower than it is 
 attempts in every cell of a 15 deg pile told 0..+15 deg too steep, where the pile's-own-zones
 teacher loads none at +10 and +15 (docs/training.md "A teacher that knows what the actor knows").
 
+With training.demo_where_teacher_wins = 1 (and the slope curriculum on) an episode that any of the above makes a
+demonstration stays one only where the teacher's recent success rate on the pile's slope bin (the curriculum's own
+test, over its window of demonstrations) is at least the actor's: in both of the thirty-fourth session's RLC runs the
+teacher earned r_success on 0.82-0.89 of its 10-12.5 deg piles against the actor's 0.00-0.15, and on 0.05-0.07 of its
+30-40 deg piles against the actor's 0.16-0.29 (docs/training.md "A slope the LiDAR mostly gets right").
+
 With training.demo_failing_share = s > 0 (and the slope curriculum on) an episode the actor would drive
 is a demonstration as well with probability s x f, f the failure rate the curriculum holds for the
 pile's slope bin (its recent actor episodes, by the curriculum's own test), drawn from a third stream
@@ -64,6 +70,8 @@ class DemoConfig:
     drift_confirm: int = 1        # decisions a drift flag the actor sees must hold before the lift (demo_drift_confirm; 1: off)
     failing: float = 0.0          # an actor's episode on a slope bin failing at rate f is a demonstration with probability
                                   # failing x f (demo_failing_share; needs the slope curriculum; 0: off)
+    where_teacher_wins: bool = False   # a demonstration only on a slope bin where the teacher's recent success rate is
+                                       # at least the actor's (demo_where_teacher_wins; needs the slope curriculum)
 
     @classmethod
     def from_training(cls, t: dict) -> "DemoConfig | None":
@@ -93,15 +101,21 @@ class DemoConfig:
             # episode yet: its rate is 1) would be all demonstrations, and the actor never measured there again
             raise ValueError(f"training.demo_failing_share = {failing!r}: expected a probability in [0, 0.9] (0: off; "
                              "at 1 a bin failing every attempt would never see the actor again)")
+        wins = t.get("demo_where_teacher_wins", 0)
+        if isinstance(wins, bool) or wins not in (0, 1):
+            raise ValueError(f"training.demo_where_teacher_wins = {wins!r}: expected 0 (off) or 1 (a demonstration only on "
+                             "the slope bins where the teacher's recent success rate is at least the actor's)")
         return cls(share, lo, hi, float(t.get("demo_pre_curl", 0.3)), until,
                    bool(int(t.get("demo_told_zones", 0))), stop, ts.push_curl, ts.late_lift, told_high, int(confirm),
-                   failing)
+                   failing, bool(wins))
 
     def to_dict(self) -> dict:
         """The settings (run.json); `failing` only when on, so that runs written before it read the same."""
         d = asdict(self)
         if not self.failing:
             d.pop("failing")
+        if not self.where_teacher_wins:
+            d.pop("where_teacher_wins")
         return d
 
     def draw(self, seed_k: int, step: int) -> float | None:

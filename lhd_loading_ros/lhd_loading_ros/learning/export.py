@@ -61,7 +61,10 @@ def export_actor(directory, actor: FlatMlp, cfg: dict, meta: dict):
                                 if float(cfg["training"].get(k, 0.0)) > 0},
                              # the demonstrations read the actor's drift flags and confirm one over this many steps
                              **({"demo_drift_confirm": int(cfg["training"]["demo_drift_confirm"])}
-                                if int(cfg["training"].get("demo_drift_confirm", 1)) > 1 else {})}
+                                if int(cfg["training"].get("demo_drift_confirm", 1)) > 1 else {}),
+                             # only on the slope bins where the teacher does at least as well as the actor
+                             **({"demo_where_teacher_wins": 1}
+                                if int(cfg["training"].get("demo_where_teacher_wins", 0)) else {})}
                             if float(cfg.get("training", {}).get("demo_share", 0.0)) > 0 else {}),
                          "r_success_pitch_margin_deg": float(cfg["task"].get("r_success_pitch_margin_deg", 0.0)),
                          **({"r_success_mass_margin_kg": float(cfg["task"]["r_success_mass_margin_kg"])}

@@ -175,6 +175,9 @@ def _recipe_note(tw: dict) -> str:
         if failing > 0:
             parts.append(f"an episode on a slope bin the actor still fails a demonstration with probability {failing:g} "
                          "x the bin's failure rate")
+        if int(tw.get("demo_where_teacher_wins", 0) or 0):
+            parts.append("demonstrations only on the slope bins where the teacher's recent success rate is at least "
+                         "the actor's")
         confirm = int(tw.get("demo_drift_confirm", 1) or 1)
         if confirm > 1:
             parts.append(f"the demonstrations reading the drift flags the actor sees and lifting on one only after "

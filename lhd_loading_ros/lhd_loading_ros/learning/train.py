@@ -397,6 +397,10 @@ def _train(variant: str, seed: int, out, steps: int | None = None, config=None, 
                 failing = demos.failing_crowd_on(curriculum, seed_k, step, math.degrees(env.sim.pile.alpha))
                 if failing is not None:
                     demo_crowd[i] = failing
+            if (i in demo_crowd and demos is not None and demos.where_teacher_wins and curriculum is not None
+                    and not curriculum.teacher_wins(math.degrees(env.sim.pile.alpha))):
+                # training.demo_where_teacher_wins: no demonstration on a bin where the actor does better
+                demo_crowd.pop(i)
             return out_
 
         from lhd_sim_node.simulator import SimulationError
@@ -640,6 +644,9 @@ def _train(variant: str, seed: int, out, steps: int | None = None, config=None, 
                         replay.set_demo_return(demo_rows.pop(i), dc.gamma)
                     if curriculum is not None and not demo:      # the actor's failures, not the teacher's
                         curriculum.record(res.alpha_deg, cur_cfg.counts_success(res.success, r_succ))
+                    elif curriculum is not None and demos is not None and demos.where_teacher_wins:
+                        # the teacher's, apart, for training.demo_where_teacher_wins
+                        curriculum.record_teacher(res.alpha_deg, cur_cfg.counts_success(res.success, r_succ))
                     _append_csv(out / "episodes.csv", EPISODE_FIELDS, {
                         "episode": slot_episode[i], "step": step, "return": f"{ep_ret[i]:.3f}",
                         "loaded": f"{res.loaded:.3f}", "outcome": info["outcome"] if term else "timeout",

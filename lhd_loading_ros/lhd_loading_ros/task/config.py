@@ -155,7 +155,7 @@ SCHEMA: dict[str, Any] = {
         "critic_huber": _f(0.0, 1e6), "noise_after_decay": _f(0.0, 1.0), "demo_bc_return_filter": _i(0, 1),
         "demo_told_zones": _i(0, 1), "demo_end_zone_stop": _f(0.0, 1.0),
         "demo_push_curl": _f(0.0, 1.4), "demo_late_lift": _f(0.0, 1.0), "demo_told_high": _f(0.0, 45.0),
-        "demo_drift_confirm": _i(1, 50), "demo_failing_share": _f(0.0, 0.9), "episode_seed_offset": _i(0, 2**31 - 2),
+        "demo_drift_confirm": _i(1, 50), "demo_failing_share": _f(0.0, 0.9), "demo_where_teacher_wins": _i(0, 1), "episode_seed_offset": _i(0, 2**31 - 2),
     },
 }
 
@@ -186,6 +186,10 @@ _RELATIONS = [
     ("training.demo_failing_share > 0 only with training.demo_share > 0 and training.slope_curriculum = 1 (it makes "
      "episodes of the slope bins the curriculum counts failing demonstrations)",
      lambda c: not c["training"]["demo_failing_share"] > 0.0
+     or (c["training"]["demo_share"] > 0.0 and int(c["training"]["slope_curriculum"]) == 1)),
+    ("training.demo_where_teacher_wins = 1 only with training.demo_share > 0 and training.slope_curriculum = 1 (it "
+     "compares the teacher's and the actor's success on the curriculum's slope bins)",
+     lambda c: not int(c["training"]["demo_where_teacher_wins"])
      or (c["training"]["demo_share"] > 0.0 and int(c["training"]["slope_curriculum"]) == 1)),
     ("training.demo_drift_confirm > 1 only with training.demo_share > 0 (it sets how the demonstrations read a drift "
      "flag; the demonstrations are off at demo_share 0)",
@@ -366,6 +370,9 @@ OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curric
                      # an actor's episode on a failing slope bin a demonstration with probability this x the bin's
                      # failure rate (2026-12-01, twenty-seventh session); 0: demo_share's only
                      ("training", "demo_failing_share"): 0.0,
+                     # demonstrations only on the slope bins where the teacher does at least as well as the actor
+                     # (2026-12-02, thirty-fourth session); 0: wherever the keys above make them
+                     ("training", "demo_where_teacher_wins"): 0,
                      # actuator gains drawn per episode (task/randomization.py); 1 = the simulator's actuators
                      ("randomization", "drive_gain_min"): 1.0, ("randomization", "drive_gain_max"): 1.0,
                      ("randomization", "hydraulic_gain_min"): 1.0, ("randomization", "hydraulic_gain_max"): 1.0,
@@ -540,6 +547,8 @@ TRAINING_SCHEDULE_KEYS = ("twin_critics", "slope_curriculum", "slope_curriculum_
                           # which episodes are demonstrations beyond demo_share: those told too steep, and those
                           # on the slope bins the curriculum counts failing
                           "demo_told_high", "demo_failing_share",
+                          # ... and only on the bins where the teacher does at least as well as the actor
+                          "demo_where_teacher_wins",
                           # the drift flags the demonstrations read (the actor's) and how long one must hold
                           "demo_drift_confirm",
                           # where the training's episode seeds start (which piles it practised on)
