@@ -170,7 +170,8 @@ def draw(rng: np.random.Generator, rr: RandomizationRanges) -> Conditions:
         # "How much a slope told too high can give")
         gains["slope_error_deg"] = float(u(0.5 * rr.slope_error_max_deg, rr.slope_error_max_deg))
     if rr.slope_error_small_share > 0.0 and rng.random() < rr.slope_error_small_share:
-        # likewise: the slope estimate as the LiDAR node gives it on the machine (within 0.28 deg; docs/perception.md),
+        # likewise: the slope estimate as the LiDAR node gives it on a plane pile (within 0.28 deg in the twin, docs/twin.md;
+        # a rough face errs more, docs/perception.md),
         # in this share of the episodes, the whole range's error in the others. It decides over the told-too-steep
         # share above (a small error replaces a drawn large one), so the two shares multiply as documented in config/
         gains["slope_error_deg"] = float(u(-rr.slope_error_small_max_deg, rr.slope_error_small_max_deg))
