@@ -48,6 +48,7 @@ class DdpgConfig:
     critic_huber: float = 0.0      # > 0: the critics' loss is Huber with this delta (scaled returns), else squared
     noise_after_decay: float = 0.0  # > 0: the noise factor from noise_decay_steps on, in place of noise_final_scale
     demo_bc_return_filter: int = 0  # 1: clone a demonstration's row where its own return G beats Q(o, mu(o))
+    actor_preact_l2: float = 0.0   # > 0: the actor's loss gains this weight times mean_i ||z_i||^2, z tanh's input
 
     @classmethod
     def from_config(cls, cfg: dict) -> "DdpgConfig":
@@ -65,6 +66,7 @@ class DdpgConfig:
             demo_bc=float(t.get("demo_bc", 0.0)), critic_huber=float(t.get("critic_huber", 0.0)),
             noise_after_decay=float(t.get("noise_after_decay", 0.0)),
             demo_bc_return_filter=int(t.get("demo_bc_return_filter", 0)),
+            actor_preact_l2=float(t.get("actor_preact_l2", 0.0)),
         )
 
     def to_dict(self) -> dict:
@@ -330,6 +332,8 @@ class DdpgAgent:
         self.updates = 0
         # behaviour cloning (cfg.demo_bc): demonstration rows sampled, and those the Q-filter let through
         self.bc_rows, self.bc_passed = 0, 0
+        # mean ||z||^2 of the actor's tanh input over the last batch (only computed with cfg.actor_preact_l2)
+        self.preact_sq = float("nan")
 
     def set_lr_scale(self, scale: float) -> None:
         """Both optimisers' learning rates at `scale` times the configured ones."""
@@ -371,7 +375,11 @@ class DdpgAgent:
         from the row (unscaled; -inf while unknown) in place of Q(o_i, a_i) in that test, f_i =
         1[reward_scale G_i > Q(o_i, mu(o_i))] (the test of self-imitation learning, Oh et al. 2018):
         what the teacher went on to earn, which a critic that values the actor's own continuation
-        cannot see."""
+        cannot see.
+        cfg.actor_preact_l2 = w > 0: the actor's loss also gains w / B * sum_i ||z_i||^2, z_i the input of the actor's
+        output tanh (the pre-activation penalty of rlkit's DDPG and SAC, policy_pre_activation_weight), whose gradient
+        2 w z / B is added at z: without it the outputs saturate (|z| of 5-90 measured, tanh' < 2e-4) and neither
+        the critic's gradient nor the cloning term can move an action that sits at +-1."""
         cfg = self.cfg
         B = oa.shape[0]
         # TD target y = s r + gamma (1 - terminated) Q'(o', mu'(o'))
@@ -411,7 +419,15 @@ class DdpgAgent:
             da = da + (2.0 * cfg.demo_bc / B) * passed * (pi - oa[:, self.obs_dim:])
             self.bc_rows += int(demo.sum())
             self.bc_passed += int(passed.sum())
-        self.actor.backward(acache, da)
+        dz = None
+        if cfg.actor_preact_l2 > 0.0:
+            # d/dz of w/B sum_i ||z_i||^2 = 2 w z / B, on tanh's input: a saturated output (|z| >> 1) passes
+            # almost none of the critic's or the cloning's gradient (tanh'(z) = 1 - tanh(z)^2, 1.8e-4 at 5),
+            # so an actor at +-1 cannot be moved off it; the penalty keeps z where tanh still passes them
+            z = self.actor.out_preactivation(acache)
+            dz = z * (2.0 * cfg.actor_preact_l2 / B)
+            self.preact_sq = float((z * z).sum(1).mean())
+        self.actor.backward(acache, da, dz_out=dz)
         self.actor_opt.step()
         self.actor_t.soft_update_from(self.actor, cfg.tau)
         self.critic_t.soft_update_from(self.critic, cfg.tau)

@@ -32,6 +32,8 @@ def export_actor(directory, actor: FlatMlp, cfg: dict, meta: dict):
                          **({"twin_critics": 1} if int(cfg.get("training", {}).get("twin_critics", 0)) else {}),
                          **({"critic_huber": float(cfg["training"]["critic_huber"])}
                             if float(cfg.get("training", {}).get("critic_huber", 0.0)) > 0 else {}),
+                         **({"actor_preact_l2": float(cfg["training"]["actor_preact_l2"])}
+                            if float(cfg.get("training", {}).get("actor_preact_l2", 0.0)) > 0 else {}),
                          **({"noise_after_decay": float(cfg["training"]["noise_after_decay"])}
                             if float(cfg.get("training", {}).get("noise_after_decay", 0.0)) > 0 else {}),
                          **({"slope_curriculum": curriculum.to_dict()} if curriculum is not None else {}),

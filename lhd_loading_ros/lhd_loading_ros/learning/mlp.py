@@ -80,13 +80,23 @@ class FlatMlp:
     def __call__(self, x: torch.Tensor) -> torch.Tensor:
         return self.forward(x)[0]
 
-    def backward(self, cache, dy: torch.Tensor, weight_grads: bool = True, input_grad: bool = False):
+    def out_preactivation(self, cache) -> torch.Tensor:
+        """z = W_n h_{n-1} + b_n, the output layer's input to out_act, recomputed from a forward's
+        cache (forward applies tanh in place; one B x hidden x out product)."""
+        return torch.addmm(self.b[-1], cache[-2], self.W[-1].t())
+
+    def backward(self, cache, dy: torch.Tensor, weight_grads: bool = True, input_grad: bool = False,
+                 dz_out: torch.Tensor | None = None):
         """Back-propagate dL/dy. weight_grads: write dL/dtheta into self.grad (overwriting);
-        input_grad: return dL/dx. Neither changes the parameters."""
+        input_grad: return dL/dx. Neither changes the parameters. dz_out: a gradient on the output
+        layer's pre-activation z itself (a loss on z, such as a penalty on tanh's input), added after
+        out_act's derivative, where a saturated tanh would have scaled it away."""
         hs = cache
         last = len(self.W) - 1
         y = hs[-1]
         dz = dy * (1.0 - y * y) if self.out_act == "tanh" else dy
+        if dz_out is not None:
+            dz = dz + dz_out
         dx = None
         for j in range(last, -1, -1):
             h_in = hs[j]

@@ -192,6 +192,9 @@ def _recipe_note(tw: dict) -> str:
         parts.append("clipped double Q (two critics, the smaller target; Fujimoto et al. 2018)")
     if float(tw.get("critic_huber", 0.0) or 0.0) > 0:
         parts.append(f"a Huber critic loss (delta {float(tw['critic_huber']):g})")
+    if float(tw.get("actor_preact_l2", 0.0) or 0.0) > 0:
+        parts.append(f"a penalty on the actor's tanh input (weight {float(tw['actor_preact_l2']):g}), so that its outputs "
+                     "do not saturate")
     if float(tw.get("noise_after_decay", 0.0) or 0.0) > 0:
         parts.append(f"exploration noise {float(tw['noise_after_decay']):g} after its decay")
     if tw.get("lr_final_scale") is not None and float(tw["lr_final_scale"]) != 1.0:

@@ -684,6 +684,9 @@ def _train(variant: str, seed: int, out, steps: int | None = None, config=None, 
                             "since the last evaluation (the others failed the "
                             f"{'return filter' if replay.demo_return else 'Q-filter'})")
                         agent.bc_rows, agent.bc_passed = 0, 0
+                    if dc.actor_preact_l2 > 0.0 and replay.size >= dc.learning_starts:
+                        log(f"{variant} seed {seed}: step {step:,}: the actor's tanh input, mean ||z||^2 "
+                            f"{agent.preact_sq:.3g} over the last batch (penalised at {dc.actor_preact_l2:g})")
                     if ramp.evaluated(ev["success_rate"], step):
                         log(f"{variant} seed {seed}: evaluation success {ev['success_rate']:.2f} at step {step:,}: the "
                             f"tilt penalty{' and the success margins are' if ramp.pitch_margin else ' is'} ramped in "
