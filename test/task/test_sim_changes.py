@@ -35,7 +35,7 @@ def _raw(c):
                      if k not in ("twin_critics", "slope_curriculum", "slope_curriculum_bins", "slope_curriculum_window",
                                   "slope_curriculum_uniform", "slope_curriculum_reward_test", "lr_final_scale", "lr_decay_from",
                                   "demo_share", "demo_crowd_min", "demo_crowd_max", "demo_pre_curl", "demo_bc",
-                                  "demo_until_step", "critic_huber", "actor_preact_l2", "noise_after_decay", "demo_bc_return_filter",
+                                  "demo_until_step", "critic_huber", "actor_preact_l2", "demo_q_lower_bound", "noise_after_decay", "demo_bc_return_filter",
                                   "demo_told_zones", "demo_end_zone_stop", "demo_push_curl", "demo_late_lift", "demo_told_high", "demo_failing_share",
                                   "demo_drift_confirm", "demo_where_teacher_wins",
                                   "episode_seed_offset")}

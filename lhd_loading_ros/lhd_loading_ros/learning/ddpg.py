@@ -49,6 +49,7 @@ class DdpgConfig:
     noise_after_decay: float = 0.0  # > 0: the noise factor from noise_decay_steps on, in place of noise_final_scale
     demo_bc_return_filter: int = 0  # 1: clone a demonstration's row where its own return G beats Q(o, mu(o))
     actor_preact_l2: float = 0.0   # > 0: the actor's loss gains this weight times mean_i ||z_i||^2, z tanh's input
+    demo_q_lower_bound: int = 0    # 1: a demonstration's row regresses on max(TD target, its own return G)
 
     @classmethod
     def from_config(cls, cfg: dict) -> "DdpgConfig":
@@ -67,6 +68,7 @@ class DdpgConfig:
             noise_after_decay=float(t.get("noise_after_decay", 0.0)),
             demo_bc_return_filter=int(t.get("demo_bc_return_filter", 0)),
             actor_preact_l2=float(t.get("actor_preact_l2", 0.0)),
+            demo_q_lower_bound=int(t.get("demo_q_lower_bound", 0)),
         )
 
     def to_dict(self) -> dict:
@@ -376,6 +378,9 @@ class DdpgAgent:
         1[reward_scale G_i > Q(o_i, mu(o_i))] (the test of self-imitation learning, Oh et al. 2018):
         what the teacher went on to earn, which a critic that values the actor's own continuation
         cannot see.
+        cfg.demo_q_lower_bound = 1 (with demo_return): the critics' target on a demonstration's row is max(y,
+        reward_scale G_i), so the teacher's continuation, which the one-step target (the actor's own) never values,
+        reaches the critic.
         cfg.actor_preact_l2 = w > 0: the actor's loss also gains w / B * sum_i ||z_i||^2, z_i the input of the actor's
         output tanh (the pre-activation penalty of rlkit's DDPG and SAC, policy_pre_activation_weight), whose gradient
         2 w z / B is added at z: without it the outputs saturate (|z| of 5-90 measured, tanh' < 2e-4) and neither
@@ -389,6 +394,11 @@ class DdpgAgent:
         if self.twin:
             q2 = torch.minimum(q2, self.critic2_t(o2a2))
         y = torch.addcmul(r * cfg.reward_scale, not_term, q2, value=cfg.gamma)
+        if cfg.demo_q_lower_bound and demo_return is not None:
+            # what the demonstration went on to earn from the row is a return Q*(o, a) is at least: the critic
+            # regresses on it where it exceeds the one-step target (the value loss of self-imitation learning,
+            # Oh et al. 2018; optimality tightening, He et al. 2017). Rows without one hold -inf
+            y = torch.maximum(y, demo_return * cfg.reward_scale)
         # critic: L = mean (Q(o, a) - y)^2, or with cfg.critic_huber = d > 0 the Huber loss
         # L = mean 2 h_d(Q - y), h_d(e) = e^2 / 2 for |e| <= d, d (|e| - d / 2) beyond (twice
         # torch's huber_loss, so that it is the squared loss inside d): its gradient is the TD

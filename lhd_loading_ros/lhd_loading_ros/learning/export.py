@@ -34,6 +34,7 @@ def export_actor(directory, actor: FlatMlp, cfg: dict, meta: dict):
                             if float(cfg.get("training", {}).get("critic_huber", 0.0)) > 0 else {}),
                          **({"actor_preact_l2": float(cfg["training"]["actor_preact_l2"])}
                             if float(cfg.get("training", {}).get("actor_preact_l2", 0.0)) > 0 else {}),
+                         **({"demo_q_lower_bound": 1} if int(cfg.get("training", {}).get("demo_q_lower_bound", 0)) else {}),
                          **({"noise_after_decay": float(cfg["training"]["noise_after_decay"])}
                             if float(cfg.get("training", {}).get("noise_after_decay", 0.0)) > 0 else {}),
                          **({"slope_curriculum": curriculum.to_dict()} if curriculum is not None else {}),

@@ -195,6 +195,8 @@ def _recipe_note(tw: dict) -> str:
     if float(tw.get("actor_preact_l2", 0.0) or 0.0) > 0:
         parts.append(f"a penalty on the actor's tanh input (weight {float(tw['actor_preact_l2']):g}), so that its outputs "
                      "do not saturate")
+    if int(tw.get("demo_q_lower_bound", 0) or 0):
+        parts.append("the demonstrations' own returns as a lower bound on the critics' target")
     if float(tw.get("noise_after_decay", 0.0) or 0.0) > 0:
         parts.append(f"exploration noise {float(tw['noise_after_decay']):g} after its decay")
     if tw.get("lr_final_scale") is not None and float(tw["lr_final_scale"]) != 1.0:

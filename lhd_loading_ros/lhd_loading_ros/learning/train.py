@@ -641,7 +641,11 @@ def _train(variant: str, seed: int, out, steps: int | None = None, config=None, 
                     r_succ = float(info.get("terms", {}).get("success", 0.0)) if term else 0.0
                     demo = i in demo_crowd
                     if demo_rows.get(i):     # the demonstration's return from each of its rows, now known
-                        replay.set_demo_return(demo_rows.pop(i), dc.gamma)
+                        rows_i = demo_rows.pop(i)
+                        # a realised return cut by the time limit is no lower bound on Q (what the limit cut off is not
+                        # in it): with training.demo_q_lower_bound such a demonstration's rows keep none
+                        if term or not dc.demo_q_lower_bound:
+                            replay.set_demo_return(rows_i, dc.gamma)
                     if curriculum is not None and not demo:      # the actor's failures, not the teacher's
                         curriculum.record(res.alpha_deg, cur_cfg.counts_success(res.success, r_succ))
                     elif curriculum is not None and demos is not None and demos.where_teacher_wins:

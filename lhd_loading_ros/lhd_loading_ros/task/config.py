@@ -154,6 +154,7 @@ SCHEMA: dict[str, Any] = {
         "demo_pre_curl": _f(0.0, 1.4), "demo_bc": _f(0.0, 100.0), "demo_until_step": _i(0, 100_000_000),
         "critic_huber": _f(0.0, 1e6), "noise_after_decay": _f(0.0, 1.0), "demo_bc_return_filter": _i(0, 1),
         "actor_preact_l2": _f(0.0, 10.0),
+        "demo_q_lower_bound": _i(0, 1),
         "demo_told_zones": _i(0, 1), "demo_end_zone_stop": _f(0.0, 1.0),
         "demo_push_curl": _f(0.0, 1.4), "demo_late_lift": _f(0.0, 1.0), "demo_told_high": _f(0.0, 45.0),
         "demo_drift_confirm": _i(1, 50), "demo_failing_share": _f(0.0, 0.9), "demo_where_teacher_wins": _i(0, 1), "episode_seed_offset": _i(0, 2**31 - 2),
@@ -180,6 +181,10 @@ _RELATIONS = [
      lambda c: not _whole(_physics_steps(c)) or round(_physics_steps(c)) % c["sim"]["fee_every"] == 0),
     ("training.demo_bc_return_filter = 1 only with training.demo_bc > 0 (it chooses which demonstration rows are "
      "cloned)", lambda c: not c["training"]["demo_bc_return_filter"] or c["training"]["demo_bc"] > 0.0),
+    ("training.demo_q_lower_bound = 1 only with training.demo_bc > 0 and training.demo_bc_return_filter = 1 (the "
+     "demonstrations' returns it bounds the critics' target by are stored for the return filter)",
+     lambda c: not c["training"]["demo_q_lower_bound"] or (c["training"]["demo_bc"] > 0.0
+                                                           and bool(c["training"]["demo_bc_return_filter"]))),
     # without demo_share there are no demonstrations at all (DemoConfig is off): the key would do nothing, silently
     ("training.demo_told_high > 0 only with training.demo_share > 0 (it makes told-high episodes demonstrations; "
      "the demonstrations are off at demo_share 0)",
@@ -354,6 +359,8 @@ OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curric
                      ("training", "demo_bc_return_filter"): 0,
                      # 0: no penalty on the actor's tanh input, as every run before 2026-12-02 (thirty-fifth session)
                      ("training", "actor_preact_l2"): 0.0,
+                     # 0: the critics' target the one-step TD target on every row, as every run before 2026-12-02
+                     ("training", "demo_q_lower_bound"): 0,
                      # 0: the training's episode seeds run_seed * 1,000,003 + k, as every run before 2026-11-29
                      # (twelfth session) drew them; run seeds 1-3 then shared their first ~115 piles with the
                      # evaluation seeds 1,000,000 / 2,000,000 / 3,000,000 (learning/train.episode_seed)
@@ -560,6 +567,8 @@ TRAINING_SCHEDULE_KEYS = ("twin_critics", "slope_curriculum", "slope_curriculum_
                           "critic_huber",
                           # the penalty on the actor's tanh input (learning/ddpg.py)
                           "actor_preact_l2",
+                          # the demonstrations' own returns as a lower bound on the critics' target (learning/ddpg.py)
+                          "demo_q_lower_bound",
                           # the exploration noise after its decay, when not noise_final_scale (a late change
                           # for paired branches; noise_final_scale itself is in the hash)
                           "noise_after_decay")
