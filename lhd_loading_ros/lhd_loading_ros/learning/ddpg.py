@@ -334,8 +334,15 @@ class DdpgAgent:
         self.updates = 0
         # behaviour cloning (cfg.demo_bc): demonstration rows sampled, and those the Q-filter let through
         self.bc_rows, self.bc_passed = 0, 0
-        # mean ||z||^2 of the actor's tanh input over the last batch (only computed with cfg.actor_preact_l2)
-        self.preact_sq = float("nan")
+        # the actor's tanh input over the last batch (kept with cfg.actor_preact_l2; preact_sq reduces it when asked)
+        self._last_preact: torch.Tensor | None = None
+
+    @property
+    def preact_sq(self) -> float:
+        """mean ||z||^2 of the actor's tanh input over the last batch (nan unless cfg.actor_preact_l2 > 0): reduced
+        here, when the training logs it, not in every update."""
+        z = self._last_preact
+        return float("nan") if z is None else float((z * z).sum(1).mean())
 
     def set_lr_scale(self, scale: float) -> None:
         """Both optimisers' learning rates at `scale` times the configured ones."""
@@ -436,7 +443,7 @@ class DdpgAgent:
             # so an actor at +-1 cannot be moved off it; the penalty keeps z where tanh still passes them
             z = self.actor.out_preactivation(acache)
             dz = z * (2.0 * cfg.actor_preact_l2 / B)
-            self.preact_sq = float((z * z).sum(1).mean())
+            self._last_preact = z
         self.actor.backward(acache, da, dz_out=dz)
         self.actor_opt.step()
         self.actor_t.soft_update_from(self.actor, cfg.tau)
