@@ -26,7 +26,7 @@ if launch_files:
 # where the policy node looks for its default actor in an installed workspace.
 for variant in ("rld", "rlc", "rld_dr", "rld_paper", "rld_margin", "rld_twin", "rlc_twin", "rlc_twin_mass", "rlc_twin_sil_bc",
                 "rld_gains", "rlc_gains", "rld_lidar", "rld_told_teacher", "rld_machine",
-                "rld_drift_confirm"):   # policies/README.md says what each is
+                "rld_drift_confirm", "rld_drift_confirm_margin8", "rlc_drift_confirm_margin8"):   # policies/README.md says what each is
     files = sorted(glob(os.path.join(os.path.relpath(os.path.join(here, "..", "policies", variant)), "*")))
     if files:
         data_files.append(("share/" + package_name + "/policies/" + variant, files))

@@ -32,7 +32,7 @@ def text(name):
 def refuse_unsound_params(context):
     """Resolves the actor, the parameter file and the supervisor's slope limits as `lhd up real` does
     (cli/up_real.machine_actor: controller:=rld / rlc without policy_dir runs the machine's actor,
-    policies/rld_drift_confirm or rlc_gains, with its own lhd_params.yaml unless config:= or $LHD_CONFIG names
+    policies/rld_drift_confirm_margin8 or rlc_gains, with its own lhd_params.yaml unless config:= or $LHD_CONFIG names
     another), then raises (the launch ends, naming the problem, before any node starts) when params_file
     would leave every attempt without zones or commands, or the actor does not fit the parameter file;
     returns the launch configurations the nodes read (actor_dir, actor_config, slope_limits, and the supervisor's
@@ -81,7 +81,7 @@ def generate_launch_description():
         DeclareLaunchArgument("port", description="serial device of the Due, e.g. /dev/ttyACM0"),
         DeclareLaunchArgument("controller", default_value="rld", description="rld | rlc | tampier | teacher | teleop"),
         DeclareLaunchArgument("policy_dir", default_value="", description="exported actor (default: the machine's, "
-                              "policies/rld_drift_confirm or rlc_gains: docs/real_machine.md)"),
+                              "policies/rld_drift_confirm_margin8 or rlc_gains: docs/real_machine.md)"),
         DeclareLaunchArgument("config", default_value="", description="lhd_params.yaml for every node (default: the "
                               "actor's own where it ships one, else the package's)"),
         DeclareLaunchArgument("camera_topic", default_value="/camera/image_raw"),

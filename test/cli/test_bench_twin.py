@@ -28,7 +28,7 @@ KEYS = ("latency_p50_ms", "latency_p99_ms", "latency_max_ms", "camera_to_decisio
     # the machine's RLD and its own file, as lhd up real runs them (cli/up_real.machine_actor)
     (["--slopes", "100"], "--slopes 100: outside the pile range [10, 40] deg of "
                           + os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))),
-                                         "policies", "rld_drift_confirm", "lhd_params.yaml")),
+                                         "policies", "rld_drift_confirm_margin8", "lhd_params.yaml")),
     (["--slopes", "abc"], "--slopes 'abc': expected degrees, e.g. 20 or '15,30'"),
     (["--no-imu", "--imu", "100"], "not allowed with argument"),
 ])

@@ -108,8 +108,8 @@ def test_real_machine_launch_file_checks_its_parameters_before_any_node(tmp_path
                                                            "required_listeners")}
 
     got = configs(run_check(default_params_file()))     # the machine's RLD, its own file, its validated slopes
-    assert got["actor_dir"].endswith("rld_drift_confirm")
-    assert got["actor_config"].endswith("rld_drift_confirm/lhd_params.yaml")
+    assert got["actor_dir"].endswith("rld_drift_confirm_margin8")
+    assert got["actor_config"].endswith("rld_drift_confirm_margin8/lhd_params.yaml")
     assert got["slope_limits"] == "[10.0, 35.0]"
     assert got["required_listeners"] == "['lhd_cmd_mux', 'lhd_policy', 'lhd_recorder']"     # as `lhd up real` sets
     assert configs(run_check(slow, "teleop")) == {"actor_dir": "", "actor_config": "", "slope_limits": "[0.0, 90.0]",

@@ -302,7 +302,7 @@ def test_up_real_arms_runs_stops_records_and_replays(ros, tmp_path):
 
 
 def test_up_real_never_moves_the_machine_unarmed_or_with_a_bad_input(ros, tmp_path):
-    """A 40 deg pile (outside the machine RLD's 10-35 deg: rld_drift_confirm armed within slope_limits_deg) and then no camera: arming is refused with
+    """A 40 deg pile (outside the machine RLD's 10-35 deg: rld_drift_confirm_margin8 armed within slope_limits_deg) and then no camera: arming is refused with
     the reason each time, and although a rogue controller publishes full speed on /lhd/cmd/auto
     the whole time, no command frame asking for motion ever reaches the serial line."""
     from std_msgs.msg import Float64MultiArray

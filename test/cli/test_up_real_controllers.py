@@ -34,7 +34,7 @@ def test_an_actor_and_teleop(tmp_path):
     assert controller_node(["--controller", "teleop"], tmp_path)[0] is None
 
 
-@pytest.mark.parametrize("controller, actor", [("rld", "rld_drift_confirm"), ("rlc", "rlc_gains")])
+@pytest.mark.parametrize("controller, actor", [("rld", "rld_drift_confirm_margin8"), ("rlc", "rlc_gains")])
 def test_the_machine_runs_the_actors_that_pass_the_machine_case_with_their_own_file(controller, actor, tmp_path):
     """Without --policy the real stack runs the machine's actors (actor_file.MACHINE_ACTORS: placed by
     hand, from rest, on a rough pile, `lhd eval --stress machine` 1.000 / 0.983 against the main job's
@@ -100,23 +100,23 @@ def test_machine_actor_is_the_launch_files_rule_too(tmp_path, monkeypatch):
     """real_machine.launch.py resolves the actor, the parameter file and the supervisor's slope limits
     with the same function (cli/up_real.machine_actor) over the installed share's policies: the
     machine's actor for rld / rlc without policy_dir, armed on the slopes where it keeps 0.9 of the machine
-    case (rld_drift_confirm 10-35 deg, its card 10-40: the machine case has no 37.5-40 deg piles; rlc_gains 10-35),
+    case (rld_drift_confirm_margin8 10-35 deg, its card 10-40: the machine case has no 37.5-40 deg piles; rlc_gains 10-35),
     its own file unless config:= or
     $LHD_CONFIG names one; nothing for the baselines."""
     from lhd_loading_ros.cli.up_real import machine_actor
 
     monkeypatch.delenv("LHD_CONFIG", raising=False)
     share = tmp_path / "policies"
-    (share / "rld_drift_confirm").mkdir(parents=True)
-    (share / "rld_drift_confirm" / "lhd_params.yaml").write_text("# the actor's own\n")
+    (share / "rld_drift_confirm_margin8").mkdir(parents=True)
+    (share / "rld_drift_confirm_margin8" / "lhd_params.yaml").write_text("# the actor's own\n")
     (share / "rld").mkdir()
     chosen = machine_actor("rld", policies_root=share)
-    assert chosen.policy == str(share / "rld_drift_confirm")
-    assert chosen.config == str((share / "rld_drift_confirm" / "lhd_params.yaml").resolve())
+    assert chosen.policy == str(share / "rld_drift_confirm_margin8")
+    assert chosen.config == str((share / "rld_drift_confirm_margin8" / "lhd_params.yaml").resolve())
     assert chosen.slope_limits == (10.0, 35.0) and "the machine's default actor" in chosen.note
     assert machine_actor("rlc", policies_root=share).slope_limits == (10.0, 35.0)
     assert machine_actor("rld", str(share / "rld"), policies_root=share)[:3] == (str(share / "rld"), "", None)
-    assert machine_actor("rld", "", "/x/mine.yaml", policies_root=share)[:2] == (str(share / "rld_drift_confirm"), "/x/mine.yaml")
+    assert machine_actor("rld", "", "/x/mine.yaml", policies_root=share)[:2] == (str(share / "rld_drift_confirm_margin8"), "/x/mine.yaml")
     assert machine_actor("tampier", "", "", policies_root=share) == ("", "", None, "")
     assert machine_actor("teleop", "", "/x/mine.yaml", policies_root=share) == ("", "/x/mine.yaml", None, "")
     # $LHD_CONFIG is an explicit choice, as --config is: every node reads it, the note says so
@@ -134,7 +134,7 @@ def test_every_node_that_reads_a_parameter_file_reads_the_same_one(tmp_path, mon
     args = ap.parse_args(["--port", "/dev/null", "--controller", "rld"])
     check_args(ap, args)
     nodes = {name: params for name, _, params, _ in stack(args, tmp_path)}
-    own = str(ROOT / "policies" / "rld_drift_confirm" / "lhd_params.yaml")
+    own = str(ROOT / "policies" / "rld_drift_confirm_margin8" / "lhd_params.yaml")
     assert {n for n, p in nodes.items() if p.get("config") == own} == {"bridge", "end_zone", "supervisor", "mux",
                                                                        "teleop", "controller"}
     assert nodes["supervisor"]["slope_limits_deg"] == [10.0, 35.0]
@@ -147,4 +147,4 @@ def test_every_node_that_reads_a_parameter_file_reads_the_same_one(tmp_path, mon
     with pytest.raises(SystemExit):
         check_args(ap, args)
     err = capsys.readouterr().err
-    assert "runs " in err and "policies/rld_drift_confirm by default (since 2026-12-01 for rld)" in err and "--policy policies/rld" in err
+    assert "runs " in err and "policies/rld_drift_confirm_margin8 by default (since 2026-12-02 for rld)" in err and "--policy policies/rld" in err

@@ -140,7 +140,7 @@ def test_one_twin_attempt_end_to_end(tmp_path):
     # the machine's RLD and its own file (cli/up_real.machine_actor); with the package's file, its range
     (["--slopes", "100"], "--slopes 100: outside the pile range [10, 40] deg of "
                           + os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))),
-                                         "policies", "rld_drift_confirm", "lhd_params.yaml")),
+                                         "policies", "rld_drift_confirm_margin8", "lhd_params.yaml")),
     (["--slopes", "100", "--controller", "tampier"], "--slopes 100: outside the pile range [15, 30] deg of "
                                                       "config/lhd_params.yaml"),
     (["--slopes", "20", "nan"], "--slopes nan: not a finite number; expected slopes in degrees"),

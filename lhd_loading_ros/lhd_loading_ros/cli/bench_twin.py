@@ -282,7 +282,7 @@ def main(argv=None) -> int:
                     help="the paper's machine, without an IMU (`lhd up twin --no-imu`)")
     ap.add_argument("--attempt-timeout", type=float, default=10.0, help="s, the supervisor's (the paper: 10)")
     ap.add_argument("--reset-delay", type=float, default=1.5, help="s from an ended attempt to the twin's new pile")
-    ap.add_argument("--policy", help="exported actor (default: the machine's, policies/rld_drift_confirm, as lhd up real)")
+    ap.add_argument("--policy", help="exported actor (default: the machine's RLD, policies/rld_drift_confirm_margin8, as lhd up real)")
     ap.add_argument("--params-file", help="ROS parameter file for every node (default config/real_machine.yaml)")
     ap.add_argument("--config", help="lhd_params.yaml (default: as lhd up real: $LHD_CONFIG, else the actor's own, "
                     "else the package's)")

@@ -462,7 +462,7 @@ def parser() -> argparse.ArgumentParser:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--port", required=True, help="serial device of the Due, e.g. /dev/ttyACM0")
     ap.add_argument("--controller", choices=CONTROLLERS, default="rld")
-    ap.add_argument("--policy", help="exported actor for rld/rlc (default: the machine's, policies/rld_drift_confirm or "
+    ap.add_argument("--policy", help="exported actor for rld/rlc (default: the machine's, policies/rld_drift_confirm_margin8 or "
                     "rlc_gains, armed on the slopes it was validated on: docs/real_machine.md)")
     ap.add_argument("--camera-topic", default="/camera/image_raw")
     ap.add_argument("--camera-info-topic", default="/camera/camera_info")
@@ -613,7 +613,7 @@ def check_args(ap: argparse.ArgumentParser, args) -> None:
         except (PolicyFileError, ConfigError) as exc:
             hint = ""
             if getattr(args, "default_actor", False):
-                hint = (f" (--controller {args.controller} runs {args.policy} by default (since 2026-12-01 for rld), with its own "
+                hint = (f" (--controller {args.controller} runs {args.policy} by default (since 2026-12-02 for rld), with its own "
                         f"parameter file; drop --config / $LHD_CONFIG for it, or name the actor for your file: "
                         f"--policy policies/{args.controller} for the main job's)")
             ap.error(str(exc) + hint)

@@ -883,7 +883,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="lhd up twin", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--controller", choices=("rld", "rlc", "tampier", "teacher"), default="rld")
-    ap.add_argument("--policy", help="exported actor for rld/rlc (default: the machine's, policies/rld_drift_confirm or rlc_gains, as lhd up real)")
+    ap.add_argument("--policy", help="exported actor for rld/rlc (default: the machine's, policies/rld_drift_confirm_margin8 or rlc_gains, as lhd up real)")
     ap.add_argument("--slopes", type=float, nargs="+", default=list(DEFAULT_SLOPES),
                     help="pile slopes, degrees, cycled (default 15 20 25 30)")
     ap.add_argument("--episodes", type=int, default=3, help="attempts PER SLOPE (default 3: 12 attempts on the "

@@ -152,7 +152,7 @@ class SupervisorNode(Node):
                   "alpha_min_deg up to the larger of alpha_max_deg and task.bucket_repose_deg, each widened by 1 deg"),
             Param("slope_limits_deg", [0.0, 90.0], "deg [lo, hi]: arm only on piles inside both the controller's "
                   "range (policy_dir's card, or the untrained range) and these limits: a site's, or the range the "
-                  "machine's default actor was validated on (`lhd up real` sets [10, 35] for policies/rld_drift_confirm and "
+                  "machine's default actor was validated on (`lhd up real` sets [10, 35] for policies/rld_drift_confirm_margin8 and "
                   "for rlc_gains: actor_file.MACHINE_SLOPE_LIMITS_DEG); the default [0, 90] limits nothing. Narrows, never widens",
                   lo=0.0, hi=90.0, length=2, check=lambda v: None if v[0] < v[1] else "expected lo < hi"),
             Param("material", "homogeneous", "pile material written to the record; a change applies from the next "

@@ -300,13 +300,19 @@ def _json_default(o):
 # from rest it keeps 28-30 of 30 attempts on every slope of 10-35 deg where rld_machine (2026-11-29 to 2026-11-30;
 # rld_gains before it) keeps 14-23 on 10-15 deg piles, and 8 of 8 in the twin on 12 and 14 deg piles against
 # rld_machine's 5 (docs/real_machine.md "Which actor on the machine", docs/evidence/drift_confirm/).
-MACHINE_ACTORS = {"rld": "rld_drift_confirm", "rlc": "rlc_gains"}
+# RLD: rld_drift_confirm_margin8 since 2026-12-02 (thirty-sixth session): the same recipe with r_success paid only from
+# 28 kg; it succeeds in every slope-error cell the nodes accept with the mass within 13 % (issue 14's bound;
+# rld_drift_confirm 75 % on a 30 deg pile told 15 deg), keeps 297 of 300 attempts on 10-35 deg with the bridge's flags
+# (293), and 63 of the 64 attempts of its digital-twin runs on 2 cores (docs/real_machine.md "Which actor on the
+# machine", docs/evidence/margin8/).
+MACHINE_ACTORS = {"rld": "rld_drift_confirm_margin8", "rlc": "rlc_gains"}
 # The slopes each machine actor keeps >= 0.9 of the machine case on (30 episodes a slope,
-# docs/evidence/machine_case/slopes.txt, docs/evidence/drift_confirm/machine_case_slopes.txt): rld_drift_confirm
-# 28-30/30 on every slope of 10-35 deg, with the simulator's drift flags and the bridge's (rld_machine 24/30 on 10
-# and 12 deg: it was armed on 14-35); rlc_gains 30/30 on 10-14 deg, 27/30 on 32.5 and 35. The real stack passes them
-# to the supervisor (slope_limits_deg), which arms only inside both them and the card's range (rld_drift_confirm's
-# 10-40 deg: 35-40 deg piles are not in the machine case's table).
+# docs/evidence/machine_case/slopes.txt, docs/evidence/drift_confirm/machine_case_slopes.txt,
+# docs/evidence/margin8/machine_case_slopes_rld.txt): rld_drift_confirm_margin8 28-30/30 on every slope of 10-35 deg
+# with the bridge's drift flags (rld_drift_confirm 28-30/30; rld_machine 24/30 on 10 and 12 deg: it was armed on
+# 14-35); rlc_gains 30/30 on 10-14 deg, 27/30 on 32.5 and 35. The real stack passes them to the supervisor
+# (slope_limits_deg), which arms only inside both them and the card's range (the RLD's 10-40 deg: 35-40 deg piles are
+# not in the machine case's table, and 40 deg piles are its weak slope, 0.65 / 0.35).
 MACHINE_SLOPE_LIMITS_DEG = {"rld": (10.0, 35.0), "rlc": (10.0, 35.0)}
 
 
