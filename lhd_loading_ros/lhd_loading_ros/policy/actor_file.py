@@ -296,7 +296,7 @@ def _json_default(o):
 # (`lhd demo`, `lhd up sim`) keeps policies/rld and policies/rlc, the paper's protocol, which load every
 # pile of the paper's protocol but keep 0.61 / 0.70 of the machine case (docs/real_machine.md "Which actor on the machine",
 # docs/evidence/machine_case/). Both ship their own parameter file (the 10-35 deg piles' normalisers).
-# RLD: rld_drift_confirm since 2026-12-01 (twenty-fourth session): with the drift flags the bridge gives at a start
+# RLD: rld_drift_confirm from 2026-12-01 (twenty-fourth session) to 2026-12-02: with the drift flags the bridge gives at a start
 # from rest it keeps 28-30 of 30 attempts on every slope of 10-35 deg where rld_machine (2026-11-29 to 2026-11-30;
 # rld_gains before it) keeps 14-23 on 10-15 deg piles, and 8 of 8 in the twin on 12 and 14 deg piles against
 # rld_machine's 5 (docs/real_machine.md "Which actor on the machine", docs/evidence/drift_confirm/).
