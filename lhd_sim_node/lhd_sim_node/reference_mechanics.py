@@ -314,6 +314,18 @@ GRAVEL_DENSITY = {
 }
 
 
+# Loader bucket fill factors: the share of the rated (SAE J742 / ISO 7546 heaped) volume a wheel loader
+# delivers per pass, by material (Caterpillar Performance Handbook, Edition 47, Tables p. 30-2, loaders;
+# the wheel-loader pages agree). The paper's pile is 2-5 cm gravel: uniform aggregate of 24 mm and over.
+# Not fitted to anything here.
+LOADER_FILL_FACTOR = {
+    "uniform aggregates 12 mm and over": (0.85, 0.90),
+    "mixed moist aggregates": (0.95, 1.00),
+    "blasted rock": (0.60, 0.95),
+}
+COARSE_GRAVEL_FILL = LOADER_FILL_FACTOR["uniform aggregates 12 mm and over"]
+
+
 # The paper's real machine pushing without lifting into a pile it could not lift out of: RLC and RLD
 # told 15 deg on a 30 deg pile "end by a timeout, with the machine being stuck and trying to move
 # forward without lifting the bucket" with 23.86 +- 0.70 and 25.94 +- 0.80 kg (its slope-error

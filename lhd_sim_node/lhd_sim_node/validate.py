@@ -6,8 +6,9 @@ simulator (`LhdSimulator`, `LhdLoadingEnv`) and printed next to the independent 
      vertical depth (0.10 m), the simulator's horizontal FEE force next to the Coulomb wedge;
   2. curl and lift sweeps of a bucket driven into the pile, actuator torque buried minus the same
      motion in air, next to the breakout hand calculation;
-  3. bucket capacity (ISO 7546 struck + heap; the simulator's table) at the pile density, and the
-     mass spilled in a full scripted attempt;
+  3. bucket capacity (ISO 7546 struck + heap; the simulator's table) at the pile density, the mass
+     spilled in a full scripted attempt, and the fill the Tampier-style heuristic delivers (it curls
+     until the bucket is full) next to the loader fill factors of the handbooks;
   4. front/rear drift of a fixed push-only maneuver at 1, 2 and 4 ms timesteps;
   5. the scripted maneuver's attempt duration and loaded mass over 15-30 deg piles;
   6. naive controllers' success rates (push only, curl+lift without driving, random) and whether
@@ -31,9 +32,9 @@ import numpy as np
 
 from lhd_loading_ros.task.config import ConfigError, load_config
 
-from .reference_mechanics import (GRAVEL_DENSITY, G, BucketGeometry, Soil, breakout, bucket_capacity_at_pitch,
-                                  bucket_capacity_iso7546, contents_centroid, passive_wedge, pile_surface,
-                                  rating_density)
+from .reference_mechanics import (COARSE_GRAVEL_FILL, GRAVEL_DENSITY, G, BucketGeometry, Soil, breakout,
+                                  bucket_capacity_at_pitch, bucket_capacity_iso7546, contents_centroid, passive_wedge,
+                                  pile_surface, rating_density)
 
 SLOPES = (15.0, 20.0, 25.0, 30.0)
 WEDGE_SLOPES = (15.0, 20.0, 25.0, 30.0, 35.0)
@@ -292,11 +293,24 @@ def capacity(cfg: dict, density: float, scripted_spill: list[float] | None = Non
         from lhd_loading_ros.task.bucket_capacity import heaped_volume
     except ImportError:
         heaped_volume = None
+    try:   # the fill factor on the table (2026-12-02), if this tree has one
+        from lhd_loading_ros.task.bucket_capacity import fill_scale
+        scale = fill_scale(cfg)
+    except ImportError:
+        scale = 1.0
+    out["fill_factor"] = float(cfg["task"].get("bucket_fill_factor", 0.0))
+    out["fill_scale"] = scale
+    out["handbook_fill"] = list(COARSE_GRAVEL_FILL)
     for p_deg in (0.0, 20.0, math.degrees(iso["iso_pitch_rad"]), 60.0):
         ref = bucket_capacity_at_pitch(geom, math.radians(p_deg), repose)
         simv = heaped_volume(math.radians(p_deg), mc, repose) if heaped_volume else math.nan
         out["by_pitch"].append({"pitch_deg": p_deg, "ref_L": ref * 1e3, "sim_L": simv * 1e3, "ref_kg": ref * rho,
                                 "ratio": simv / ref if ref > 0 and heaped_volume else math.nan})
+    # what the simulator's table holds with the strike plane level (the rating's pose), as a share of the
+    # reference's SAE heaped volume: the simulator's fill factor, against the handbook's for coarse gravel
+    level = out["by_pitch"][2]
+    out["table_level_L"] = level["sim_L"] * scale
+    out["table_level_share_of_rating"] = level["sim_L"] * scale / out["heaped_iso_L"]
     out["heaped_kg_at_repose"] = max(r["ref_kg"] for r in out["by_pitch"])
     # the material the bucket is rated for: its 30 kg rating over its heaped volume, against the pile's
     # density range and the handbook's gravels (docs/modeling.md "The material the bucket is rated for")
@@ -307,11 +321,45 @@ def capacity(cfg: dict, density: float, scripted_spill: list[float] | None = Non
     out["gravel_density"] = dict(GRAVEL_DENSITY)
     # what "full" means for the simulator: its geometric capacity, or its mass cap where it has one
     cap = cfg["task"].get("bucket_max_load")
-    out["full_kg"] = min(out["heaped_kg_at_repose"], cap) if cap else out["heaped_kg_at_repose"]
+    full = out["heaped_kg_at_repose"] * scale
+    out["full_kg"] = min(full, cap) if cap else full
     if scripted_spill and all(math.isfinite(v) for v in scripted_spill):
         out["spilled_kg_scripted_mean"] = float(np.mean(scripted_spill))
         out["spilled_kg_scripted_max"] = float(np.max(scripted_spill))
     return out
+
+
+def heuristic_fill(cfg: dict, slopes=SLOPES, seeds=(0, 1)) -> dict:
+    """The Tampier-style heuristic (policy/tampier.py, config/tampier.yaml), which curls until the bucket
+    is full, on homogeneous piles at the midpoints of the config's pile ranges (homogeneous_config: the
+    density is known): the load it ends with over the reference's SAE heaped volume times that density,
+    its delivered fill factor, next to the handbook's for coarse gravel (reference_mechanics.LOADER_FILL_FACTOR).
+    Over the attempts that curled the bucket to the end (stage raise or done); every attempt's load also."""
+    from lhd_loading_ros.learning.baselines import run_tampier_episode
+    from lhd_loading_ros.policy.tampier import TampierController, load_tampier_config
+
+    hc = homogeneous_config(cfg)
+    env = _env(hc)
+    rho = float(hc["pile"]["density_min"])
+    heaped = bucket_capacity_iso7546(BucketGeometry.from_machine(cfg["machine"]))["heaped_m3"]
+    ctl = TampierController(load_tampier_config(), env.p)
+    rows = []
+    for a in slopes:
+        for s in seeds:
+            r, _ = run_tampier_episode(env, ctl, s, {"slope_deg": a, "material": "homogeneous"})
+            rows.append({"slope_deg": float(a), "seed": int(s), "loaded_kg": float(r.loaded),
+                         "curled": ctl.stage in ("raise", "done"), "success": bool(r.success)})
+    curled = [x["loaded_kg"] for x in rows if x["curled"]]
+    fills = [m / (rho * heaped) for m in curled]
+    lo, hi = COARSE_GRAVEL_FILL
+    return {"density": rho, "heaped_iso_L": heaped * 1e3, "attempts": rows, "curled": len(curled),
+            "loaded_kg_mean": float(np.mean(curled)) if curled else math.nan,
+            "fill_mean": float(np.mean(fills)) if fills else math.nan,
+            "fill_min": float(np.min(fills)) if fills else math.nan,
+            "fill_max": float(np.max(fills)) if fills else math.nan,
+            "handbook": [lo, hi],
+            # within the handbook's range, give or take the 0.03 a pass's own spread is (its range is 0.05 wide)
+            "within_handbook": bool(fills and lo - 0.03 <= float(np.mean(fills)) <= hi + 0.03)}
 
 
 # ---------------------------------------------------------------------------------- episodes
@@ -429,6 +477,7 @@ def run(config: str | dict | None = None, quick: bool = False) -> dict:
     slopes = (15.0, 30.0) if quick else SLOPES
     res["scripted"], spilled = scripted_attempts(cfg, slopes=slopes, seeds=(0,) if quick else tuple(range(5)))
     res["capacity"] = capacity(cfg, res["resistance"]["soil"]["gamma"], spilled)
+    res["heuristic_fill"] = heuristic_fill(cfg, slopes=slopes, seeds=(0,) if quick else (0, 1))
     res["drift"] = drift_vs_timestep(cfg, timesteps=(0.002, 0.004) if quick else TIMESTEPS,
                                      slopes=(20.0,) if quick else SLOPES, seeds=(0,) if quick else (0, 1))
     res["naive"] = naive_controllers(cfg, slopes=slopes, seeds=(0,) if quick else (0, 1, 2),
@@ -480,6 +529,19 @@ def format_report(res: dict) -> str:
     L.append(f"   rated {cp['rated_kg']:.0f} kg over the heaped {cp['heaped_iso_L']:.2f} L: rated for loose material of "
              f"{cp['rating_density']:.0f} kg/m^3; the pile is {cp['pile_density_range'][0]:.0f}-{cp['pile_density_range'][1]:.0f} "
              f"kg/m^3 (handbook gravel: " + ", ".join(f"{k} {v:.0f}" for k, v in gd.items()) + ")")
+    hb = cp["handbook_fill"]
+    L.append(f"   fill factor (task.bucket_fill_factor) {cp['fill_factor']:g}"
+             + (" (none: the whole static heap)" if cp["fill_factor"] == 0 else "")
+             + f": the table holds {cp['table_level_L']:.2f} L with the strike plane level, "
+             f"{cp['table_level_share_of_rating']:.3f} of the SAE heaped rating; loaders deliver {hb[0]:.2f}-{hb[1]:.2f} of it in "
+             "uniform aggregates of 12 mm and over (Caterpillar Performance Handbook ed. 47, Tables p. 30-2)")
+    hf = res.get("heuristic_fill")
+    if hf:
+        L.append(f"   the Tampier-style heuristic (curls until full) on homogeneous {hf['density']:.0f} kg/m^3 piles: "
+                 f"{hf['curled']} of {len(hf['attempts'])} attempts curled to the end with {_f(hf['loaded_kg_mean'], '{:.1f}')} kg, "
+                 f"a delivered fill of {_f(hf['fill_mean'], '{:.2f}')} ({_f(hf['fill_min'], '{:.2f}')}-{_f(hf['fill_max'], '{:.2f}')}) "
+                 f"of the SAE heaped {hf['heaped_iso_L']:.2f} L; handbook {hf['handbook'][0]:.2f}-{hf['handbook'][1]:.2f}: "
+                 f"within (+-0.03): {hf['within_handbook']}")
     if "spilled_kg_scripted_mean" in cp:
         L.append(f"   spilled in the scripted attempts: mean {cp['spilled_kg_scripted_mean']:.1f} kg, max {cp['spilled_kg_scripted_max']:.1f} kg")
     dr = res["drift"]

@@ -35,6 +35,10 @@ def test_validate_physics_quick_json_and_plots(tmp_path, capsys):
     cp = res["capacity"]
     assert cp["struck_L"] > 0 and cp["heaped_iso_L"] > cp["struck_L"] and _finite(cp["struck_kg"])
     assert all(_finite(b["ref_L"]) for b in cp["by_pitch"])
+    assert cp["handbook_fill"] == [0.85, 0.90] and _finite(cp["table_level_share_of_rating"])
+    hf = res["heuristic_fill"]          # the heuristic's delivered fill, next to the handbook's
+    assert len(hf["attempts"]) >= 2 and hf["handbook"] == [0.85, 0.90] and isinstance(hf["within_handbook"], bool)
+    assert all(_finite(a["loaded_kg"]) and a["loaded_kg"] >= 0.0 for a in hf["attempts"])
     # 4. drift vs timestep
     assert len(res["drift"]["rows"]) >= 2
     assert all(0.0 <= r[k] <= 100.0 for r in res["drift"]["rows"] for k in ("front_pct", "rear_pct"))

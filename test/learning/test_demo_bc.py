@@ -234,6 +234,7 @@ def test_a_short_run_writes_each_finished_demonstrations_return(cfg, tmp_path, m
     c = small_cfg(cfg, demo_share=0.5, demo_bc=1.0, demo_bc_return_filter=1)
     c["task"].update({"r_tilt_per_deg": 10.0, "r_tilt_free_deg": 0.0, "r_tilt_ramp_after_success": 0.5})
     c["training"]["episode_seed_offset"] = 0     # the piles this case was written on: the first episode a long demonstration
+    c["task"]["bucket_fill_factor"] = 0.0        # ... on the static heap it was written on (a fuller bucket ends it later)
     calls = {"n": 0}
     real_step = LhdLoadingEnv.step
 

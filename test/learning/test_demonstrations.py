@@ -590,11 +590,11 @@ def test_the_card_names_the_told_teacher(cfg, tmp_path):
 
 def test_the_push_curl_teacher_keeps_the_load_when_told_too_steep(cfg):
     """A 15 deg pile told 30 deg, zones from the told slope (x_max 0.88 m; the pile's own 1.29 m), seed 5.
-    The level-push teacher is full at its attack-pose capacity (about 22 kg) before it can lift and
-    comes out with about 27 kg; the push-curl teacher (demo_push_curl 0.3, demo_late_lift 0.85) curls
-    while it pushes, lifts late and loads more than 30 kg (35.1), at least 80 % of what it loads on the
-    same pile told the truth (41.8: 84 % on this pile, the edge of issue 14's 85 %; over five seeds
-    85-91 %, docs/evidence/told_high_bound/)."""
+    The level-push teacher is full at its attack-pose capacity (17.8 kg with the config's fill factor) before
+    it can lift and comes out with 24.0 kg; the push-curl teacher (demo_push_curl 0.3, demo_late_lift 0.85)
+    curls while it pushes, lifts late and loads 28.0 kg, 91 % of what it loads on the same pile told the
+    truth (30.9 kg). On the static heap (task.bucket_fill_factor 0, before 2026-12-02) the three were 26.0 /
+    35.1 / 41.8 kg (84 %; over five seeds 85-91 %, docs/evidence/told_high_bound/)."""
     from lhd_sim_node.env import LhdLoadingEnv
 
     from lhd_loading_ros.task.randomization import Conditions
@@ -615,8 +615,8 @@ def test_the_push_curl_teacher_keeps_the_load_when_told_too_steep(cfg):
     assert env.zones.x_max > 1.2                                        # the last attempt was told the truth
     assert level.success and level.loaded < 29.0
     assert told_high.success and told_high.reached_end_zone and not told_high.failed
-    assert told_high.loaded > 30.0 and told_high.loaded > level.loaded + 3.0
-    assert truth.success and told_high.loaded >= 0.80 * truth.loaded, (told_high.loaded, truth.loaded)
+    assert told_high.loaded > 25.0 and told_high.loaded > level.loaded + 3.0, (told_high.loaded, level.loaded)
+    assert truth.success and told_high.loaded >= 0.85 * truth.loaded, (told_high.loaded, truth.loaded)
     assert math.degrees(told_high.phi_final) > 40.0
 
 

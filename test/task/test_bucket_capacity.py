@@ -8,8 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from lhd_loading_ros.task.bucket_capacity import (bucket_section, capacity_table, heaped_volume, sae_heaped_volume,
-                                                  struck_volume)
+from lhd_loading_ros.task.bucket_capacity import (bucket_section, capacity_table, fill_scale, heaped_volume,
+                                                  sae_heaped_volume, struck_volume)
+from lhd_loading_ros.task.config import ConfigError, validate
 
 r = math.radians
 
@@ -153,8 +154,9 @@ def test_capacity_table(cfg):
     t = cfg["task"]
     assert grid[0] <= r(t["phi_shovel_min_deg"]) and grid[-1] >= r(t["phi_shovel_max_deg"])
     rep = r(t["bucket_repose_deg"])
+    scale = fill_scale(cfg)          # the config's fill factor (test_fill_factor_holds_the_handbook_share_of_the_rating)
     for i in (0, len(grid) // 3, len(grid) // 2, len(grid) - 1):
-        assert vol[i] == pytest.approx(heaped_volume(float(grid[i]), cfg["machine"], rep), abs=1e-15)
+        assert vol[i] == pytest.approx(scale * heaped_volume(float(grid[i]), cfg["machine"], rep), abs=1e-15)
 
 
 def test_capacity_in_kg_at_the_config_density(cfg):
@@ -172,3 +174,54 @@ def test_capacity_in_kg_at_the_config_density(cfg):
     # the paper's 30 kg rating lies between struck and heaped at gravel density
     assert vs * cfg["pile"]["density_max"] < 30.0 * 1.05
     assert rows["SAE heaped (2:1, level)"] * cfg["pile"]["density_min"] > 30.0
+
+
+def _with_fill(cfg, fill):
+    c = copy.deepcopy(cfg)
+    c["task"]["bucket_fill_factor"] = fill
+    return c
+
+
+def test_fill_factor_holds_the_handbook_share_of_the_rating(cfg):
+    """task.bucket_fill_factor f: with the strike plane level the table holds f x the SAE heaped rating, the
+    rating written out here (struck prism + hip roof at 2:1 over the strike plane, A = hypot(plate, back),
+    A <= W), and every pitch is scaled alike (the static heap's shape kept)."""
+    a = math.hypot(PLATE, BACK)
+    sae = 0.5 * PLATE * BACK * W + hip_roof(a, W, 0.5)               # 19.96 L
+    assert sae * 1e3 == pytest.approx(19.96, abs=0.01)
+    base_grid, base = capacity_table(_with_fill(cfg, 0.0))
+    level = math.atan2(BACK, PLATE)
+    for f in (0.85, 0.875, 0.90, 1.0, 1.1):
+        grid, vol = capacity_table(_with_fill(cfg, f))
+        assert np.array_equal(grid, base_grid)
+        ratio = vol / np.where(base > 0, base, np.nan)
+        ok = base > 1e-9
+        assert np.allclose(ratio[ok], ratio[ok][0], rtol=1e-12)       # one factor at every pitch
+        # at the rating's pose, by interpolation as the simulator reads it
+        assert float(np.interp(level, grid, vol)) == pytest.approx(f * sae, rel=2e-3)
+    # the static heap keeps 1.10 of the rating there: f = 0.875 takes 0.875 / 1.10 of it
+    static = heaped_volume(level, cfg["machine"], r(cfg["task"]["bucket_repose_deg"]))
+    assert static / sae == pytest.approx(1.10, abs=0.005)
+    assert fill_scale(_with_fill(cfg, 0.875)) == pytest.approx(0.875 * sae / static, rel=1e-9)
+
+
+def test_no_fill_factor_is_the_static_heap(cfg):
+    """0, or a file without the key (every file before 2026-12-02), is the whole static heap, bit for bit."""
+    no_key = copy.deepcopy(cfg)
+    no_key["task"].pop("bucket_fill_factor", None)
+    g0, v0 = capacity_table(_with_fill(cfg, 0.0))
+    g1, v1 = capacity_table(no_key)
+    assert fill_scale(no_key) == fill_scale(_with_fill(cfg, 0.0)) == 1.0
+    assert np.array_equal(g0, g1) and np.array_equal(v0, v1)
+    rep = r(cfg["task"]["bucket_repose_deg"])
+    assert v0[len(g0) // 2] == pytest.approx(heaped_volume(float(g0[len(g0) // 2]), cfg["machine"], rep), abs=1e-15)
+
+
+def test_fill_factor_out_of_range_is_refused(cfg):
+    for bad in (-0.1, 1.3):
+        with pytest.raises(ConfigError, match=r"'task\.bucket_fill_factor' = .* is out of range"):
+            validate(_with_fill(cfg, bad))
+        with pytest.raises(ValueError, match="bucket_fill_factor"):
+            fill_scale(_with_fill(cfg, bad))
+    with pytest.raises(ValueError, match="bucket_fill_factor"):
+        fill_scale(_with_fill(cfg, float("nan")))

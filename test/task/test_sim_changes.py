@@ -25,6 +25,8 @@ def _raw(c):
     c = {k: v for k, v in c.items() if k != "randomization"}
     if c["machine"].get("rear_differential", 0) == 0:
         c["machine"] = {k: v for k, v in c["machine"].items() if k != "rear_differential"}
+    if c["task"].get("bucket_fill_factor", 0.0) == 0.0:   # no fill factor, the static heap (2026-12-02): out at 0
+        c["task"] = {k: v for k, v in c["task"].items() if k != "bucket_fill_factor"}
     if c["sim"].get("attack_min_depth", 0.0) == 0.0:      # a stalled drive an error (2026-11-29): out at 0
         c["sim"] = {k: v for k, v in c["sim"].items() if k != "attack_min_depth"}
     c["task"] = {k: v for k, v in c["task"].items() if k not in ("r_tilt_per_deg", "r_tilt_free_deg",
@@ -45,9 +47,16 @@ def _raw(c):
 def _before_the_wedge(cfg):
     """The config of an actor trained before the wedge change (2026-11-26), hence also before
     the rear differential (the same day, later)."""
-    before = copy.deepcopy(cfg)
+    before = _before_the_fill(cfg)
     del before["pile"]["fee_wedge_by_motion"], before["pile"]["fee_wedge_tau"]
     del before["machine"]["rear_differential"]
+    return before
+
+
+def _before_the_fill(cfg):
+    """The config of an actor trained before the fill factor (2026-12-02): no task.bucket_fill_factor."""
+    before = copy.deepcopy(cfg)
+    before["task"].pop("bucket_fill_factor", None)
     return before
 
 
@@ -81,9 +90,9 @@ def test_with_the_differential_off_only_the_wedge_is_named(cfg):
 def test_an_actor_from_before_the_rear_differential_is_recognised(cfg):
     """Trained after the wedge change, with a motor on each rear wheel (rear_differential 0, or a
     parameter file without the key: the same hash)."""
-    four = copy.deepcopy(cfg)
+    four = _before_the_fill(cfg)
     four["machine"]["rear_differential"] = 0
-    legacy = copy.deepcopy(cfg)
+    legacy = _before_the_fill(cfg)
     del legacy["machine"]["rear_differential"]
     assert _raw(four) == _raw(legacy) == config_hash(four) == config_hash(legacy)
     note = sim_change_note(_raw(four), cfg)
@@ -123,4 +132,25 @@ def test_the_shipped_actors_run_on_the_config(cfg):
         margin, tilt = pol._trained_with()
         if not hash_matches(pol.meta["config_hash"], cfg, margin, tilt):
             note = pol.sim_change_note(cfg)
-            assert note is not None and "2026-11-26" in note, v
+            assert note is not None and any(date in note for _, _, date, _ in config_mod.SIM_CHANGES), v
+            assert "bucket_fill_factor" in note, v       # every one of them trained on the static heap
+
+
+def test_an_actor_from_before_the_fill_factor_is_recognised(cfg):
+    """Trained on the static heap (no task.bucket_fill_factor, or 0: the same hash) and run on a config with
+    the handbook's fill factor: recognised, the note naming the fill factor and nothing older."""
+    filled = copy.deepcopy(cfg)
+    filled["task"]["bucket_fill_factor"] = 0.875
+    static = copy.deepcopy(cfg)
+    static["task"]["bucket_fill_factor"] = 0.0
+    legacy = copy.deepcopy(cfg)
+    legacy["task"].pop("bucket_fill_factor", None)
+    assert _raw(static) == _raw(legacy) == config_hash(static) == config_hash(legacy)
+    assert config_hash(filled) == _raw(filled) != config_hash(static)
+    note = sim_change_note(_raw(legacy), filled)
+    assert note is not None and "bucket_fill_factor" in note and "2026-12-02" in note
+    assert "fee_wedge" not in note and "rear_differential" not in note
+    assert sim_change_note(_raw(filled), filled) is None          # trained on it: nothing to say
+    other = copy.deepcopy(legacy)
+    other["pile"]["density_min"] = 1700.0                         # another change besides: still a mismatch
+    assert sim_change_note(_raw(other), filled) is None

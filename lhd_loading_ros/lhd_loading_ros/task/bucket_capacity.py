@@ -199,16 +199,42 @@ def sae_heaped_volume(machine_cfg: dict) -> float:
     return heaped_volume(sec["level_strike_pitch"], machine_cfg, SAE_LOADER_REPOSE_RAD)
 
 
+def fill_scale(cfg: dict) -> float:
+    """The factor on the static-heap capacity (heaped_volume at task.bucket_repose_deg) that makes the
+    bucket hold task.bucket_fill_factor of its SAE heaped rating with its strike plane level (the
+    rating's own pose, about the 40 deg curl a loaded bucket is carried at); 1 when the fill factor
+    is 0 or absent (no fill factor: the whole static heap, 1.10 of the rating, as before 2026-12-02).
+
+    The fill factor is the handbook's loader fill factor, the share of the rated (SAE J742 heaped)
+    volume a loader delivers per pass: 85-90 % in uniform aggregates of 12 mm and over (Caterpillar
+    Performance Handbook, ed. 47, Tables p. 30-2), where the heap at the gravel's static repose
+    would keep 110 %. Particles of 2-5 cm bridge and leave voids at the walls and the back of a
+    0.39 m bucket and the heap rides lower on a moving bucket; the model scales every pitch alike
+    (docs/modeling.md "Bucket capacity")."""
+    t = cfg["task"]
+    fill = float(t.get("bucket_fill_factor", 0.0))
+    if not (math.isfinite(fill) and 0.0 <= fill <= 1.2):
+        raise ValueError(f"task.bucket_fill_factor {fill!r}: expected a share of the SAE heaped rating in (0, 1.2], "
+                         "or 0 for none")
+    if fill == 0.0:
+        return 1.0
+    sec = bucket_section(cfg["machine"])
+    static = heaped_volume(sec["level_strike_pitch"], cfg["machine"], math.radians(t["bucket_repose_deg"]))
+    return fill * sae_heaped_volume(cfg["machine"]) / static
+
+
 def capacity_table(cfg: dict, step_deg: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
-    """(pitch grid in rad, heaped volume in m^3) at the material's angle of repose
-    (task.bucket_repose_deg), over the pitch normalisation range of the tip frame widened by
-    30 deg each side (task.phi_shovel_min_deg / max_deg), for linear interpolation in the
-    simulator's kernel (clip the pitch to the grid's ends)."""
+    """(pitch grid in rad, capacity in m^3): the heaped volume at the material's angle of repose
+    (task.bucket_repose_deg) times fill_scale (task.bucket_fill_factor of the SAE rating with the
+    strike plane level), over the pitch normalisation range of the tip frame widened by 30 deg each
+    side (task.phi_shovel_min_deg / max_deg), for linear interpolation in the simulator's kernel
+    (clip the pitch to the grid's ends)."""
     t = cfg["task"]
     lo = t["phi_shovel_min_deg"] - 30.0
     hi = t["phi_shovel_max_deg"] + 30.0
     n = int(round((hi - lo) / step_deg)) + 1
     grid = np.radians(np.linspace(lo, hi, n))
     repose = math.radians(t["bucket_repose_deg"])
-    vol = np.array([heaped_volume(float(p), cfg["machine"], repose) for p in grid])
+    scale = fill_scale(cfg)
+    vol = np.array([heaped_volume(float(p), cfg["machine"], repose) for p in grid]) * scale
     return grid, vol

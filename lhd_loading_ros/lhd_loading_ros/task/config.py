@@ -90,6 +90,7 @@ SCHEMA: dict[str, Any] = {
         "r_tilt_ramp_pitch_margin": _i(0, 1), "r_success_mass_margin_kg": _f(0.0, 20.0),
         "bottom_tolerance": _f(0.0, 0.5),
         "bucket_repose_deg": _f(5.0, 60.0), "normalisers_from_pile": _i(0, 1),  # H4: capacity, derived normalisers
+        "bucket_fill_factor": _f(0.0, 1.2),     # loader fill factor of the SAE rating; 0: none (2026-12-02)
         "midgoal_from_pile": _i(0, 1), "reward_zones_from_pile": _i(0, 1),
     },
     "machine": {
@@ -369,6 +370,9 @@ OPTIONAL_DEFAULTS = {("training", "twin_critics"): 0, ("training", "slope_curric
                      # 2026-11-29, fifteenth session); > 0: it starts the episode where it stalled, if the tip is this
                      # far inside the pile (lhd_sim_node/simulator.py reset; docs/modeling.md "Piles steeper than gravel")
                      ("sim", "attack_min_depth"): 0.0,
+                     # 0: no fill factor, the bucket holds the whole static heap (task/bucket_capacity.py), as every
+                     # file before 2026-12-02 (thirty-seventh session; SIM_CHANGES)
+                     ("task", "bucket_fill_factor"): 0.0,
                      # the demonstrations read the told zones and stop in the end zone (learning/demonstrations.py)
                      ("training", "demo_told_zones"): 0, ("training", "demo_end_zone_stop"): 0.0,
                      # the push-curl teacher (policy/maneuver.push_curl_action, 2026-11-30); 0: the level push
@@ -593,6 +597,9 @@ def config_hash(cfg: dict) -> str:
     if "sim" in cfg and float(cfg["sim"].get("attack_min_depth", 0.0)) == 0.0:
         # a stalled attack drive an error, as before the key (2026-11-29): the hash every file had
         cfg = {**cfg, "sim": {k: v for k, v in cfg["sim"].items() if k != "attack_min_depth"}}
+    if "task" in cfg and float(cfg["task"].get("bucket_fill_factor", 0.0)) == 0.0:
+        # no fill factor: the whole static heap, as before the key (SIM_CHANGES, 2026-12-02): the hash every file had
+        cfg = {**cfg, "task": {k: v for k, v in cfg["task"].items() if k != "bucket_fill_factor"}}
     if "machine" in cfg and int(cfg["machine"].get("rear_differential", 0)) == 0:
         # the drive before the rear differential (SIM_CHANGES): the hash it always had
         cfg = {**cfg, "machine": {k: v for k, v in cfg["machine"].items() if k != "rear_differential"}}
@@ -694,6 +701,9 @@ SIM_CHANGES = (
      "the lip's FEE wedge resisted any horizontal tip motion, also lifting and curling out of the face"),
     ("machine", ("rear_differential",), "2026-11-26",
      "each rear wheel had its own motor; the paper's machine drives them through one motor and a differential"),
+    ("task", ("bucket_fill_factor",), "2026-12-02",
+     "the bucket held its whole geometric capacity, a heap at the static angle of repose: 1.10 of its SAE rating "
+     "at a 40 deg curl, where loaders deliver 0.85-0.90 of it in coarse gravel"),
 )
 
 
