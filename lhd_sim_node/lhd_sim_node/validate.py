@@ -331,10 +331,14 @@ def capacity(cfg: dict, density: float, scripted_spill: list[float] | None = Non
 
 def heuristic_fill(cfg: dict, slopes=SLOPES, seeds=(0, 1)) -> dict:
     """The Tampier-style heuristic (policy/tampier.py, config/tampier.yaml), which curls until the bucket
-    is full, on homogeneous piles at the midpoints of the config's pile ranges (homogeneous_config: the
-    density is known): the load it ends with over the reference's SAE heaped volume times that density,
+    is full, on homogeneous piles at the midpoints of the config's pile ranges (homogeneous_config): the
+    volume in its bucket at the end (the simulator's loaded_volume) over the reference's SAE heaped volume,
     its delivered fill factor, next to the handbook's for coarse gravel (reference_mechanics.LOADER_FILL_FACTOR).
-    Over the attempts that curled the bucket to the end (stage raise or done); every attempt's load also."""
+    Over the attempts that curled the bucket to the end (stage raise or done, whatever their outcome: most
+    end in the restricted zone, with the bucket as full as it gets). The heuristic fills the bucket to the
+    simulator's capacity at its final pitch, so this is an end-to-end check that what the kernel keeps is
+    the fill the config names (task.bucket_fill_factor), measured on a maneuver against the reference's
+    geometry; the handbook's range is the reference for that parameter, not an independent measurement."""
     from lhd_loading_ros.learning.baselines import run_tampier_episode
     from lhd_loading_ros.policy.tampier import TampierController, load_tampier_config
 
@@ -348,12 +352,14 @@ def heuristic_fill(cfg: dict, slopes=SLOPES, seeds=(0, 1)) -> dict:
         for s in seeds:
             r, _ = run_tampier_episode(env, ctl, s, {"slope_deg": a, "material": "homogeneous"})
             rows.append({"slope_deg": float(a), "seed": int(s), "loaded_kg": float(r.loaded),
+                         "loaded_L": float(env.sim.loaded_volume) * 1e3,
                          "curled": ctl.stage in ("raise", "done"), "success": bool(r.success)})
-    curled = [x["loaded_kg"] for x in rows if x["curled"]]
-    fills = [m / (rho * heaped) for m in curled]
+    curled = [x for x in rows if x["curled"]]
+    fills = [x["loaded_L"] / (heaped * 1e3) for x in curled]
     lo, hi = COARSE_GRAVEL_FILL
     return {"density": rho, "heaped_iso_L": heaped * 1e3, "attempts": rows, "curled": len(curled),
-            "loaded_kg_mean": float(np.mean(curled)) if curled else math.nan,
+            "loaded_kg_mean": float(np.mean([x["loaded_kg"] for x in curled])) if curled else math.nan,
+            "loaded_L_mean": float(np.mean([x["loaded_L"] for x in curled])) if curled else math.nan,
             "fill_mean": float(np.mean(fills)) if fills else math.nan,
             "fill_min": float(np.min(fills)) if fills else math.nan,
             "fill_max": float(np.max(fills)) if fills else math.nan,
@@ -524,7 +530,8 @@ def format_report(res: dict) -> str:
              f"at the repose {cp['repose_deg']:.1f} deg by pitch:")
     for b in cp["by_pitch"]:
         L.append(f"      pitch {b['pitch_deg']:>5.1f} deg: reference {b['ref_L']:6.2f} L ({b['ref_kg']:.1f} kg), "
-                 f"simulator's table {_f(b['sim_L'], '{:.2f}')} L, ratio {_f(b['ratio'], '{:.3f}')}")
+                 f"simulator's static heap {_f(b['sim_L'], '{:.2f}')} L, ratio {_f(b['ratio'], '{:.3f}')}; its table "
+                 f"(x {cp['fill_scale']:.3f}, the fill factor) {_f(b['sim_L'] * cp['fill_scale'], '{:.2f}')} L")
     gd = cp["gravel_density"]
     L.append(f"   rated {cp['rated_kg']:.0f} kg over the heaped {cp['heaped_iso_L']:.2f} L: rated for loose material of "
              f"{cp['rating_density']:.0f} kg/m^3; the pile is {cp['pile_density_range'][0]:.0f}-{cp['pile_density_range'][1]:.0f} "
@@ -539,6 +546,7 @@ def format_report(res: dict) -> str:
     if hf:
         L.append(f"   the Tampier-style heuristic (curls until full) on homogeneous {hf['density']:.0f} kg/m^3 piles: "
                  f"{hf['curled']} of {len(hf['attempts'])} attempts curled to the end with {_f(hf['loaded_kg_mean'], '{:.1f}')} kg, "
+                 f"{_f(hf['loaded_L_mean'], '{:.2f}')} L in the bucket: "
                  f"a delivered fill of {_f(hf['fill_mean'], '{:.2f}')} ({_f(hf['fill_min'], '{:.2f}')}-{_f(hf['fill_max'], '{:.2f}')}) "
                  f"of the SAE heaped {hf['heaped_iso_L']:.2f} L; handbook {hf['handbook'][0]:.2f}-{hf['handbook'][1]:.2f}: "
                  f"within (+-0.03): {hf['within_handbook']}")

@@ -1,9 +1,10 @@
 """The bucket's fill against what loaders deliver (docs/modeling.md "Bucket capacity", open finding 10): the
-Tampier-style heuristic curls until the bucket is full, so the load it ends with is the simulator's fill. On
-the config (task.bucket_fill_factor 0.875) it must lie in the wheel-loader fill factors of the Caterpillar
-Performance Handbook (ed. 47, Tables p. 30-2: 85-90 % of the SAE heaped rating for uniform aggregates of
-12 mm and over), written here, with the rating computed here by hand; on the static heap (no fill factor,
-every actor before 2026-12-02) it over-fills, as the finding says."""
+Tampier-style heuristic curls until the bucket is full, so the volume in its bucket at the end is what the
+simulator's kernel keeps. On the config (task.bucket_fill_factor 0.875) that must lie in the wheel-loader fill
+factors of the Caterpillar Performance Handbook (ed. 47, Tables p. 30-2: 85-90 % of the SAE heaped rating for
+uniform aggregates of 12 mm and over), written here, over the rating computed here by hand; on the static heap
+(no fill factor, every actor before 2026-12-02) it over-fills, as the finding says. An end-to-end check that the
+kernel keeps the fill the config names, on a maneuver; the handbook is the reference for that parameter."""
 import copy
 import math
 
@@ -25,18 +26,19 @@ def cfg():
 
 
 def _fills(res):
-    return [a["loaded_kg"] / (res["density"] * SAE_L * 1e-3) for a in res["attempts"] if a["curled"]]
+    return [a["loaded_L"] / SAE_L for a in res["attempts"] if a["curled"]]
 
 
 def test_the_heuristic_delivers_the_handbook_fill(cfg):
     assert SAE_L == pytest.approx(19.96, abs=0.01)
     assert cfg["task"]["bucket_fill_factor"] == pytest.approx(0.875)
-    res = heuristic_fill(cfg, slopes=(15.0, 30.0), seeds=(0, 1))
+    res = heuristic_fill(cfg, slopes=(20.0, 25.0, 30.0), seeds=(0, 1))
     assert res["heaped_iso_L"] == pytest.approx(SAE_L, rel=1e-3)
     fills = _fills(res)
-    assert len(fills) >= 2, res["attempts"]           # it curled to the end on at least two piles
+    assert len(fills) >= 3, res["attempts"]           # it curled to the end on at least three piles
     for f in fills:
-        assert HANDBOOK[0] - 0.03 <= f <= HANDBOOK[1] + 0.03, (f, res["attempts"])
+        assert HANDBOOK[0] - 0.04 <= f <= HANDBOOK[1] + 0.03, (f, res["attempts"])
+    assert HANDBOOK[0] - 0.03 <= sum(fills) / len(fills) <= HANDBOOK[1] + 0.03
     assert res["within_handbook"]
 
 

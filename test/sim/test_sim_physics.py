@@ -112,17 +112,17 @@ def test_first_episode_equals_a_later_one_with_the_same_seed():
 
 def test_payload_is_bounded_by_the_bucket_geometry_and_nothing_is_lost(env):
     """A scripted attempt on a steep pile: the bucket holds at most its heaped volume at its final
-    pitch (struck + heap at the angle of repose, task/bucket_capacity.py), what it loaded plus what
-    spilled is 2/3 of the mass cut from the pile (the paper's loaded fraction), and the bucket body
-    carries exactly the payload. No mass cap."""
-    from lhd_loading_ros.task.bucket_capacity import heaped_volume
+    pitch (struck + heap at the angle of repose, times the fill factor's scale, task/bucket_capacity.py),
+    what it loaded plus what spilled is 2/3 of the mass cut from the pile (the paper's loaded fraction),
+    and the bucket body carries exactly the payload. No mass cap."""
+    from lhd_loading_ros.task.bucket_capacity import fill_scale, heaped_volume
 
     run_episode(env, lambda s: scripted_action(s, env.p.x_midgoal, lift_on_drift=True), seed=12,
                 options={"slope_deg": 30.0, "material": "homogeneous"})
     sim = env.sim
     cfg = env.cfg
     pitch = sim.state().phi_shovel
-    cap = heaped_volume(pitch, cfg["machine"], math.radians(cfg["task"]["bucket_repose_deg"]))
+    cap = heaped_volume(pitch, cfg["machine"], math.radians(cfg["task"]["bucket_repose_deg"])) * fill_scale(cfg)
     assert sim.loaded_volume <= cap * (1 + 1e-6) + 1e-9
     assert sim.loaded_mass + sim.spilled_mass == pytest.approx(2.0 / 3.0 * sim.pile.removed_mass, rel=1e-6)
     assert sim.model.body_mass[sim.bid_bucket] == pytest.approx(sim.bucket_mass0 + sim.loaded_mass)

@@ -191,7 +191,7 @@ def test_fill_factor_holds_the_handbook_share_of_the_rating(cfg):
     assert sae * 1e3 == pytest.approx(19.96, abs=0.01)
     base_grid, base = capacity_table(_with_fill(cfg, 0.0))
     level = math.atan2(BACK, PLATE)
-    for f in (0.85, 0.875, 0.90, 1.0, 1.1):
+    for f in (0.76, 0.85, 0.875, 0.90, 1.0, 1.09):
         grid, vol = capacity_table(_with_fill(cfg, f))
         assert np.array_equal(grid, base_grid)
         ratio = vol / np.where(base > 0, base, np.nan)
@@ -225,3 +225,12 @@ def test_fill_factor_out_of_range_is_refused(cfg):
             fill_scale(_with_fill(cfg, bad))
     with pytest.raises(ValueError, match="bucket_fill_factor"):
         fill_scale(_with_fill(cfg, float("nan")))
+    with pytest.raises(ConfigError, match="bucket_fill_factor"):
+        validate(_with_fill(cfg, float("nan")))
+    # inside the schema's [0, 1.2] but outside this bucket's physical range: below its struck volume (0.749 of the
+    # rating, 14.96 / 19.96 L) or above its static heap (1.100)
+    struck_share = 0.5 * PLATE * BACK * W / (0.5 * PLATE * BACK * W + hip_roof(math.hypot(PLATE, BACK), W, 0.5))
+    assert struck_share == pytest.approx(0.749, abs=0.001)
+    for bad in (0.6, 0.74, 1.11, 1.2):
+        with pytest.raises(ValueError, match=r"struck and 1\.1\d\d with the static heap"):
+            fill_scale(_with_fill(cfg, bad))

@@ -52,8 +52,9 @@ def push_curl_action(s: LhdState, x_min: float, x_max: float, z_min: float, memo
                      lift_on_drift: bool = True) -> np.ndarray:
     """The maneuver with the bucket curled while it pushes and a late lift (2026-11-30;
     docs/training.md "How much a slope told too high can give"). The level push of
-    ``scripted_action`` fills the bucket to its attack-pose capacity (about 22 kg) by 0.62 m into a
-    15 deg pile and stalls at 0.65-0.77 m; when the end zone is short of the pile's own (a slope
+    ``scripted_action`` fills the bucket to its attack-pose capacity (about 22 kg on the static heap,
+    17.8 kg with the config's fill factor, docs/modeling.md "Bucket capacity") early in a 15 deg pile
+    and stalls at 0.65-0.77 m; when the end zone is short of the pile's own (a slope
     estimate too high) the bucket must then rise through the face in place and comes out with what
     it holds. Here:
 
@@ -71,9 +72,10 @@ def push_curl_action(s: LhdState, x_min: float, x_max: float, z_min: float, memo
       rises in place, full of what the pre-curled push cut.
 
     ``memory``: the caller's dict for one attempt (empty at its start): whether the lift started and
-    how. On a 15 deg pile told 30 deg it loads 33.6 kg where ``scripted_action`` loads 26.3, and
+    how. On a 15 deg pile told 30 deg it loaded 33.6 kg where ``scripted_action`` loaded 26.3, and
     within 12 % of its no-error load in every cell of -15..+15 deg on 15 and 30 deg piles the nodes
-    accept (docs/evidence/told_high_bound/teacher_push_curl/)."""
+    accept (docs/evidence/told_high_bound/teacher_push_curl/, on the static heap; with the fill factor
+    on seed 5 of that pile 28.0 kg against the level push's 24.0, test_demonstrations)."""
     x_lift = x_min + late_lift * (x_max - x_min)
     if not memory.get("lift"):
         at_x = late_lift > 0.0 and s.x_shovel + LATE_LOOKAHEAD_S * max(s.v_x, 0.0) >= x_lift

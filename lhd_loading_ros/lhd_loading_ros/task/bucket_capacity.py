@@ -214,13 +214,21 @@ def fill_scale(cfg: dict) -> float:
     t = cfg["task"]
     fill = float(t.get("bucket_fill_factor", 0.0))
     if not (math.isfinite(fill) and 0.0 <= fill <= 1.2):
-        raise ValueError(f"task.bucket_fill_factor {fill!r}: expected a share of the SAE heaped rating in (0, 1.2], "
-                         "or 0 for none")
+        raise ValueError(f"task.bucket_fill_factor {fill!r}: expected 0 (none) or a share of the SAE heaped rating "
+                         "in (0, 1.2]")
     if fill == 0.0:
         return 1.0
     sec = bucket_section(cfg["machine"])
+    sae = sae_heaped_volume(cfg["machine"])
     static = heaped_volume(sec["level_strike_pitch"], cfg["machine"], math.radians(t["bucket_repose_deg"]))
-    return fill * sae_heaped_volume(cfg["machine"]) / static
+    # between the struck volume (less would spill material below the strike plane) and the static heap (more
+    # would stand steeper than the angle of repose): 0.75-1.10 for this bucket at 35 deg
+    lo, hi = sec["struck_volume"] / sae, static / sae
+    if not lo - 1e-9 <= fill <= hi + 1e-9:
+        raise ValueError(f"task.bucket_fill_factor {fill:g}: this bucket holds {lo:.3f} of its SAE heaped rating struck "
+                         f"and {hi:.3f} with the static heap at task.bucket_repose_deg {t['bucket_repose_deg']:g} deg; "
+                         f"expected 0 (none) or a fill factor within [{lo:.3f}, {hi:.3f}]")
+    return fill * sae / static
 
 
 def capacity_table(cfg: dict, step_deg: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
