@@ -234,3 +234,7 @@ def test_fill_factor_out_of_range_is_refused(cfg):
     for bad in (0.6, 0.74, 1.11, 1.2):
         with pytest.raises(ValueError, match=r"struck and 1\.1\d\d with the static heap"):
             fill_scale(_with_fill(cfg, bad))
+        with pytest.raises(ConfigError, match=r"relation violated: task\.bucket_fill_factor is 0 \(none\) or within"):
+            validate(_with_fill(cfg, bad))          # refused when the file is read, with what is expected
+    for good in (0.0, 0.76, 0.875, 1.09):
+        assert validate(_with_fill(cfg, good))["task"]["bucket_fill_factor"] == good

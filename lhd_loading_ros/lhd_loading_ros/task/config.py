@@ -234,6 +234,9 @@ _RELATIONS = [
     ("sim.attack_min_depth <= paper.episode.d_init (0: the attack must reach d_init; else the least depth a "
      "stalled attack may start from)",
      lambda c: c["sim"]["attack_min_depth"] <= c["paper"]["episode"]["d_init"]),
+    ("task.bucket_fill_factor is 0 (none) or within the bucket's struck share and its static heap at task.bucket_repose_deg "
+     "(0.749-1.100 of the SAE heaped rating for the paper's bucket at 35 deg; task/bucket_capacity.fill_scale)",
+     lambda c: _fill_factor_ok(c)),
     ("paper.episode.d_attack_min <= paper.episode.d_attack_max",
      lambda c: c["paper"]["episode"]["d_attack_min"] <= c["paper"]["episode"]["d_attack_max"]),
     ("hardware.reconnect_backoff_min <= hardware.reconnect_backoff_max",
@@ -444,6 +447,18 @@ def _error_message(errors: list[str]) -> str:
         msg += (f"\n({missing} missing keys: a parameter file is complete, not an overlay of the default; copy "
                 f"config/lhd_params.yaml, or the actor's own lhd_params.yaml, and change the values you need)")
     return msg
+
+
+def _fill_factor_ok(cfg: dict) -> bool:
+    """task.bucket_fill_factor within what the config's bucket can hold (task/bucket_capacity.fill_scale)."""
+    if float(cfg["task"].get("bucket_fill_factor", 0.0)) == 0.0:
+        return True
+    from lhd_loading_ros.task.bucket_capacity import fill_scale   # geometry; imported here, it needs no config
+    try:
+        fill_scale(cfg)
+    except ValueError:
+        return False
+    return True
 
 
 def validate(cfg: Any) -> dict:
